@@ -1,0 +1,81 @@
+"""Episode specs: what one episode is, before anything is simulated.
+
+An `EpisodeSpec` is a pure function of (recipe, split, index, attempt): the floor plan, the
+robot's start pose, the sound events in priority order and the ground-truth skill chain. It
+is JSON-serialisable so it can be stored, shown (`echo-data preview`) and rebuilt anywhere.
+The sampler lives in `echo_data.scene.sampling` (it needs the scene generator and the
+solvability checks); this module only holds the data and the seed derivation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from echo_data.scene.floorplan import FloorPlan, Vec3
+
+SPLIT_KEYS = {"train": 0, "val": 1, "test": 2}
+
+
+def episode_seed(recipe_seed: int, split: str, index: int, attempt: int = 0) -> int:
+    """Seed of one episode attempt, derived with SeedSequence from (recipe seed, split, index, attempt).
+
+    Never depends on worker identity or timing, so any worker reproduces any episode.
+    """
+    ss = np.random.SeedSequence([int(recipe_seed), SPLIT_KEYS[split], int(index), int(attempt)])
+    return int(ss.generate_state(1, dtype=np.uint64)[0] & 0x7FFF_FFFF_FFFF_FFFF)
+
+
+@dataclass(frozen=True)
+class SoundEvent:
+    """One sounding event: what sounds, where, and what resolves it."""
+
+    category: str  # phone | alarm | furby | doorbell | sink
+    sound_id: str  # instance id in the sound library
+    target: str  # object name ("phone_0"), "door:<i>" or "faucet:<i>"
+    source: Vec3  # where the sound comes from (object centre, doorbell button, faucet spout)
+    priority: int  # 0 is resolved first
+
+
+@dataclass(frozen=True)
+class SkillCall:
+    """One entry of the skill chain."""
+
+    skill: str  # Navigate | Pick | Place | OpenDoor | CloseSink
+    target: str  # object name, "door:<i>", "faucet:<i>" or "furniture:<i>" (Place goal)
+    event: int  # index into EpisodeSpec.events
+
+
+@dataclass(frozen=True)
+class EpisodeSpec:
+    episode_id: str  # e.g. "train-000042"
+    split: str
+    index: int
+    attempt: int
+    seed: int
+    setting: str  # object_relocation | state_transition | multi_event
+    plan: FloorPlan
+    start: tuple[float, float, float]  # base x, y, yaw
+    events: tuple[SoundEvent, ...]  # in priority order
+    chain: tuple[SkillCall, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @staticmethod
+    def from_dict(d: dict[str, Any]) -> "EpisodeSpec":
+        return EpisodeSpec(
+            episode_id=d["episode_id"],
+            split=d["split"],
+            index=d["index"],
+            attempt=d["attempt"],
+            seed=d["seed"],
+            setting=d["setting"],
+            plan=FloorPlan.from_dict(d["plan"]),
+            start=tuple(d["start"]),
+            events=tuple(SoundEvent(**{**e, "source": tuple(e["source"])}) for e in d["events"]),
+            chain=tuple(SkillCall(**c) for c in d["chain"]),
+        )

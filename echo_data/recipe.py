@@ -1,0 +1,325 @@
+"""Recipe schema, loading (with `extends:`), defaults and content hash.
+
+A recipe is validated completely before any work starts; every problem becomes a
+`RecipeError` whose one-line message names the file and the key path.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+SETTINGS = ("object_relocation", "state_transition", "multi_event")
+RELOCATION_CATEGORIES = ("phone", "alarm", "furby")
+STATE_CATEGORIES = ("doorbell", "sink")
+CATEGORIES = RELOCATION_CATEGORIES + STATE_CATEGORIES
+SKILLS = ("Navigate", "Pick", "Place", "OpenDoor", "CloseSink")
+
+
+class RecipeError(ValueError):
+    """A recipe problem; `str()` is one line naming the file and the key."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def _check_range(v: tuple[float, float], name: str = "range") -> tuple[float, float]:
+    if v[0] > v[1]:
+        raise ValueError(f"{name} must be [low, high] with low <= high, got {list(v)}")
+    return v
+
+
+class SceneConfig(_Strict):
+    """Procedural apartment sampler."""
+
+    rooms: tuple[int, int] = (2, 4)
+    room_size: tuple[float, float] = (3.2, 5.0)  # side length range of a room (m)
+    wall_height: float = Field(2.5, gt=1.8, le=5.0)
+    wall_thickness: float = Field(0.1, gt=0.02, le=0.5)
+    doorway_width: float = Field(1.0, ge=0.85, le=1.6)
+    door_probability: float = Field(0.6, ge=0.0, le=1.0)  # interior doorway gets a hinged leaf
+    furniture_per_room: tuple[int, int] = (1, 3)
+    wall_materials: tuple[str, ...] = ("plasterboard", "brickwork", "rough_concrete")
+    floor_materials: tuple[str, ...] = ("linoleum_on_concrete", "carpet_cotton", "audience_floor")
+    ceiling_materials: tuple[str, ...] = ("ceiling_plasterboard",)
+    furniture_materials: tuple[str, ...] = ("wooden_door",)
+
+    @field_validator("rooms")
+    @classmethod
+    def _rooms(cls, v: tuple[int, int]) -> tuple[int, int]:
+        _check_range(v)
+        if v[0] < 2 or v[1] > 6:
+            raise ValueError(f"rooms must lie within [2, 6], got {list(v)}")
+        return v
+
+    @field_validator("room_size")
+    @classmethod
+    def _room_size(cls, v: tuple[float, float]) -> tuple[float, float]:
+        _check_range(v)
+        if v[0] < 2.5 or v[1] > 12.0:
+            raise ValueError(f"room_size must lie within [2.5, 12] m, got {list(v)}")
+        return v
+
+    @field_validator("furniture_per_room")
+    @classmethod
+    def _fpr(cls, v: tuple[int, int]) -> tuple[int, int]:
+        _check_range(v)
+        if v[0] < 0 or v[1] > 6:
+            raise ValueError(f"furniture_per_room must lie within [0, 6], got {list(v)}")
+        return v
+
+
+class ObjectsConfig(_Strict):
+    """Sounding targets and silent clutter."""
+
+    targets: tuple[Literal["phone", "alarm", "furby"], ...] = RELOCATION_CATEGORIES
+    distractors: tuple[int, int] = (1, 3)
+    distractor_shapes: tuple[str, ...] = ("mug", "can", "box", "bowl", "bottle", "book")
+
+    @field_validator("distractors")
+    @classmethod
+    def _d(cls, v: tuple[int, int]) -> tuple[int, int]:
+        _check_range(v)
+        if v[0] < 0 or v[1] > 12:
+            raise ValueError(f"distractors must lie within [0, 12], got {list(v)}")
+        return v
+
+
+class SoundsConfig(_Strict):
+    """Sound library: the built-in synthesised instances and/or the user's WAV folders."""
+
+    builtin: bool = True
+    folders: dict[Literal["phone", "alarm", "furby", "doorbell", "sink"], str] = Field(default_factory=dict)
+    folder_test_fraction: float = Field(0.3, ge=0.0, lt=1.0)
+
+
+class EventsConfig(_Strict):
+    """Which sound events happen, how often, and in which order they must be resolved."""
+
+    categories: dict[Literal["phone", "alarm", "furby", "doorbell", "sink"], float] = Field(
+        default_factory=lambda: {c: 1.0 for c in CATEGORIES}
+    )
+    # Multi-event priority rule: the category earlier in this list is resolved first.
+    priority: tuple[Literal["phone", "alarm", "furby", "doorbell", "sink"], ...] = (
+        "sink",
+        "doorbell",
+        "alarm",
+        "phone",
+        "furby",
+    )
+
+    @field_validator("categories")
+    @classmethod
+    def _weights(cls, v: dict[str, float]) -> dict[str, float]:
+        if any(w < 0 for w in v.values()) or sum(v.values()) <= 0:
+            raise ValueError("category weights must be >= 0 with a positive sum")
+        return v
+
+    @field_validator("priority")
+    @classmethod
+    def _prio(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        if sorted(v) != sorted(CATEGORIES):
+            raise ValueError(f"priority must list each of {list(CATEGORIES)} exactly once")
+        return v
+
+
+class CameraConfig(_Strict):
+    width: int = Field(128, ge=16, le=1024)
+    height: int = Field(128, ge=16, le=1024)
+    fov_deg: float = Field(70.0, gt=10.0, lt=170.0)
+    rgb: bool = True
+    depth: bool = True
+
+
+class RobotConfig(_Strict):
+    """Robot, cameras, rates and step limits."""
+
+    physics_hz: int = Field(100, ge=50, le=1000)
+    control_hz: int = Field(10, ge=1, le=50)
+    head_camera: CameraConfig = CameraConfig()
+    wrist_camera: CameraConfig = CameraConfig(rgb=False)
+    max_steps: dict[Literal["Navigate", "Pick", "Place", "OpenDoor", "CloseSink"], int] = Field(
+        default_factory=lambda: {"Navigate": 600, "Pick": 250, "Place": 250, "OpenDoor": 300, "CloseSink": 200}
+    )
+
+    @model_validator(mode="after")
+    def _rates(self) -> "RobotConfig":
+        if self.physics_hz % self.control_hz:
+            raise ValueError(f"physics_hz ({self.physics_hz}) must be a multiple of control_hz ({self.control_hz})")
+        return self
+
+
+class AcousticsConfig(_Strict):
+    """Room acoustics and binaural rendering."""
+
+    sample_rate: int = Field(16000, ge=8000, le=48000)
+    rir_seconds: float = Field(0.5, gt=0.05, le=3.0)
+    ism_order: int = Field(3, ge=0, le=12)
+    rays: int = Field(2000, ge=0, le=200000)
+    scattering: float = Field(0.3, ge=0.0, le=1.0)
+    air_absorption: bool = True
+    hrtf: Literal["kemar", "sphere"] = "kemar"
+    grid: float = Field(0.5, gt=0.05, le=2.0)  # receiver cache grid (m)
+    yaws: int = Field(8, ge=1, le=72)  # head yaws cached per grid point
+    closed_door_loss_db: float = Field(25.0, ge=0.0, le=80.0)
+    ear_height: float = Field(1.2, gt=0.2, le=2.0)
+    mel_bands: int = Field(64, ge=8, le=256)
+
+
+class OutputsConfig(_Strict):
+    """What the dataset stores and how it is cut into shards."""
+
+    episodes_per_shard: int = Field(16, ge=1, le=10000)
+    observations: tuple[Literal["head_rgb", "head_depth", "wrist_depth", "spectrogram", "mel"], ...] = (
+        "head_rgb",
+        "head_depth",
+        "wrist_depth",
+        "spectrogram",
+        "mel",
+    )
+    planner_export: bool = True
+
+
+class Recipe(_Strict):
+    """A whole, validated recipe."""
+
+    name: str = Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+    seed: int = Field(0, ge=0)
+    splits: dict[str, int] = Field(default_factory=lambda: {"train": 8, "test": 4})
+    setting: Literal["object_relocation", "state_transition", "multi_event"] | dict[
+        Literal["object_relocation", "state_transition", "multi_event"], float
+    ] = "object_relocation"
+    max_attempts_per_episode: int = Field(8, ge=1, le=100)
+    scene: SceneConfig = SceneConfig()
+    objects: ObjectsConfig = ObjectsConfig()
+    sounds: SoundsConfig = SoundsConfig()
+    events: EventsConfig = EventsConfig()
+    robot: RobotConfig = RobotConfig()
+    acoustics: AcousticsConfig = AcousticsConfig()
+    outputs: OutputsConfig = OutputsConfig()
+
+    @field_validator("splits")
+    @classmethod
+    def _splits(cls, v: dict[str, int]) -> dict[str, int]:
+        if not v:
+            raise ValueError("at least one split is required")
+        for k, n in v.items():
+            if k not in ("train", "test", "val"):
+                raise ValueError(f"unknown split {k!r} (use train, val, test)")
+            if not isinstance(n, int) or n < 0:
+                raise ValueError(f"split {k!r} must be a non-negative integer")
+        return v
+
+    @field_validator("setting")
+    @classmethod
+    def _setting(cls, v: Any) -> Any:
+        if isinstance(v, dict) and (any(w < 0 for w in v.values()) or sum(v.values()) <= 0):
+            raise ValueError("setting weights must be >= 0 with a positive sum")
+        return v
+
+    def setting_weights(self) -> dict[str, float]:
+        """The setting mix as normalised weights."""
+        if isinstance(self.setting, str):
+            return {self.setting: 1.0}
+        total = sum(self.setting.values())
+        return {k: w / total for k, w in self.setting.items() if w > 0}
+
+    def content_hash(self) -> str:
+        """sha256 of the canonical JSON of the resolved recipe."""
+        blob = json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def _deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k] = _deep_merge(out[k], v)
+        else:
+            out[k] = v
+    return out
+
+
+def _read_yaml(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """Read a recipe file and resolve its `extends:` chain into one mapping."""
+    path = path.resolve()
+    if path in chain:
+        raise RecipeError(f"{path}: extends: circular chain {' -> '.join(str(p) for p in chain + (path,))}")
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise RecipeError(f"{path}: file not found") from None
+    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as e:
+        raise RecipeError(f"{path}: cannot read recipe ({e.__class__.__name__})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise RecipeError(f"{path}: malformed YAML{where}: {problem}") from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise RecipeError(f"{path}: a recipe must be a mapping of keys, got {type(data).__name__}")
+    parent = data.pop("extends", None)
+    if parent is not None:
+        if not isinstance(parent, str):
+            raise RecipeError(f"{path}: extends: must be a file path")
+        base = _read_yaml((path.parent / parent), chain + (path,))
+        data = _deep_merge(base, data)
+    return data
+
+
+def _loc(loc: tuple[Any, ...]) -> str:
+    parts = [str(p) for p in loc if not str(p).startswith(("function-", "literal[", "dict[", "tuple["))]
+    # pydantic reports union branches by type name; keep only the real path.
+    return ".".join(p for p in parts if p not in ("str", "int", "float", "list", "dict")) or "<root>"
+
+
+def recipe_from_mapping(data: dict[str, Any], source: str = "<recipe>") -> Recipe:
+    """Validate a mapping; raise a one-line `RecipeError` naming `source` and the key."""
+    try:
+        recipe = Recipe.model_validate(data)
+    except ValidationError as e:
+        err = e.errors()[0]
+        key = _loc(tuple(err["loc"]))
+        msg = err["msg"]
+        if err["type"] == "extra_forbidden":
+            msg = "unknown key"
+        elif err["type"] == "missing":
+            msg = "required key is missing"
+        more = f" (+{len(e.errors()) - 1} more)" if len(e.errors()) > 1 else ""
+        raise RecipeError(f"{source}: {key}: {msg}{more}") from None
+    _check_sound_folders(recipe, source)
+    return recipe
+
+
+def _check_sound_folders(recipe: Recipe, source: str) -> None:
+    base = Path(source).parent if source != "<recipe>" else Path.cwd()
+    for cat, folder in recipe.sounds.folders.items():
+        p = (base / folder) if not Path(folder).is_absolute() else Path(folder)
+        if not p.is_dir():
+            raise RecipeError(f"{source}: sounds.folders.{cat}: not a readable folder: {folder}")
+    if not recipe.sounds.builtin and not recipe.sounds.folders:
+        raise RecipeError(f"{source}: sounds: builtin is false and no folders are given")
+
+
+def load_recipe(path: str | Path) -> Recipe:
+    """Load, resolve `extends:`, validate. Raises `RecipeError` with a one-line message."""
+    p = Path(path)
+    data = _read_yaml(p)
+    recipe = recipe_from_mapping(data, str(p))
+    return recipe
+
+
+def resolve_folder(recipe_path: str | Path, folder: str) -> Path:
+    """A sound folder path as given in a recipe, resolved against the recipe's directory."""
+    f = Path(folder)
+    return f if f.is_absolute() else (Path(recipe_path).resolve().parent / f)

@@ -1,0 +1,82 @@
+"""Per-control-step records produced by a rollout, and the layout of `action` and `state`.
+
+The fixed-length vectors are described here once so that the robot, the dataset schema,
+the stats and the loaders agree on what each element means.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+ARM_JOINTS = 7
+# action = [base vx, base vy, base wz (robot frame, m/s, rad/s), torso target (m),
+#           7 arm joint targets (rad), gripper target opening (m, 0 closed .. 0.1 open)]
+ACTION_NAMES: tuple[str, ...] = (
+    ("base_vx", "base_vy", "base_wz", "torso")
+    + tuple(f"arm_{i}" for i in range(ARM_JOINTS))
+    + ("gripper",)
+)
+ACTION_DIM = len(ACTION_NAMES)  # 12
+
+# state = [base x, y, yaw (world), torso (m), 7 arm joint positions, gripper opening (m),
+#          base vx, vy, wz, torso vel, 7 arm joint velocities, gripper vel, holding (0/1)]
+STATE_NAMES: tuple[str, ...] = (
+    ("base_x", "base_y", "base_yaw", "torso")
+    + tuple(f"arm_{i}" for i in range(ARM_JOINTS))
+    + ("gripper",)
+    + ("base_vx", "base_vy", "base_wz", "torso_vel")
+    + tuple(f"arm_{i}_vel" for i in range(ARM_JOINTS))
+    + ("gripper_vel", "holding")
+)
+STATE_DIM = len(STATE_NAMES)  # 25
+
+
+@dataclass
+class StepRecord:
+    """Everything observed and done at one control step (audio features are added later)."""
+
+    frame_index: int
+    timestamp: float  # seconds since episode start = frame_index / control_hz
+    skill: str
+    skill_index: int  # index into EpisodeSpec.chain
+    action: np.ndarray  # float32 (ACTION_DIM,)
+    state: np.ndarray  # float32 (STATE_DIM,)
+    head_rgb: np.ndarray | None  # uint8 (H, W, 3)
+    head_depth: np.ndarray | None  # uint16 (H, W) millimetres
+    wrist_depth: np.ndarray | None  # uint16 (H, W) millimetres
+    ear_position: tuple[float, float, float]  # head centre in world (for audio)
+    ear_yaw: float  # head yaw in world (rad)
+    sounding: tuple[bool, ...]  # per event: still playing at this step
+    skill_success: tuple[bool, ...] = field(default_factory=tuple)  # per chain entry, so far
+    done: bool = False
+
+
+@dataclass
+class SkillOutcome:
+    """How one entry of the skill chain ended."""
+
+    skill: str
+    target: str
+    success: bool
+    reason: str  # "" on success, else why it failed (e.g. "no IK solution", "timeout")
+    steps: int
+
+
+@dataclass
+class EpisodeResult:
+    """A finished rollout with its audio, ready for the dataset writer.
+
+    `spec` is an `echo_data.episode.EpisodeSpec`; audio arrays are aligned with `steps`.
+    """
+
+    spec: object
+    steps: list[StepRecord]
+    outcomes: list[SkillOutcome]
+    success: bool
+    audio: np.ndarray | None = None  # (n_samples, 2) float32 binaural track
+    audio_offsets: np.ndarray | None = None  # (n_steps,) int64: sample index at each step
+    spectrogram: np.ndarray | None = None  # (n_steps, 65, 26, 2) float32, SoundSpaces-style
+    mel: np.ndarray | None = None  # (n_steps, n_mels, 101, 2) float32 log-mel of the last 1 s
+    rejected: dict[str, int] = field(default_factory=dict)  # sampling rejections on the way

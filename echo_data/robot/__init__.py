@@ -1,0 +1,1 @@
+"""echo_data.robot"""

@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# One-command setup on a fresh Debian bookworm machine (as root): system packages
+# (Mesa 25 lavapipe for CPU rendering) and echo-data with its test extras.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then bash scripts/setup_system.sh; fi
+python3 -m pip install -q --disable-pip-version-check -e '.[test]'
