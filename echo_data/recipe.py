@@ -9,9 +9,12 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import yaml
+
+if TYPE_CHECKING:
+    import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 SETTINGS = ("object_relocation", "state_transition", "multi_event")
@@ -27,6 +30,16 @@ class RecipeError(ValueError):
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def _known_materials() -> set[str]:
+    """Material names of pyroomacoustics' database (absorption coefficients per octave band)."""
+    import pyroomacoustics as pra
+
+    names: set[str] = set()
+    for group in pra.materials_data["absorption"].values():
+        names |= set(group)
+    return names
 
 
 def _check_range(v: tuple[float, float], name: str = "range") -> tuple[float, float]:
@@ -46,9 +59,20 @@ class SceneConfig(_Strict):
     door_probability: float = Field(0.6, ge=0.0, le=1.0)  # interior doorway gets a hinged leaf
     furniture_per_room: tuple[int, int] = (1, 3)
     wall_materials: tuple[str, ...] = ("plasterboard", "brickwork", "rough_concrete")
-    floor_materials: tuple[str, ...] = ("linoleum_on_concrete", "carpet_cotton", "audience_floor")
+    floor_materials: tuple[str, ...] = ("linoleum_on_concrete", "carpet_cotton", "carpet_thin")
     ceiling_materials: tuple[str, ...] = ("ceiling_plasterboard",)
     furniture_materials: tuple[str, ...] = ("wooden_door",)
+
+    @field_validator("wall_materials", "floor_materials", "ceiling_materials", "furniture_materials")
+    @classmethod
+    def _materials(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        if not v:
+            raise ValueError("at least one material is required")
+        known = _known_materials()
+        bad = [m for m in v if m not in known]
+        if bad:
+            raise ValueError(f"unknown material {bad[0]!r} (see pyroomacoustics.materials_data)")
+        return v
 
     @field_validator("rooms")
     @classmethod
@@ -195,6 +219,11 @@ class Recipe(_Strict):
     setting: Literal["object_relocation", "state_transition", "multi_event"] | dict[
         Literal["object_relocation", "state_transition", "multi_event"], float
     ] = "object_relocation"
+    # Exact episode counts per setting and split (the STMM-1.9K table); when given, `splits`
+    # is derived from it and each episode's setting is fixed by its index (see setting_for).
+    composition: dict[
+        Literal["object_relocation", "state_transition", "multi_event"], dict[str, int]
+    ] | None = None
     max_attempts_per_episode: int = Field(8, ge=1, le=100)
     scene: SceneConfig = SceneConfig()
     objects: ObjectsConfig = ObjectsConfig()
@@ -222,6 +251,42 @@ class Recipe(_Strict):
         if isinstance(v, dict) and (any(w < 0 for w in v.values()) or sum(v.values()) <= 0):
             raise ValueError("setting weights must be >= 0 with a positive sum")
         return v
+
+    @model_validator(mode="before")
+    @classmethod
+    def _derive_splits(cls, data: Any) -> Any:
+        if isinstance(data, dict) and isinstance(data.get("composition"), dict):
+            totals: dict[str, int] = {}
+            for per_split in data["composition"].values():
+                if isinstance(per_split, dict):
+                    for split, n in per_split.items():
+                        if isinstance(n, int):
+                            totals[split] = totals.get(split, 0) + n
+            if "splits" in data and data["splits"] != totals:
+                raise ValueError(f"splits {data['splits']} disagree with composition totals {totals}; give one of them")
+            data = {**data, "splits": totals}
+        return data
+
+    def setting_for(self, split: str, index: int, rng: "np.random.Generator") -> str:
+        """The setting of episode `index` of `split`.
+
+        With `composition`, settings are laid out in a fixed interleaved order so that any
+        prefix (e.g. `--limit`) keeps the proportions; otherwise drawn from the weights.
+        """
+        if self.composition:
+            counts = {s: c.get(split, 0) for s, c in self.composition.items() if c.get(split, 0) > 0}
+            total = sum(counts.values())
+            if index >= total:
+                raise ValueError(f"index {index} beyond {total} episodes of split {split!r}")
+            # Largest-remainder interleave: episode i goes to the setting furthest behind its share.
+            done = {s: 0 for s in counts}
+            for i in range(index + 1):
+                pick = max(counts, key=lambda s: (counts[s] * (i + 1) / total - done[s], -list(counts).index(s)))
+                done[pick] += 1
+            return pick
+        weights = self.setting_weights()
+        names = sorted(weights)
+        return str(rng.choice(names, p=[weights[n] for n in names]))
 
     def setting_weights(self) -> dict[str, float]:
         """The setting mix as normalised weights."""

@@ -1,0 +1,89 @@
+"""Recipe loading: defaults, extends, hashing, and one-line errors naming file and key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from echo_data.recipe import RecipeError, load_recipe, recipe_from_mapping
+
+RECIPES = Path(__file__).resolve().parents[1] / "recipes"
+
+
+@pytest.mark.parametrize("name", ["quickstart", "object_relocation", "state_transition", "multi_event", "stmm_1_9k"])
+def test_shipped_recipes_load(name: str) -> None:
+    r = load_recipe(RECIPES / f"{name}.yaml")
+    assert r.name == name
+    assert sum(r.splits.values()) > 0
+
+
+def test_paper_episode_counts() -> None:
+    assert load_recipe(RECIPES / "object_relocation.yaml").splits == {"train": 660, "test": 222}
+    assert load_recipe(RECIPES / "state_transition.yaml").splits == {"train": 660, "test": 222}
+    assert load_recipe(RECIPES / "multi_event.yaml").splits == {"train": 660, "test": 355}
+    full = load_recipe(RECIPES / "stmm_1_9k.yaml")
+    assert full.splits == {"train": 1980, "test": 799}
+
+
+def test_composition_interleave_keeps_exact_counts() -> None:
+    r = load_recipe(RECIPES / "stmm_1_9k.yaml")
+    rng = np.random.default_rng(0)
+    counts: dict[str, int] = {}
+    for i in range(r.splits["test"]):
+        s = r.setting_for("test", i, rng)
+        counts[s] = counts.get(s, 0) + 1
+    assert counts == {"object_relocation": 222, "state_transition": 222, "multi_event": 355}
+    first = [r.setting_for("test", i, rng) for i in range(12)]
+    assert set(first) == {"object_relocation", "state_transition", "multi_event"}
+
+
+def test_extends_merges_and_overrides(tmp_path: Path) -> None:
+    (tmp_path / "a.yaml").write_text("name: a\nseed: 5\nscene:\n  rooms: [2, 3]\n  wall_height: 2.7\n")
+    (tmp_path / "b.yaml").write_text("extends: a.yaml\nname: b\nscene:\n  rooms: [3, 5]\n")
+    r = load_recipe(tmp_path / "b.yaml")
+    assert (r.name, r.seed, r.scene.rooms, r.scene.wall_height) == ("b", 5, (3, 5), 2.7)
+
+
+def test_hash_changes_with_content() -> None:
+    a = recipe_from_mapping({"name": "x"})
+    b = recipe_from_mapping({"name": "x", "seed": 1})
+    assert a.content_hash() == recipe_from_mapping({"name": "x"}).content_hash()
+    assert a.content_hash() != b.content_hash()
+
+
+@pytest.mark.parametrize(
+    "text, key",
+    [
+        ("name: x\nscene:\n  roomz: [2, 3]\n", "scene.roomz: unknown key"),
+        ("name: x\nscene:\n  rooms: [5, 2]\n", "scene.rooms"),
+        ("name: x\nscene:\n  rooms: [2, 9]\n", "scene.rooms"),
+        ("name: x\nacoustics:\n  sample_rate: fast\n", "acoustics.sample_rate"),
+        ("name: x\nrobot:\n  physics_hz: 100\n  control_hz: 30\n", "robot"),
+        ("name: x\nscene:\n  wall_materials: [cheese]\n", "scene.wall_materials"),
+        ("seed: 1\n", "name: required key is missing"),
+        ("name: x\nsplits: {train: -1}\n", "splits"),
+        ("name: x\nsounds:\n  folders: {phone: nowhere}\n", "sounds.folders.phone"),
+        ("name: x\nscene: [1, 2\n", "malformed YAML"),
+        ("- a\n- b\n", "must be a mapping"),
+    ],
+)
+def test_bad_recipes_give_one_line_errors(tmp_path: Path, text: str, key: str) -> None:
+    f = tmp_path / "bad.yaml"
+    f.write_text(text)
+    with pytest.raises(RecipeError) as e:
+        load_recipe(f)
+    msg = str(e.value)
+    assert "\n" not in msg
+    assert str(f.resolve()) in msg or str(f) in msg
+    assert key in msg
+
+
+def test_missing_file_and_cycle(tmp_path: Path) -> None:
+    with pytest.raises(RecipeError, match="file not found"):
+        load_recipe(tmp_path / "none.yaml")
+    (tmp_path / "a.yaml").write_text("extends: b.yaml\nname: a\n")
+    (tmp_path / "b.yaml").write_text("extends: a.yaml\nname: b\n")
+    with pytest.raises(RecipeError, match="circular"):
+        load_recipe(tmp_path / "a.yaml")
