@@ -1,0 +1,238 @@
+"""Rigid household objects: the sounding targets (phone, alarm clock, furby) and silent clutter.
+
+Each category is a small compound of primitives with a realistic mass and a distinct look, sized
+so that a parallel gripper with a 0.1 m opening can take it from above: the grasp axis is the
+object's local y (its narrow side), which is <= 0.085 m for every target.
+
+Frame of an object: origin at the centre of its collision bounding box, x along its yaw. A
+`PlacedObject.position` is that centre at rest, so it sits at z = receptacle top + sz / 2.
+Decorations that a gripper should not bump into (alarm bells, furby ears, a phone screen) are
+visual only; they never change `object_size`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # sapien is imported lazily so that pure callers (sampling, acoustics) stay light
+    import sapien
+
+    from echo_data.scene.floorplan import PlacedObject
+
+TARGET_CATEGORIES = ("phone", "alarm", "furby")
+DISTRACTOR_CATEGORIES = ("mug", "can", "box", "bowl", "bottle", "book")
+CATEGORIES = TARGET_CATEGORIES + DISTRACTOR_CATEGORIES
+
+# Objects are grippy (rubber/plastic); the robot's finger pads are 2.0 (FINDINGS: grasp study).
+OBJECT_STATIC_FRICTION = 1.0
+OBJECT_DYNAMIC_FRICTION = 0.8
+OBJECT_RESTITUTION = 0.0
+
+
+@dataclass(frozen=True)
+class Part:
+    """One primitive of an object, in the object's bbox-centred frame.
+
+    kind: "box" (dims = half sizes), "sphere" (dims = (r,)), "zcyl" (upright cylinder,
+    dims = (r, half_height)), "ycyl" (cylinder along local y, dims = (r, half_length)).
+    """
+
+    kind: str
+    center: tuple[float, float, float]
+    dims: tuple[float, ...]
+    color: tuple[float, float, float]
+    collide: bool = True
+
+
+@dataclass(frozen=True)
+class ObjectModel:
+    size: tuple[float, float, float]  # collision bbox (sx, sy, sz), object frame
+    mass: float  # kg
+    parts: tuple[Part, ...]
+
+
+def _lift(parts: list[Part], sz: float) -> tuple[Part, ...]:
+    """Parts are authored with z measured from the object's bottom; shift to bbox centre."""
+    return tuple(Part(p.kind, (p.center[0], p.center[1], p.center[2] - sz / 2.0), p.dims, p.color, p.collide) for p in parts)
+
+
+def _models() -> dict[str, ObjectModel]:
+    m: dict[str, ObjectModel] = {}
+    # phone: thin slab, dark body, lighter screen (visual)
+    sz = 0.015
+    m["phone"] = ObjectModel(
+        (0.15, 0.07, sz),
+        0.17,
+        _lift(
+            [
+                Part("box", (0, 0, sz / 2), (0.075, 0.035, sz / 2), (0.08, 0.08, 0.1)),
+                Part("box", (0.0, 0, sz + 0.0005), (0.066, 0.031, 0.0006), (0.25, 0.45, 0.85), False),
+            ],
+            sz,
+        ),
+    )
+    # alarm clock: round body on its side (face along -y/+y) standing on a foot block, bells on top
+    body_r, foot_h = 0.045, 0.012
+    sz = foot_h + 2 * body_r
+    m["alarm"] = ObjectModel(
+        (2 * body_r, 0.05, sz),
+        0.3,
+        _lift(
+            [
+                Part("box", (0, 0, foot_h / 2), (0.035, 0.022, foot_h / 2), (0.2, 0.2, 0.2)),
+                Part("ycyl", (0, 0, foot_h + body_r), (body_r, 0.025), (0.85, 0.12, 0.1)),
+                Part("ycyl", (0, -0.0255, foot_h + body_r), (0.038, 0.001), (0.95, 0.95, 0.9), False),
+                Part("sphere", (-0.032, 0, sz - 0.004), (0.017,), (0.85, 0.75, 0.2), False),
+                Part("sphere", (0.032, 0, sz - 0.004), (0.017,), (0.85, 0.75, 0.2), False),
+            ],
+            sz,
+        ),
+    )
+    # furby: egg of a body sphere and a head sphere on a foot block; ears and eyes visual only
+    foot_h, body_r, head_r = 0.012, 0.042, 0.036
+    body_z = 0.045
+    head_z = 0.095
+    sz = head_z + head_r
+    purple = (0.55, 0.25, 0.7)
+    m["furby"] = ObjectModel(
+        (2 * body_r, 2 * body_r, sz),
+        0.3,
+        _lift(
+            [
+                Part("box", (0, 0, foot_h / 2), (0.03, 0.025, foot_h / 2), (0.95, 0.6, 0.1)),
+                Part("sphere", (0, 0, body_z), (body_r,), purple),
+                Part("sphere", (0, 0, head_z), (head_r,), purple),
+                Part("box", (0, 0.02, sz + 0.012), (0.004, 0.008, 0.016), (0.3, 0.1, 0.4), False),
+                Part("box", (0, -0.02, sz + 0.012), (0.004, 0.008, 0.016), (0.3, 0.1, 0.4), False),
+                Part("sphere", (0.03, 0.013, head_z + 0.008), (0.009,), (1.0, 1.0, 1.0), False),
+                Part("sphere", (0.03, -0.013, head_z + 0.008), (0.009,), (1.0, 1.0, 1.0), False),
+            ],
+            sz,
+        ),
+    )
+    # mug: upright cylinder with a handle along +x
+    r, h = 0.04, 0.095
+    m["mug"] = ObjectModel(
+        (2 * r + 0.03, 2 * r, h),
+        0.3,
+        _lift(
+            [
+                Part("zcyl", (-0.015, 0, h / 2), (r, h / 2), (0.92, 0.92, 0.88)),
+                Part("box", (-0.015 + r + 0.012, 0, h / 2), (0.012, 0.006, 0.03), (0.92, 0.92, 0.88)),
+            ],
+            h,
+        ),
+    )
+    r, h = 0.033, 0.12
+    m["can"] = ObjectModel((2 * r, 2 * r, h), 0.35, _lift([Part("zcyl", (0, 0, h / 2), (r, h / 2), (0.75, 0.75, 0.8))], h))
+    m["box"] = ObjectModel(
+        (0.12, 0.08, 0.06), 0.2, _lift([Part("box", (0, 0, 0.03), (0.06, 0.04, 0.03), (0.6, 0.45, 0.25))], 0.06)
+    )
+    r, h = 0.07, 0.05
+    m["bowl"] = ObjectModel(
+        (2 * r, 2 * r, h),
+        0.25,
+        _lift(
+            [
+                Part("zcyl", (0, 0, 0.006), (0.045, 0.006), (0.2, 0.35, 0.8)),
+                Part("zcyl", (0, 0, 0.012 + (h - 0.012) / 2), (r, (h - 0.012) / 2), (0.2, 0.35, 0.8)),
+            ],
+            h,
+        ),
+    )
+    r, h_body, h_neck = 0.035, 0.17, 0.06
+    h = h_body + h_neck
+    m["bottle"] = ObjectModel(
+        (2 * r, 2 * r, h),
+        0.5,
+        _lift(
+            [
+                Part("zcyl", (0, 0, h_body / 2), (r, h_body / 2), (0.15, 0.55, 0.25)),
+                Part("zcyl", (0, 0, h_body + h_neck / 2), (0.013, h_neck / 2), (0.15, 0.55, 0.25)),
+            ],
+            h,
+        ),
+    )
+    m["book"] = ObjectModel(
+        (0.2, 0.14, 0.03), 0.4, _lift([Part("box", (0, 0, 0.015), (0.1, 0.07, 0.015), (0.55, 0.1, 0.12))], 0.03)
+    )
+    return m
+
+
+MODELS: dict[str, ObjectModel] = _models()
+
+
+def object_size(category: str) -> tuple[float, float, float]:
+    """Collision bounding box (sx, sy, sz) of a category in its own frame (x along its yaw)."""
+    try:
+        return MODELS[category].size
+    except KeyError:
+        raise KeyError(f"unknown object category {category!r}; known: {', '.join(CATEGORIES)}") from None
+
+
+def object_mass(category: str) -> float:
+    """Mass in kg of a category."""
+    return MODELS[category].mass
+
+
+def _part_volume(p: Part) -> float:
+    if p.kind == "box":
+        return 8.0 * p.dims[0] * p.dims[1] * p.dims[2]
+    if p.kind == "sphere":
+        return 4.0 / 3.0 * math.pi * p.dims[0] ** 3
+    return math.pi * p.dims[0] ** 2 * 2.0 * p.dims[1]
+
+
+def _yaw_quat(yaw: float) -> list[float]:
+    return [math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)]
+
+
+def build_object(scene: "sapien.Scene", obj: "PlacedObject") -> "sapien.Entity":
+    """Add `obj` to `scene` as a dynamic rigid body named `obj.name`, at rest at its pose.
+
+    Visual shapes are added only when the scene has a render system (physics-only scenes
+    for solvability checks work too).
+    """
+    import sapien
+
+    model = MODELS[obj.category] if obj.category in MODELS else None
+    if model is None:
+        raise KeyError(f"unknown object category {obj.category!r}; known: {', '.join(CATEGORIES)}")
+    try:
+        scene.render_system
+        with_visuals = True
+    except RuntimeError:
+        with_visuals = False
+    mat = sapien.physx.PhysxMaterial(OBJECT_STATIC_FRICTION, OBJECT_DYNAMIC_FRICTION, OBJECT_RESTITUTION)
+    solid = [p for p in model.parts if p.collide]
+    density = model.mass / sum(_part_volume(p) for p in solid)
+    # upright cylinders: SAPIEN cylinders lie along x; turn x -> z (about y by -90 deg), or x -> y (about z)
+    to_z = sapien.Pose(q=[math.sqrt(0.5), 0.0, -math.sqrt(0.5), 0.0])
+    to_y = sapien.Pose(q=[math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)])
+    builder = scene.create_actor_builder()
+    for p in model.parts:
+        at = sapien.Pose(p.center)
+        if p.kind == "zcyl":
+            at = at * to_z
+        elif p.kind == "ycyl":
+            at = at * to_y
+        if p.collide:
+            if p.kind == "box":
+                builder.add_box_collision(at, p.dims, material=mat, density=density)
+            elif p.kind == "sphere":
+                builder.add_sphere_collision(at, p.dims[0], material=mat, density=density)
+            else:
+                builder.add_cylinder_collision(at, p.dims[0], p.dims[1], material=mat, density=density)
+        if with_visuals:
+            color = sapien.render.RenderMaterial(base_color=[*p.color, 1.0], roughness=0.6)
+            if p.kind == "box":
+                builder.add_box_visual(at, p.dims, material=color)
+            elif p.kind == "sphere":
+                builder.add_sphere_visual(at, p.dims[0], material=color)
+            else:
+                builder.add_cylinder_visual(at, p.dims[0], p.dims[1], material=color)
+    builder.set_initial_pose(sapien.Pose(list(obj.position), _yaw_quat(obj.yaw)))
+    entity = builder.build(name=obj.name)
+    return entity
