@@ -3,8 +3,13 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Optional
 
 import typer
+
+if TYPE_CHECKING:
+    from echo_data.recipe import Recipe
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Training data for sound-triggered mobile manipulation.")
 
@@ -35,6 +40,72 @@ def doctor(as_json: bool = typer.Option(False, "--json", help="Print one JSON ob
             typer.echo(f"problem: {p}", err=True)
         typer.echo("ok: this machine can build echo-data datasets" if not rep.problems else "not ok")
     raise typer.Exit(1 if rep.problems else 0)
+
+
+def _load(recipe_path: Path) -> "Recipe":
+    """Load a recipe or exit 2 with its one-line error."""
+    from echo_data.recipe import RecipeError, load_recipe
+
+    try:
+        return load_recipe(recipe_path)
+    except RecipeError as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(2) from None
+
+
+@app.command()
+def trial(
+    recipe_path: Path = typer.Argument(..., metavar="RECIPE", help="Recipe YAML."),
+    n: int = typer.Option(10, "-n", min=1, help="Episodes to run (train split indices 0..n-1)."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Replace the recipe's seed."),
+    workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Run N episodes without writing a dataset; report success per episode and per skill."""
+    from dataclasses import asdict
+
+    from echo_data.trial import run_trial
+
+    recipe = _load(recipe_path)
+    if seed is not None:
+        recipe = recipe.model_copy(update={"seed": seed})
+
+    def tick(ep: object) -> None:
+        if not as_json:
+            e = ep  # type: ignore[assignment]
+            status = "ok" if e.success else "FAILED " + "; ".join(f"{s}: {r}" for s, ok, r in e.outcomes if not ok) + e.error
+            typer.echo(f"episode {e.index:4d} {e.setting:18s} steps {e.steps:4d} {e.seconds:6.1f}s {status}", err=True)
+
+    rep = run_trial(recipe, recipe_path.resolve().parent, n, workers=workers, progress=tick)
+    if as_json:
+        d = asdict(rep)
+        typer.echo(json.dumps(d, indent=2))
+    else:
+        typer.echo(f"episodes {rep.episodes}  success rate {rep.success_rate:.3f}")
+        for k, v in rep.skills.items():
+            typer.echo(f"  {k:10s} {v['successes']}/{v['attempts']}")
+        for k, v in rep.failures.items():
+            typer.echo(f"  failure  {k}: {v}")
+        typer.echo(f"  rejected {rep.rejected}")
+        typer.echo(f"  {rep.seconds_per_episode:.1f} s/episode, {rep.steps_per_second:.1f} steps/s")
+
+
+@app.command()
+def preview(
+    recipe_path: Path = typer.Argument(..., metavar="RECIPE", help="Recipe YAML."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the previewed episode (replaces the recipe's)."),
+    out: Path = typer.Option(Path("preview"), "--out", help="Folder for the pictures and sound."),
+) -> None:
+    """Write one episode's spec, top-down plan, first head frame, heard audio and acoustic map."""
+    from echo_data.preview import write_preview
+
+    recipe = _load(recipe_path)
+    if out.exists() and not out.is_dir():
+        typer.echo(f"error: --out {out}: exists and is not a folder", err=True)
+        raise typer.Exit(2)
+    summary = write_preview(recipe, recipe_path.resolve().parent, seed, out)
+    typer.echo(json.dumps(summary, indent=2))
+    typer.echo(f"wrote {', '.join(sorted(p.name for p in out.iterdir()))} to {out}")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,138 @@
+"""`echo-data preview`: one episode as a person would look at and listen to it.
+
+Writes the sampled spec (episode.json), a top-down plan with the expert's path
+(topdown.png), the first head RGB frame (head_rgb.png), what the robot hears at its start
+pose for the first 2 s (heard.wav), its spectrogram (spectrogram.png) and a dB map of the
+first source over the floor plan at ear height (acoustic_map.png).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from echo_data.episode import EpisodeSpec
+from echo_data.recipe import Recipe
+
+HEARD_SECONDS = 2.0
+
+
+def _save_png(path: Path, img: np.ndarray) -> None:
+    from PIL import Image
+
+    Image.fromarray(img).save(path)
+
+
+def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: object) -> np.ndarray:
+    """Binaural audio at the start pose for the first HEARD_SECONDS, every source sounding."""
+    from echo_data.acoustics.hrtf import Hrtf
+    from echo_data.acoustics.room import AcousticScene
+    from echo_data.acoustics.stream import SourceTrack, render_track
+
+    cfg = recipe.acoustics
+    fs = cfg.sample_rate
+    hop = fs // recipe.robot.control_hz
+    n = int(HEARD_SECONDS * recipe.robot.control_hz)
+    x, y, yaw = spec.start
+    poses = np.tile(np.array([[x, y, cfg.ear_height, yaw]]), (n, 1))
+    srcs = [
+        SourceTrack(position=tuple(ev.source), waveform=library.waveform(ev.sound_id, fs, HEARD_SECONDS + cfg.rir_seconds), stop_sample=None)  # type: ignore[attr-defined]
+        for ev in spec.events
+    ]
+    track = render_track(AcousticScene(spec.plan, cfg), srcs, poses, hop, cfg, hrtf=Hrtf.load(cfg.hrtf, fs))
+    return track[: int(HEARD_SECONDS * fs)]
+
+
+def draw_spectrogram(x2: np.ndarray, fs: int, out: Path, title: str) -> None:
+    import librosa
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    for ch, (ax, name) in enumerate(zip(axes, ("left ear", "right ear"))):
+        s = librosa.amplitude_to_db(np.abs(librosa.stft(x2[:, ch], n_fft=512, hop_length=160, win_length=400)), ref=1.0, top_db=80)
+        im = ax.imshow(s, origin="lower", aspect="auto", extent=[0, len(x2) / fs, 0, fs / 2000], vmin=s.max() - 80, vmax=s.max(), cmap="magma")
+        ax.set_ylabel(f"{name}\nkHz")
+    axes[-1].set_xlabel("time (s)")
+    fig.suptitle(title)
+    fig.colorbar(im, ax=axes, label="dB")
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float = 0.25) -> None:
+    """Level (dB re the strongest cell) of the first event's source over the plan at ear height."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from echo_data.acoustics.room import AcousticScene, omni_rir
+
+    cfg = recipe.acoustics
+    scene = AcousticScene(spec.plan, cfg)
+    b = spec.plan.bounds
+    xs = np.arange(b.xmin + step / 2, b.xmax, step)
+    ys = np.arange(b.ymin + step / 2, b.ymax, step)
+    src = tuple(spec.events[0].source)
+    level = np.full((len(ys), len(xs)), np.nan)
+    for j, y in enumerate(ys):
+        for i, x in enumerate(xs):
+            if spec.plan.room_at(x, y) < 0:
+                continue
+            h = omni_rir(scene.response(src, (x, y, cfg.ear_height)))
+            level[j, i] = 10 * np.log10(np.sum(h.astype(np.float64) ** 2) + 1e-20)
+    level -= np.nanmax(level)
+    fig, ax = plt.subplots(figsize=(7, 7 * (b.ymax - b.ymin) / max(b.xmax - b.xmin, 1e-6) + 0.5))
+    im = ax.imshow(level, origin="lower", extent=[b.xmin, b.xmax, b.ymin, b.ymax], cmap="inferno", vmin=-50, vmax=0)
+    for w in spec.plan.walls:
+        ax.plot([w.a[0], w.b[0]], [w.a[1], w.b[1]], color="white", lw=2.5)
+    for d in spec.plan.doors:
+        e = d.free_edge()
+        ax.plot([d.hinge[0], e[0]], [d.hinge[1], e[1]], color="cyan", lw=2)
+    ax.plot(src[0], src[1], marker="*", color="lime", ms=16, mec="black")
+    ax.set_title(f"{spec.events[0].category} ({spec.events[0].sound_id}): level at ear height, dB")
+    ax.set_aspect("equal")
+    fig.colorbar(im, ax=ax, shrink=0.8, label="dB re max")
+    fig.savefig(out, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+
+def write_preview(recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path, index: int = 0) -> dict[str, object]:
+    """Sample episode `index` with the recipe's seed replaced by `seed`; simulate; write the files."""
+    import soundfile as sf
+
+    from echo_data.pipeline import simulate
+    from echo_data.scene.sampling import sample_episode
+    from echo_data.scene.topdown import draw_topdown
+    from echo_data.sounds import SoundLibrary
+
+    recipe = recipe.model_copy(update={"seed": seed})
+    library = SoundLibrary.from_recipe(recipe, recipe_dir)
+    spec, rejected = sample_episode(recipe, "train", index, library)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "episode.json").write_text(json.dumps(spec.to_dict(), indent=2))
+    rollout = simulate(spec, recipe, observe=True)
+    path = [(float(s.state[0]), float(s.state[1])) for s in rollout.steps]
+    draw_topdown(spec.plan, out / "topdown.png", path=path, start=spec.start, events=spec.events)
+    if rollout.steps and rollout.steps[0].head_rgb is not None:
+        _save_png(out / "head_rgb.png", rollout.steps[0].head_rgb)
+    fs = recipe.acoustics.sample_rate
+    heard = heard_at_start(spec, recipe, library)
+    sf.write(out / "heard.wav", heard, fs, subtype="PCM_16")
+    cats = " + ".join(ev.category for ev in spec.events)
+    draw_spectrogram(heard, fs, out / "spectrogram.png", f"heard at start: {cats}")
+    draw_acoustic_map(spec, recipe, out / "acoustic_map.png")
+    return {
+        "episode_id": spec.episode_id,
+        "setting": spec.setting,
+        "chain": [f"{c.skill}({c.target})" for c in spec.chain],
+        "success": rollout.success,
+        "outcomes": [(o.skill, o.success, o.reason) for o in rollout.outcomes],
+        "rejected": rejected,
+        "steps": len(rollout.steps),
+    }
