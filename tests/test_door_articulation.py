@@ -1,0 +1,119 @@
+"""Door articulation geometry and conventions (no robot): the hinge angle follows `Door`."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import sapien
+
+from echo_data.scene.articulated import (
+    DOOR_FLOOR_GAP,
+    DOOR_MASS,
+    HANDLE_EDGE_OFFSET,
+    build_door,
+    door_handle_world,
+)
+from echo_data.scene.floorplan import Door
+
+
+_SCENES: list[sapien.Scene] = []  # a scene must outlive its articulations (dangling links segfault)
+
+
+def physics_scene() -> sapien.Scene:
+    scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+    scene.set_timestep(0.01)
+    _SCENES.append(scene)
+    return scene
+
+
+def make_door(closed_yaw: float = math.pi / 2, open_sign: float = 1.0, angle: float = 0.0) -> Door:
+    return Door(
+        index=3, doorway=0, hinge=(1.0, 2.0), closed_yaw=closed_yaw, open_sign=open_sign, width=0.9,
+        thickness=0.04, height=2.0, max_angle=1.9, open_threshold=1.3, angle=angle, handle_height=1.0,
+        swing_room=0, material="wooden_door",
+    )
+
+
+def leaf_point(art: sapien.physx.PhysxArticulation, local: list[float]) -> np.ndarray:
+    m = art.links[1].entity_pose.to_transformation_matrix()
+    return m[:3, :3] @ np.asarray(local) + m[:3, 3]
+
+
+@pytest.mark.parametrize("closed_yaw", [0.0, math.pi / 2, math.pi, -math.pi / 2])
+@pytest.mark.parametrize("open_sign", [1.0, -1.0])
+def test_free_edge_follows_door_convention(closed_yaw: float, open_sign: float) -> None:
+    door = make_door(closed_yaw, open_sign)
+    art = build_door(physics_scene(), door)
+    for q in (0.0, 0.6, math.pi / 2):
+        art.set_qpos(np.array([q], dtype=np.float32))
+        edge = leaf_point(art, [door.width, 0.0, 0.0])
+        assert np.allclose(edge[:2], door.free_edge(q), atol=1e-4), (q, edge, door.free_edge(q))
+
+
+def test_limits_initial_angle_and_mass() -> None:
+    door = make_door(angle=0.4)
+    art = build_door(physics_scene(), door)
+    assert art.dof == 1
+    assert np.allclose(art.qlimits[0], [0.0, door.max_angle])
+    assert art.qpos[0] == pytest.approx(0.4, abs=1e-6)
+    assert art.links[1].mass == pytest.approx(DOOR_MASS, rel=0.1)
+    assert art.root.entity_pose.p[:2] == pytest.approx(door.hinge, abs=1e-6)
+
+
+def test_handles_on_both_faces_near_free_edge() -> None:
+    door = make_door(closed_yaw=0.0, angle=0.7)
+    art = build_door(physics_scene(), door)
+    shapes = art.links[1].collision_shapes
+    leaf_frame = art.links[1].entity_pose
+    centres = [leaf_frame * s.local_pose for s in shapes]
+    for face in (1.0, -1.0):
+        want = door_handle_world(door, door.angle, face)
+        dist = min(np.linalg.norm(c.p - want) for c in centres)
+        assert dist < 1e-4, f"no handle bar at {want}"
+        # the bar protrudes from its face and sits HANDLE_EDGE_OFFSET from the free edge
+        along = want[:2] - np.asarray(door.hinge)
+        yaw = door.leaf_yaw()
+        assert along @ [math.cos(yaw), math.sin(yaw)] == pytest.approx(door.width - HANDLE_EDGE_OFFSET)
+        normal = along @ [-math.sin(yaw), math.cos(yaw)]
+        assert face * normal > door.thickness / 2.0 + 0.03
+        assert want[2] == pytest.approx(door.handle_height)
+
+
+def test_leaf_clears_the_floor() -> None:
+    art = build_door(physics_scene(), make_door())
+    lows = []
+    for s in art.links[1].collision_shapes:
+        pose = art.links[1].entity_pose * s.local_pose
+        lows.append(pose.p[2] - s.half_size[2])
+    assert min(lows) >= DOOR_FLOOR_GAP - 1e-6 >= 0.01
+
+
+def test_released_door_stays_where_left() -> None:
+    scene = physics_scene()
+    art = build_door(scene, make_door(angle=0.5))
+    art.set_qvel(np.array([1.0], dtype=np.float32))  # a shove
+    for _ in range(150):
+        scene.step()
+    after_shove = float(art.qpos[0])
+    assert 0.55 < after_shove < 1.0  # it moved, then friction and damping stopped it
+    assert abs(float(art.qvel[0])) < 1e-3
+    for _ in range(200):
+        scene.step()
+    assert float(art.qpos[0]) == pytest.approx(after_shove, abs=1e-3)
+
+
+def test_joint_limit_stops_the_leaf() -> None:
+    scene = physics_scene()
+    door = make_door(angle=1.7)
+    art = build_door(scene, door)
+    art.set_qvel(np.array([3.0], dtype=np.float32))
+    for _ in range(100):
+        scene.step()
+    assert float(art.qpos[0]) <= door.max_angle + 0.02
+    art.set_qpos(np.array([0.2], dtype=np.float32))
+    art.set_qvel(np.array([-3.0], dtype=np.float32))
+    for _ in range(100):
+        scene.step()
+    assert float(art.qpos[0]) >= -0.02
