@@ -117,3 +117,44 @@ def test_joint_limit_stops_the_leaf() -> None:
     for _ in range(100):
         scene.step()
     assert float(art.qpos[0]) >= -0.02
+
+
+def _static_plan_bodies(scene: sapien.Scene, plan) -> None:
+    """Walls, furniture and floor of a plan as one static body (what the world builder adds)."""
+    b = scene.create_actor_builder()
+    for w in plan.walls:
+        fp = w.footprint
+        b.add_box_collision(
+            pose=sapien.Pose([*fp.center, w.height / 2.0]), half_size=[fp.size[0] / 2.0, fp.size[1] / 2.0, w.height / 2.0]
+        )
+    for f in plan.furniture:
+        b.add_box_collision(
+            pose=sapien.Pose([*f.center, f.size[2] / 2.0]), half_size=[f.size[0] / 2.0, f.size[1] / 2.0, f.size[2] / 2.0]
+        )
+    b.add_box_collision(pose=sapien.Pose([0.0, 0.0, -0.05]), half_size=[100.0, 100.0, 0.05])
+    b.build_static(name="static")
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_generated_doors_swing_their_full_range_without_jamming(seed: int) -> None:
+    """In generated apartments each leaf clears walls and floor: a soft drive takes it to both limits."""
+    from echo_data.recipe import Recipe
+    from echo_data.scene.generate import generate_floorplan
+
+    plan = generate_floorplan(Recipe(name="t", scene={"door_probability": 1.0}), np.random.default_rng(seed))
+    assert plan.doors
+    scene = physics_scene()
+    _static_plan_bodies(scene, plan)
+    doors = [build_door(scene, d) for d in plan.doors]
+    scene.step()
+    for c in scene.get_contacts():  # closed leaves touch nothing
+        assert all(p.separation > -1e-3 for p in c.points)
+    for target, expect in ((3.0, "max"), (-1.0, "min")):
+        for art in doors:
+            art.active_joints[0].set_drive_properties(200.0, 50.0)
+            art.active_joints[0].set_drive_target(target)
+        for _ in range(250):
+            scene.step()
+        for art, door in zip(doors, plan.doors):
+            want = door.max_angle if expect == "max" else 0.0
+            assert float(art.qpos[0]) == pytest.approx(want, abs=0.02), (door.index, expect)

@@ -125,3 +125,34 @@ def test_stream_is_visual_only_and_hangs_under_the_spout() -> None:
     assert stream.visible_extent() is None
     shown = [e for e in scene.entities if e.name.startswith("water_") and e.pose.p[2] > -1.0]
     assert shown == []
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_generated_faucet_sweeps_its_range_clear_of_cabinet_and_walls(seed: int) -> None:
+    from echo_data.recipe import Recipe
+    from echo_data.scene.generate import generate_floorplan
+
+    plan = generate_floorplan(Recipe(name="t"), np.random.default_rng(seed))
+    faucet = plan.faucets[0]
+    cabinet = plan.furniture[faucet.furniture]
+    scene = physics_scene(with_cabinet=False)
+    b = scene.create_actor_builder()
+    for w in plan.walls:
+        fp = w.footprint
+        b.add_box_collision(
+            pose=sapien.Pose([*fp.center, w.height / 2.0]), half_size=[fp.size[0] / 2.0, fp.size[1] / 2.0, w.height / 2.0]
+        )
+    sx, sy, h = cabinet.size
+    b.add_box_collision(pose=sapien.Pose([*cabinet.center, h / 2.0]), half_size=[sx / 2.0, sy / 2.0, h / 2.0])
+    b.build_static(name="static")
+    art = build_faucet(scene, faucet, cabinet)
+    stream = WaterStream(scene, faucet, bottom_z=cabinet.top_z)
+    joint = art.active_joints[0]
+    joint.set_drive_properties(2.0, 0.2)
+    for target, want in ((2.0, faucet.open_angle), (-0.3, 0.0)):
+        joint.set_drive_target(target)
+        for _ in range(200):
+            scene.step()
+        stream.update(float(art.qpos[0]))
+        assert float(art.qpos[0]) == pytest.approx(want, abs=0.02)
+    assert not stream.flowing

@@ -30,7 +30,7 @@ DOOR_DAMPING = 6.0  # N m s / rad: a released door slows within a second
 DOOR_FRICTION = 0.03  # PhysX joint friction coefficient (scales the hinge load): a door stays where left
 # Pull handle (a vertical bar on two standoffs, on both faces): a parallel gripper with
 # horizontal fingers grasps the bar from the front.
-HANDLE_EDGE_OFFSET = 0.07  # m from the free edge to the bar's axis
+HANDLE_EDGE_OFFSET = 0.08  # m from the free edge to the bar's axis (nav.HANDLE_INSET agrees)
 HANDLE_STANDOFF = 0.06  # m from the leaf face to the bar's axis
 HANDLE_BAR = (0.024, 0.024, 0.18)  # bar size (along leaf, along normal, height), m
 HANDLE_POST = 0.016  # standoff post cross-section, m
