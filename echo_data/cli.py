@@ -13,6 +13,10 @@ if TYPE_CHECKING:
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Training data for sound-triggered mobile manipulation.")
 
+from echo_data.sounds.cli import sounds_app  # noqa: E402
+
+app.add_typer(sounds_app, name="sounds")
+
 
 @app.command()
 def version() -> None:

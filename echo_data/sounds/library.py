@@ -1,0 +1,156 @@
+"""The sound library: which instances exist, their splits, and their dry looped waveforms.
+
+The built-in instances are synthesised (`synth`); a recipe may add folders of the user's own
+files per category (`user_folders`). Train and test instances are disjoint by id, so a sampler
+that draws train episodes from `instances(split="train")` never plays a test sound.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from echo_data.sounds import synth
+from echo_data.sounds.dsp import peak_normalise
+from echo_data.sounds.user_folders import (
+    SoundLibraryError,
+    audio_files,
+    crossfade_loop,
+    file_duration,
+    read_mono,
+    slug,
+    split_files,
+)
+
+if TYPE_CHECKING:
+    from echo_data.recipe import Recipe
+
+CATEGORIES: tuple[str, ...] = tuple(synth.CATEGORY_COUNTS)
+SPLITS: tuple[str, ...] = ("train", "test")
+ONSET_FADE_S = 0.005  # raised-cosine fade-in when a sound starts, so an event never clicks on
+
+
+@dataclass(frozen=True)
+class SoundInstance:
+    """One sound: `duration` is one loop period (built-in) or the file's length; `source` is "builtin" or a path."""
+
+    id: str
+    category: str
+    split: str
+    duration: float
+    source: str
+
+    @property
+    def builtin(self) -> bool:
+        return self.source == "builtin"
+
+
+class SoundLibrary:
+    """An ordered, immutable set of sound instances with cached dry loops."""
+
+    def __init__(self, instances: list[SoundInstance] | tuple[SoundInstance, ...]) -> None:
+        self._instances = tuple(instances)
+        self._by_id = {s.id: s for s in self._instances}
+        if len(self._by_id) != len(self._instances):
+            raise SoundLibraryError("duplicate sound instance ids")
+
+    @classmethod
+    def builtin(cls) -> "SoundLibrary":
+        """The 113 synthesised instances (alarm 11/5, furby 30/14, phone 19/9, sink 6/3, doorbell 11/5)."""
+        return cls(_builtin_instances())
+
+    @classmethod
+    def from_recipe(cls, recipe: "Recipe", recipe_dir: Path | None = None) -> "SoundLibrary":
+        """Built-ins if `recipe.sounds.builtin`, plus each user folder (relative to `recipe_dir`, default cwd)."""
+        cfg = recipe.sounds
+        out: list[SoundInstance] = list(_builtin_instances()) if cfg.builtin else []
+        base = Path(recipe_dir) if recipe_dir is not None else Path.cwd()
+        for cat in CATEGORIES:  # fixed category order keeps ids and order stable
+            if cat in cfg.folders:
+                folder = Path(cfg.folders[cat])
+                out += folder_instances(cat, folder if folder.is_absolute() else base / folder, cfg.folder_test_fraction)
+        return cls(out)
+
+    def __len__(self) -> int:
+        return len(self._instances)
+
+    def __iter__(self):  # type: ignore[no-untyped-def]
+        return iter(self._instances)
+
+    def __contains__(self, instance_id: object) -> bool:
+        return instance_id in self._by_id
+
+    def instances(self, category: str | None = None, split: str | None = None) -> list[SoundInstance]:
+        """Instances in library order, optionally filtered by category and/or split."""
+        if category is not None and category not in CATEGORIES:
+            raise ValueError(f"unknown sound category {category!r} (use one of {', '.join(CATEGORIES)})")
+        if split is not None and split not in SPLITS:
+            raise ValueError(f"unknown sound split {split!r} (use train or test)")
+        return [s for s in self._instances if (category is None or s.category == category) and (split is None or s.split == split)]
+
+    def get(self, instance_id: str) -> SoundInstance:
+        try:
+            return self._by_id[instance_id]
+        except KeyError:
+            raise KeyError(f"unknown sound instance id {instance_id!r}") from None
+
+    def waveform(self, instance_id: str, sample_rate: int = 16000, seconds: float | None = None) -> np.ndarray:
+        """Dry mono float32 in [-1, 1] at `sample_rate`.
+
+        `seconds=None`: exactly one loop period (tile it to loop). Otherwise the loop repeated to
+        round(seconds * sample_rate) samples with a 5 ms fade-in at the onset; repeats join without
+        a click. Same bytes for the same (id, sample_rate, seconds) in any process.
+        """
+        inst = self.get(instance_id)
+        if int(sample_rate) != sample_rate or sample_rate < 1000:
+            raise ValueError(f"sample_rate must be an integer >= 1000, got {sample_rate}")
+        base = _base_loop(inst, int(sample_rate))
+        if seconds is None:
+            return base.copy()
+        if seconds <= 0:
+            raise ValueError(f"seconds must be > 0, got {seconds}")
+        out = np.resize(base, int(round(seconds * sample_rate)))  # cyclic repetition of the loop
+        fade = min(len(out), int(ONSET_FADE_S * sample_rate))
+        if fade > 0:
+            out[:fade] *= (0.5 - 0.5 * np.cos(np.pi * np.arange(fade) / fade)).astype(np.float32)
+        return out
+
+
+@lru_cache(maxsize=1)
+def _builtin_instances() -> tuple[SoundInstance, ...]:
+    out = []
+    for iid in synth.builtin_ids():
+        cat, split, _ = synth.parse_builtin_id(iid)
+        out.append(SoundInstance(iid, cat, split, round(synth.design(iid)["duration"], 4), "builtin"))
+    return tuple(out)
+
+
+def folder_instances(category: str, folder: Path, test_fraction: float) -> list[SoundInstance]:
+    """Instances for the user's files of one category, ids "<category>-<split>-file-<name>"."""
+    files = audio_files(folder)
+    splits = split_files(files, test_fraction)
+    out, used = [], set()
+    for p in files:  # sorted by name: stable order
+        base = f"{category}-{splits[p]}-file-{slug(p.stem)}"
+        iid, i = base, 2
+        while iid in used:
+            iid, i = f"{base}-{i}", i + 1
+        used.add(iid)
+        out.append(SoundInstance(iid, category, splits[p], round(file_duration(p), 4), str(p)))
+    return out
+
+
+@lru_cache(maxsize=256)
+def _base_loop(inst: SoundInstance, sr: int) -> np.ndarray:
+    """The dry loop period of an instance at `sr` (read-only; cached per process)."""
+    if inst.builtin:
+        x = synth.render(inst.id, sr)
+    else:
+        x = crossfade_loop(read_mono(Path(inst.source), sr), sr)
+        x = peak_normalise(x, synth.PEAK_DBFS[inst.category]).astype(np.float32)
+    x.setflags(write=False)
+    return x
