@@ -26,7 +26,7 @@ def episode_seed(recipe_seed: int, split: str, index: int, attempt: int = 0) -> 
     Never depends on worker identity or timing, so any worker reproduces any episode.
     """
     ss = np.random.SeedSequence([int(recipe_seed), SPLIT_KEYS[split], int(index), int(attempt)])
-    return int(ss.generate_state(1, dtype=np.uint64)[0] & 0x7FFF_FFFF_FFFF_FFFF)
+    return int(ss.generate_state(1, dtype=np.uint64)[0]) & 0x7FFF_FFFF_FFFF_FFFF
 
 
 @dataclass(frozen=True)
