@@ -103,7 +103,7 @@ FAUCET_SPOUT_HEIGHT = 0.1  # above the counter top
 EDGE_MARGIN = 0.08  # object footprint to receptacle edge
 FRONT_REACH = 0.35  # object centre to receptacle front edge, at most
 OBJECT_GAP = 0.03
-REST_LIFT = 0.002  # objects start this far above the top (no initial penetration)
+REST_LIFT = 0.0  # objects rest exactly on the top (z = top + sz / 2)
 
 _ROW_PATTERNS: dict[int, tuple[tuple[int, ...], ...]] = {
     2: ((2,), (1, 1)),
