@@ -1,0 +1,521 @@
+"""`echo-data build`: episodes -> shards, with workers, resume and kill-safety.
+
+Episodes are computed anywhere (see `echo_data.executors`); this process alone writes. Each
+finished episode is stored under out/.work/ (its rows as Arrow IPC, then a JSON commit marker)
+and its WAV under audio/, all atomically; once every episode of a shard is there and the
+shards before it in its split are written, the shard is written (tmp name, fsync, rename) and
+the manifest rewritten. A kill therefore loses at most the episodes in flight, and a resume
+verifies shards by sha256, reuses stored episodes and redoes the rest, producing the same bytes.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Literal
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from echo_data.dataset import stats as stats_mod
+from echo_data.dataset.manifest import (
+    MANIFEST,
+    ManifestError,
+    ShardPlan,
+    load_manifest,
+    new_manifest,
+    plan_shards,
+    write_manifest,
+)
+from echo_data.dataset.schema import EPISODE_FIELDS, FORMAT_VERSION, StepLayout
+from echo_data.dataset.writer import (
+    EncodedEpisode,
+    atomic_write_bytes,
+    atomic_write_json,
+    fsync_dir,
+    read_shard_meta,
+    sha256_file,
+    tmp_path,
+    write_shard,
+)
+from echo_data.episode import episode_seed
+from echo_data.executors import ExecutorError, make_executor
+from echo_data.recipe import Recipe
+from echo_data.records import ACTION_NAMES, STATE_NAMES, EpisodeResult
+
+BuildMode = Literal["new", "resume", "overwrite"]
+Generate = Callable[..., EpisodeResult]
+WORK = ".work"
+
+
+class OutputError(ValueError):
+    """Bad input for a build (output path, mode, recipe mismatch): exit 2, nothing written."""
+
+
+class BuildError(RuntimeError):
+    """The build could not finish (an episode never succeeded, a worker died); resumable."""
+
+
+@dataclass
+class BuildSummary:
+    """What a build produced; `str()` is the end-of-build summary."""
+
+    out: Path
+    episodes: dict[str, int]
+    steps: dict[str, int]
+    generated: int  # episodes computed by this run
+    reused: int  # episodes found done (verified shards or stored intermediates)
+    failed_attempts: int  # expert failures / sampling errors, whole dataset
+    rejected: int  # sampling rejections, whole dataset
+    shards: int
+    bytes: int
+    seconds: float
+    success_rate: float | None
+    skills: dict[str, dict[str, int]] = field(default_factory=dict)
+
+    def __str__(self) -> str:
+        eps = ", ".join(f"{k} {v}" for k, v in self.episodes.items())
+        steps = sum(self.steps.values())
+        rate = "n/a" if self.success_rate is None else f"{self.success_rate:.0%}"
+        skills = ", ".join(f"{k} {v['successes']}/{v['attempts']}" for k, v in self.skills.items())
+        return (
+            f"{self.out}: episodes {eps}; {steps} steps in {self.shards} shards, {self.bytes / 1e6:.1f} MB; "
+            f"{self.generated} generated, {self.reused} reused in {self.seconds:.1f} s; "
+            f"episode success {rate} ({self.failed_attempts} failed attempts, {self.rejected} rejected samples)"
+            + (f"; skills {skills}" if skills else "")
+        )
+
+
+# ---------------------------------------------------------------- worker side
+
+
+@dataclass(frozen=True)
+class _Job:
+    """What every worker needs, sent once per worker."""
+
+    recipe: Recipe
+    recipe_dir: Path
+    layout: StepLayout
+    generate: Generate
+    make_library: Callable[[Recipe, Path], Any] | None
+
+
+@dataclass
+class FailedEpisode:
+    """No attempt of an episode succeeded within `max_attempts_per_episode`."""
+
+    split: str
+    index: int
+    failures: list[dict[str, Any]]
+
+
+_UNSET = object()
+_JOB: _Job | None = None
+_LIBRARY: Any = _UNSET
+
+
+def _init_job(job: _Job) -> None:
+    global _JOB, _LIBRARY
+    _JOB, _LIBRARY = job, _UNSET
+
+
+def default_library(recipe: Recipe, recipe_dir: Path) -> Any:
+    """The recipe's sound library (built once per worker)."""
+    try:
+        from echo_data.sounds import SoundLibrary  # type: ignore[attr-defined]
+    except ImportError:
+        from echo_data.sounds.library import SoundLibrary  # type: ignore[no-redef]
+    return SoundLibrary.from_recipe(recipe, recipe_dir)
+
+
+def _is_sampling_error(e: BaseException) -> bool:
+    # By name: importing echo_data.scene.sampling would pull SAPIEN into every process.
+    return any(c.__name__ == "SamplingError" for c in type(e).__mro__)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())[:500]
+
+
+def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
+    """Try attempts 0, 1, ... of one episode until one succeeds; encode it (runs in a worker)."""
+    global _LIBRARY
+    from echo_data.dataset.writer import encode_episode
+
+    assert _JOB is not None, "worker not initialised"
+    job = _JOB
+    split, index = task
+    if _LIBRARY is _UNSET:
+        _LIBRARY = (job.make_library or default_library)(job.recipe, job.recipe_dir)
+    failures: list[dict[str, Any]] = []
+    rejected: Counter[str] = Counter()
+    skills: dict[str, list[int]] = {}
+    for attempt in range(job.recipe.max_attempts_per_episode):
+        seed = episode_seed(job.recipe.seed, split, index, attempt)
+        record = {"split": split, "index": index, "attempt": attempt, "seed": seed}
+        try:
+            result = job.generate(job.recipe, split, index, _LIBRARY, job.recipe_dir, attempt=attempt)
+        except Exception as e:  # an attempt that crashed is recorded and retried, never half-written
+            rejected.update({str(k): int(v) for k, v in (getattr(e, "rejected", None) or {}).items()})
+            kind = "sampling" if _is_sampling_error(e) else f"error: {type(e).__name__}"
+            failures.append({**record, "reason": _one_line(f"{kind}: {e}"), "outcomes": []})
+            continue
+        spec = result.spec
+        if (spec.split, int(spec.index)) != (split, index):
+            raise ValueError(f"generator returned episode {spec.split}/{spec.index} for {split}/{index}")
+        rejected.update({str(k): int(v) for k, v in result.rejected.items()})
+        for o in result.outcomes:
+            s = skills.setdefault(o.skill, [0, 0])
+            s[0] += 1
+            s[1] += int(bool(o.success))
+        if result.success:
+            enc = encode_episode(result, job.layout)
+            enc.failures, enc.rejected, enc.skills = failures, dict(sorted(rejected.items())), dict(sorted(skills.items()))
+            return enc
+        bad = next((o for o in result.outcomes if not o.success), None)
+        reason = f"{bad.skill}({bad.target}): {bad.reason or 'failed'}" if bad else "episode unsuccessful"
+        outcomes = [{"skill": o.skill, "target": o.target, "success": bool(o.success), "reason": o.reason} for o in result.outcomes]
+        failures.append({**record, "reason": _one_line(reason), "outcomes": outcomes})
+    return FailedEpisode(split, index, failures)
+
+
+# ---------------------------------------------------------------- output checks
+
+
+def check_output_path(out: Path) -> None:
+    """Refuse an output that is a file or lies somewhere not writable (nothing is left behind)."""
+    p = Path(out).absolute()
+    if p.exists() and not p.is_dir():
+        raise OutputError(f"{out}: exists and is not a directory")
+    anc = p
+    while not anc.exists():
+        anc = anc.parent
+    if not anc.is_dir():
+        raise OutputError(f"{out}: {anc} is a file, not a directory")
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".echo-data-probe-", dir=anc))
+    except OSError as e:
+        raise OutputError(f"{out}: not writable ({e.strerror or e})") from None
+
+
+def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, mode: str, workers: int, executor: str) -> dict[str, Any]:
+    """Create, refuse, replace or reopen the output according to `mode`; return its manifest."""
+    has_content = out.is_dir() and any(out.iterdir())
+    if has_content and mode == "new":
+        raise OutputError(f"{out} already exists; use --resume to continue it or --overwrite to replace it")
+    if has_content and mode == "resume":
+        try:
+            manifest = load_manifest(out)
+        except ManifestError as e:
+            raise OutputError(f"cannot resume: {e}") from None
+        if manifest["recipe_hash"] != recipe.content_hash():
+            raise OutputError(
+                f"{out} was built from a different recipe (hash {manifest['recipe_hash'][:12]}, this recipe "
+                f"{recipe.content_hash()[:12]}); use --overwrite to rebuild it"
+            )
+        if manifest.get("limit") != limit:
+            raise OutputError(f"{out} was built with --limit {manifest.get('limit')}, not {limit}; pass the same --limit or --overwrite")
+        manifest["build"].update({"workers": workers, "executor": executor})
+        manifest["build"]["resumes"] = manifest["build"].get("resumes", 0) + 1
+        return manifest
+    if has_content and mode == "overwrite":
+        if not (out / MANIFEST).is_file():
+            raise OutputError(f"{out} is not empty and holds no {MANIFEST}; refusing to overwrite what is not an echo-data dataset")
+        shutil.rmtree(out)
+    out.mkdir(parents=True, exist_ok=True)
+    manifest = new_manifest(recipe, limit, layout, workers, executor)
+    write_manifest(out, manifest)
+    return manifest
+
+
+# ---------------------------------------------------------------- parent side
+
+
+class _Writer:
+    """Owns the output directory during a build: intermediates, shards, manifest, meta."""
+
+    def __init__(self, out: Path, recipe: Recipe, layout: StepLayout, manifest: dict[str, Any], plans: dict[str, list[ShardPlan]]):
+        self.out, self.recipe, self.layout, self.manifest, self.plans = out, recipe, layout, manifest, plans
+        self.done: dict[str, dict[str, Any]] = {}
+
+    # -- state on disk
+    def work(self, split: str, index: int, ext: str) -> Path:
+        return self.out / WORK / split / f"{index:06d}.{ext}"
+
+    def stored(self, split: str, index: int) -> bool:
+        return self.work(split, index, "json").is_file() and self.work(split, index, "arrow").is_file()
+
+    def verify_shards(self) -> int:
+        """Keep manifest shards whose file matches its sha256; drop the rest (they are redone)."""
+        planned = {p.file for ps in self.plans.values() for p in ps}
+        kept = []
+        for entry in self.manifest["shards"]:
+            path = self.out / entry["file"]
+            if entry["file"] in planned and path.is_file() and sha256_file(path) == entry["sha256"]:
+                kept.append(entry)
+                self.done[entry["file"]] = entry
+        if len(kept) != len(self.manifest["shards"]):
+            self.manifest["shards"] = kept
+            self.manifest["complete"] = False
+            write_manifest(self.out, self.manifest)
+        return sum(e["episodes"][1] - e["episodes"][0] for e in kept)
+
+    def remove_leftovers(self) -> None:
+        """Temporary files of a killed writer are never part of the dataset."""
+        for path in self.out.rglob(".*.tmp-*"):
+            if path.is_file():
+                path.unlink()
+
+    # -- episodes
+    def store(self, enc: EncodedEpisode) -> None:
+        """Media first, rows next, the JSON commit marker last (each atomic)."""
+        atomic_write_bytes(self.out / enc.episode["audio_path"], enc.wav)
+        if self.recipe.outputs.planner_export:
+            atomic_write_bytes(self.out / "planner" / "audio" / enc.split / f"{enc.episode_id}.wav", enc.planner_wav or b"")
+            if enc.planner_png is not None:
+                atomic_write_bytes(self.out / "planner" / "images" / enc.split / f"{enc.episode_id}.png", enc.planner_png)
+        atomic_write_bytes(self.work(enc.split, enc.index, "arrow"), enc.table_ipc)
+        atomic_write_json(self.work(enc.split, enc.index, "json"), enc.meta())
+
+    # -- shards
+    def flush(self, split: str) -> None:
+        """Write every shard of `split` that is ready, in order (a shard's global `index`
+        numbering starts after the rows of the shards before it)."""
+        import json
+
+        offset = 0
+        for plan in self.plans[split]:
+            entry = self.done.get(plan.file)
+            if entry is None:
+                if not all(self.stored(split, i) for i in plan.indices):
+                    return
+                metas = [json.loads(self.work(split, i, "json").read_text()) for i in plan.indices]
+                tables = [pa.ipc.open_stream(pa.memory_map(str(self.work(split, i, "arrow")))).read_all() for i in plan.indices]
+                entry = self._write(plan, metas, tables, offset)
+            offset += entry["rows"]
+
+    def _write(self, plan: ShardPlan, metas: list[dict[str, Any]], tables: list[pa.Table], offset: int) -> dict[str, Any]:
+        episodes, failures = [], []
+        rejected: Counter[str] = Counter()
+        skills: dict[str, list[int]] = {}
+        settings: Counter[str] = Counter()
+        start = offset
+        name = Path(plan.file).name
+        for meta, table in zip(metas, tables):
+            row = dict(meta["episode"])
+            row.update({"shard": name, "dataset_from_index": start, "dataset_to_index": start + table.num_rows})
+            start += table.num_rows
+            episodes.append(row)
+            failures += meta["failures"]
+            rejected.update(meta["rejected"])
+            settings[row["setting"]] += 1
+            for k, (a, s) in meta["skills"].items():
+                acc = skills.setdefault(k, [0, 0])
+                acc[0] += a
+                acc[1] += s
+        shard_meta = {
+            "split": plan.split,
+            "shard": plan.shard,
+            "of": plan.of,
+            "episodes": episodes,
+            "stats": stats_mod.merge_features(m["stats"] for m in metas),
+        }
+        written = write_shard(self.out / plan.file, self.layout, tables, offset, shard_meta)
+        entry = {
+            "file": plan.file,
+            "split": plan.split,
+            "shard": plan.shard,
+            "of": plan.of,
+            "episodes": [plan.first, plan.last],
+            "index_from": offset,
+            "rows": written.rows,
+            "bytes": written.bytes,
+            "sha256": written.sha256,
+            "settings": dict(sorted(settings.items())),
+            "skills": {k: skills[k] for k in sorted(skills)},
+            "rejected": dict(sorted(rejected.items())),
+            "failures": failures,
+        }
+        self.done[plan.file] = entry
+        order = {p.file: n for n, p in enumerate(p for ps in self.plans.values() for p in ps)}
+        self.manifest["shards"] = sorted(self.done.values(), key=lambda e: order[e["file"]])
+        write_manifest(self.out, self.manifest)
+        for i in plan.indices:  # only after the manifest names the shard
+            self.work(plan.split, i, "arrow").unlink(missing_ok=True)
+            self.work(plan.split, i, "json").unlink(missing_ok=True)
+        return entry
+
+    # -- the end
+    def finalize(self) -> None:
+        """meta/episodes.parquet, meta/stats.json, meta/info.json, planner export, manifest complete."""
+        from echo_data.dataset.planner import write_planner_export
+
+        metas = [read_shard_meta(self.out / e["file"]) for e in self.manifest["shards"]]
+        rows = [row for m in metas for row in m["episodes"]]
+        _write_parquet_atomic(self.out / "meta" / "episodes.parquet", pa.Table.from_pylist(rows, schema=EPISODE_FIELDS))
+        train = [m["stats"] for m in metas if m["split"] == "train"] or [m["stats"] for m in metas]
+        merged = stats_mod.merge_features(train)
+        atomic_write_json(self.out / "meta" / "stats.json", {k: stats_mod.finalize(v) for k, v in merged.items()})
+        atomic_write_json(self.out / "meta" / "info.json", self.info_json())
+        if self.recipe.outputs.planner_export:
+            write_planner_export(self.out, self.recipe, rows)
+        self.manifest["complete"] = True
+        write_manifest(self.out, self.manifest)
+        shutil.rmtree(self.out / WORK, ignore_errors=True)
+
+    def info_json(self) -> dict[str, Any]:
+        """LeRobot-like meta/info.json: how to read the files without echo-data."""
+        shards = self.manifest["shards"]
+        splits: dict[str, Any] = {}
+        for s in self.plans:
+            mine = [e for e in shards if e["split"] == s]
+            splits[s] = {
+                "episodes": sum(e["episodes"][1] - e["episodes"][0] for e in mine),
+                "frames": sum(e["rows"] for e in mine),
+                "files": [e["file"] for e in mine],
+            }
+        return {
+            "codebase_version": FORMAT_VERSION,
+            "name": self.recipe.name,
+            "fps": self.layout.fps,
+            "audio_sample_rate": self.layout.sample_rate,
+            "total_episodes": sum(v["episodes"] for v in splits.values()),
+            "total_frames": sum(v["frames"] for v in splits.values()),
+            "splits": splits,
+            "data_path": "data/{split}-{shard:05d}-of-{num_shards:05d}.parquet",
+            "audio_path": "audio/{split}/{episode_id}.wav",
+            "episode_index": "per split: equals the episode's index in its split; `index` counts frames per split",
+            "stats_split": "train" if "train" in self.plans else "all",
+            "names": {"action": list(ACTION_NAMES), "observation.state": list(STATE_NAMES)},
+            "features": self.layout.hf_features(),
+        }
+
+
+def _write_parquet_atomic(path: Path, table: pa.Table) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = tmp_path(path)
+    pq.write_table(table, tmp, compression="zstd", row_group_size=4096)
+    with open(tmp, "rb+") as f:
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+    fsync_dir(path.parent)
+
+
+def _default_generate() -> Generate:
+    try:
+        from echo_data.pipeline import generate_episode  # type: ignore[attr-defined]
+    except ImportError as e:
+        raise BuildError(f"the episode pipeline is not available: {e}") from None
+    return generate_episode
+
+
+def build(
+    recipe: Recipe,
+    recipe_path: Path,
+    out: Path,
+    workers: int = 1,
+    limit: int | None = None,
+    mode: BuildMode = "new",
+    executor: Literal["local", "ray"] = "local",
+    generate: Generate | None = None,
+    progress: bool = True,
+    make_library: Callable[[Recipe, Path], Any] | None = None,
+) -> BuildSummary:
+    """Build (or resume) the dataset of `recipe` in the directory `out`.
+
+    `generate(recipe, split, index, library, recipe_dir, attempt=0) -> EpisodeResult` defaults
+    to `echo_data.pipeline.generate_episode`; `make_library(recipe, recipe_dir)` defaults to the
+    recipe's `SoundLibrary`. Raises `OutputError` (bad input, nothing written) or `BuildError`.
+    """
+    t0 = time.monotonic()
+    out = Path(out)
+    if mode not in ("new", "resume", "overwrite"):
+        raise OutputError(f"unknown build mode {mode!r}")
+    if limit is not None and limit < 0:
+        raise OutputError(f"--limit must be >= 0, got {limit}")
+    if workers < 1:
+        raise OutputError(f"--workers must be >= 1, got {workers}")
+    check_output_path(out)
+    if executor == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise OutputError("--executor ray needs Ray: pip install 'echo-data[ray]' (or use --executor local)") from None
+    elif executor != "local":
+        raise OutputError(f"unknown executor {executor!r} (use local or ray)")
+    layout = StepLayout.from_recipe(recipe)
+    plans = plan_shards(recipe, limit)
+    gen = generate or _default_generate()
+    manifest = _prepare(out, recipe, limit, layout, mode, workers, executor)
+
+    writer = _Writer(out, recipe, layout, manifest, plans)
+    reused = writer.verify_shards()
+    writer.remove_leftovers()
+    for split in plans:
+        writer.flush(split)
+    todo = [
+        (split, i)
+        for split, ps in plans.items()
+        for p in ps
+        if p.file not in writer.done
+        for i in p.indices
+        if not writer.stored(split, i)
+    ]
+    total = sum(len(p.indices) for ps in plans.values() for p in ps)
+    reused = total - len(todo)
+    job = _Job(recipe, Path(recipe_path).resolve().parent, layout, gen, make_library)
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=total, initial=reused, unit="ep", desc=f"build {recipe.name}", disable=not progress, dynamic_ncols=True)
+    attempts = successes = 0
+    try:
+        ex = make_executor(executor, workers, _init_job, (job,))
+    except ExecutorError as e:
+        bar.close()
+        raise OutputError(str(e)) from None
+    try:
+        for res in ex.imap_unordered(_run_episode, todo):
+            if isinstance(res, FailedEpisode):
+                reasons = "; ".join(f"attempt {f['attempt']}: {f['reason']}" for f in res.failures[-3:])
+                raise BuildError(
+                    f"{res.split} episode {res.index}: no success in {len(res.failures)} attempts "
+                    f"(max_attempts_per_episode); last: {reasons}"
+                )
+            writer.store(res)
+            attempts += 1 + len(res.failures)
+            successes += 1
+            bar.update(1)
+            bar.set_postfix_str(f"success {successes / attempts:.0%}", refresh=False)
+            writer.flush(res.split)
+    except BuildError:
+        raise
+    except Exception as e:
+        if type(e).__name__ == "BrokenProcessPool":
+            raise BuildError(f"a worker process died ({e}); finished episodes are kept: rerun with --resume") from e
+        raise
+    finally:
+        ex.close()
+        bar.close()
+    for split in plans:
+        writer.flush(split)
+    writer.finalize()
+    m = writer.manifest
+    return BuildSummary(
+        out=out,
+        episodes=dict(m["counts"]["episodes"]),
+        steps=dict(m["counts"]["steps"]),
+        generated=len(todo),
+        reused=reused,
+        failed_attempts=len(m["failed_episodes"]),
+        rejected=sum(m["rejected"].values()),
+        shards=len(m["shards"]),
+        bytes=sum(e["bytes"] for e in m["shards"]),
+        seconds=time.monotonic() - t0,
+        success_rate=m["counts"]["episode_success_rate"],
+        skills=m["skills"],
+    )

@@ -1,0 +1,164 @@
+"""manifest.json: what a dataset is, how it was made, and which shards are complete.
+
+The manifest is the build's commit log. It is written once before any work (so a resume can
+check the recipe hash and --limit), then rewritten atomically after each complete shard; the
+totals are always recomputed from the per-shard entries, so they never drift. Timestamps live
+only under "build" and never in data files.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from echo_data.dataset.schema import FORMAT_VERSION, StepLayout, shard_name
+from echo_data.dataset.writer import atomic_write_json
+from echo_data.episode import SPLIT_KEYS
+from echo_data.recipe import Recipe
+
+MANIFEST = "manifest.json"
+
+
+class ManifestError(ValueError):
+    """The manifest is missing, unreadable or does not match what was asked."""
+
+
+def versions() -> dict[str, str | None]:
+    """Installed versions that decide the bytes (read from package metadata: imports nothing)."""
+    out: dict[str, str | None] = {}
+    for dist in ("echo-data", "sapien", "pyroomacoustics", "numpy", "pyarrow", "librosa", "soundfile", "pillow"):
+        try:
+            out[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            out[dist] = None
+    return out
+
+
+@dataclass(frozen=True)
+class ShardPlan:
+    """One shard as planned up front: which episodes of which split it holds."""
+
+    split: str
+    shard: int
+    of: int
+    first: int  # first episode index (inclusive)
+    last: int  # last episode index (exclusive)
+
+    @property
+    def file(self) -> str:
+        return f"data/{shard_name(self.split, self.shard, self.of)}"
+
+    @property
+    def indices(self) -> range:
+        return range(self.first, self.last)
+
+
+def split_sizes(recipe: Recipe, limit: int | None) -> dict[str, int]:
+    """Episodes per split after --limit (recipe order)."""
+    return {s: (n if limit is None else min(n, limit)) for s, n in recipe.splits.items()}
+
+
+def plan_shards(recipe: Recipe, limit: int | None) -> dict[str, list[ShardPlan]]:
+    """Episodes -> shards by (split, index): `episodes_per_shard` consecutive episodes each."""
+    eps = recipe.outputs.episodes_per_shard
+    plans: dict[str, list[ShardPlan]] = {}
+    for split, n in split_sizes(recipe, limit).items():
+        m = math.ceil(n / eps)
+        plans[split] = [ShardPlan(split, i, m, i * eps, min((i + 1) * eps, n)) for i in range(m)]
+    return plans
+
+
+def new_manifest(recipe: Recipe, limit: int | None, layout: StepLayout, workers: int, executor: str) -> dict[str, Any]:
+    plans = plan_shards(recipe, limit)
+    now = _now()
+    return {
+        "format": FORMAT_VERSION,
+        "name": recipe.name,
+        "recipe_hash": recipe.content_hash(),
+        "recipe": recipe.model_dump(mode="json"),
+        "limit": limit,
+        "seed": recipe.seed,
+        "seed_rule": "numpy.random.SeedSequence([recipe.seed, split_key, index, attempt]) (echo_data.episode.episode_seed)",
+        "split_keys": {k: v for k, v in SPLIT_KEYS.items() if k in recipe.splits},
+        "versions": versions(),
+        "layout": layout.to_dict(),
+        "audio": {"sample_rate": layout.sample_rate, "channels": 2, "subtype": "PCM_16", "channel_0": "left"},
+        "splits": {
+            s: {
+                "requested": recipe.splits[s],
+                "episodes": sum(len(p.indices) for p in ps),
+                "shards": len(ps),
+                "episodes_per_shard": recipe.outputs.episodes_per_shard,
+            }
+            for s, ps in plans.items()
+        },
+        "shards": [],
+        "complete": False,
+        "build": {"started_at": now, "updated_at": now, "workers": workers, "executor": executor},
+        **totals([]),
+    }
+
+
+def totals(shards: list[dict[str, Any]]) -> dict[str, Any]:
+    """Aggregate the per-shard entries (in manifest order) into dataset totals."""
+    episodes: dict[str, int] = {}
+    steps: dict[str, int] = {}
+    settings: dict[str, dict[str, int]] = {}
+    skills: dict[str, dict[str, int]] = {}
+    rejected: dict[str, int] = {}
+    failed: list[dict[str, Any]] = []
+    for sh in shards:
+        sp = sh["split"]
+        episodes[sp] = episodes.get(sp, 0) + sh["episodes"][1] - sh["episodes"][0]
+        steps[sp] = steps.get(sp, 0) + sh["rows"]
+        for k, v in sh["settings"].items():
+            settings.setdefault(sp, {})[k] = settings.get(sp, {}).get(k, 0) + v
+        for k, (a, s) in sh["skills"].items():
+            d = skills.setdefault(k, {"attempts": 0, "successes": 0})
+            d["attempts"] += a
+            d["successes"] += s
+        for k, v in sh["rejected"].items():
+            rejected[k] = rejected.get(k, 0) + v
+        failed += sh["failures"]
+    attempts = sum(episodes.values()) + len(failed)
+    return {
+        "counts": {
+            "episodes": episodes,
+            "steps": steps,
+            "settings": settings,
+            "episode_attempts": attempts,
+            "episode_success_rate": (sum(episodes.values()) / attempts) if attempts else None,
+        },
+        "skills": {k: skills[k] for k in sorted(skills)},
+        "rejected": {k: rejected[k] for k in sorted(rejected)},
+        "failed_episodes": failed,
+    }
+
+
+def _now() -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+
+
+def write_manifest(out: Path, manifest: dict[str, Any]) -> None:
+    """Recompute totals from the shard entries and replace manifest.json atomically."""
+    manifest.update(totals(manifest["shards"]))
+    manifest["build"]["updated_at"] = _now()
+    atomic_write_json(out / MANIFEST, manifest)
+
+
+def load_manifest(out: Path) -> dict[str, Any]:
+    path = out / MANIFEST
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ManifestError(f"{out}: no {MANIFEST} (not an echo-data dataset)") from None
+    except (OSError, json.JSONDecodeError) as e:
+        raise ManifestError(f"{path}: unreadable manifest ({e.__class__.__name__}: {e})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT_VERSION:
+        raise ManifestError(f"{path}: not an {FORMAT_VERSION} manifest")
+    return data

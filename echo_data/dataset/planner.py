@@ -1,0 +1,88 @@
+"""Planner export for multimodal-LLM fine-tuning (LLaMA-Factory sharegpt with audio + image).
+
+One record per episode: the user turn holds `<audio><image>` and a prompt listing the skill
+library; the assistant answers with the ground-truth skill chain as JSON. The audio is the
+first seconds the robot heard (16 kHz mono, as Qwen2.5-Omni expects), the image its first head
+RGB frame; both were written next to the episode by the build. Media paths are relative to the
+dataset root: in LLaMA-Factory set `dataset_dir` to <root>/planner and `media_dir` to <root>.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from echo_data.dataset.writer import atomic_write_json
+from echo_data.recipe import Recipe
+
+SKILL_LIBRARY = {
+    "Navigate": "drive the base to stand in front of a target (object, door, sink or furniture)",
+    "Pick": "grasp a small object and lift it",
+    "Place": "put the held object down on a piece of furniture",
+    "OpenDoor": "open the door whose bell rang",
+    "CloseSink": "turn the running faucet off",
+}
+
+
+def prompt(with_image: bool) -> str:
+    """The user turn: what the model gets, the skills it may use, the answer format."""
+    skills = "\n".join(f"- {name}(target): {what}" for name, what in SKILL_LIBRARY.items())
+    media = "<audio><image>" if with_image else "<audio>"
+    return (
+        f"{media}You are a home robot. You hear the sound above"
+        + (" and see the view from your head camera" if with_image else "")
+        + ". Decide which sound events need handling and resolve them in order of priority, "
+        "using only these skills:\n"
+        f"{skills}\n"
+        'Answer with the ordered skill chain as JSON: [{"skill": ..., "target": ...}, ...]; '
+        "targets are object categories (phone, alarm, furby), door, sink, or a furniture kind."
+    )
+
+
+def answer(chain: list[dict[str, Any]]) -> str:
+    """The ground-truth chain with targets named as a listener could (see writer.target_kind)."""
+    return json.dumps([{"skill": c["skill"], "target": c["target_kind"]} for c in chain])
+
+
+def planner_record(row: dict[str, Any], has_image: bool) -> dict[str, Any]:
+    """One sharegpt record from a row of meta/episodes.parquet."""
+    rec: dict[str, Any] = {
+        "messages": [
+            {"role": "user", "content": prompt(has_image)},
+            {"role": "assistant", "content": answer(row["chain"])},
+        ],
+        "audios": [f"planner/audio/{row['split']}/{row['episode_id']}.wav"],
+    }
+    if has_image:
+        rec["images"] = [f"planner/images/{row['split']}/{row['episode_id']}.png"]
+    return rec
+
+
+def dataset_info(name: str, splits: list[str], has_image: bool) -> dict[str, Any]:
+    """LLaMA-Factory dataset_info.json entries, one per split."""
+    columns = {"messages": "messages", "audios": "audios"}
+    if has_image:
+        columns["images"] = "images"
+    return {
+        f"{name}_{split}": {
+            "file_name": f"{split}.json",
+            "formatting": "sharegpt",
+            "columns": columns,
+            "tags": {"role_tag": "role", "content_tag": "content", "user_tag": "user", "assistant_tag": "assistant"},
+        }
+        for split in splits
+    }
+
+
+def write_planner_export(out: Path, recipe: Recipe, rows: list[dict[str, Any]]) -> None:
+    """planner/{split}.json and planner/dataset_info.json (atomic, deterministic)."""
+    any_image = False
+    for split in recipe.splits:
+        records = []
+        for row in (r for r in rows if r["split"] == split):
+            has_image = (out / "planner" / "images" / split / f"{row['episode_id']}.png").is_file()
+            any_image |= has_image
+            records.append(planner_record(row, has_image))
+        atomic_write_json(out / "planner" / f"{split}.json", records)
+    atomic_write_json(out / "planner" / "dataset_info.json", dataset_info(recipe.name, list(recipe.splits), any_image))

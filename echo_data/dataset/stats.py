@@ -1,0 +1,124 @@
+"""Normalisation statistics (LeRobot-like meta/stats.json), computed in mergeable pieces.
+
+Each worker summarises its own episode (count, mean, M2, min, max and a 101-point quantile
+sketch per channel); shards merge their episodes' summaries and keep them in their Parquet
+metadata; the build merges the shards' summaries into meta/stats.json. Means and stds are exact
+(Chan's parallel update); quantiles are approximate (merged sketches of per-episode quantiles).
+Everything is merged in a fixed order, so the result is byte-identical whatever the worker count.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Iterable
+
+import numpy as np
+
+SKETCH_POINTS = 101  # quantiles at 0, 0.01, ..., 1 per channel
+REPORTED_QUANTILES = {"q01": 0.01, "q10": 0.10, "q50": 0.50, "q90": 0.90, "q99": 0.99}
+_MAX_SKETCH_VALUES = 200_000  # per channel; larger inputs are strided deterministically
+
+
+def summarize(values: np.ndarray, frames: int) -> dict[str, Any]:
+    """Summary of `values` shaped (n_values, channels); `frames` is the number of steps it covers."""
+    x = np.asarray(values, dtype=np.float64)
+    if x.ndim != 2 or x.shape[0] == 0:
+        raise ValueError(f"summarize expects a non-empty (n, channels) array, got shape {x.shape}")
+    n = x.shape[0]
+    mean = x.mean(axis=0)
+    m2 = ((x - mean) ** 2).sum(axis=0)
+    stride = max(1, n // _MAX_SKETCH_VALUES)
+    sketch = np.quantile(x[::stride], np.linspace(0.0, 1.0, SKETCH_POINTS), axis=0)  # (101, C)
+    return {
+        "frames": int(frames),
+        "n": int(n),
+        "mean": mean.tolist(),
+        "m2": m2.tolist(),
+        "min": x.min(axis=0).tolist(),
+        "max": x.max(axis=0).tolist(),
+        "sketch": sketch.T.tolist(),  # (C, 101)
+    }
+
+
+def merge(parts: Iterable[dict[str, Any]]) -> dict[str, Any]:
+    """Merge summaries of one feature, in the given order."""
+    parts = list(parts)
+    if not parts:
+        raise ValueError("nothing to merge")
+    n = 0
+    mean = np.zeros(len(parts[0]["mean"]))
+    m2 = np.zeros_like(mean)
+    for p in parts:
+        nb, mb, m2b = p["n"], np.asarray(p["mean"]), np.asarray(p["m2"])
+        tot = n + nb
+        delta = mb - mean
+        mean = mean + delta * (nb / tot)
+        m2 = m2 + m2b + delta**2 * (n * nb / tot)
+        n = tot
+    # Quantile sketch: each part's points stand for n/101 values each; re-read the mixture.
+    probs = np.linspace(0.0, 1.0, SKETCH_POINTS)
+    channels = len(parts[0]["mean"])
+    sketch = []
+    for c in range(channels):
+        pts = np.concatenate([np.asarray(p["sketch"][c]) for p in parts])
+        w = np.concatenate([np.full(SKETCH_POINTS, p["n"] / SKETCH_POINTS) for p in parts])
+        order = np.argsort(pts, kind="stable")
+        cum = np.cumsum(w[order])
+        cum /= cum[-1]
+        idx = np.searchsorted(cum, probs * (1 - 1e-12), side="left").clip(0, len(pts) - 1)
+        q = pts[order][idx]
+        q[0], q[-1] = pts.min(), pts.max()
+        sketch.append(q.tolist())
+    return {
+        "frames": int(sum(p["frames"] for p in parts)),
+        "n": int(n),
+        "mean": mean.tolist(),
+        "m2": m2.tolist(),
+        "min": np.min([p["min"] for p in parts], axis=0).tolist(),
+        "max": np.max([p["max"] for p in parts], axis=0).tolist(),
+        "sketch": sketch,
+    }
+
+
+def merge_features(parts: Iterable[dict[str, dict[str, Any]]]) -> dict[str, dict[str, Any]]:
+    """Merge {feature: summary} dicts feature by feature (features missing in a part are skipped)."""
+    parts = list(parts)
+    names: list[str] = []
+    for p in parts:
+        names += [k for k in p if k not in names]
+    return {k: merge([p[k] for p in parts if k in p]) for k in names}
+
+
+def finalize(summary: dict[str, Any]) -> dict[str, list[float]]:
+    """A merged summary -> the published min/max/mean/std/count/q01..q99 record."""
+    n = summary["n"]
+    std = np.sqrt(np.maximum(np.asarray(summary["m2"]) / max(n, 1), 0.0))
+    sketch = np.asarray(summary["sketch"])  # (C, 101)
+    out: dict[str, list[float]] = {
+        "min": list(summary["min"]),
+        "max": list(summary["max"]),
+        "mean": list(summary["mean"]),
+        "std": std.tolist(),
+        "count": [summary["frames"]],
+    }
+    for name, q in REPORTED_QUANTILES.items():
+        out[name] = sketch[:, int(round(q * (SKETCH_POINTS - 1)))].tolist()
+    return out
+
+
+def episode_feature_values(
+    action: np.ndarray,
+    state: np.ndarray,
+    images: dict[str, tuple[str, np.ndarray]],
+    arrays: dict[str, np.ndarray],
+) -> dict[str, np.ndarray]:
+    """The (n_values, channels) matrices summarised per feature, in the units loaders return:
+    action/state per dimension; RGB per channel in [0, 1]; depth in metres; spectrograms per ear."""
+    out = {"action": action.reshape(len(action), -1), "observation.state": state.reshape(len(state), -1)}
+    for col, (kind, stack) in images.items():
+        if kind == "rgb":
+            out[col] = stack.reshape(-1, 3).astype(np.float32) / 255.0
+        else:
+            out[col] = stack.reshape(-1, 1).astype(np.float32) / 1000.0
+    for col, stack in arrays.items():
+        out[col] = stack.reshape(-1, stack.shape[-1])
+    return out

@@ -1,0 +1,404 @@
+"""Turning episodes into bytes, and putting bytes on disk atomically.
+
+`encode_episode` runs in a worker: it validates an `EpisodeResult`, encodes images (PNG),
+audio (WAV) and the step rows (an Arrow table), and summarises the statistics. `write_shard`
+runs in the parent: it joins finished episodes into one Parquet shard under a temporary name,
+fsyncs, hashes and renames it. Nothing here depends on time, host or worker identity, so the
+same episodes always give the same bytes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from echo_data.dataset import stats as stats_mod
+from echo_data.dataset.schema import (
+    ACTION,
+    IMAGE_TYPE,
+    MEL,
+    PARQUET_COMPRESSION,
+    PARQUET_COMPRESSION_LEVEL,
+    ROW_GROUP_ROWS,
+    SHARD_META_KEY,
+    SPECTROGRAM,
+    STATE,
+    StepLayout,
+    array3d_column,
+    task_index,
+)
+from echo_data.records import ACTION_DIM, STATE_DIM, EpisodeResult
+
+PNG_COMPRESS_LEVEL = 6
+WAV_SUBTYPE = "PCM_16"  # no PEAK chunk (libsndfile stamps float WAVs with the time)
+PLANNER_AUDIO_SECONDS = 3.0
+PLANNER_SAMPLE_RATE = 16000  # Qwen2.5-Omni takes 16 kHz mono only
+_RECORD_IMAGE_ATTR = {
+    "observation.images.head_rgb": "head_rgb",
+    "observation.images.head_depth": "head_depth",
+    "observation.images.wrist_depth": "wrist_depth",
+}
+
+
+# ---------------------------------------------------------------- atomic files
+
+
+def fsync_dir(path: Path) -> None:
+    """Make a rename in `path` durable."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def tmp_path(path: Path) -> Path:
+    """Temporary sibling of `path`; the `.tmp-` marker lets resume and validate spot leftovers."""
+    return path.with_name(f".{path.name}.tmp-{os.getpid()}")
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write, fsync, rename: readers see the old file or the whole new one, never a part."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = tmp_path(path)
+    with open(tmp, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+    fsync_dir(path.parent)
+
+
+def canonical_json(obj: Any) -> bytes:
+    """Stable JSON bytes (sorted keys) for files whose bytes must not depend on dict order."""
+    return (json.dumps(obj, sort_keys=True, indent=1, ensure_ascii=False) + "\n").encode()
+
+
+def atomic_write_json(path: Path, obj: Any) -> None:
+    atomic_write_bytes(path, canonical_json(obj))
+
+
+def sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+# ---------------------------------------------------------------- media encoding
+
+
+def encode_png(image: np.ndarray) -> bytes:
+    """uint8 (H, W, 3) RGB or uint16 (H, W) depth in millimetres -> PNG bytes (16-bit for depth)."""
+    from PIL import Image
+
+    if image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3:
+        img = Image.fromarray(image, mode="RGB")
+    elif image.dtype == np.uint16 and image.ndim == 2:
+        img = Image.fromarray(image)  # mode I;16 -> 16-bit greyscale PNG
+    else:
+        raise ValueError(f"unsupported image: dtype {image.dtype}, shape {image.shape}")
+    buf = io.BytesIO()
+    img.save(buf, format="PNG", compress_level=PNG_COMPRESS_LEVEL)
+    return buf.getvalue()
+
+
+def encode_wav(audio: np.ndarray, sample_rate: int) -> bytes:
+    """float (n, channels) in [-1, 1] -> 16-bit PCM WAV bytes (clipped)."""
+    import soundfile as sf
+
+    buf = io.BytesIO()
+    sf.write(buf, np.clip(np.asarray(audio, dtype=np.float32), -1.0, 1.0), sample_rate, subtype=WAV_SUBTYPE, format="WAV")
+    return buf.getvalue()
+
+
+def planner_audio(audio: np.ndarray, sample_rate: int) -> np.ndarray:
+    """The first seconds heard, as 16 kHz mono (mean of the two ears)."""
+    head = np.asarray(audio[: int(round(PLANNER_AUDIO_SECONDS * sample_rate))], dtype=np.float64)
+    mono = head.mean(axis=1) if head.ndim == 2 else head
+    if sample_rate != PLANNER_SAMPLE_RATE:
+        from math import gcd
+
+        from scipy.signal import resample_poly
+
+        g = gcd(PLANNER_SAMPLE_RATE, sample_rate)
+        mono = resample_poly(mono, PLANNER_SAMPLE_RATE // g, sample_rate // g)
+    return mono.astype(np.float32)
+
+
+# ---------------------------------------------------------------- episodes
+
+
+@dataclass
+class EncodedEpisode:
+    """A successful episode as bytes, plus what the manifest needs about every attempt."""
+
+    split: str
+    index: int
+    episode_id: str
+    table_ipc: bytes  # step rows (StepLayout.episode_schema), Arrow IPC stream
+    wav: bytes
+    planner_wav: bytes | None
+    planner_png: bytes | None
+    episode: dict[str, Any]  # row of meta/episodes.parquet (shard fields filled later)
+    stats: dict[str, dict[str, Any]]  # feature -> summary (see stats.py)
+    failures: list[dict[str, Any]] = field(default_factory=list)  # failed attempts before success
+    rejected: dict[str, int] = field(default_factory=dict)  # sampling rejections by reason
+    skills: dict[str, list[int]] = field(default_factory=dict)  # skill -> [attempts, successes]
+
+    def meta(self) -> dict[str, Any]:
+        """Everything but the bulky bytes (stored as the episode's commit marker)."""
+        return {
+            "split": self.split,
+            "index": self.index,
+            "episode_id": self.episode_id,
+            "episode": self.episode,
+            "stats": self.stats,
+            "failures": self.failures,
+            "rejected": self.rejected,
+            "skills": self.skills,
+        }
+
+
+def _spec_row(spec: Any) -> dict[str, Any]:
+    return {
+        "episode_index": int(spec.index),
+        "episode_id": str(spec.episode_id),
+        "split": str(spec.split),
+        "setting": str(spec.setting),
+        "task_index": task_index(spec.setting),
+        "seed": int(spec.seed),
+        "attempt": int(spec.attempt),
+        "scene_seed": int(getattr(spec.plan, "seed", spec.seed)),
+        "start": [float(v) for v in spec.start],
+        "events": [
+            {
+                "category": e.category,
+                "sound_id": e.sound_id,
+                "priority": int(e.priority),
+                "target": e.target,
+                "source": [float(v) for v in e.source],
+            }
+            for e in spec.events
+        ],
+        "chain": [
+            {"skill": c.skill, "target": c.target, "event": int(c.event), "target_kind": target_kind(c.target, spec.plan)}
+            for c in spec.chain
+        ],
+    }
+
+
+def target_kind(target: str, plan: Any) -> str:
+    """What a listener would call a scene target: "phone_0" -> phone, "door:1" -> door,
+    "faucet:0" -> sink, "furniture:3" -> its kind (table, counter, ...)."""
+    if target.startswith("door:"):
+        return "door"
+    if target.startswith("faucet:"):
+        return "sink"
+    if target.startswith("furniture:"):
+        i = int(target.split(":", 1)[1])
+        return next((f.kind for f in getattr(plan, "furniture", ()) if f.index == i), "furniture")
+    return next((o.category for o in getattr(plan, "objects", ()) if o.name == target), target.rsplit("_", 1)[0])
+
+
+def _check_stack(name: str, arr: np.ndarray | None, n: int, shape: tuple[int, ...]) -> np.ndarray:
+    if arr is None:
+        raise ValueError(f"episode has no {name} but the recipe stores it")
+    arr = np.asarray(arr)
+    if arr.shape != (n, *shape):
+        raise ValueError(f"{name} has shape {arr.shape}, expected {(n, *shape)}")
+    return arr
+
+
+def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
+    """Validate a successful `EpisodeResult` against the layout and encode it (runs in workers)."""
+    spec = result.spec
+    steps = result.steps
+    n = len(steps)
+    if n == 0:
+        raise ValueError(f"{spec.episode_id}: episode has no steps")
+    if result.audio is None or result.audio_offsets is None:
+        raise ValueError(f"{spec.episode_id}: episode has no audio track / offsets")
+    audio = np.asarray(result.audio, dtype=np.float32)
+    if audio.ndim != 2 or audio.shape[1] != 2:
+        raise ValueError(f"{spec.episode_id}: audio must be (n_samples, 2), got {audio.shape}")
+    offsets = np.asarray(result.audio_offsets, dtype=np.int64)
+    if offsets.shape != (n,) or (offsets < 0).any() or (offsets > len(audio)).any():
+        raise ValueError(f"{spec.episode_id}: audio_offsets must be ({n},) within [0, {len(audio)}]")
+
+    action = np.stack([np.asarray(s.action, dtype=np.float32) for s in steps])
+    state = np.stack([np.asarray(s.state, dtype=np.float32) for s in steps])
+    if action.shape != (n, ACTION_DIM) or state.shape != (n, STATE_DIM):
+        raise ValueError(f"{spec.episode_id}: action/state shapes {action.shape}/{state.shape}")
+
+    chain_len = len(spec.chain)
+    cols: dict[str, pa.Array] = {
+        "episode_index": pa.array(np.full(n, spec.index, dtype=np.int64)),
+        "frame_index": pa.array(np.array([s.frame_index for s in steps], dtype=np.int64)),
+        "timestamp": pa.array(np.array([s.timestamp for s in steps], dtype=np.float32)),
+        "task_index": pa.array(np.full(n, task_index(spec.setting), dtype=np.int64)),
+        "setting": pa.array([spec.setting] * n, pa.string()),
+        "skill": pa.array([s.skill for s in steps], pa.string()),
+        "skill_index": pa.array(np.array([s.skill_index for s in steps], dtype=np.int64)),
+        ACTION: pa.FixedSizeListArray.from_arrays(pa.array(action.reshape(-1)), ACTION_DIM),
+        STATE: pa.FixedSizeListArray.from_arrays(pa.array(state.reshape(-1)), STATE_DIM),
+    }
+    if not np.array_equal(cols["frame_index"].to_numpy(), np.arange(n)):
+        raise ValueError(f"{spec.episode_id}: frame_index must run 0..{n - 1}")
+
+    image_stacks: dict[str, tuple[str, np.ndarray]] = {}
+    for col, (kind, h, w) in layout.images.items():
+        attr = _RECORD_IMAGE_ATTR[col]
+        frames = [getattr(s, attr) for s in steps]
+        if any(f is None for f in frames):
+            raise ValueError(f"{spec.episode_id}: a step has no {attr} but the recipe stores it")
+        shape = (h, w, 3) if kind == "rgb" else (h, w)
+        dtype = np.uint8 if kind == "rgb" else np.uint16
+        stack = np.stack(frames)
+        if stack.shape != (n, *shape) or stack.dtype != dtype:
+            raise ValueError(f"{spec.episode_id}: {attr} is {stack.dtype}{stack.shape[1:]}, expected {np.dtype(dtype)}{shape}")
+        image_stacks[col] = (kind, stack)
+        cols[col] = pa.array([{"bytes": encode_png(f), "path": None} for f in stack], IMAGE_TYPE)
+
+    array_stacks: dict[str, np.ndarray] = {}
+    sources = {SPECTROGRAM: result.spectrogram, MEL: result.mel}
+    for col, shape in layout.arrays.items():
+        stack = _check_stack(col, sources[col], n, shape).astype(np.float32)
+        array_stacks[col] = stack
+        cols[col] = array3d_column(stack)
+
+    cols["audio_offset"] = pa.array(offsets)
+    cols["done"] = pa.array(np.array([bool(s.done) for s in steps]))
+    cols["skill_success"] = pa.array(
+        [[bool(v) for v in (tuple(s.skill_success) + (False,) * chain_len)[:chain_len]] for s in steps],
+        pa.list_(pa.bool_()),
+    )
+    schema = layout.episode_schema()
+    table = pa.Table.from_arrays([cols[f.name] for f in schema], schema=schema)
+    sink = io.BytesIO()
+    with pa.ipc.new_stream(sink, schema) as w:
+        w.write_table(table)
+
+    wav = encode_wav(audio, layout.sample_rate)
+    row = _spec_row(spec)
+    row.update(
+        {
+            "outcomes": [
+                {"skill": o.skill, "target": o.target, "success": bool(o.success), "reason": o.reason, "steps": int(o.steps)}
+                for o in result.outcomes
+            ],
+            "success": bool(result.success),
+            "n_steps": n,
+            "audio_path": f"audio/{spec.split}/{spec.episode_id}.wav",
+            "audio_samples": int(len(audio)),
+            "audio_sha256": hashlib.sha256(wav).hexdigest(),
+        }
+    )
+    values = stats_mod.episode_feature_values(action, state, image_stacks, array_stacks)
+    summaries = {k: stats_mod.summarize(v, n) for k, v in values.items()}
+
+    planner_png = None
+    if steps[0].head_rgb is not None:
+        planner_png = encode_png(np.asarray(steps[0].head_rgb, dtype=np.uint8))
+    planner_wav = encode_wav(planner_audio(audio, layout.sample_rate)[:, None], PLANNER_SAMPLE_RATE)
+    return EncodedEpisode(
+        split=spec.split,
+        index=int(spec.index),
+        episode_id=spec.episode_id,
+        table_ipc=sink.getvalue(),
+        wav=wav,
+        planner_wav=planner_wav,
+        planner_png=planner_png,
+        episode=row,
+        stats=summaries,
+    )
+
+
+def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
+    """Rebuild `table` with exactly `schema` (re-wrapping extension columns that a round trip
+    through IPC returned as their plain storage)."""
+    arrays = []
+    for f in schema:
+        col = table.column(f.name).combine_chunks()
+        if isinstance(f.type, pa.BaseExtensionType):
+            if isinstance(col.type, pa.BaseExtensionType):
+                col = col.storage
+            col = pa.ExtensionArray.from_storage(f.type, col.cast(f.type.storage_type))
+        elif col.type != f.type:
+            col = col.cast(f.type)
+        arrays.append(col)
+    return pa.Table.from_arrays(arrays, schema=schema)
+
+
+def read_ipc(data: bytes) -> pa.Table:
+    return pa.ipc.open_stream(pa.py_buffer(data)).read_all()
+
+
+# ---------------------------------------------------------------- shards
+
+
+@dataclass
+class ShardWritten:
+    rows: int
+    bytes: int
+    sha256: str
+
+
+def write_shard(
+    path: Path,
+    layout: StepLayout,
+    episode_tables: list[pa.Table],
+    index_offset: int,
+    shard_meta: dict[str, Any],
+) -> ShardWritten:
+    """Join episodes' rows (in order), number them from `index_offset`, write one Parquet shard
+    atomically. `shard_meta` (episode records, partial stats) goes into the schema metadata."""
+    schema = layout.schema()
+    table = pa.concat_tables(episode_tables) if episode_tables else layout.episode_schema().empty_table()
+    n = table.num_rows
+    table = table.add_column(2, pa.field("index", pa.int64()), pa.array(np.arange(index_offset, index_offset + n, dtype=np.int64)))
+    metadata = dict(schema.metadata)
+    metadata[SHARD_META_KEY.encode()] = json.dumps(shard_meta, sort_keys=True, separators=(",", ":")).encode()
+    table = conform(table, schema.with_metadata(metadata))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = tmp_path(path)
+    with pq.ParquetWriter(
+        tmp,
+        table.schema,
+        compression=PARQUET_COMPRESSION,
+        compression_level=PARQUET_COMPRESSION_LEVEL,
+        write_statistics=True,
+        store_schema=True,
+    ) as w:
+        w.write_table(table, row_group_size=ROW_GROUP_ROWS)
+    with open(tmp, "rb+") as f:
+        os.fsync(f.fileno())
+    digest = sha256_file(tmp)
+    size = tmp.stat().st_size
+    os.replace(tmp, path)
+    fsync_dir(path.parent)
+    return ShardWritten(rows=n, bytes=size, sha256=digest)
+
+
+def read_shard_meta(path: Path) -> dict[str, Any]:
+    """The echo-data record a shard carries in its schema metadata."""
+    md = pq.read_schema(path).metadata or {}
+    raw = md.get(SHARD_META_KEY.encode())
+    if raw is None:
+        raise ValueError(f"{path.name}: no {SHARD_META_KEY!r} schema metadata")
+    return json.loads(raw)
