@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from echo_data.scene.floorplan import Furniture
-from echo_data.scene.nav import NavGrid, interaction_pose, target_point
+from echo_data.scene.nav import NavGrid, handle_xy, interaction_pose, target_point
 from test_nav_plans import two_room_plan
 
 R = 0.32
@@ -156,3 +156,17 @@ def test_no_free_pose_raises() -> None:
     plan = dataclasses.replace(plan, furniture=plan.furniture + blockers)
     with pytest.raises(ValueError):
         interaction_pose(plan, "phone_0")
+
+
+@pytest.mark.parametrize("q", [0.0, 0.7, 1.6])
+def test_handle_geometry_matches_door_builder(q: float) -> None:
+    """nav stays SAPIEN-free, so it repeats the handle layout; this keeps the two in step."""
+    articulated = pytest.importorskip("echo_data.scene.articulated")
+    door = two_room_plan().doors[0]
+    for face in (1.0, -1.0):
+        ref = articulated.door_handle_world(door, q, face)
+        assert handle_xy(door, q, face) == pytest.approx((ref[0], ref[1]), abs=1e-9)
+    # The default handle is the swing-side one, and it is blocked in the grid.
+    grid = NavGrid.from_plan(two_room_plan(), robot_radius=R, door_angles={0: q})
+    assert _occ(grid, *handle_xy(door, q))
+    assert handle_xy(door, q) == handle_xy(door, q, door.open_sign)

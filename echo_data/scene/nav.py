@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import heapq
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
@@ -24,15 +24,25 @@ COMFORT_MARGIN = 0.08
 CLEARANCE_COST_BAND = 0.3
 # How far (m) a blocked start / goal may be moved to the nearest free cell.
 SNAP_RADIUS = 0.3
-# Distance (m) from a door leaf's free edge to the middle of its handle (door builder's layout).
-HANDLE_INSET = 0.08
+# Door handle layout of the door builder (`echo_data.scene.articulated`, kept in step by a test):
+# bar axis this far from the free edge, and this far out from the leaf face; bar half-section.
+HANDLE_EDGE_OFFSET = 0.08
+HANDLE_STANDOFF = 0.06
+HANDLE_HALF_SECTION = 0.012
 
 
-def _handle_xy(door: Door, q: float) -> tuple[float, float]:
-    """Handle position in the plan at hinge angle q: on the leaf, HANDLE_INSET from its free edge."""
+def handle_xy(door: Door, q: float, face: float | None = None) -> tuple[float, float]:
+    """Plan position of a door's handle bar at hinge angle q.
+
+    `face` +1 is the leaf's +y normal side, -1 the other; default: the swing side
+    (`open_sign`), i.e. the handle a robot standing where the leaf opens to pulls.
+    """
+    f = door.open_sign if face is None else face
     yaw = door.leaf_yaw(q)
-    d = door.width - HANDLE_INSET
-    return (door.hinge[0] + d * math.cos(yaw), door.hinge[1] + d * math.sin(yaw))
+    u = door.width - HANDLE_EDGE_OFFSET
+    v = f * (door.thickness / 2.0 + HANDLE_STANDOFF)
+    c, s = math.cos(yaw), math.sin(yaw)
+    return (door.hinge[0] + c * u - s * v, door.hinge[1] + s * u + c * v)
 
 
 @dataclass
@@ -51,6 +61,7 @@ class NavGrid:
     occupied: np.ndarray  # bool (ny, nx)
     clearance_m: np.ndarray  # float32 (ny, nx)
     free: np.ndarray  # bool (ny, nx)
+    _labels: np.ndarray | None = field(default=None, repr=False)  # free-region labels, built on demand
 
     # ------------------------------------------------------------------ construction
     @staticmethod
@@ -90,6 +101,9 @@ class NavGrid:
         for door in plan.doors:
             q = float(angles.get(door.index, door.angle))
             grid._fill_segment(occupied, door.hinge, door.free_edge(q), door.thickness / 2.0)
+            for face in (1.0, -1.0):  # the handle bars stick out of both faces
+                h = handle_xy(door, q, face)
+                grid._fill_segment(occupied, h, h, HANDLE_HALF_SECTION)
 
         # Distance from each cell centre to the nearest obstacle cell, less half a cell so it
         # bounds the distance to the obstacle's edge rather than its cell centre.
@@ -190,6 +204,13 @@ class NavGrid:
             return 0.0
         return float(self.clearance_m[ii, jj].min())
 
+    def connected(self, a: tuple[float, float], b: tuple[float, float]) -> bool:
+        """Whether free cells a and b lie in one 8-connected free region (no search needed)."""
+        if self._labels is None:
+            self._labels = ndimage.label(self.free, structure=np.ones((3, 3), dtype=bool))[0]
+        la, lb = self._labels[self.cell(*a)], self._labels[self.cell(*b)]
+        return bool(la) and la == lb
+
     # ------------------------------------------------------------------ planning
     def plan_path(
         self, start_xy: tuple[float, float], goal_xy: tuple[float, float]
@@ -202,7 +223,7 @@ class NavGrid:
         """
         start = self.nearest_free(*start_xy)
         goal = self.nearest_free(*goal_xy)
-        if start is None or goal is None:
+        if start is None or goal is None or not self.connected(start, goal):
             return None
         cells = self._astar(self.cell(*start), self.cell(*goal))
         if cells is None:
@@ -322,7 +343,7 @@ def target_point(plan: FloorPlan, target: str, door_angles: dict[int, float] | N
     if kind == "door":
         door = plan.doors[i]
         q = (door_angles or {}).get(i, door.angle)
-        return _handle_xy(door, q)
+        return handle_xy(door, q)
     if kind == "faucet":
         fc = plan.faucets[i]
         return (fc.pivot[0], fc.pivot[1])
@@ -416,7 +437,7 @@ def interaction_pose(
 
 def _door_candidates(plan: FloorPlan, door: Door) -> list[tuple[float, float]]:
     """Stand points on the swing side of the closed leaf, DOOR_STANDOFF from it, in front of the handle."""
-    hx, hy = _handle_xy(door, 0.0)
+    hx, hy = handle_xy(door, 0.0)
     ux, uy = math.cos(door.closed_yaw), math.sin(door.closed_yaw)  # along the closed leaf
     # The leaf sweeps towards open_sign * 90°: that side of the leaf is the swing side.
     sx, sy = -door.open_sign * uy, door.open_sign * ux
