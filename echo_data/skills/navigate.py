@@ -1,0 +1,298 @@
+"""The Navigate expert: plan a base path on the occupancy grid and drive it with velocity actions.
+
+`PathFollower` is pure (pose in, robot-frame velocity out) so it can be checked without
+physics; `drive_to` runs it in a `World` (replanning when the robot strays or stalls, stopping
+on contact with walls or furniture) and is reused by the Place expert; `navigate` is the skill.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Generator
+from dataclasses import dataclass
+
+import numpy as np
+
+from echo_data.records import ACTION_DIM, SkillOutcome
+from echo_data.scene.nav import NavGrid, interaction_pose, target_point
+
+# Speed limits and ramps (Fetch's base: ≈1 m/s top speed; slower keeps tracking tight).
+MAX_LIN = 0.6  # m/s
+MAX_ANG = 1.0  # rad/s
+ACC_LIN = 0.8  # m/s^2
+ACC_ANG = 2.5  # rad/s^2
+LOOKAHEAD = 0.35  # m, carrot distance along the path
+TURN_IN_PLACE = math.radians(35)  # heading error beyond which the base stops and turns
+K_HEADING = 2.0  # 1/s, heading gain while driving and turning
+GOAL_TOL = 0.08  # m, position at which the final turn starts
+YAW_TOL = math.radians(3)  # final heading tolerance
+# Success (SPEC, Habitat's criterion): within this of the interaction point, facing the target.
+SUCCESS_DIST = 1.5
+SUCCESS_YAW = math.radians(15)
+# Replanning: off the path by more than this, or no progress for this long.
+STRAY_DIST = 0.35
+STALL_SECONDS = 3.0
+MAX_REPLANS = 4
+COLLISION_STEPS = 3  # consecutive control steps in contact before the drive gives up
+
+
+def wrap(a: float) -> float:
+    """Angle wrapped to (-pi, pi]."""
+    return math.remainder(a, 2.0 * math.pi)
+
+
+def _ramp(prev: float, want: float, acc: float, dt: float) -> float:
+    step = acc * dt
+    return prev + max(-step, min(step, want - prev))
+
+
+@dataclass
+class PathFollower:
+    """Turn-then-drive tracking of a waypoint path, ending with a turn to `final_yaw`.
+
+    `command(pose)` returns (vx, vy, wz) in the robot frame; vy stays 0 so the same
+    commands suit a differential or a holonomic base.
+    """
+
+    path: list[tuple[float, float]]
+    final_yaw: float | None
+    dt: float
+    max_lin: float = MAX_LIN
+    max_ang: float = MAX_ANG
+    seg: int = 0  # index of the segment being tracked (path[seg] -> path[seg+1])
+    v: float = 0.0
+    w: float = 0.0
+    turning: bool = False  # in the final turn
+    done: bool = False
+
+    def _project(self, x: float, y: float) -> tuple[float, float]:
+        """Advance `seg` past finished segments; return (distance off the path, path length left)."""
+        while self.seg < len(self.path) - 2:
+            (ax, ay), (bx, by) = self.path[self.seg], self.path[self.seg + 1]
+            dx, dy = bx - ax, by - ay
+            t = ((x - ax) * dx + (y - ay) * dy) / max(dx * dx + dy * dy, 1e-12)
+            if t < 1.0 and math.hypot(bx - x, by - y) > 0.5 * LOOKAHEAD:
+                break
+            self.seg += 1
+        (ax, ay), (bx, by) = self.path[self.seg], self.path[min(self.seg + 1, len(self.path) - 1)]
+        dx, dy = bx - ax, by - ay
+        t = min(max(((x - ax) * dx + (y - ay) * dy) / max(dx * dx + dy * dy, 1e-12), 0.0), 1.0)
+        px, py = ax + t * dx, ay + t * dy
+        left = math.hypot(bx - px, by - py) + sum(
+            math.dist(self.path[k], self.path[k + 1]) for k in range(self.seg + 1, len(self.path) - 1)
+        )
+        return math.hypot(x - px, y - py), left
+
+    def _carrot(self, x: float, y: float) -> tuple[float, float]:
+        """The point LOOKAHEAD ahead along the path from the robot's projection (or the goal)."""
+        (ax, ay), (bx, by) = self.path[self.seg], self.path[min(self.seg + 1, len(self.path) - 1)]
+        dx, dy = bx - ax, by - ay
+        seg_len = math.hypot(dx, dy)
+        t = min(max(((x - ax) * dx + (y - ay) * dy) / max(seg_len * seg_len, 1e-12), 0.0), 1.0)
+        remaining = LOOKAHEAD
+        px, py = ax + t * dx, ay + t * dy
+        k = self.seg + 1
+        cx, cy = px, py
+        while k < len(self.path):
+            nx, ny = self.path[k]
+            d = math.hypot(nx - cx, ny - cy)
+            if d >= remaining:
+                f = remaining / max(d, 1e-12)
+                return (cx + f * (nx - cx), cy + f * (ny - cy))
+            remaining -= d
+            cx, cy = nx, ny
+            k += 1
+        return self.path[-1]
+
+    def off_path(self, x: float, y: float) -> float:
+        """Distance (m) from (x, y) to the segment being tracked."""
+        return self._project(x, y)[0]
+
+    def command(self, pose: tuple[float, float, float]) -> tuple[float, float, float]:
+        """Velocity targets for this control step; sets `done` once at the goal and turned."""
+        x, y, yaw = pose
+        goal = self.path[-1]
+        dist_goal = math.hypot(goal[0] - x, goal[1] - y)
+        want_v, want_w = 0.0, 0.0
+        if not self.turning and dist_goal <= GOAL_TOL:
+            self.turning = True
+        if self.turning:
+            err = 0.0 if self.final_yaw is None else wrap(self.final_yaw - yaw)
+            if abs(err) <= YAW_TOL and abs(self.w) <= 0.15:
+                self.done = True
+            else:
+                want_w = K_HEADING * err
+        else:
+            _, left = self._project(x, y)
+            cx, cy = self._carrot(x, y)
+            err = wrap(math.atan2(cy - y, cx - x) - yaw)
+            want_w = K_HEADING * err
+            if abs(err) < TURN_IN_PLACE:
+                # Slow down for the goal (v^2 <= 2 a d) and for heading error.
+                v_stop = math.sqrt(2.0 * 0.5 * ACC_LIN * max(left, dist_goal))
+                want_v = min(self.max_lin, v_stop) * (1.0 - abs(err) / TURN_IN_PLACE)
+        want_v = max(0.0, min(self.max_lin, want_v))
+        want_w = max(-self.max_ang, min(self.max_ang, want_w))
+        if self.done:
+            want_v, want_w = 0.0, 0.0
+        self.v = _ramp(self.v, want_v, ACC_LIN, self.dt)
+        self.w = _ramp(self.w, want_w, ACC_ANG, self.dt)
+        # Stop ramps that would overshoot a small heading error within one step.
+        if abs(want_w) < abs(self.w) and want_w * self.w >= 0:
+            self.w = want_w
+        return (self.v, 0.0, self.w)
+
+
+# ---------------------------------------------------------------------- in a World
+@dataclass
+class DriveResult:
+    """How a drive ended: `reason` is "" on arrival, else "no_path", "timeout" or "collision"."""
+
+    success: bool
+    reason: str
+    steps: int
+    replans: int = 0
+
+
+def door_angles(world: object) -> dict[int, float]:
+    """Current hinge angle of every door in the world (empty when it has none)."""
+    handles = getattr(world, "handles", None)
+    return handles.door_angles() if handles is not None else {}
+
+
+def current_grid(world: object) -> NavGrid:
+    """The world's occupancy grid with its doors where they stand now (≈2–9 ms to rebuild)."""
+    nav = getattr(world, "nav", None)
+    radius = nav.robot_radius if nav is not None else 0.32
+    resolution = nav.resolution if nav is not None else 0.05
+    return NavGrid.from_plan(world.plan, robot_radius=radius, resolution=resolution, door_angles=door_angles(world))  # type: ignore[attr-defined]
+
+
+def robot_collisions(world: object) -> list[str]:
+    """Names of walls, furniture, doors or faucets a robot link touches after the last physics step.
+
+    The floor and dynamic objects (a carried object, clutter) do not count: a collision here
+    is the base or arm hitting the apartment.
+    """
+    robot = world.robot  # type: ignore[attr-defined]
+    robot_entities = {ln.entity for ln in robot.articulation.links}
+    handles = getattr(world, "handles", None)
+    solid = set()
+    if handles is not None:
+        solid = {e for e in handles.statics if e.name != "floor"}
+        for art in list(handles.doors) + list(handles.faucets):
+            solid |= {ln.entity for ln in art.links}
+    hits = []
+    for c in robot.scene.get_contacts():
+        e0, e1 = c.bodies[0].entity, c.bodies[1].entity
+        other = e1 if e0 in robot_entities else e0 if e1 in robot_entities else None
+        if other is None or other in robot_entities or other not in solid:
+            continue
+        if any(np.linalg.norm(p.impulse) > 1e-6 for p in c.points):
+            hits.append(other.name)
+    return hits
+
+
+def _stalled(history: list[tuple[float, float, float]]) -> bool:
+    """True when a window of commanded-motion poses shows (almost) no motion."""
+    x0, y0, a0 = history[0]
+    x1, y1, a1 = history[-1]
+    return math.hypot(x1 - x0, y1 - y0) < 0.05 and abs(wrap(a1 - a0)) < 0.1
+
+
+def drive_to(
+    world: object,
+    goal: tuple[float, float, float],
+    max_steps: int,
+    grid: NavGrid | None = None,
+    hold: np.ndarray | None = None,
+) -> Generator[np.ndarray, None, DriveResult]:
+    """Drive the base to `goal` (x, y, yaw): yields one action per control step.
+
+    Torso, arm and gripper hold `hold[3:]` (default: the robot's current targets, so a
+    carried object stays in hand). Replans from where the robot is when it strays from the
+    path or stalls; gives up on MAX_REPLANS failures or COLLISION_STEPS steps in contact.
+    """
+    robot = world.robot  # type: ignore[attr-defined]
+    dt = 1.0 / robot.cfg.control_hz
+    base_action = (robot.rest_action() if hold is None else np.asarray(hold, dtype=np.float32)).copy()
+    base_action[:3] = 0.0
+    if grid is None:
+        grid = current_grid(world)
+    x, y, yaw = robot.base_pose()
+    path = grid.plan_path((x, y), (goal[0], goal[1]))
+    if path is None:
+        return DriveResult(False, "no_path", 0)
+    follower = PathFollower(path, goal[2], dt)
+    window = max(int(round(STALL_SECONDS / dt)), 2)
+    history: list[tuple[float, float, float]] = []
+    steps = replans = touching = 0
+    while True:
+        pose = robot.base_pose()
+        touching = touching + 1 if robot_collisions(world) else 0
+        if touching >= COLLISION_STEPS:
+            return DriveResult(False, "collision", steps, replans)
+        stray = not follower.turning and follower.off_path(pose[0], pose[1]) > STRAY_DIST
+        stalled = len(history) >= window and _stalled(history[-window:])
+        if stray or stalled:
+            replans += 1
+            if replans > MAX_REPLANS:
+                return DriveResult(False, "collision" if touching else "no_path", steps, replans)
+            grid = current_grid(world)
+            path = grid.plan_path((pose[0], pose[1]), (goal[0], goal[1]))
+            if path is None:
+                return DriveResult(False, "no_path", steps, replans)
+            follower = PathFollower(path, goal[2], dt, v=follower.v, w=follower.w)
+            history.clear()
+        vx, vy, wz = follower.command(pose)
+        if follower.done:
+            break
+        if steps >= max_steps:
+            return DriveResult(False, "timeout", steps, replans)
+        if abs(vx) > 0.05 or abs(wz) > 0.1:
+            history.append(pose)
+        else:
+            history.clear()  # standing still on purpose is not a stall
+        action = base_action.copy()
+        action[:3] = (vx, vy, wz)
+        yield action
+        steps += 1
+    if steps < max_steps:  # one explicit stop so the record ends at rest
+        yield base_action.copy()
+        steps += 1
+    return DriveResult(True, "", steps, replans)
+
+
+def navigate_success(world: object, target: str) -> bool:
+    """Navigate succeeded: base within SUCCESS_DIST of the target's interaction point, facing the target.
+
+    Facing: the base heading points at the target (object centre, door handle, faucet lever,
+    furniture centre) within SUCCESS_YAW.
+    """
+    plan = world.plan  # type: ignore[attr-defined]
+    angles = door_angles(world)
+    x, y, yaw = world.robot.base_pose()  # type: ignore[attr-defined]
+    try:
+        px, py, _ = interaction_pose(plan, target, door_angles=angles or None, grid=current_grid(world))
+    except ValueError:
+        return False
+    tx, ty = target_point(plan, target, angles or None)
+    facing = abs(wrap(math.atan2(ty - y, tx - x) - yaw)) <= SUCCESS_YAW
+    return math.hypot(px - x, py - y) <= SUCCESS_DIST and facing
+
+
+def navigate(world: object, call: object, spec: object) -> Generator[np.ndarray, None, SkillOutcome]:
+    """The Navigate expert: drive to the interaction pose of `call.target` and face it."""
+    robot = world.robot  # type: ignore[attr-defined]
+    skill, target = call.skill, call.target  # type: ignore[attr-defined]
+    max_steps = int(robot.cfg.max_steps["Navigate"])
+    grid = current_grid(world)
+    try:
+        goal = interaction_pose(world.plan, target, door_angles=door_angles(world) or None, grid=grid)  # type: ignore[attr-defined]
+    except ValueError:
+        return SkillOutcome(skill, target, False, "no_path", 0)
+    result = yield from drive_to(world, goal, max_steps, grid=grid)
+    if not result.success:
+        return SkillOutcome(skill, target, False, result.reason, result.steps)
+    ok = navigate_success(world, target)
+    return SkillOutcome(skill, target, ok, "" if ok else "not_at_target", result.steps)
