@@ -1,0 +1,127 @@
+"""One simulated episode world: the SAPIEN scene of a floor plan, the robot, and the clock.
+
+`World` is what experts and the rollout drive: `step(action)` applies one control action and
+advances physics by physics_hz / control_hz sub-steps; `observe()` renders the robot cameras.
+One `sapien.render.RenderSystem` stays alive for the whole process so the pipeline build
+(3.5-30 s on lavapipe, FINDINGS) is paid once, not per episode.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+import sapien
+
+from echo_data.episode import EpisodeSpec
+from echo_data.recipe import Recipe
+from echo_data.robot.robot import Robot
+from echo_data.scene.floorplan import FloorPlan
+
+_RENDER_KEEPALIVE: list[Any] = []  # one RenderSystem per process, never freed
+
+SceneBuilder = Callable[[sapien.Scene, FloorPlan, Recipe], Any]
+
+
+def keep_render_alive() -> None:
+    """Hold one RenderSystem so later scenes reuse the Vulkan device and compiled pipelines."""
+    if not _RENDER_KEEPALIVE:
+        _RENDER_KEEPALIVE.append(sapien.render.RenderSystem())
+
+
+def _default_builder(scene: sapien.Scene, plan: FloorPlan, recipe: Recipe) -> Any:
+    from echo_data.scene.build import build_scene
+
+    return build_scene(scene, plan, recipe)
+
+
+class World:
+    """The SAPIEN world of one episode.
+
+    Attributes: `spec`, `recipe`, `plan`, `scene`, `robot` (Robot), `handles` (SceneHandles of
+    `echo_data.scene.build`), `nav` (NavGrid at the initial door angles, built on first use),
+    `control_hz`, `substeps`, `steps` (control steps taken).
+    `builder` replaces `build_scene` (tests with hand-made scenes).
+    """
+
+    def __init__(self, spec: EpisodeSpec, recipe: Recipe, render: bool = True, builder: SceneBuilder | None = None) -> None:
+        self.spec = spec
+        self.recipe = recipe
+        self.plan = spec.plan
+        self.render = render
+        if render:
+            keep_render_alive()
+            self.scene = sapien.Scene()
+        else:
+            self.scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+        cfg = recipe.robot
+        self.control_hz = cfg.control_hz
+        self.substeps = cfg.physics_hz // cfg.control_hz
+        self.scene.set_timestep(1.0 / cfg.physics_hz)
+        if render:
+            self.scene.set_ambient_light([0.45, 0.45, 0.45])
+            self.scene.add_directional_light([0.3, 0.4, -1.0], [0.7, 0.7, 0.65], shadow=False)
+            self.scene.add_directional_light([-0.4, -0.2, -1.0], [0.25, 0.25, 0.3], shadow=False)
+        self.handles = (builder or _default_builder)(self.scene, self.plan, recipe)
+        self.robot = Robot(self.scene, cfg)
+        self.robot.set_base_pose(*spec.start)
+        self._nav: Any = None
+        self.steps = 0
+
+    # ------------------------------------------------------------------ simulation
+    def step(self, action: np.ndarray) -> None:
+        """Apply one control action and advance physics by one control period."""
+        self.robot.apply(action)
+        for _ in range(self.substeps):
+            self.robot.before_substep()
+            self.scene.step()
+        update = getattr(self.handles, "update", None)
+        if update is not None:
+            update()
+        self.steps += 1
+
+    def observe(self) -> dict[str, np.ndarray]:
+        """Robot camera images (see `Robot.observe`); empty without rendering."""
+        return self.robot.observe()
+
+    def settle(self, steps: int = 10) -> None:
+        """Hold still for a few control steps (objects come to rest); not recorded."""
+        for _ in range(steps):
+            self.step(self.robot.rest_action())
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def nav(self) -> Any:
+        """NavGrid of the plan (doors at their initial angles), built lazily."""
+        if self._nav is None:
+            from echo_data.scene.nav import NavGrid
+
+            self._nav = NavGrid.from_plan(self.plan)
+        return self._nav
+
+    def object_entity(self, name: str) -> sapien.Entity:
+        return self.handles.objects[name]
+
+    def object_pose(self, name: str) -> sapien.Pose:
+        return self.handles.objects[name].pose
+
+    def door_angles(self) -> dict[int, float]:
+        doors = getattr(self.handles, "doors", None) or []
+        return {i: float(a.get_qpos()[0]) for i, a in enumerate(doors)}
+
+    def close(self) -> None:
+        """Free the scene (entities, physics); the process-wide render system stays."""
+        scene = getattr(self, "scene", None)
+        if scene is None:
+            return
+        for e in list(scene.entities):
+            scene.remove_entity(e)
+        self.handles = None
+        self.robot = None  # type: ignore[assignment]
+        self.scene = None  # type: ignore[assignment]
+
+    def __enter__(self) -> "World":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
