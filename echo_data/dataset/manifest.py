@@ -59,8 +59,10 @@ class ShardPlan:
 
 
 def split_sizes(recipe: Recipe, limit: int | None) -> dict[str, int]:
-    """Episodes per split after --limit (recipe order)."""
-    return {s: (n if limit is None else min(n, limit)) for s, n in recipe.splits.items()}
+    """Episodes per split after --limit, in the canonical order train, val, test (never the
+    order of keys in a file: the manifest stores the recipe with sorted keys)."""
+    names = sorted(recipe.splits, key=lambda s: SPLIT_KEYS[s])
+    return {s: (recipe.splits[s] if limit is None else min(recipe.splits[s], limit)) for s in names}
 
 
 def plan_shards(recipe: Recipe, limit: int | None) -> dict[str, list[ShardPlan]]:

@@ -1,0 +1,85 @@
+"""CLI commands for the dataset (`build`, `validate`, `info`), thin wrappers for typer.
+
+Each maps errors to one line on stderr and an exit code: 2 for bad input (recipe, output path,
+mode, not a dataset), 1 for a build that could not finish or a dataset with problems.
+Register them with `register(app)` or `app.command("build")(build_cmd)`.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+
+def _fail(message: str, code: int) -> typer.Exit:
+    typer.echo(f"error: {message}", err=True)
+    return typer.Exit(code)
+
+
+def build_cmd(
+    recipe: Annotated[Path, typer.Argument(help="Recipe YAML file.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output root; the dataset goes to OUT/<recipe name>.")] = Path("out"),
+    workers: Annotated[int, typer.Option("--workers", "-w", help="Parallel episode workers.")] = 1,
+    limit: Annotated[Optional[int], typer.Option("--limit", help="At most N episodes per split (quick runs).")] = None,
+    resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted build.")] = False,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing dataset.")] = False,
+    executor: Annotated[str, typer.Option("--executor", help="local (process pool) or ray.")] = "local",
+    progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Show a progress bar.")] = True,
+) -> None:
+    """Build the dataset of a recipe: Parquet + WAV shards, manifest, stats, planner export."""
+    from echo_data.dataset.build import BuildError, OutputError, build
+    from echo_data.recipe import RecipeError, load_recipe
+
+    if resume and overwrite:
+        raise _fail("--resume and --overwrite exclude each other", 2)
+    try:
+        r = load_recipe(recipe)
+    except RecipeError as e:
+        raise _fail(str(e), 2) from None
+    mode = "resume" if resume else "overwrite" if overwrite else "new"
+    try:
+        summary = build(r, recipe, out / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress)  # type: ignore[arg-type]
+    except OutputError as e:
+        raise _fail(str(e), 2) from None
+    except BuildError as e:
+        raise _fail(str(e), 1) from None
+    typer.echo(str(summary))
+
+
+def validate_cmd(path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")]) -> None:
+    """Check every shard, WAV, index and metadata file of a dataset against its manifest."""
+    from echo_data.dataset.validate import validate
+
+    if not (path / "manifest.json").is_file():
+        raise _fail(f"{path}: not an echo-data dataset (no manifest.json)", 2)
+    problems = validate(path)
+    for p in problems:
+        typer.echo(p)
+    if problems:
+        raise _fail(f"{path}: {len(problems)} problem(s)", 1)
+    typer.echo(f"ok: {path}")
+
+
+def info_cmd(
+    path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+) -> None:
+    """Episodes, steps, settings, skills, rejections and size of a dataset."""
+    from echo_data.dataset.info import format_info, info
+    from echo_data.dataset.manifest import ManifestError
+
+    try:
+        d = info(path)
+    except ManifestError as e:
+        raise _fail(str(e), 2) from None
+    typer.echo(json.dumps(d, indent=1, sort_keys=True) if as_json else format_info(d))
+
+
+def register(app: typer.Typer) -> None:
+    """Add `build`, `validate` and `info` to an app."""
+    app.command("build")(build_cmd)
+    app.command("validate")(validate_cmd)
+    app.command("info")(info_cmd)

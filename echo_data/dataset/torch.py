@@ -1,0 +1,255 @@
+"""PyTorch datasets over an echo-data dataset: single steps and windowed sequences for BC.
+
+torch is an optional extra, imported only when an item is built. Both datasets are map-style
+and DataLoader-worker-safe: the constructor reads only the small index columns; each worker
+process opens the shards it touches lazily (file handles are never shared across processes)
+and keeps a few decoded row groups cached. Images come back as float tensors (RGB (3, H, W) in
+[0, 1], depth (1, H, W) in metres), spectrograms as float32 (F, T, 2), vectors as float32.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from collections import OrderedDict
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from echo_data.dataset.manifest import load_manifest
+from echo_data.dataset.schema import ACTION, STATE, StepLayout, column_to_numpy
+from echo_data.recipe import Recipe
+from echo_data.records import ACTION_DIM, STATE_DIM
+
+_INDEX_COLUMNS = ["episode_index", "frame_index", "setting", "skill"]
+_SCALARS = {
+    "episode_index": "int64",
+    "frame_index": "int64",
+    "index": "int64",
+    "task_index": "int64",
+    "skill_index": "int64",
+    "audio_offset": "int64",
+    "timestamp": "float32",
+    "done": "bool",
+}
+_STRINGS = ("setting", "skill")
+_CACHED_ROW_GROUPS = 4
+
+
+def _torch() -> Any:
+    try:
+        import torch
+    except ImportError:
+        raise ImportError("echo_data.dataset.torch needs PyTorch: pip install 'echo-data[torch]'") from None
+    return torch
+
+
+class _Shards:
+    """The shards of one split and lazy, per-process access to their rows."""
+
+    def __init__(self, root: Path, split: str) -> None:
+        manifest = load_manifest(root)
+        self.root = root
+        self.layout = StepLayout.from_recipe(Recipe.model_validate(manifest["recipe"]))
+        self.files = [root / e["file"] for e in manifest["shards"] if e["split"] == split]
+        if split not in manifest["splits"]:
+            raise ValueError(f"{root}: no split {split!r} (has {', '.join(manifest['splits'])})")
+        self.all_columns = [f.name for f in self.layout.schema()]
+        self._pid: int | None = None
+        self._open: dict[int, tuple[pq.ParquetFile, np.ndarray]] = {}
+        self._cache: OrderedDict[tuple[int, int], pa.Table] = OrderedDict()
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state.update(_pid=None, _open={}, _cache=OrderedDict())
+        return state
+
+    def index_columns(self) -> list[dict[str, np.ndarray]]:
+        """Small per-row columns of every shard (read once, in the constructor)."""
+        out = []
+        for f in self.files:
+            t = pq.read_table(f, columns=_INDEX_COLUMNS)
+            out.append({c: t.column(c).to_numpy(zero_copy_only=False) for c in _INDEX_COLUMNS})
+        return out
+
+    def _file(self, shard: int) -> tuple[pq.ParquetFile, np.ndarray]:
+        if self._pid != os.getpid():  # a new DataLoader worker: never reuse the parent's handles
+            self._pid, self._open, self._cache = os.getpid(), {}, OrderedDict()
+        if shard not in self._open:
+            pf = pq.ParquetFile(self.files[shard])
+            sizes = [pf.metadata.row_group(i).num_rows for i in range(pf.num_row_groups)]
+            self._open[shard] = (pf, np.concatenate([[0], np.cumsum(sizes)]))
+        return self._open[shard]
+
+    def rows(self, shard: int, rows: np.ndarray, columns: Sequence[str]) -> pa.Table:
+        """Rows (shard-local, within a few consecutive row groups) of the given columns."""
+        pf, starts = self._file(shard)
+        groups = np.searchsorted(starts, rows, side="right") - 1
+        lo, hi = int(groups.min()), int(groups.max())
+        parts = []
+        for g in range(lo, hi + 1):
+            key = (shard, g)
+            table = self._cache.get(key)
+            if table is None or not set(columns) <= set(table.column_names):
+                table = pf.read_row_group(g, columns=list(columns))
+                self._cache[key] = table
+                while len(self._cache) > _CACHED_ROW_GROUPS:
+                    self._cache.popitem(last=False)
+            self._cache.move_to_end(key)
+            parts.append(table.select(list(columns)))
+        table = pa.concat_tables(parts) if len(parts) > 1 else parts[0]
+        return table.take(pa.array(rows - starts[lo]))
+
+    def decode(self, table: pa.Table, columns: Sequence[str]) -> dict[str, Any]:
+        """Arrow rows -> tensors (leading dimension = rows)."""
+        from PIL import Image
+
+        torch = _torch()
+        out: dict[str, Any] = {}
+        for col in columns:
+            arr = table.column(col)
+            if col == ACTION:
+                out[col] = torch.from_numpy(column_to_numpy(arr, (ACTION_DIM,)).astype(np.float32))
+            elif col == STATE:
+                out[col] = torch.from_numpy(column_to_numpy(arr, (STATE_DIM,)).astype(np.float32))
+            elif col in self.layout.images:
+                kind = self.layout.images[col][0]
+                frames = []
+                for cell in arr.to_pylist():
+                    img = np.asarray(Image.open(io.BytesIO(cell["bytes"])))
+                    if kind == "rgb":
+                        frames.append(img.transpose(2, 0, 1).astype(np.float32) / 255.0)
+                    else:
+                        frames.append(img.astype(np.float32)[None] / 1000.0)
+                out[col] = torch.from_numpy(np.stack(frames))
+            elif col in self.layout.arrays:
+                out[col] = torch.from_numpy(column_to_numpy(arr, self.layout.arrays[col]).astype(np.float32))
+            elif col in _SCALARS:
+                out[col] = torch.from_numpy(arr.to_numpy(zero_copy_only=False).astype(_SCALARS[col]))
+            elif col in _STRINGS:
+                out[col] = arr.to_pylist()
+            elif col == "skill_success":
+                out[col] = [torch.tensor(v, dtype=torch.bool) for v in arr.to_pylist()]
+            else:
+                raise KeyError(f"unknown column {col!r}")
+        return out
+
+
+def _check_columns(shards: _Shards, columns: Sequence[str] | None, default: Sequence[str]) -> list[str]:
+    cols = list(default if columns is None else columns)
+    unknown = [c for c in cols if c not in shards.all_columns]
+    if unknown:
+        raise ValueError(f"unknown columns {unknown}; available: {shards.all_columns}")
+    return cols
+
+
+class StepDataset:
+    """One item per control step: {column: tensor} (strings stay strings).
+
+    `setting` / `skill` filter rows (e.g. skill="Pick"); `columns` defaults to every column
+    but `skill_success` (its length varies with the chain, which the default collate refuses).
+    """
+
+    def __init__(
+        self,
+        root: str | Path,
+        split: str = "train",
+        setting: str | None = None,
+        skill: str | None = None,
+        columns: Sequence[str] | None = None,
+    ) -> None:
+        self.shards = _Shards(Path(root), split)
+        self.columns = _check_columns(self.shards, columns, [c for c in self.shards.all_columns if c != "skill_success"])
+        shard_ids, local = [], []
+        for i, cols in enumerate(self.shards.index_columns()):
+            keep = np.ones(len(cols["episode_index"]), dtype=bool)
+            if setting is not None:
+                keep &= cols["setting"] == setting
+            if skill is not None:
+                keep &= cols["skill"] == skill
+            rows = np.flatnonzero(keep)
+            shard_ids.append(np.full(len(rows), i, dtype=np.int32))
+            local.append(rows)
+        self._shard = np.concatenate(shard_ids) if shard_ids else np.zeros(0, np.int32)
+        self._row = np.concatenate(local) if local else np.zeros(0, np.int64)
+
+    def __len__(self) -> int:
+        return len(self._row)
+
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        if i < 0:
+            i += len(self)
+        if not 0 <= i < len(self):
+            raise IndexError(i)
+        table = self.shards.rows(int(self._shard[i]), self._row[i : i + 1], self.columns)
+        item = self.shards.decode(table, self.columns)
+        return {k: v[0] for k, v in item.items()}
+
+
+class SequenceDataset:
+    """Windows for behaviour cloning: for each step t, observations of steps t-history+1..t and
+    actions of steps t..t+action_chunk-1, clamped to the episode (with `observation_is_pad` /
+    `action_is_pad` masks, LeRobot style). Windows never cross episodes (nor shards)."""
+
+    def __init__(
+        self,
+        root: str | Path,
+        split: str = "train",
+        history: int = 2,
+        action_chunk: int = 8,
+        setting: str | None = None,
+        skill: str | None = None,
+        observations: Sequence[str] | None = None,
+    ) -> None:
+        if history < 1 or action_chunk < 1:
+            raise ValueError("history and action_chunk must be >= 1")
+        self.history, self.action_chunk = history, action_chunk
+        self.shards = _Shards(Path(root), split)
+        default_obs = [STATE] + list(self.shards.layout.images) + list(self.shards.layout.arrays)
+        self.observations = _check_columns(self.shards, observations, default_obs)
+        self._shard, self._row, self._first, self._last = [], [], [], []
+        for i, cols in enumerate(self.shards.index_columns()):
+            ep = cols["episode_index"]
+            bounds = np.flatnonzero(np.diff(ep)) + 1
+            starts = np.concatenate([[0], bounds])
+            ends = np.concatenate([bounds, [len(ep)]])
+            for s, e in zip(starts, ends):
+                keep = np.ones(e - s, dtype=bool)
+                if setting is not None:
+                    keep &= cols["setting"][s:e] == setting
+                if skill is not None:
+                    keep &= cols["skill"][s:e] == skill
+                rows = s + np.flatnonzero(keep)
+                self._shard.append(np.full(len(rows), i, dtype=np.int32))
+                self._row.append(rows)
+                self._first.append(np.full(len(rows), s))
+                self._last.append(np.full(len(rows), e - 1))
+        cat = lambda parts, dt: np.concatenate(parts).astype(dt) if parts else np.zeros(0, dt)  # noqa: E731
+        self._shard = cat(self._shard, np.int32)
+        self._row, self._first, self._last = (cat(x, np.int64) for x in (self._row, self._first, self._last))
+
+    def __len__(self) -> int:
+        return len(self._row)
+
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        torch = _torch()
+        if not 0 <= i < len(self):
+            raise IndexError(i)
+        t, first, last, shard = int(self._row[i]), int(self._first[i]), int(self._last[i]), int(self._shard[i])
+        obs_rows = np.arange(t - self.history + 1, t + 1)
+        act_rows = np.arange(t, t + self.action_chunk)
+        obs_pad = obs_rows < first
+        act_pad = act_rows > last
+        obs_rows, act_rows = obs_rows.clip(first, last), act_rows.clip(first, last)
+        lo, hi = int(obs_rows.min()), int(act_rows.max())
+        span = self.shards.rows(shard, np.arange(lo, hi + 1), self.observations + [ACTION, "episode_index", "frame_index", "index"])
+        item = self.shards.decode(span.take(pa.array(obs_rows - lo)), self.observations)
+        item[ACTION] = self.shards.decode(span.take(pa.array(act_rows - lo)), [ACTION])[ACTION]
+        now = self.shards.decode(span.take(pa.array([t - lo])), ["episode_index", "frame_index", "index"])
+        item.update({k: v[0] for k, v in now.items()})
+        item["observation_is_pad"] = torch.from_numpy(obs_pad)
+        item["action_is_pad"] = torch.from_numpy(act_pad)
+        return item
