@@ -1,0 +1,372 @@
+"""The geometric acoustic scene: a `FloorPlan` → per-(source, receiver) `AcousticResponse`s.
+
+Early part (directional `arrivals`):
+- image sources of the source's room (shoebox lattice up to `cfg.ism_order`) with
+  reflection points checked against doorways and segments against walls, lintels,
+  door panels and furniture (see `echo_data.acoustics.ism`);
+- sound into other rooms through doorways: a secondary source in the opening at the point
+  of the shortest path (geometric when the line passes through the opening, else an edge
+  diffraction with the Kurze–Anderson loss of its detour), followed by that room's own
+  image sources; rooms further away chain through the doorway centres on the shortest
+  route. The secondary direct path is dropped where the geometric direct path exists.
+- Doors: a closed leaf (hinge angle < 6°) seals its doorway; every path through it is a
+  transmission ("leak") path with `cfg.closed_door_loss_db` broadband loss (order -1 when it
+  would otherwise be the direct path; reflections keep their order) and the leaf reflects
+  like a door panel. An open leaf is a thin panel at its hinge angle: paths crossing it
+  take the same transmission loss; reflections off open leaves are not modelled.
+- Furniture: solid blocks that occlude (over-the-top diffraction loss on each path through
+  them) and absorb (their surfaces join the room's absorption); no specular reflections.
+- Per reflection the specular amplitude is sqrt((1 - alpha)(1 - s)) per band (material from
+  pyroomacoustics' database, s = `cfg.scattering`); air absorption over the path length.
+
+Late part (`tail`): statistical, see `echo_data.acoustics.tail`.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from echo_data.acoustics.geometry import RoomBox, diffraction_loss_db, image_cells, occluders, room_boxes
+from echo_data.acoustics.ism import BoxLattice, segment_losses
+from echo_data.acoustics.materials import BANDS, absorption, air_absorption, reflection_amplitude
+from echo_data.acoustics.tail import NoiseBank, RoomAcoustics, band_masks, tail_envelope
+from echo_data.acoustics.types import SPEED_OF_SOUND, AcousticResponse, Arrival
+from echo_data.recipe import AcousticsConfig
+from echo_data.scene.floorplan import FloorPlan
+
+Vec3 = tuple[float, float, float]
+_FACE_INSET = 0.01  # secondary sources sit 1 cm inside the room faces of a doorway
+_EDGE_MARGIN = 0.05  # and at least 5 cm from the jambs and the lintel
+
+
+@dataclass
+class _Hub:
+    """A point on the shortest doorway route from the source room into a room."""
+
+    point: np.ndarray  # (3,) where sound enters the room (doorway centre, inside the face)
+    length: float  # path length from the source to `point`
+    log_gain: np.ndarray  # (bands,) diffraction losses on the way (natural log, amplitude)
+    door_db: float
+    prev: np.ndarray  # (3,) previous point on the route (for the diffraction angle)
+
+
+@dataclass
+class _Entry:
+    """A doorway through which sound enters room `room` from the hub of room `frm`."""
+
+    room: int
+    frm: int
+    opening: object  # geometry.Opening as seen from `room`
+
+
+class AcousticScene:
+    """Acoustic model of one floor plan with fixed door angles (rad, by door index)."""
+
+    def __init__(self, plan: FloorPlan, cfg: AcousticsConfig, door_angles: dict[int, float] | None = None):
+        self.plan = plan
+        self.cfg = cfg
+        self.fs = int(cfg.sample_rate)
+        self.length = int(round(cfg.rir_seconds * self.fs))
+        self.door_angles = {d.index: float(d.angle) for d in plan.doors}
+        self.door_angles.update({int(k): float(v) for k, v in (door_angles or {}).items()})
+        self.boxes: list[RoomBox] = room_boxes(plan, self.door_angles)
+        self.occ = occluders(plan, self.door_angles)
+        self.air = air_absorption() if cfg.air_absorption else np.zeros(len(BANDS))
+        self.acoustics = RoomAcoustics(plan, self.boxes, cfg.closed_door_loss_db)
+        self.noise = NoiseBank(self.fs, self.length, plan.seed)
+        self._tail_base: dict[int, np.ndarray] = {}
+        cells = image_cells(cfg.ism_order)
+        s = cfg.scattering
+        door_log_r = {
+            d.material: np.log(reflection_amplitude(absorption(d.material), s)) for d in plan.doors
+        }
+        self.lattices: list[BoxLattice] = []
+        for box in self.boxes:
+            r = box.room
+            face = [absorption(r.wall_material)] * 4 + [absorption(r.floor_material), absorption(r.ceiling_material)]
+            log_r = np.log(np.asarray([reflection_amplitude(a, s) for a in face]))
+            self.lattices.append(BoxLattice(box, cfg.ism_order, log_r, door_log_r, cells))
+
+    # ------------------------------------------------------------------ public API
+    def room_of(self, p: Vec3) -> int:
+        """Index (into plan.rooms) of the room box containing p, else the nearest one."""
+        p = np.asarray(p, dtype=np.float64)
+        d = [float(np.linalg.norm(np.maximum(b.lo - p, 0.0) + np.maximum(p - b.hi, 0.0))) for b in self.boxes]
+        return int(np.argmin(d))
+
+    def free_field(self, source: Vec3, receiver: Vec3) -> AcousticResponse:
+        """Direct sound only (no room), for tests and as a reference for the binaural stage."""
+        s, r = np.asarray(source, dtype=np.float64), np.asarray(receiver, dtype=np.float64)
+        d = max(float(np.linalg.norm(s - r)), 1e-3)
+        band = np.exp(-0.5 * self.air * d)
+        arr = Arrival(d / SPEED_OF_SOUND, tuple(float(v) for v in (s - r) / d), 1.0 / d, tuple(float(v) for v in band), 0)
+        return AcousticResponse(self.fs, [arr], np.zeros(self.length, dtype=np.float32), self.length)
+
+    def response(self, source: Vec3, receiver: Vec3) -> AcousticResponse:
+        """Response from one source to one receiver."""
+        return self.responses(source, np.asarray([receiver], dtype=np.float64))[0]
+
+    def responses(self, source: Vec3, receivers: np.ndarray) -> list[AcousticResponse]:
+        """Responses from one source to many receivers (n, 3); the source's image sources,
+        routes and room energies are computed once for all of them."""
+        S = np.asarray(source, dtype=np.float64)
+        rcv = np.asarray(receivers, dtype=np.float64).reshape(-1, 3)
+        n = len(rcv)
+        a_room = self.room_of(S)
+        rooms = np.asarray([self.room_of(r) for r in rcv])
+        c = SPEED_OF_SOUND
+        max_len = self.length / self.fs * c
+
+        paths = _PathSet()
+        # 1) image sources of the source room, for every receiver
+        lat = self.lattices[a_room]
+        ip = lat.trace(S, rcv, self.occ, self.cfg.closed_door_loss_db, walls=True)
+        direct_ok = ip.valid[:, 0] & (ip.door_db[:, 0] == 0.0)
+        paths.add(np.arange(n), ip, np.zeros(ip.log_gain.shape), 0.0, np.zeros(ip.length.shape), None)
+
+        # 2) through doorways into the other rooms
+        hubs, entries = self._routes(S, a_room)
+        onset = np.full(n, np.inf)
+        in_a = rooms == a_room
+        onset[in_a] = np.linalg.norm(rcv[in_a] - S, axis=1) / c
+        for e in entries:
+            sel = np.nonzero(rooms == e.room)[0]
+            if len(sel) == 0:
+                continue
+            t_on = self._entry_paths(paths, sel, rcv[sel], e, hubs[e.frm], direct_ok[sel])
+            onset[sel] = np.minimum(onset[sel], t_on)
+
+        # 3) assemble
+        per_row = paths.arrivals(n, self.air, max_len)
+        levels = self.acoustics.levels(a_room)
+        out: list[AcousticResponse] = []
+        qs = [int(round(v * 1000.0)) for v in S]
+        for i in range(n):
+            x = rooms[i]
+            if np.isfinite(onset[i]) and levels[x].max() > 0.0:
+                key = (self.plan.seed, *qs, *(int(round(v * 1000.0)) for v in rcv[i]))
+                tail = self._tail(x, levels[x], float(onset[i]), self.noise.segment(key))
+            else:
+                tail = np.zeros(self.length, dtype=np.float32)
+            out.append(AcousticResponse(self.fs, per_row[i], tail, self.length))
+        return out
+
+    def _tail(self, room: int, level: np.ndarray, t0: float, noise: np.ndarray) -> np.ndarray:
+        """Diffuse tail of a receiver in `room` with onset t0 (s); see `tail_envelope`."""
+        if room not in self._tail_base:
+            self._tail_base[room] = tail_envelope(
+                np.ones(len(BANDS)),
+                self.acoustics.t60[room],
+                0.0,
+                float(self.acoustics.mean_free_path[room]),
+                self.cfg.scattering,
+                self.cfg.ism_order,
+                self.fs,
+                self.length,
+                gate=False,
+            )
+        t60 = self.acoustics.t60[room]
+        # shift the decay to start at t0: exp(-6.91 (t - t0) / T) = exp(6.91 t0 / T) exp(-6.91 t / T)
+        scale = np.sqrt(level) * np.exp(6.91 * t0 / t60)
+        x = (scale[:, None] * self._tail_base[room] * noise).sum(axis=0)
+        i0 = int(math.floor(t0 * self.fs))
+        x[: max(i0, 0)] = 0.0
+        ramp = np.clip((np.arange(i0, i0 + 17) / self.fs - t0) * self.fs / 16.0, 0.0, 1.0)
+        seg = slice(max(i0, 0), min(i0 + 17, self.length))
+        x[seg] *= np.sin(0.5 * np.pi * ramp[seg.start - i0 : seg.stop - i0]) ** 2
+        return x.astype(np.float32)
+
+    # ------------------------------------------------------------------ internals
+    def _doorway_points(self, op, frm: int, to: int, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Points just inside the two faces of a doorway at lateral/vertical position of p."""
+        a = 0 if op.face in (0, 1) else 1  # normal axis
+        fa = self.boxes[frm].hi[a] if op.face in (0, 2) else self.boxes[frm].lo[a]
+        fb = self.boxes[to].lo[a] if op.face in (0, 2) else self.boxes[to].hi[a]
+        sgn = 1.0 if op.face in (0, 2) else -1.0  # from `frm` into `to` along the normal
+        pa, pb = p.copy(), p.copy()
+        pa[..., a] = fa - sgn * _FACE_INSET
+        pb[..., a] = fb + sgn * _FACE_INSET
+        return pa, pb
+
+    def _clamp_in_opening(self, op, p: np.ndarray) -> np.ndarray:
+        u_axis = 1 if op.face in (0, 1) else 0
+        q = p.copy()
+        w = op.u1 - op.u0
+        m = min(_EDGE_MARGIN, 0.25 * w)
+        q[..., u_axis] = np.clip(q[..., u_axis], op.u0 + m, op.u1 - m)
+        q[..., 2] = np.clip(q[..., 2], _EDGE_MARGIN, op.height - _EDGE_MARGIN)
+        return q
+
+    def _routes(self, S: np.ndarray, a_room: int) -> tuple[dict[int, _Hub], list[_Entry]]:
+        """Shortest doorway routes (Dijkstra over doorway centres) from the source room."""
+        hubs = {a_room: _Hub(S.copy(), 0.0, np.zeros(len(BANDS)), 0.0, S.copy())}
+        dist = {a_room: 0.0}
+        heap = [(0.0, a_room)]
+        done: set[int] = set()
+        entries: list[_Entry] = []
+        while heap:
+            _, y = heapq.heappop(heap)
+            if y in done:
+                continue
+            done.add(y)
+            hub = hubs[y]
+            for op in self.boxes[y].openings:
+                x = op.other_room
+                if x < 0 or x in done:
+                    continue
+                op_x = next(o for o in self.boxes[x].openings if o.doorway == op.doorway)
+                entries.append(_Entry(x, y, op_x))
+                centre = self._clamp_in_opening(op_x, self._opening_centre(op_x, hub.point[2]))
+                pa, pb = self._doorway_points(op_x, y, x, centre)
+                los = segment_losses(
+                    np.stack([hub.point, pa]), np.stack([pa, pb]), self.occ, self.cfg.closed_door_loss_db, False
+                )
+                L = hub.length + float(np.linalg.norm(pa - hub.point) + np.linalg.norm(pb - pa))
+                if x not in dist or L < dist[x]:
+                    lg = hub.log_gain.copy()
+                    if y != a_room:  # diffraction at the hub towards this doorway
+                        lg -= self._diff_db(hub.prev, hub.point, pb, hub.length) * (math.log(10) / 20)
+                    lg -= los.furn_db.sum(axis=0) * (math.log(10) / 20)
+                    dist[x] = L
+                    hubs[x] = _Hub(pb, L, lg, hub.door_db + float(los.door_db.sum()), hub.point)
+                    heapq.heappush(heap, (L, x))
+        # keep only entries whose upstream room was reached before the room itself
+        entries = [e for e in entries if dist[e.frm] < dist[e.room]]
+        return hubs, entries
+
+    @staticmethod
+    def _opening_centre(op, z: float) -> np.ndarray:
+        u = 0.5 * (op.u0 + op.u1)
+        return np.array([0.0, u, z]) if op.face in (0, 1) else np.array([u, 0.0, z])
+
+    @staticmethod
+    def _diff_db(q: np.ndarray, p: np.ndarray, nxt: np.ndarray, a_len: float | None = None) -> np.ndarray:
+        a = float(np.linalg.norm(p - q)) if a_len is None else max(a_len, 1e-6)
+        b = float(np.linalg.norm(nxt - p))
+        din = (p - q) / max(float(np.linalg.norm(p - q)), 1e-12)
+        dout = (nxt - p) / max(b, 1e-12)
+        cos = float(np.dot(din, dout))
+        delta = a + b - math.sqrt(max(a * a + b * b + 2 * a * b * cos, 0.0))
+        return diffraction_loss_db(np.asarray(delta), BANDS)
+
+    def _entry_paths(self, paths, rows, rcv, e: _Entry, hub: _Hub, direct_ok) -> np.ndarray:
+        """Secondary-source paths through doorway `e` for receivers of its room; returns the
+        earliest arrival time per receiver (the tail onset)."""
+        op = e.opening
+        x_box = self.boxes[e.room]
+        lat = self.lattices[e.room]
+        cells = lat.cells
+        a = 0 if op.face in (0, 1) else 1
+        # only images on the room's side of the doorway: paths leave the doorway into the room
+        cmask = cells[:, a] >= 0 if op.face in (0, 2) else cells[:, a] <= 0
+        R, I = len(rcv), len(cells)
+        # receiver images by the inverse cell map, then the shortest-path point in the opening
+        inv = np.where(cells % 2 == 0, -cells, cells)
+        Lx = x_box.hi - x_box.lo
+        u = rcv[:, None, :] - x_box.lo
+        r_img = x_box.lo + inv[None] * Lx + np.where(inv[None] % 2 == 0, u, Lx - u)  # (R, I, 3)
+        Q = hub.point
+        plane = 0.5 * (self.boxes[e.frm].hi[a] + x_box.lo[a]) if op.face in (0, 2) else 0.5 * (self.boxes[e.frm].lo[a] + x_box.hi[a])
+        den = r_img[..., a] - Q[a]
+        den = np.where(np.abs(den) < 1e-9, 1e-9, den)
+        t = np.clip((plane - Q[a]) / den, 0.0, 1.0)
+        p = Q + t[..., None] * (r_img - Q)
+        p = self._clamp_in_opening(op, p)
+        pa, pb = self._doorway_points(op, e.frm, e.room, p)
+        ip = lat.trace(pb, rcv, self.occ, self.cfg.closed_door_loss_db, walls=False, cell_mask=cmask)
+        # legs hub → doorway (inside the upstream room) and through the doorway
+        legs = segment_losses(
+            np.concatenate([np.broadcast_to(Q, pa.shape).reshape(-1, 3), pa.reshape(-1, 3)]),
+            np.concatenate([pa.reshape(-1, 3), pb.reshape(-1, 3)]),
+            self.occ,
+            self.cfg.closed_door_loss_db,
+            False,
+        )
+        nleg = R * I
+        leg_door = (legs.door_db[:nleg] + legs.door_db[nleg:]).reshape(R, I)
+        leg_furn = (legs.furn_db[:nleg] + legs.furn_db[nleg:]).reshape(R, I, -1)
+        a_len = np.linalg.norm(pa - Q, axis=2) + np.linalg.norm(pb - pa, axis=2)
+        # edge diffraction at the doorway point: detour against the straight continuation
+        din = (pb - Q) / np.maximum(np.linalg.norm(pb - Q, axis=2, keepdims=True), 1e-12)
+        cos = np.sum(din * ip.depart, axis=2)
+        A = hub.length + a_len  # unfolded distance from the source to the doorway point
+        B = ip.length
+        delta = A + B - np.sqrt(np.maximum(A * A + B * B + 2 * A * B * cos, 0.0))
+        il = diffraction_loss_db(delta, BANDS) + leg_furn
+        log0 = hub.log_gain[None, None] - il * (math.log(10.0) / 20.0)
+        ip.door_db = ip.door_db + leg_door
+        total_len = hub.length + a_len
+        ip.door_db = ip.door_db + hub.door_db
+        paths.add(rows, ip, log0, 0.0, total_len, direct_ok)
+        first = np.where(ip.valid, total_len + ip.length, np.inf).min(axis=1)
+        mid = self._clamp_in_opening(op, self._opening_centre(op, float(Q[2])))
+        centre = hub.length + np.linalg.norm(mid - Q) + np.linalg.norm(rcv - mid, axis=1)
+        return np.minimum(first, centre) / SPEED_OF_SOUND
+
+
+class _PathSet:
+    """Valid paths of many receivers, gathered as arrays and turned into `Arrival`s at once."""
+
+    def __init__(self) -> None:
+        self.parts: list[tuple[np.ndarray, ...]] = []
+
+    def add(self, rows, ip, log0, len0, len_prefix, skip_direct) -> None:
+        """Add the valid paths of `ip` (receivers `rows`), with per-(receiver, cell) log gain
+        and length prefixes (diffraction, route to a doorway); `skip_direct` drops cell 0
+        for receivers that already have the geometric direct path."""
+        ok = ip.valid.copy()
+        if skip_direct is not None:
+            ok[:, 0] &= ~skip_direct
+        r, i = np.nonzero(ok)
+        length = ip.length[r, i] + len_prefix[r, i] + len0
+        door = ip.door_db[r, i]
+        order = ip.order[i].astype(np.int64)
+        order = np.where((door > 0.0) & (order == 0), -1, order)
+        self.parts.append((rows[r], length, ip.direction[r, i], ip.log_gain[r, i] + log0[r, i], door, order))
+
+    def arrivals(self, n: int, air: np.ndarray, max_len: float) -> list[list[Arrival]]:
+        out: list[list[Arrival]] = [[] for _ in range(n)]
+        if not self.parts:
+            return out
+        row, L, d, lg, door, order = (np.concatenate(x) for x in zip(*self.parts))
+        keep = L < max_len
+        row, L, d, lg, door, order = row[keep], L[keep], d[keep], lg[keep], door[keep], order[keep]
+        L = np.maximum(L, 1e-3)
+        band = np.exp(lg - 0.5 * air[None] * L[:, None])
+        gain = 10.0 ** (-door / 20.0) / L
+        srt = np.lexsort((order, L, row))
+        delay = (L / SPEED_OF_SOUND)[srt].tolist()
+        dl, gl, bl, ol = d[srt].tolist(), gain[srt].tolist(), band[srt].tolist(), order[srt].tolist()
+        for k, r in enumerate(row[srt].tolist()):
+            out[r].append(Arrival(delay[k], tuple(dl[k]), gl[k], tuple(bl[k]), ol[k]))
+        return out
+
+
+def omni_rir(response: AcousticResponse) -> np.ndarray:
+    """The response rendered for an omnidirectional receiver: float32 (length,).
+
+    Each arrival is a fractional-delay impulse shaped by its band gains through
+    amplitude-complementary octave masks (unit band gains give an exact band-limited
+    impulse), rendered in the frequency domain; the tail is added as is.
+    """
+    L = response.length
+    fs = response.fs
+    n_fft = 1 << int(math.ceil(math.log2(2 * L + 64)))
+    f = np.fft.rfftfreq(n_fft, 1.0 / fs)
+    masks = band_masks(n_fft, fs, power=False)
+    spec = np.zeros(len(f), dtype=np.complex128)
+    arr = [a for a in response.arrivals if a.delay_s * fs < L]
+    for s in range(0, len(arr), 64):
+        chunk = arr[s : s + 64]
+        tau = np.asarray([a.delay_s for a in chunk])
+        g = np.asarray([a.gain for a in chunk])[:, None] * np.asarray([a.band_gains for a in chunk])  # (A, bands)
+        ph = np.exp(-2j * np.pi * f[None, :] * tau[:, None])  # (A, F)
+        spec += np.einsum("ab,bf,af->f", g, masks, ph)
+    h = np.fft.irfft(spec, n=n_fft)[:L]
+    tail = np.asarray(response.tail, dtype=np.float64)[:L]
+    h[: len(tail)] += tail
+    return h.astype(np.float32)

@@ -1,0 +1,159 @@
+"""Statistical late reverberation: room decay times, coupled-room energy, tail synthesis.
+
+Model (stated so it can be checked):
+- Each room decays with Eyring's time per band, T = 24 ln10 V / (c (-S ln(1 - ā) + 4 m V)),
+  from its wall/floor/ceiling materials, furniture surfaces, door panels and open doorways
+  (an opening absorbs everything that hits it) and air absorption m.
+- Steady-state reverberant energy per room comes from an energy balance over the rooms:
+  A_i P_i - Σ_j S_ij τ_ij P_j = 16 π (1 - ā_s) δ_is, with A_i the equivalent absorption area
+  and S_ij τ_ij the doorway area between rooms times its transmission (1 open; closed leaf:
+  10^(-closed_door_loss_db/10); partly open: by the open share of the aperture). P is in
+  units where the direct sound at r metres has energy 1/r², so 16π/R is the classical
+  reverberant level of a room with room constant R. Hence source room > adjacent > far.
+- The tail of a response is band-split noise with envelope sqrt(13.82 P / (fs T)) e^{-6.91 (t - t0)/T}
+  (its energy is P), starting at the first arrival time t0 in the receiver's room, and weighted
+  by the share of energy already scattered, 1 - (1 - s)^k with k = c t / mean free path the
+  number of reflections so far; beyond the image-source order all energy counts as diffuse.
+  This avoids counting the specular early reflections (kept by the image sources with the
+  factor (1 - s) per reflection) twice.
+- Noise is deterministic: a per-scene bank of independent band noises, read at an offset
+  drawn from a seed built from the quantised source and receiver positions.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+
+from echo_data.acoustics.geometry import RoomBox
+from echo_data.acoustics.materials import BANDS, absorption, air_absorption
+from echo_data.acoustics.types import SPEED_OF_SOUND
+from echo_data.scene.floorplan import FloorPlan
+
+_LN10 = math.log(10.0)
+
+
+def band_masks(n_fft: int, fs: int, power: bool) -> np.ndarray:
+    """Octave-band masks (bands, n_fft//2+1) on an rfft grid around BANDS.
+
+    Neighbouring bands cross over on a log-frequency raised cosine: amplitude-complementary
+    (sum = 1, used for specular arrivals, so unit band gains give a clean impulse) or
+    power-complementary (sum of squares = 1, used to split noise without changing its power).
+    """
+    f = np.fft.rfftfreq(n_fft, 1.0 / fs)
+    lf = np.log2(np.maximum(f, 1e-3))
+    lb = np.log2(BANDS)
+    m = np.zeros((len(BANDS), len(f)))
+    for b in range(len(BANDS)):
+        x_lo = np.clip((lf - lb[b - 1]) / (lb[b] - lb[b - 1]), 0.0, 1.0) if b > 0 else np.ones_like(f)
+        x_hi = np.clip((lf - lb[b]) / (lb[b + 1] - lb[b]), 0.0, 1.0) if b + 1 < len(BANDS) else np.zeros_like(f)
+        rise = np.sin(0.5 * np.pi * x_lo) if b > 0 else np.ones_like(f)
+        fall = np.cos(0.5 * np.pi * x_hi)
+        m[b] = rise * fall
+    return m**2 if not power else m
+
+
+class RoomAcoustics:
+    """Per-room absorption, decay times and the coupled-room energy balance of a plan."""
+
+    def __init__(self, plan: FloorPlan, boxes: list[RoomBox], door_loss_db: float):
+        nb, nr = len(BANDS), len(boxes)
+        m_air = air_absorption()
+        tau_closed = 10.0 ** (-door_loss_db / 10.0)
+        self.volume = np.zeros(nr)
+        self.surface = np.zeros(nr)
+        self.alpha_sum = np.zeros((nr, nb))  # Σ S α
+        self.transfer = np.zeros((nr, nr, nb))  # S_ij τ_ij
+        for i, box in enumerate(boxes):
+            sx, sy, sz = box.size
+            self.volume[i] = sx * sy * sz
+            room = box.room
+            walls = 2.0 * (sx + sy) * sz
+            floor = ceil = sx * sy
+            a = floor * absorption(room.floor_material) + ceil * absorption(room.ceiling_material)
+            surf = walls + floor + ceil
+            for op in box.openings:
+                area = (op.u1 - op.u0) * op.height
+                walls -= area
+                if op.closed or op.openness < 1.0:
+                    panel = np.maximum(absorption(op.door_material or "wooden_door"), tau_closed)
+                else:
+                    panel = np.ones(nb)
+                share = op.openness
+                a = a + area * (share + (1.0 - share) * panel)
+                if op.other_room >= 0:
+                    self.transfer[i, op.other_room] += area * (share + (1.0 - share) * tau_closed)
+            a = a + walls * absorption(room.wall_material)
+            for f in plan.furniture:
+                if f.room != room.index:
+                    continue
+                fx, fy, fz = f.size
+                exposed = fx * fy + 2.0 * (fx + fy) * fz
+                a = a + exposed * absorption(f.material)
+                surf += exposed
+            self.surface[i] = surf
+            self.alpha_sum[i] = a
+        self.mean_alpha = np.clip(self.alpha_sum / self.surface[:, None], 1e-6, 0.99)
+        # Eyring equivalent absorption area incl. air
+        self.eq_area = -self.surface[:, None] * np.log1p(-self.mean_alpha) + 4.0 * m_air[None] * self.volume[:, None]
+        self.t60 = 24.0 * _LN10 * self.volume[:, None] / (SPEED_OF_SOUND * self.eq_area)
+        self.mean_free_path = 4.0 * self.volume / self.surface
+        self._levels: dict[int, np.ndarray] = {}
+
+    def levels(self, source_room: int) -> np.ndarray:
+        """Steady reverberant energy per room and band (rooms, bands) for a unit source."""
+        if source_room not in self._levels:
+            nr, nb = self.eq_area.shape
+            out = np.zeros((nr, nb))
+            for b in range(nb):
+                M = np.diag(self.eq_area[:, b]) - self.transfer[:, :, b]
+                rhs = np.zeros(nr)
+                rhs[source_room] = 16.0 * math.pi * (1.0 - self.mean_alpha[source_room, b])
+                out[:, b] = np.linalg.solve(M, rhs)
+            self._levels[source_room] = np.maximum(out, 0.0)
+        return self._levels[source_room]
+
+
+class NoiseBank:
+    """Independent band-limited unit noises, fixed per scene, read at seeded offsets."""
+
+    def __init__(self, fs: int, length: int, seed: int):
+        n = 1 << int(math.ceil(math.log2(4 * length + 1)))
+        rng = np.random.default_rng(np.random.SeedSequence([seed % (1 << 32), 0x7A11]))
+        masks = band_masks(n, fs, power=True)
+        white = rng.standard_normal((len(BANDS), n))
+        self.bands = np.fft.irfft(np.fft.rfft(white, axis=1) * masks, n=n, axis=1)
+        self.length = length
+        self.span = n - length
+
+    def segment(self, key: tuple[int, ...]) -> np.ndarray:
+        """The (bands, length) noise for an integer key (e.g. quantised positions)."""
+        h = hashlib.blake2b(np.asarray(key, dtype=np.int64).tobytes(), digest_size=8).digest()
+        o = int.from_bytes(h, "little") % self.span
+        return self.bands[:, o : o + self.length]
+
+
+def tail_envelope(
+    level: np.ndarray,
+    t60: np.ndarray,
+    t0: float,
+    mfp: float,
+    scattering: float,
+    order: int,
+    fs: int,
+    length: int,
+    gate: bool = True,
+) -> np.ndarray:
+    """Amplitude envelope per band (bands, length) of the diffuse tail (onset gate optional)."""
+    t = np.arange(length) / fs
+    amp = np.sqrt(13.82 * level / (fs * t60))  # (bands,)
+    dec = np.exp(-6.91 * np.maximum(t[None] - t0, 0.0) / t60[:, None])
+    k = SPEED_OF_SOUND * t / mfp
+    early = (1.0 - scattering) ** k * np.clip(order + 1.0 - k, 0.0, 1.0)
+    w = 1.0 - early
+    if gate:
+        ramp = np.clip((t - t0) * fs / 16.0, 0.0, 1.0)  # 16-sample onset
+        w = w * np.sin(0.5 * np.pi * ramp) ** 2
+    return amp[:, None] * dec * np.sqrt(w)[None]
