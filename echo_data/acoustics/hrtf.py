@@ -1,0 +1,183 @@
+"""Head-related impulse responses: measured MIT KEMAR (shipped npz) or a spherical-head model.
+
+Head frame (used by everything that asks for an HRIR): x = nose, y = left ear, z = up;
+azimuth counter-clockwise from the nose (90 deg = left), elevation up from the horizontal
+plane; channel 0 = left ear. Both kinds are tabulated on a fixed set of directions so the
+binaural renderer can precompute per-direction kernels; `hrir()` returns the nearest entry.
+
+Both tables are diffuse-field power normalised (mean energy over directions and ears = 1), so
+the early (HRIR-filtered) and late (decorrelated) parts of a binaural response, and the two
+kinds, have comparable levels.
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from scipy.signal import resample_poly
+from scipy.spatial import cKDTree
+
+from echo_data.acoustics.types import SPEED_OF_SOUND
+
+KEMAR_NPZ = Path(__file__).resolve().parents[2] / "assets" / "hrtf" / "mit_kemar.npz"
+
+HEAD_RADIUS = 0.0875  # m, Brown & Duda's average adult head
+_SPHERE_ALPHA_MIN = 0.1  # Brown & Duda head-shadow: strongest high-frequency cut ...
+_SPHERE_THETA_MIN = np.deg2rad(150.0)  # ... at this angle from the ear axis
+_SPHERE_LEAD = 8  # samples of lead before the earliest ear delay (room for fractional-delay ringing)
+_SPHERE_TAPS = 64
+_DIFFUSE_SPREAD_S = 0.010  # decorrelation filters spread the directions' HRIRs over 10 ms
+_DIFFUSE_SEED = 0x5EED  # fixed: the decorrelation filters are part of the product, not random per run
+
+
+def direction_vectors(azimuth_rad: np.ndarray, elevation_rad: np.ndarray) -> np.ndarray:
+    """Unit vectors (n, 3) in the head frame for azimuth/elevation in radians."""
+    az = np.asarray(azimuth_rad, dtype=np.float64)
+    el = np.asarray(elevation_rad, dtype=np.float64)
+    return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1)
+
+
+class Hrtf:
+    """A tabulated HRTF at one sample rate: `table[k]` is the (taps, 2) HRIR for `directions[k]`."""
+
+    def __init__(self, kind: str, fs: int, table: np.ndarray, directions: np.ndarray, delay_s: float) -> None:
+        self.kind = kind
+        self.fs = int(fs)
+        self.table = np.ascontiguousarray(table, dtype=np.float32)  # (n_dirs, taps, 2)
+        self.directions = np.ascontiguousarray(directions, dtype=np.float64)  # (n_dirs, 3) unit
+        self.delay_s = float(delay_s)  # latency of the head centre inside every HRIR
+        self._diffuse: np.ndarray | None = None
+        self._tree = cKDTree(self.directions)  # Euclidean nearest on the unit sphere = largest dot product
+        self.table.setflags(write=False)
+        self.directions.setflags(write=False)
+
+    @property
+    def taps(self) -> int:
+        return int(self.table.shape[1])
+
+    @staticmethod
+    def load(kind: Literal["kemar", "sphere"], fs: int) -> "Hrtf":
+        """The HRTF of `kind` at sample rate `fs` (memoised: one table per process)."""
+        return _load(str(kind), int(fs))
+
+    def nearest(self, vectors: np.ndarray) -> np.ndarray:
+        """Index of the tabulated direction nearest to each head-frame vector (..., 3)."""
+        v = np.asarray(vectors, dtype=np.float64)
+        v = v / np.linalg.norm(v, axis=-1, keepdims=True)
+        return self._tree.query(v)[1]
+
+    def hrir(self, azimuth_rad: float, elevation_rad: float = 0.0) -> np.ndarray:
+        """(taps, 2) float32 HRIR for a head-relative direction (nearest tabulated one)."""
+        k = int(self.nearest(direction_vectors(np.array(azimuth_rad), np.array(elevation_rad))))
+        return self.table[k].copy()
+
+    def diffuse_filters(self) -> np.ndarray:
+        """(n, 2) float32 pair of unit-energy filters that turn a mono diffuse tail into two ears.
+
+        Each ear's filter is the sum over all tabulated directions of that ear's HRIR with a
+        random sign and a random delay (0-10 ms), the same signs and delays for both ears: a
+        model of a diffuse field made of plane waves from everywhere. The interaural coherence
+        that results is the HRTF set's own (high at low frequencies, low above ~1 kHz).
+        """
+        if self._diffuse is None:
+            rng = np.random.default_rng(_DIFFUSE_SEED)
+            n_dirs = self.table.shape[0]
+            spread = int(round(_DIFFUSE_SPREAD_S * self.fs))
+            signs = rng.choice(np.array([-1.0, 1.0]), size=n_dirs)
+            delays = rng.integers(0, spread, size=n_dirs)
+            out = np.zeros((spread + self.taps, 2))
+            for k in range(n_dirs):
+                out[delays[k] : delays[k] + self.taps] += signs[k] * self.table[k]
+            out /= np.sqrt((out**2).sum(axis=0, keepdims=True))
+            self._diffuse = out.astype(np.float32)
+            self._diffuse.setflags(write=False)
+        return self._diffuse
+
+
+@functools.lru_cache(maxsize=8)
+def _load(kind: str, fs: int) -> Hrtf:
+    if kind == "kemar":
+        return _kemar(fs)
+    if kind == "sphere":
+        return _sphere(fs)
+    raise ValueError(f"unknown HRTF kind {kind!r} (use 'kemar' or 'sphere')")
+
+
+def _diffuse_normalise(table: np.ndarray) -> np.ndarray:
+    return table / np.sqrt((table.astype(np.float64) ** 2).sum(axis=1).mean())
+
+
+def _kemar(fs: int) -> Hrtf:
+    """MIT KEMAR from the converted npz (16 kHz), resampled when another rate is asked for."""
+    if not KEMAR_NPZ.is_file():
+        raise FileNotFoundError(f"{KEMAR_NPZ} is missing; regenerate it with scripts/convert_kemar.py")
+    with np.load(KEMAR_NPZ) as z:
+        table = z["hrir"].astype(np.float64)
+        az = np.deg2rad(z["azimuth_deg"].astype(np.float64))
+        el = np.deg2rad(z["elevation_deg"].astype(np.float64))
+        fs_data = int(z["fs"])
+    if fs != fs_data:
+        g = int(np.gcd(fs, fs_data))
+        table = resample_poly(table, fs // g, fs_data // g, axis=1)
+    table = _diffuse_normalise(table)
+    front = int(np.argmin(np.abs(np.angle(np.exp(1j * az))) + np.abs(el)))
+    return Hrtf("kemar", fs, table, direction_vectors(az, el), _onset_s(table[front], fs))
+
+
+def _onset_s(ir2: np.ndarray, fs: int) -> float:
+    """Mean over both ears of the first crossing of 20 % of the peak (sub-sample, linear)."""
+    times = []
+    for c in range(ir2.shape[1]):
+        x = np.abs(ir2[:, c])
+        thr = 0.2 * x.max()
+        n = int(np.argmax(x >= thr))
+        frac = 0.0 if n == 0 else (thr - x[n - 1]) / (x[n] - x[n - 1])
+        times.append((n - 1 + frac) / fs if n else 0.0)
+    return float(np.mean(times))
+
+
+def _sphere_directions() -> np.ndarray:
+    """A regular grid: elevation every 5 deg, azimuth every ~5 deg scaled by cos(elevation)."""
+    vecs = []
+    for el in np.deg2rad(np.arange(-90.0, 90.1, 5.0)):
+        n = max(1, int(round(72 * np.cos(el))))
+        az = np.arange(n) * (2 * np.pi / n)
+        vecs.append(direction_vectors(az, np.full(n, el)))
+    return np.concatenate(vecs)
+
+
+def sphere_hrir_table(vectors: np.ndarray, fs: int, taps: int = _SPHERE_TAPS) -> np.ndarray:
+    """Brown & Duda (1998) spherical-head HRIRs (n, taps, 2) for head-frame unit vectors.
+
+    Per ear: Woodworth's delay around a rigid sphere of radius 8.75 cm, and the one-pole /
+    one-zero head-shadow filter (1 + j a w / 2w0) / (1 + j w / 2w0), w0 = c / r, whose
+    high-frequency gain a goes from 2 (+6 dB) facing the ear to 0.1 at 150 deg from it.
+    Realised by frequency sampling on a long grid, truncated to `taps` with a short taper.
+    """
+    vectors = np.atleast_2d(np.asarray(vectors, dtype=np.float64))
+    n_fft = 1024
+    w = 2 * np.pi * np.fft.rfftfreq(n_fft, 1.0 / fs)
+    w0 = SPEED_OF_SOUND / HEAD_RADIUS
+    out = np.empty((len(vectors), taps, 2))
+    taper = np.ones(taps)
+    taper[-16:] = 0.5 * (1 + np.cos(np.linspace(0, np.pi, 16)))
+    for ear, axis in ((0, np.array([0.0, 1.0, 0.0])), (1, np.array([0.0, -1.0, 0.0]))):
+        theta = np.arccos(np.clip(vectors @ axis, -1.0, 1.0))  # angle from this ear's axis
+        alpha = (1 + _SPHERE_ALPHA_MIN / 2) + (1 - _SPHERE_ALPHA_MIN / 2) * np.cos(theta / _SPHERE_THETA_MIN * np.pi)
+        delay = np.where(
+            theta < np.pi / 2, -np.cos(theta), theta - np.pi / 2
+        ) * HEAD_RADIUS / SPEED_OF_SOUND  # Woodworth, relative to the head centre
+        delay = delay + HEAD_RADIUS / SPEED_OF_SOUND + _SPHERE_LEAD / fs
+        shadow = (1 + 1j * alpha[:, None] * w / (2 * w0)) / (1 + 1j * w / (2 * w0))
+        spec = shadow * np.exp(-1j * w * delay[:, None])
+        out[:, :, ear] = np.fft.irfft(spec, n_fft, axis=1)[:, :taps] * taper
+    return out
+
+
+def _sphere(fs: int) -> Hrtf:
+    dirs = _sphere_directions()
+    table = _diffuse_normalise(sphere_hrir_table(dirs, fs))
+    return Hrtf("sphere", fs, table, dirs, HEAD_RADIUS / SPEED_OF_SOUND + _SPHERE_LEAD / fs)
