@@ -167,7 +167,7 @@ def _split_length(total: float, k: int, lo: float, hi: float, rng: np.random.Gen
     return out
 
 
-def _layout(recipe: Recipe, rng: np.random.Generator) -> list[Rect]:
+def _layout(recipe: Recipe, rng: np.random.Generator) -> list[Rect] | None:
     """Rows of rooms: equal-width rows when the size range allows it, else left-aligned rows."""
     n = int(rng.integers(recipe.scene.rooms[0], recipe.scene.rooms[1] + 1))
     smin, smax = recipe.scene.room_size
@@ -186,6 +186,9 @@ def _layout(recipe: Recipe, rng: np.random.Generator) -> list[Rect]:
             rects.append(Rect(_r2(x), _r2(y), _r2(x + w), _r2(y + h)))
             x += w
         y += h
+    xs = sorted({v for r in rects for v in (r.xmin, r.xmax)})
+    if any(0.0 < b - a < 0.3 for a, b in zip(xs, xs[1:])):
+        return None  # ragged rows whose walls almost line up: a sliver step in a wall
     if rng.random() < 0.5:  # columns instead of rows
         rects = [Rect(r.ymin, r.xmin, r.ymax, r.xmax) for r in rects]
     if rng.random() < 0.5:  # mirror east-west
@@ -251,13 +254,17 @@ def _segments(pieces: list[_Piece], doorways: list[Doorway], t: float, height: f
             and abs((dw.center[1] if p.axis == "x" else dw.center[0]) - p.coord) < _EPS
             and p.lo < (dw.center[0] if p.axis == "x" else dw.center[1]) < p.hi
         )
-        ext_lo = t / 2.0 if p.axis == "x" else 0.0
+        # close the corners: walls along x reach over the crossing walls, but only at the
+        # ends of their line (collinear neighbours must not overlap)
+        same_line = [o for o in pieces if o.axis == p.axis and o.coord == p.coord and o is not p]
+        ext_lo = t / 2.0 if p.axis == "x" and not any(abs(o.hi - p.lo) < _EPS for o in same_line) else 0.0
+        ext_hi = t / 2.0 if p.axis == "x" and not any(abs(o.lo - p.hi) < _EPS for o in same_line) else 0.0
         u = p.lo - ext_lo
         spans: list[tuple[float, float]] = []
         for cu, w in cuts:
             spans.append((u, cu - w / 2.0))
             u = cu + w / 2.0
-        spans.append((u, p.hi + ext_lo))
+        spans.append((u, p.hi + ext_hi))
         room = rooms[p.rooms[0] if p.rooms[0] >= 0 else p.rooms[1]]
         for s0, s1 in spans:
             if s1 - s0 < 0.01:
@@ -420,6 +427,7 @@ def _place_furniture(
     index: int,
     placed: list[Furniture],
     keepout: list[Rect],
+    swings: list[Rect],
     t: float,
     material: str,
     rng: np.random.Generator,
@@ -455,6 +463,8 @@ def _place_furniture(
             continue
         if any(fp.intersects(k) for k in keepout):
             continue
+        if any(fz.intersects(k) for k in swings):
+            continue  # an opened door would block the robot's spot
         if any(fp.intersects(o.footprint, FURNITURE_GAP) or fz.intersects(o.footprint) or fp.intersects(front_zone(o)) for o in placed):
             continue
         return f
@@ -596,6 +606,8 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
     sc = recipe.scene
     t = sc.wall_thickness
     rects = _layout(recipe, rng)
+    if rects is None:
+        return None
     kinds = _assign_kinds(rects, rng)
     rooms = [
         Room(
@@ -641,8 +653,8 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
         bell = is_entrance or bool(rng.random() < INTERIOR_BELL_PROBABILITY)
         doors.append(_make_door(dw, len(doors), swing, t, bell, rng, door_material))
 
-    keepout = [_doorway_zone(dw, DOOR_CLEARANCE_DEPTH, DOOR_CLEARANCE_SIDE) for dw in doorways]
-    keepout += [door_swing_zone(d) for d in doors]
+    swings = [door_swing_zone(d) for d in doors]
+    keepout = [_doorway_zone(dw, DOOR_CLEARANCE_DEPTH, DOOR_CLEARANCE_SIDE) for dw in doorways] + swings
 
     furniture: list[Furniture] = []
     fmat = list(sc.furniture_materials)
@@ -650,7 +662,7 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
     sink_rooms = [sink_rooms[int(i)] for i in rng.permutation(len(sink_rooms))]
     sink: Furniture | None = None
     for room in sink_rooms:
-        sink = _place_furniture("sink_cabinet", room, 0, furniture, keepout, t, str(rng.choice(fmat)), rng)
+        sink = _place_furniture("sink_cabinet", room, 0, furniture, keepout, swings, t, str(rng.choice(fmat)), rng)
         if sink is not None:
             furniture.append(sink)
             break
@@ -662,7 +674,7 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
         kinds_here = ROOM_FURNITURE[room.kind]
         for _ in range(max(want - have, 0)):
             kind = kinds_here[int(rng.integers(len(kinds_here)))]
-            f = _place_furniture(kind, room, len(furniture), furniture, keepout, t, str(rng.choice(fmat)), rng)
+            f = _place_furniture(kind, room, len(furniture), furniture, keepout, swings, t, str(rng.choice(fmat)), rng)
             if f is None:
                 continue
             here = [o for o in furniture if o.room == room.index] + [f]
@@ -676,7 +688,7 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
     if sum(1 for f in furniture if f.receptacle) < 2:
         # a relocation needs a receptacle to take from and another to put on
         extra_room = rooms[int(np.argmax([r.rect.area for r in rooms]))]
-        f = _place_furniture("table", extra_room, len(furniture), furniture, keepout, t, str(rng.choice(fmat)), rng)
+        f = _place_furniture("table", extra_room, len(furniture), furniture, keepout, swings, t, str(rng.choice(fmat)), rng)
         if f is None:
             return None
         furniture.append(f)
