@@ -123,6 +123,9 @@ def test_rejections_are_counted_and_budget_is_bounded() -> None:
     with pytest.raises(SamplingError) as err:
         sample_episode(tight, "train", i, LIB)
     assert err.value.counts == counts
+    # a retry after an expert failure samples from fresh seeds
+    retry, _ = sample_episode(r, "train", i, LIB, attempt=1)
+    assert retry.attempt >= r.max_attempts_per_episode and retry.seed != spec.seed
 
 
 def test_frontal_region_check_detects_blocking_furniture() -> None:

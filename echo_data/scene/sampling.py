@@ -155,18 +155,24 @@ def settle_shift(plan: FloorPlan, physics_hz: int = 100, seconds: float = SETTLE
 
 
 # ------------------------------------------------------------------------------ sampling
-def sample_episode(recipe: Recipe, split: str, index: int, library: _Library) -> tuple[EpisodeSpec, dict[str, int]]:
-    """The episode (split, index) of `recipe` plus the rejected attempts counted by reason."""
+def sample_episode(
+    recipe: Recipe, split: str, index: int, library: _Library, attempt: int = 0
+) -> tuple[EpisodeSpec, dict[str, int]]:
+    """The episode (split, index) of `recipe` plus the rejected attempts counted by reason.
+
+    Sampling attempts run from `attempt * recipe.max_attempts_per_episode` on, at most
+    `max_attempts_per_episode` of them, so a build that retries an episode after an expert
+    failure (`attempt` = 1, 2, ...) gets fresh seeds that never repeat an earlier retry's.
+    """
+    budget = recipe.max_attempts_per_episode
     counts: dict[str, int] = {}
-    for attempt in range(recipe.max_attempts_per_episode):
-        seed = episode_seed(recipe.seed, split, index, attempt)
+    for k in range(attempt * budget, (attempt + 1) * budget):
+        seed = episode_seed(recipe.seed, split, index, k)
         try:
-            return _attempt(recipe, split, index, attempt, seed, library), counts
+            return _attempt(recipe, split, index, k, seed, library), counts
         except _Reject as r:
             counts[r.reason] = counts.get(r.reason, 0) + 1
-    raise SamplingError(
-        f"{split}-{index:06d}: no solvable episode in {recipe.max_attempts_per_episode} attempts ({counts})", counts
-    )
+    raise SamplingError(f"{split}-{index:06d}: no solvable episode in {budget} attempts ({counts})", counts)
 
 
 def _attempt(recipe: Recipe, split: str, index: int, attempt: int, seed: int, library: _Library) -> EpisodeSpec:
