@@ -27,7 +27,7 @@ import sapien
 
 from echo_data.robot import urdf as U
 from echo_data.robot.planner import ArmPlanner, Box
-from echo_data.robot.robot import GRIPPER_OPEN, HEAD_PAN, HEAD_TILT, Robot
+from echo_data.robot.robot import GRIPPER_OPEN, HEAD_PAN, HEAD_TILT, TUCK_QPOS, Robot
 from echo_data.scene.objects import object_size
 
 ARM_SPEED = 1.0  # rad/s per joint
@@ -191,9 +191,54 @@ def line_poses(a: sapien.Pose, b: sapien.Pose, step: float = 0.02) -> list[sapie
 
 def tuck_group(torso: float) -> np.ndarray:
     """(torso, tuck arm) - the driving configuration."""
-    from echo_data.robot.robot import TUCK_QPOS
-
     return np.concatenate([[torso], TUCK_QPOS])
+
+
+# READY / carry configuration: torso up, TCP 0.27 m ahead of the base centre at 1.15 m, pointing
+# down (found once with ArmPlanner.ik; reached from the tuck without self-collision via
+# UNTUCK_LIFT, and from it straight joint paths reach pre-grasps over 0.6-0.9 m tops).
+READY_GROUP = np.array([0.386, 0.605, -0.379, -2.618, 2.145, 0.556, 2.065, 1.102])
+UNTUCK_LIFT = -0.5  # shoulder_lift while leaving / entering the tuck (upper arm raised)
+
+
+def is_tucked(group: np.ndarray, tol: float = 0.05) -> bool:
+    return bool(np.max(np.abs(np.asarray(group)[1:] - TUCK_QPOS)) < tol)
+
+
+def untuck_waypoints(start: np.ndarray) -> list[np.ndarray]:
+    """Waypoints from `start` to READY_GROUP: torso up, upper arm raised, then READY (tucked starts)."""
+    start = np.asarray(start, dtype=np.float64)
+    if not is_tucked(start):
+        return [start, READY_GROUP.copy()]
+    up = start.copy()
+    up[0] = READY_GROUP[0]
+    raised = up.copy()
+    raised[2] = UNTUCK_LIFT
+    return [start, up, raised, READY_GROUP.copy()]
+
+
+def tuck_waypoints(start: np.ndarray, torso_end: float | None = None) -> list[np.ndarray]:
+    """Waypoints from `start` (near READY) back into the tuck, then the torso to `torso_end`."""
+    start = np.asarray(start, dtype=np.float64)
+    raised = tuck_group(start[0])
+    raised[2] = UNTUCK_LIFT
+    pts = [start, READY_GROUP.copy(), raised, tuck_group(start[0])]
+    if not np.allclose(start, READY_GROUP, atol=0.05):
+        pts = [start] + pts[1:]
+    if torso_end is not None:
+        pts.append(tuck_group(torso_end))
+    return pts
+
+
+def plan_through(planner: ArmPlanner, waypoints: Sequence[np.ndarray], gripper: float | None = None) -> list[np.ndarray] | None:
+    """Join waypoints by straight segments; a colliding segment is replaced by an RRTConnect path."""
+    out = [np.asarray(waypoints[0], dtype=np.float64)]
+    for a, b in zip(waypoints[:-1], waypoints[1:]):
+        seg = planner.path(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64), gripper)
+        if seg is None:
+            return None
+        out.extend(seg[1:])
+    return out
 
 
 __all__ = [
@@ -211,5 +256,10 @@ __all__ = [
     "cartesian_path",
     "line_poses",
     "tuck_group",
+    "READY_GROUP",
+    "untuck_waypoints",
+    "tuck_waypoints",
+    "plan_through",
+    "is_tucked",
     "U",
 ]

@@ -1,0 +1,137 @@
+"""The Pick expert: a physical top-down parallel-jaw grasp, lift, and carry pose.
+
+Starts where Navigate left the base (facing the object at its interaction pose). Steps:
+raise the torso while the arm leaves the tuck (a collision-checked joint path, RRTConnect only
+if the straight path hits something), stop 0.12 m above the object with the jaws across its
+narrow side, descend in a straight line, close, lift 0.15 m straight up, then bring the object
+to the carry pose above the front of the base (`success.CARRY_TCP`). Nothing is welded or
+teleported: the object stays in the hand by friction alone.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Generator
+
+import numpy as np
+import sapien
+
+from echo_data.records import SkillOutcome
+from echo_data.robot import urdf as U
+from echo_data.robot.robot import GRIPPER_OPEN, yaw_of
+from echo_data.scene.objects import object_size
+from echo_data.skills import arm
+from echo_data.skills.success import CARRY_TCP, object_bottom, pick_success
+
+PICK_TORSO = U.TORSO_RANGE[1]  # m: highest torso - table tops 0.6-0.9 m are reached from above
+PRE_GRASP_HEIGHT = 0.12  # m above the grasp point
+LIFT_HEIGHT = 0.15  # m
+GRASP_BELOW_TOP = 0.03  # m: pads centred this far below the object's top ...
+GRASP_ABOVE_BOTTOM = 0.010  # ... but the TCP at least this high above its bottom (tips clear the table)
+CLOSE_STEPS = 8
+SLOW = 0.35  # speed scale of the descend / lift moves
+
+
+class SkillFailed(Exception):
+    """An expert stops with this reason."""
+
+
+class Budget:
+    """Counts the actions an expert yields and stops it at the step limit ("timeout")."""
+
+    def __init__(self, max_steps: int) -> None:
+        self.max_steps = max_steps
+        self.steps = 0
+
+    def run(self, gen: Generator[np.ndarray, None, Any]) -> Generator[np.ndarray, None, Any]:
+        try:
+            while True:
+                action = next(gen)
+                if self.steps >= self.max_steps:
+                    raise SkillFailed("timeout")
+                self.steps += 1
+                yield action
+        except StopIteration as stop:
+            return stop.value
+
+
+def grasp_height(bottom: float, sz: float) -> float:
+    """TCP z for a top-down grasp of an object of height sz standing at `bottom`."""
+    return max(bottom + GRASP_ABOVE_BOTTOM, bottom + sz - GRASP_BELOW_TOP)
+
+
+def pick(world: Any, call: Any, spec: Any) -> Generator[np.ndarray, None, SkillOutcome]:
+    """Pick expert (generator of actions; returns the SkillOutcome)."""
+    robot = world.robot
+    budget = Budget(int(robot.cfg.max_steps["Pick"]))
+    name = call.target
+    try:
+        yield from budget.run(_pick(world, name, budget))
+        yield from budget.run(arm.hold(world, 3))
+    except SkillFailed as e:
+        return SkillOutcome(call.skill, name, False, str(e), budget.steps)
+    ok = pick_success(world, name)
+    reason = ""
+    if not ok:
+        reason = "grasp slipped" if robot.holding != name else "not lifted"
+    return SkillOutcome(call.skill, name, ok, reason, budget.steps)
+
+
+def _pick(world: Any, name: str, budget: Budget) -> Generator[np.ndarray, None, None]:
+    robot = world.robot
+    plan = world.plan
+    obj = plan.object_by_name(name)
+    sx, sy, sz = object_size(obj.category)
+    pose = world.handles.objects[name].pose
+    ox, oy = float(pose.p[0]), float(pose.p[1])
+    oyaw = yaw_of(pose)
+    bottom = object_bottom(world, name)
+    gz = grasp_height(bottom, sz)
+
+    planner = arm.arm_planner(world, exclude={name})
+    start = arm.commanded_group(robot)
+    untuck = arm.untuck_waypoints(start)
+    ready = untuck[-1]
+    best: tuple[float, np.ndarray, np.ndarray, float] | None = None
+    for yaw in (oyaw, oyaw + math.pi):
+        above = arm.top_down_pose(ox, oy, gz + PRE_GRASP_HEIGHT, yaw)
+        pre = planner.ik(above, ready, tries=16, gripper=GRIPPER_OPEN)
+        if pre is None:
+            continue
+        descent = arm.cartesian_path(planner, pre, arm.line_poses(above, arm.top_down_pose(ox, oy, gz, yaw)))
+        if descent is None:
+            continue
+        cost = float(np.max(np.abs(pre[1:] - ready[1:])))
+        if best is None or cost < best[0]:
+            best = (cost, pre, np.asarray(descent), yaw)
+    if best is None:
+        raise SkillFailed("no IK solution")
+    _, pre, descent, yaw = best
+    path = arm.plan_through(planner, untuck + [pre], gripper=GRIPPER_OPEN)
+    if path is None:
+        raise SkillFailed("no motion plan")
+    yield from arm.follow_path(world, path, gripper=GRIPPER_OPEN)
+    yield from arm.follow_path(world, list(descent), gripper=GRIPPER_OPEN, speed_scale=SLOW)
+    yield from arm.set_gripper(world, 0.0, CLOSE_STEPS)
+    if robot.holding != name:
+        raise SkillFailed("grasp missed")
+    here = descent[-1]
+    grasp_pose = planner.fk(here)
+    lift_to = arm.top_down_pose(float(grasp_pose.p[0]), float(grasp_pose.p[1]), float(grasp_pose.p[2]) + LIFT_HEIGHT, yaw)
+    lift = arm.cartesian_path(planner, here, arm.line_poses(grasp_pose, lift_to))
+    if lift is None:
+        raise SkillFailed("no IK solution")
+    yield from arm.follow_path(world, lift, speed_scale=SLOW)
+    if robot.holding != name:
+        raise SkillFailed("grasp slipped")
+    # carry: back to READY with the object attached (as a box) where it hangs now
+    tcp_to_obj = robot.ee_pose().inv() * world.handles.objects[name].pose
+    planner = arm.arm_planner(world, exclude={name})
+    planner.attach_box([sx, sy, sz], tcp_to_obj)
+    carry = planner.path(np.asarray(lift[-1]), arm.READY_GROUP.copy())
+    planner.detach()
+    if carry is None:
+        raise SkillFailed("no motion plan")
+    yield from arm.follow_path(world, carry, speed_scale=0.6)
+    if robot.holding != name:
+        raise SkillFailed("grasp slipped")

@@ -1,0 +1,65 @@
+"""Success tests of the skills (Habitat-style criteria, see SPEC §4), read from the live world.
+
+Shared file: Pick/Place here; navigation, door and sink owners add theirs below.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from echo_data.scene.objects import object_size
+
+# ------------------------------------------------------------------ Pick / Place
+LIFT_MIN = 0.05  # m: object bottom above its receptacle top for a pick
+CARRY_TCP = (0.27, 0.0, 1.15)  # TCP in the base frame (x fwd, y left, z from floor) while carrying
+CARRY_TOL = 0.12  # m: "arm back near rest" = TCP this close to CARRY_TCP
+PLACE_HEIGHT_TOL = 0.02  # m: object bottom within this of the goal's top
+REST_SPEED = 0.05  # m/s: an object slower than this is at rest
+
+
+def object_bottom(world: Any, name: str) -> float:
+    """z of the lowest point of the object's collision box (upright objects)."""
+    o = world.plan.object_by_name(name)
+    p = world.handles.objects[name].pose
+    return float(p.p[2]) - object_size(o.category)[2] / 2.0
+
+
+def tcp_in_base(world: Any) -> np.ndarray:
+    """TCP position in the base frame (x forward, y left, z above the floor)."""
+    x, y, yaw = world.robot.base_pose()
+    p = np.asarray(world.robot.ee_pose().p, dtype=np.float64)
+    dx, dy = p[0] - x, p[1] - y
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([c * dx + s * dy, -s * dx + c * dy, p[2]])
+
+
+def arm_at_carry(world: Any) -> bool:
+    return bool(np.linalg.norm(tcp_in_base(world) - np.asarray(CARRY_TCP)) <= CARRY_TOL)
+
+
+def pick_success(world: Any, name: str) -> bool:
+    """Held between both fingers, bottom >= LIFT_MIN above its receptacle's top, arm at the carry pose."""
+    if world.robot.holding != name:
+        return False
+    o = world.plan.object_by_name(name)
+    top = world.plan.furniture[o.receptacle].top_z
+    return object_bottom(world, name) >= top + LIFT_MIN and arm_at_carry(world)
+
+
+def object_speed(world: Any, name: str) -> float:
+    import sapien
+
+    body = world.handles.objects[name].find_component_by_type(sapien.physx.PhysxRigidDynamicComponent)
+    return float(np.linalg.norm(body.linear_velocity))
+
+
+def place_success(world: Any, name: str, goal_furniture: int) -> bool:
+    """At rest on the goal receptacle: bottom within PLACE_HEIGHT_TOL of its top, centre inside its footprint, not held."""
+    f = world.plan.furniture[goal_furniture]
+    p = world.handles.objects[name].pose.p
+    on_top = abs(object_bottom(world, name) - f.top_z) <= PLACE_HEIGHT_TOL
+    inside = f.footprint.contains(float(p[0]), float(p[1]))
+    return bool(on_top and inside and world.robot.holding != name and object_speed(world, name) < REST_SPEED)
