@@ -16,6 +16,7 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
+import scipy.fft as sfft
 from scipy.signal import fftconvolve
 
 from echo_data.acoustics.hrtf import Hrtf
@@ -67,26 +68,24 @@ def band_basis(fs: int) -> np.ndarray:
 
 
 class _KernelBank:
-    """Per HRTF: (direction, phase) -> (n_bands, taps, 2) band-basis x HRIR kernels, built lazily."""
+    """Per HRTF: kernels[direction, phase] = (n_bands, taps, 2) band basis x HRIR, all built at once.
+
+    One batched FFT product over the whole table (tens of ms, tens of MB), kept for the process.
+    """
 
     def __init__(self, hrtf: Hrtf) -> None:
-        self.basis = band_basis(hrtf.fs)  # (P, B, T)
-        self.hrtf = hrtf
+        basis = band_basis(hrtf.fs)  # (P, B, T_b)
         self.taps = BAND_TAPS + hrtf.taps - 1
+        n_fft = sfft.next_fast_len(self.taps, real=True)
+        fb = sfft.rfft(basis, n_fft, axis=-1)  # (P, B, F)
+        fh = sfft.rfft(hrtf.table.astype(np.float64), n_fft, axis=1)  # (D, F, 2)
         n_dirs = hrtf.table.shape[0]
-        # zeros() is lazily backed by the OS, so untouched directions cost no memory
-        self.kernels = np.zeros((n_dirs, SUBSAMPLE, len(BAND_CENTERS), self.taps, 2), dtype=np.float32)
-        self.ready = np.zeros(n_dirs, dtype=bool)
+        self.kernels = np.empty((n_dirs, SUBSAMPLE, len(BAND_CENTERS), self.taps, 2), dtype=np.float32)
+        for ch in range(2):
+            prod = fb[None] * fh[:, None, None, :, ch]  # (D, P, B, F)
+            self.kernels[..., ch] = sfft.irfft(prod, n_fft, axis=-1)[..., : self.taps]
+        self.rows = self.kernels.reshape(n_dirs * SUBSAMPLE, -1)  # view: one row per (direction, phase)
         self.centre = (BAND_TAPS - 1) // 2 + hrtf.delay_s * hrtf.fs  # samples from kernel start to "the arrival"
-
-    def get(self, dirs: np.ndarray) -> np.ndarray:
-        missing = np.unique(dirs[~self.ready[dirs]])
-        for k in missing:
-            h = self.hrtf.table[k].astype(np.float64)  # (T_h, 2)
-            kern = fftconvolve(self.basis[:, :, :, None], h[None, None, :, :], axes=2)
-            self.kernels[k] = kern.astype(np.float32)
-            self.ready[k] = True
-        return self.kernels
 
 
 def _bank(hrtf: Hrtf) -> _KernelBank:
@@ -119,7 +118,7 @@ def binaural_irs(response: AcousticResponse, head_yaws: Sequence[float], hrtf: H
     yaws = np.asarray(list(head_yaws), dtype=np.float64)
     n_y = len(yaws)
     length = binaural_length(response, hrtf)
-    out = np.zeros((n_y, length, 2))
+    out = np.zeros((n_y, length, 2), dtype=np.float32)
     arrivals = response.arrivals
     if arrivals:
         bank = _bank(hrtf)
@@ -132,9 +131,9 @@ def binaural_irs(response: AcousticResponse, head_yaws: Sequence[float], hrtf: H
         ).reshape(len(arrivals), len(BAND_CENTERS))
         world = np.array([a.direction for a in arrivals], dtype=np.float64)
         world /= np.linalg.norm(world, axis=1, keepdims=True)
-        dirs = np.stack([hrtf.nearest(head_relative(world, y)) for y in yaws])  # (n_y, n_arr)
-        kernels = bank.get(dirs.ravel())
-        sel = kernels[dirs, phase[None, :]].reshape(n_y, len(arrivals), len(BAND_CENTERS), T * 2)
+        dirs = hrtf.nearest(np.stack([head_relative(world, y) for y in yaws]))  # (n_y, n_arr)
+        rows = (dirs * SUBSAMPLE + phase[None, :]).ravel()  # row gather on a 2-D view is fast
+        sel = np.take(bank.rows, rows, axis=0).reshape(n_y, len(arrivals), len(BAND_CENTERS), T * 2)
         contrib = np.matmul(weights.astype(np.float32)[None, :, None, :], sel).reshape(n_y, len(arrivals), T, 2)
         for i in range(len(arrivals)):
             lo, hi = max(int(start[i]), 0), min(int(start[i]) + T, length)
@@ -144,8 +143,8 @@ def binaural_irs(response: AcousticResponse, head_yaws: Sequence[float], hrtf: H
     if tail.size and np.any(tail):
         dec = hrtf.diffuse_filters().astype(np.float64)
         rendered = fftconvolve(tail[:, None], dec, axes=0)[:length]
-        out[:, : len(rendered)] += rendered[None]
-    return out.astype(np.float32)
+        out[:, : len(rendered)] += rendered[None].astype(np.float32)
+    return out
 
 
 def binaural_ir(response: AcousticResponse, head_yaw: float, hrtf: Hrtf) -> np.ndarray:

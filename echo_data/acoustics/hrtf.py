@@ -48,7 +48,7 @@ class Hrtf:
         self.fs = int(fs)
         self.table = np.ascontiguousarray(table, dtype=np.float32)  # (n_dirs, taps, 2)
         self.directions = np.ascontiguousarray(directions, dtype=np.float64)  # (n_dirs, 3) unit
-        self.delay_s = float(delay_s)  # latency of the head centre inside every HRIR
+        self.delay_s = float(delay_s)  # head-centre latency inside every HRIR: the frontal response's onset
         self._diffuse: np.ndarray | None = None
         self._tree = cKDTree(self.directions)  # Euclidean nearest on the unit sphere = largest dot product
         self.table.setflags(write=False)
@@ -180,4 +180,5 @@ def sphere_hrir_table(vectors: np.ndarray, fs: int, taps: int = _SPHERE_TAPS) ->
 def _sphere(fs: int) -> Hrtf:
     dirs = _sphere_directions()
     table = _diffuse_normalise(sphere_hrir_table(dirs, fs))
-    return Hrtf("sphere", fs, table, dirs, HEAD_RADIUS / SPEED_OF_SOUND + _SPHERE_LEAD / fs)
+    front = int(np.argmax(dirs[:, 0]))
+    return Hrtf("sphere", fs, table, dirs, _onset_s(table[front], fs))
