@@ -170,3 +170,21 @@ def test_handle_geometry_matches_door_builder(q: float) -> None:
     grid = NavGrid.from_plan(two_room_plan(), robot_radius=R, door_angles={0: q})
     assert _occ(grid, *handle_xy(door, q))
     assert handle_xy(door, q) == handle_xy(door, q, door.open_sign)
+
+
+def test_start_in_a_narrow_pocket_steps_out_with_larger_snap() -> None:
+    """A 0.7 m dead-end corridor: a 0.28 m base fits, a grid inflated by 0.36 m does not."""
+    plan = two_room_plan()
+    cabinets = (
+        Furniture(3, "cabinet", 0, (1.15, 0.55), (0.4, 1.0, 0.8), math.pi / 2, "wooden_door", False),
+        Furniture(4, "cabinet", 0, (2.25, 0.55), (0.4, 1.0, 0.8), math.pi / 2, "wooden_door", False),
+    )
+    plan = dataclasses.replace(plan, furniture=plan.furniture + cabinets)
+    grid = NavGrid.from_plan(plan, robot_radius=0.36)
+    start = (1.7, 0.7)
+    assert not grid.is_free(*start) and grid.clearance(*start) > 0.28
+    assert grid.plan_path(start, (3.0, 2.0)) is None  # nothing free within the default 0.3 m
+    path = grid.plan_path(start, (3.0, 2.0), start_snap=0.6)
+    assert path is not None and path[0] == start and grid.is_free(*path[1])
+    assert math.dist(start, path[1]) <= 0.6
+    assert _path_min_clearance(grid, path[1:]) >= 0.36

@@ -218,15 +218,16 @@ class NavGrid:
 
     # ------------------------------------------------------------------ planning
     def plan_path(
-        self, start_xy: tuple[float, float], goal_xy: tuple[float, float]
+        self, start_xy: tuple[float, float], goal_xy: tuple[float, float], start_snap: float = SNAP_RADIUS
     ) -> list[tuple[float, float]] | None:
         """Shortest collision-free base path start -> goal as waypoints, or None.
 
-        A blocked start or goal is moved to the nearest free cell within SNAP_RADIUS (the
-        path then ends at that cell). Waypoints: the start, the corners left after
-        line-of-sight shortening, the (possibly snapped) goal.
+        A blocked goal is moved to the nearest free cell within SNAP_RADIUS (the path then
+        ends at that cell), a blocked start to the nearest within `start_snap` (a robot left
+        beside an opened door leaf may need more). Waypoints: the start, the corners left
+        after line-of-sight shortening, the (possibly snapped) goal.
         """
-        start = self.nearest_free(*start_xy)
+        start = self.nearest_free(*start_xy, radius=start_snap)
         goal = self.nearest_free(*goal_xy)
         if start is None or goal is None or not self.connected(start, goal):
             return None
