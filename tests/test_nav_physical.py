@@ -69,6 +69,10 @@ def test_navigate_through_doorway_to_other_room() -> None:
     for px, py, _ in poses:
         assert min(_rect_distance(w.footprint, px, py) for w in plan.walls) >= BASE_RADIUS - 1e-3
     assert nav_skill.navigate_success(world, "faucet:0")
+    world.robot.set_base_pose(x, y, yaw + math.radians(30))  # turned away: not facing the lever
+    assert not nav_skill.navigate_success(world, "faucet:0")
+    world.robot.set_base_pose(gx - 1.6, gy, math.atan2(ty - gy, tx - gx + 1.6))  # facing it, 1.6 m off
+    assert not nav_skill.navigate_success(world, "faucet:0")
 
 
 def test_collision_stops_the_drive() -> None:

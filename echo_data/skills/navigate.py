@@ -2,7 +2,8 @@
 
 `PathFollower` is pure (pose in, robot-frame velocity out) so it can be checked without
 physics; `drive_to` runs it in a `World` (replanning when the robot strays or stalls, stopping
-on contact with walls or furniture) and is reused by the Place expert; `navigate` is the skill.
+on contact with walls or furniture) and is reused by the Place expert; `navigate` is the skill
+(its success test, `navigate_success`, lives with the others in `echo_data.skills.success`).
 """
 
 from __future__ import annotations
@@ -14,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from echo_data.records import ACTION_DIM, SkillOutcome
-from echo_data.scene.nav import NavGrid, interaction_pose, target_point
+from echo_data.scene.nav import NavGrid, interaction_pose
+from echo_data.skills.success import navigate_success
 
 # Speed limits and ramps (Fetch's base: ≈1 m/s top speed; slower keeps tracking tight).
 MAX_LIN = 0.6  # m/s
@@ -26,9 +28,6 @@ TURN_IN_PLACE = math.radians(35)  # heading error beyond which the base stops an
 K_HEADING = 2.0  # 1/s, heading gain while driving and turning
 GOAL_TOL = 0.08  # m, position at which the final turn starts
 YAW_TOL = math.radians(3)  # final heading tolerance
-# Success (SPEC, Habitat's criterion): within this of the interaction point, facing the target.
-SUCCESS_DIST = 1.5
-SUCCESS_YAW = math.radians(15)
 # Replanning: off the path by more than this, or no progress for this long.
 STRAY_DIST = 0.35
 STALL_SECONDS = 3.0
@@ -264,24 +263,6 @@ def drive_to(
         yield base_action.copy()
         steps += 1
     return DriveResult(True, "", steps, replans)
-
-
-def navigate_success(world: object, target: str) -> bool:
-    """Navigate succeeded: base within SUCCESS_DIST of the target's interaction point, facing the target.
-
-    Facing: the base heading points at the target (object centre, door handle, faucet lever,
-    furniture centre) within SUCCESS_YAW.
-    """
-    plan = world.plan  # type: ignore[attr-defined]
-    angles = door_angles(world)
-    x, y, yaw = world.robot.base_pose()  # type: ignore[attr-defined]
-    try:
-        px, py, _ = interaction_pose(plan, target, door_angles=angles or None, grid=current_grid(world))
-    except ValueError:
-        return False
-    tx, ty = target_point(plan, target, angles or None)
-    facing = abs(wrap(math.atan2(ty - y, tx - x) - yaw)) <= SUCCESS_YAW
-    return math.hypot(px - x, py - y) <= SUCCESS_DIST and facing
 
 
 def navigate(world: object, call: object, spec: object) -> Generator[np.ndarray, None, SkillOutcome]:

@@ -63,3 +63,31 @@ def place_success(world: Any, name: str, goal_furniture: int) -> bool:
     on_top = abs(object_bottom(world, name) - f.top_z) <= PLACE_HEIGHT_TOL
     inside = f.footprint.contains(float(p[0]), float(p[1]))
     return bool(on_top and inside and world.robot.holding != name and object_speed(world, name) < REST_SPEED)
+
+
+# ------------------------------------------------------------------ Navigate
+NAV_SUCCESS_DIST = 1.5  # m from the target's interaction point (SPEC §4, Habitat's criterion)
+NAV_SUCCESS_YAW = math.radians(15)  # base heading vs the bearing to the target
+
+
+def navigate_success(world: Any, target: str) -> bool:
+    """Base within NAV_SUCCESS_DIST of the target's interaction point and facing the target.
+
+    Facing: the base heading points at the target (object centre, swing-side door handle,
+    faucet lever, furniture centre) within NAV_SUCCESS_YAW. Doors count where they stand now.
+    """
+    from echo_data.scene.nav import NavGrid, interaction_pose, target_point
+
+    plan = world.plan
+    angles = world.handles.door_angles() if getattr(world, "handles", None) is not None else {}
+    nav = getattr(world, "nav", None)
+    radius = nav.robot_radius if nav is not None else 0.32
+    grid = NavGrid.from_plan(plan, robot_radius=radius, door_angles=angles)
+    x, y, yaw = world.robot.base_pose()
+    try:
+        px, py, _ = interaction_pose(plan, target, door_angles=angles or None, grid=grid)
+    except ValueError:
+        return False
+    tx, ty = target_point(plan, target, angles or None)
+    heading_error = abs(math.remainder(math.atan2(ty - y, tx - x) - yaw, 2.0 * math.pi))
+    return math.hypot(px - x, py - y) <= NAV_SUCCESS_DIST and heading_error <= NAV_SUCCESS_YAW
