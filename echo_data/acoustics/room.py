@@ -79,6 +79,9 @@ class AcousticScene:
         self.acoustics = RoomAcoustics(plan, self.boxes, cfg.closed_door_loss_db)
         self.noise = NoiseBank(self.fs, self.length, plan.seed)
         self._tail_base: dict[int, np.ndarray] = {}
+        # the tail ends within the RIR length: a 20 ms raised-cosine fade instead of a cut
+        n_fade = max(1, min(self.length // 4, int(0.02 * self.fs)))
+        self._fade_out = np.cos(0.5 * np.pi * (np.arange(n_fade) + 1) / n_fade) ** 2
         cells = image_cells(cfg.ism_order)
         s = cfg.scattering
         door_log_r = {
@@ -178,6 +181,7 @@ class AcousticScene:
         ramp = np.clip((np.arange(i0, i0 + 17) / self.fs - t0) * self.fs / 16.0, 0.0, 1.0)
         seg = slice(max(i0, 0), min(i0 + 17, self.length))
         x[seg] *= np.sin(0.5 * np.pi * ramp[seg.start - i0 : seg.stop - i0]) ** 2
+        x[-len(self._fade_out) :] *= self._fade_out
         return x.astype(np.float32)
 
     # ------------------------------------------------------------------ internals

@@ -38,21 +38,23 @@ _LN10 = math.log(10.0)
 def band_masks(n_fft: int, fs: int, power: bool) -> np.ndarray:
     """Octave-band masks (bands, n_fft//2+1) on an rfft grid around BANDS.
 
-    Neighbouring bands cross over on a log-frequency raised cosine: amplitude-complementary
-    (sum = 1, used for specular arrivals, so unit band gains give a clean impulse) or
-    power-complementary (sum of squares = 1, used to split noise without changing its power).
+    Neighbouring bands cross over on a raised cosine half an octave wide centred on the band
+    edge (the geometric mean of two centres), so that each band keeps its own decay inside
+    its octave: amplitude-complementary (sum = 1, used for specular arrivals, so unit band
+    gains give a clean impulse) or power-complementary (sum of squares = 1, used to split
+    noise without changing its power).
     """
     f = np.fft.rfftfreq(n_fft, 1.0 / fs)
     lf = np.log2(np.maximum(f, 1e-3))
     lb = np.log2(BANDS)
-    m = np.zeros((len(BANDS), len(f)))
+    edges = 0.5 * (lb[:-1] + lb[1:])
+    m = np.ones((len(BANDS), len(f)))
     for b in range(len(BANDS)):
-        x_lo = np.clip((lf - lb[b - 1]) / (lb[b] - lb[b - 1]), 0.0, 1.0) if b > 0 else np.ones_like(f)
-        x_hi = np.clip((lf - lb[b]) / (lb[b + 1] - lb[b]), 0.0, 1.0) if b + 1 < len(BANDS) else np.zeros_like(f)
-        rise = np.sin(0.5 * np.pi * x_lo) if b > 0 else np.ones_like(f)
-        fall = np.cos(0.5 * np.pi * x_hi)
-        m[b] = rise * fall
-    return m**2 if not power else m
+        if b > 0:
+            m[b] *= np.sin(0.5 * np.pi * np.clip((lf - edges[b - 1] + 0.25) / 0.5, 0.0, 1.0))
+        if b + 1 < len(BANDS):
+            m[b] *= np.cos(0.5 * np.pi * np.clip((lf - edges[b] + 0.25) / 0.5, 0.0, 1.0))
+    return m if power else m**2
 
 
 class RoomAcoustics:
