@@ -1,0 +1,85 @@
+"""PyTorch loaders: per-step and windowed datasets, filters, DataLoader workers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from echo_data.dataset.build import build  # noqa: E402
+from echo_data.dataset.torch import SequenceDataset, StepDataset  # noqa: E402
+from test_dataset_synth import null_library, synth_generate, synth_recipe  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("torch") / "synth"
+    build(synth_recipe(splits={"train": 4, "test": 1}), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
+    return out
+
+
+def _all_rows(ds: Path, split: str) -> dict:
+    files = sorted((ds / "data").glob(f"{split}-*.parquet"))
+    t = pq.ParquetDataset(files).read(columns=["episode_index", "frame_index", "skill", "setting", "action"])
+    return {c: t.column(c).to_pylist() for c in t.column_names}
+
+
+def test_step_dataset_items_and_filters(ds: Path) -> None:
+    rows = _all_rows(ds, "train")
+    d = StepDataset(ds, "train")
+    assert len(d) == len(rows["episode_index"])
+    item = d[5]
+    assert item["observation.images.head_rgb"].shape == (3, 16, 24) and item["observation.images.head_rgb"].dtype == torch.float32
+    assert item["observation.images.wrist_depth"].shape == (1, 16, 16)
+    assert item["observation.audio.spectrogram"].shape == (65, 26, 2)
+    assert item["observation.audio.mel"].shape == (64, 101, 2)
+    np.testing.assert_allclose(item["action"].numpy(), np.array(rows["action"][5], np.float32))
+    episodes = pq.read_table(ds / "meta" / "episodes.parquet").to_pylist()
+    row = next(e for e in episodes if e["split"] == "train" and e["attempt"] == 1)  # a retried episode
+    ep = synth_generate(synth_recipe(splits={"train": 4, "test": 1}), "train", row["episode_index"], None, Path("."), attempt=1)
+    item = d[row["dataset_from_index"] + 2]
+    assert int(item["episode_index"]) == row["episode_index"] and int(item["frame_index"]) == 2
+    np.testing.assert_allclose(item["observation.images.head_depth"][0].numpy(), ep.steps[2].head_depth / 1000.0, rtol=1e-6)
+    np.testing.assert_allclose(item["observation.images.head_rgb"].numpy(), ep.steps[2].head_rgb.transpose(2, 0, 1) / 255.0, rtol=1e-6)
+    np.testing.assert_array_equal(item["observation.audio.mel"].numpy(), ep.mel[2])
+    picks = StepDataset(ds, "train", skill="Pick", columns=["skill", "action"])
+    assert len(picks) == rows["skill"].count("Pick") > 0 and {picks[i]["skill"] for i in range(len(picks))} == {"Pick"}
+    assert set(picks[0]) == {"skill", "action"}
+    st = StepDataset(ds, "train", setting="state_transition")
+    assert len(st) == rows["setting"].count("state_transition") > 0
+    with pytest.raises(ValueError, match="unknown columns"):
+        StepDataset(ds, "train", columns=["nope"])
+
+
+def test_dataloader_with_two_workers(ds: Path) -> None:
+    d = StepDataset(ds, "train", columns=["index", "action", "observation.images.head_rgb", "observation.audio.spectrogram"])
+    loader = torch.utils.data.DataLoader(d, batch_size=4, shuffle=False, num_workers=2)
+    batches = list(loader)
+    index = torch.cat([b["index"] for b in batches])
+    assert index.tolist() == list(range(len(d)))
+    assert batches[0]["observation.images.head_rgb"].shape == (4, 3, 16, 24)
+    assert batches[0]["observation.audio.spectrogram"].shape == (4, 65, 26, 2)
+
+
+def test_sequence_windows_pad_at_episode_edges(ds: Path) -> None:
+    rows = _all_rows(ds, "train")
+    s = SequenceDataset(ds, "train", history=3, action_chunk=4)
+    assert len(s) == len(rows["episode_index"])
+    first = s[0]
+    assert first["observation.state"].shape == (3, 25) and first["action"].shape == (4, 12)
+    assert first["observation_is_pad"].tolist() == [True, True, False]
+    np.testing.assert_allclose(first["action"][0].numpy(), np.array(rows["action"][0], np.float32))
+    n0 = rows["episode_index"].count(0)
+    last = s[n0 - 1]  # last step of episode 0: the chunk runs past the end and is padded
+    assert int(last["frame_index"]) == n0 - 1 and int(last["episode_index"]) == 0
+    assert last["action_is_pad"].tolist() == [False, True, True, True]
+    np.testing.assert_allclose(last["action"][3].numpy(), np.array(rows["action"][n0 - 1], np.float32))
+    nxt = s[n0]  # first step of episode 1 never sees episode 0
+    assert int(nxt["episode_index"]) == 1 and nxt["observation_is_pad"].tolist() == [True, True, False]
+    loader = torch.utils.data.DataLoader(s, batch_size=3, num_workers=2)
+    batch = next(iter(loader))
+    assert batch["observation.images.head_rgb"].shape == (3, 3, 3, 16, 24) and batch["action_is_pad"].shape == (3, 4)
