@@ -67,6 +67,8 @@ class ArmPlanner:
         self.rng = np.random.default_rng(seed)
         self.q = np.zeros(len(names))
         self._obstacles: list[str] = []
+        self.base = sapien.Pose()
+        self._base_inv = sapien.Pose()
         self._attached = False
 
     # ------------------------------------------------------------------ state
@@ -78,8 +80,11 @@ class ArmPlanner:
         return q
 
     def sync(self, base: tuple[float, float, float], group_q: np.ndarray, gripper: float, head: Sequence[float] = (0.0, 0.45)) -> None:
-        """Set the planner's base pose and configuration from the robot's."""
-        self.mp.set_base_pose(_mp_pose(base_link_pose(*base)))
+        """Set the planner's base pose and configuration from the robot's (call set_obstacles after)."""
+        # mplib 0.2.1 places attached bodies without the base pose, so the planner works in the
+        # base frame: its own base stays at the origin and obstacles / goals are transformed.
+        self.base = base_link_pose(*base)
+        self._base_inv = self.base.inv()
         self.q[self.group] = group_q
         self.q[self.finger] = gripper / 2.0
         self.q[self.head] = head
@@ -95,7 +100,8 @@ class ArmPlanner:
         self._obstacles = []
         for b in boxes:
             shape = fcl.Box(np.asarray(b.size, dtype=np.float64))
-            pose = mplib.Pose(np.asarray(b.center, dtype=np.float64), np.array([math.cos(b.yaw / 2), 0, 0, math.sin(b.yaw / 2)]))
+            world = sapien.Pose(list(b.center), [math.cos(b.yaw / 2), 0, 0, math.sin(b.yaw / 2)])
+            pose = _mp_pose(self._base_inv * world)
             obj = fcl.FCLObject(b.name, pose, [fcl.CollisionObject(shape)], [mplib.Pose()])
             self.mp.planning_world.add_object(obj)
             self._obstacles.append(b.name)
@@ -107,8 +113,12 @@ class ArmPlanner:
         self._attached = True
 
     def detach(self) -> None:
+        """Drop every attached body (mplib names them '<robot>_<link>_box')."""
         if self._attached:
-            self.mp.detach_object("attached_geom", also_remove=True)
+            world = self.mp.planning_world
+            for name in list(world.get_object_names()):
+                if world.is_object_attached(name):
+                    world.detach_object(name, True)
             self._attached = False
 
     # ------------------------------------------------------------------ queries
@@ -117,9 +127,7 @@ class ArmPlanner:
         pm = self.mp.pinocchio_model
         pm.compute_forward_kinematics(self.full(group_q))
         p = pm.get_link_pose(self.ee_index)
-        base = self.mp.robot.get_base_pose()
-        w = base * p
-        return sapien.Pose(np.asarray(w.p), np.asarray(w.q))
+        return self.base * sapien.Pose(np.asarray(p.p), np.asarray(p.q))
 
     def collisions(self, group_q: np.ndarray, gripper: float | None = None) -> list[str]:
         """Colliding pairs ('link|object') at `group_q`; empty when free."""
@@ -144,8 +152,7 @@ class ArmPlanner:
 
         Seeds: `start`, then random configurations from the planner's generator (reproducible).
         """
-        base = self.mp.robot.get_base_pose()
-        target = base.inv() * _mp_pose(goal)
+        target = _mp_pose(self._base_inv * goal)
         pm = self.mp.pinocchio_model
         mask = [False] * len(self.names)
         for i in range(len(self.names)):

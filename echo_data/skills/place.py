@@ -1,0 +1,172 @@
+"""The Place expert: carry the held object to another receptacle, set it down, let go, tuck.
+
+`call.target` is "furniture:<i>". The base drives to that piece's interaction pose with the
+navigation follower (`echo_data.skills.navigate.drive_to`) while the arm holds the carry pose
+(READY, object above every receptacle height); then a free spot on the top within reach is
+chosen, the object is brought above it, lowered until its bottom is RELEASE_GAP above the top,
+released, and the arm retreats up and tucks (the torso stays up; Navigate does not mind).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Generator
+
+import numpy as np
+
+from echo_data.records import SkillOutcome
+from echo_data.robot.robot import GRIPPER_OPEN, yaw_of
+from echo_data.scene.objects import object_size
+from echo_data.skills import arm
+from echo_data.skills.pick import SLOW, Budget, SkillFailed
+from echo_data.skills.success import object_bottom, place_success
+
+ABOVE = 0.08  # m: object bottom above the top before the final descent
+RELEASE_GAP = 0.006  # m: object bottom above the top when the fingers open
+RETREAT = 0.12  # m straight up after releasing
+OPEN_STEPS = 6
+EDGE_MARGIN = 0.06  # m: object footprint to the top's edges
+CLEARANCE = 0.05  # m: object footprint to other objects
+REACH = (0.45, 0.74)  # m: base centre to the placing point
+PREFERRED_REACH = 0.6
+GRID = 0.03  # m
+
+
+def held_object(world: Any, call: Any, spec: Any) -> str | None:
+    """The object to place: what the robot holds, else the event's target object."""
+    name = world.robot.holding
+    if name is not None:
+        return name
+    try:
+        return spec.events[call.event].target
+    except (AttributeError, IndexError):
+        return None
+
+
+def place_spots(world: Any, name: str, furniture: int) -> list[tuple[float, float]]:
+    """Free points on the top of `furniture` within reach of the base, best first."""
+    plan = world.plan
+    f = plan.furniture[furniture]
+    o = plan.object_by_name(name)
+    sx, sy, _ = object_size(o.category)
+    r = math.hypot(sx, sy) / 2.0
+    fp = f.footprint
+    bx, by, byaw = world.robot.base_pose()
+    others = []
+    for other in plan.objects:
+        if other.name == name or other.name not in world.handles.objects:
+            continue
+        p = world.handles.objects[other.name].pose.p
+        osx, osy, _ = object_size(other.category)
+        others.append((float(p[0]), float(p[1]), math.hypot(osx, osy) / 2.0))
+    spots = []
+    m = EDGE_MARGIN + r
+    for x in np.arange(fp.xmin + m, fp.xmax - m + 1e-9, GRID):
+        for y in np.arange(fp.ymin + m, fp.ymax - m + 1e-9, GRID):
+            d = math.hypot(x - bx, y - by)
+            if not REACH[0] <= d <= REACH[1]:
+                continue
+            if any(math.hypot(x - ox, y - oy) < r + orad + CLEARANCE for ox, oy, orad in others):
+                continue
+            bearing = abs(math.remainder(math.atan2(y - by, x - bx) - byaw, 2 * math.pi))
+            spots.append((abs(d - PREFERRED_REACH) + 0.4 * bearing, float(x), float(y)))
+    spots.sort()
+    return [(x, y) for _, x, y in spots]
+
+
+def place(world: Any, call: Any, spec: Any) -> Generator[np.ndarray, None, SkillOutcome]:
+    """Place expert (generator of actions; returns the SkillOutcome)."""
+    robot = world.robot
+    budget = Budget(int(robot.cfg.max_steps["Place"]))
+    kind, _, idx = str(call.target).partition(":")
+    if kind != "furniture" or not idx:
+        return SkillOutcome(call.skill, call.target, False, "bad target", 0)
+    goal = int(idx)
+    name = held_object(world, call, spec)
+    if name is None or robot.holding != name:
+        return SkillOutcome(call.skill, call.target, False, "not holding", 0)
+    try:
+        yield from budget.run(_drive(world, goal, budget))
+        yield from budget.run(_place(world, name, goal))
+        yield from budget.run(arm.hold(world, 3))
+    except SkillFailed as e:
+        return SkillOutcome(call.skill, call.target, False, str(e), budget.steps)
+    ok = place_success(world, name, goal)
+    reason = "" if ok else ("still held" if robot.holding == name else "not on goal")
+    return SkillOutcome(call.skill, call.target, ok, reason, budget.steps)
+
+
+def _drive(world: Any, goal: int, budget: Budget) -> Generator[np.ndarray, None, None]:
+    from echo_data.scene.nav import interaction_pose
+    from echo_data.skills.navigate import current_grid, door_angles, drive_to
+
+    grid = current_grid(world)
+    try:
+        pose = interaction_pose(world.plan, f"furniture:{goal}", door_angles=door_angles(world) or None, grid=grid)
+    except ValueError:
+        raise SkillFailed("no_path") from None
+    result = yield from drive_to(world, pose, budget.max_steps - budget.steps, grid=grid, hold=world.robot.rest_action())
+    if not result.success:
+        raise SkillFailed(result.reason)
+
+
+def _place(world: Any, name: str, goal: int) -> Generator[np.ndarray, None, None]:
+    robot = world.robot
+    plan = world.plan
+    top = plan.furniture[goal].top_z
+    o = plan.object_by_name(name)
+    sx, sy, sz = object_size(o.category)
+    tcp = robot.ee_pose()
+    tcp_above_bottom = float(tcp.p[2]) - object_bottom(world, name)
+    tcp_to_obj = tcp.inv() * world.handles.objects[name].pose
+    # keep the object's current yaw relative to the jaws: try the current jaw direction first
+    r = tcp.to_transformation_matrix()[:3, :3]
+    jaw = math.atan2(-r[0, 1], r[1, 1])
+    planner = arm.arm_planner(world, exclude={name})
+    planner.attach_box([sx, sy, sz], tcp_to_obj)
+    start = arm.commanded_group(robot)
+    chosen = None
+    for x, y in place_spots(world, name, goal)[:12]:
+        for yaw in (jaw, jaw + math.pi, jaw + math.pi / 2, jaw - math.pi / 2):
+            above = arm.top_down_pose(x, y, top + ABOVE + tcp_above_bottom, yaw)
+            q_above = planner.ik(above, start, tries=8)
+            if q_above is None:
+                continue
+            down = arm.top_down_pose(x, y, top + RELEASE_GAP + tcp_above_bottom, yaw)
+            descent = arm.cartesian_path(planner, q_above, arm.line_poses(above, down))
+            if descent is None:
+                continue
+            path = planner.path(start, q_above)
+            if path is None:
+                continue
+            chosen = (path, descent, down)
+            break
+        if chosen is not None:
+            break
+    planner.detach()
+    if chosen is None:
+        raise SkillFailed("no IK solution")
+    path, descent, down = chosen
+    yield from arm.follow_path(world, path)
+    if robot.holding != name:
+        raise SkillFailed("grasp slipped")
+    yield from arm.follow_path(world, descent, speed_scale=SLOW)
+    yield from arm.set_gripper(world, GRIPPER_OPEN, OPEN_STEPS)
+    up = arm.top_down_pose(float(down.p[0]), float(down.p[1]), float(down.p[2]) + RETREAT, jaw_yaw_of(down))
+    retreat = arm.cartesian_path(planner, descent[-1], arm.line_poses(down, up), gripper=GRIPPER_OPEN)
+    if retreat is None:
+        raise SkillFailed("no IK solution")
+    yield from arm.follow_path(world, retreat, gripper=GRIPPER_OPEN, speed_scale=SLOW)
+    planner = arm.arm_planner(world)
+    home = arm.plan_through(planner, arm.tuck_waypoints(np.asarray(retreat[-1])), gripper=GRIPPER_OPEN)
+    if home is None:
+        raise SkillFailed("no motion plan")
+    yield from arm.follow_path(world, home, gripper=GRIPPER_OPEN)
+
+
+def jaw_yaw_of(pose: Any) -> float:
+    r = pose.to_transformation_matrix()[:3, :3]
+    return math.atan2(-r[0, 1], r[1, 1])
+
+
+__all__ = ["place", "place_spots", "held_object", "yaw_of"]
