@@ -112,5 +112,11 @@ def preview(
     typer.echo(f"wrote {', '.join(sorted(p.name for p in out.iterdir()))} to {out}")
 
 
+# Dataset commands (build, validate, info) live in echo_data.dataset.commands.
+from echo_data.dataset.commands import register as _register_dataset_commands  # noqa: E402
+
+_register_dataset_commands(app)
+
+
 if __name__ == "__main__":
     app()

@@ -21,7 +21,9 @@ from echo_data.scene.floorplan import FloorPlan, Furniture, PlacedObject, Rect, 
 class SamplingError(RuntimeError):
     """Same name as echo_data.scene.sampling.SamplingError (the build matches it by name)."""
 
-    rejected = {"path_blocked": 2}
+    def __init__(self, message: str) -> None:
+        super().__init__(message)
+        self.counts = {"path_blocked": 2}  # rejections by reason, as the real one carries
 
 
 def synth_recipe(**over: object) -> Recipe:

@@ -161,7 +161,8 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
         try:
             result = job.generate(job.recipe, split, index, _LIBRARY, job.recipe_dir, attempt=attempt)
         except Exception as e:  # an attempt that crashed is recorded and retried, never half-written
-            rejected.update({str(k): int(v) for k, v in (getattr(e, "rejected", None) or {}).items()})
+            counts = getattr(e, "counts", None) or getattr(e, "rejected", None) or {}  # SamplingError.counts
+            rejected.update({str(k): int(v) for k, v in counts.items()})
             kind = "sampling" if _is_sampling_error(e) else f"error: {type(e).__name__}"
             failures.append({**record, "reason": _one_line(f"{kind}: {e}"), "outcomes": []})
             continue
