@@ -93,3 +93,24 @@ def test_no_path_when_door_closed_and_timeout() -> None:
     outcome, poses, _ = _run(world, nav_skill.navigate(world, SkillCall("Navigate", "phone_0", 0), None))
     assert not outcome.success and outcome.reason == "timeout" and len(poses) == 5
     assert not nav_skill.navigate_success(world, "phone_0")
+
+
+def test_drive_replans_after_being_pushed_off_the_path() -> None:
+    """Teleporting the robot 0.8 m off its path mid-drive makes it replan and still arrive."""
+    plan = two_room_plan(door_angle=math.radians(90))
+    world = _world(plan, (1.0, 1.0, 0.0))
+    goal = interaction_pose(plan, "faucet:0", door_angles={0: math.radians(90)})
+    gen = nav_skill.drive_to(world, goal, 400)
+    pushed = False
+    try:
+        while True:
+            world.step(next(gen))
+            x, y, yaw = world.robot.base_pose()
+            if not pushed and x > 2.0:
+                world.robot.set_base_pose(x, y + 0.8 if y < 2.0 else y - 0.8, yaw)
+                pushed = True
+    except StopIteration as stop:
+        result = stop.value
+    assert pushed and result.success and result.replans >= 1
+    x, y, _ = world.robot.base_pose()
+    assert math.hypot(x - goal[0], y - goal[1]) <= 0.15
