@@ -65,8 +65,9 @@ def _spectrogram_from_mag(mag: np.ndarray) -> np.ndarray:
 def _mel_from_mag(mag: np.ndarray, fs: int, n_mels: int) -> np.ndarray:
     """(..., 2, 257, T) magnitudes -> (..., n_mels, T, 2) float32 log-mel (dB)."""
     *lead, f, t = mag.shape
-    power = np.moveaxis(np.square(mag, dtype=np.float32), -2, 0).reshape(f, -1)  # one BLAS product
-    mel = (mel_filterbank(fs, n_mels) @ power).reshape(n_mels, *lead, t)
+    # one BLAS product; float64 so a step's values do not depend on how many steps share the batch
+    power = np.moveaxis(np.square(mag, dtype=np.float64), -2, 0).reshape(f, -1)
+    mel = (mel_filterbank(fs, n_mels).astype(np.float64) @ power).reshape(n_mels, *lead, t)
     db = 10.0 * np.log10(np.maximum(mel, MEL_FLOOR))  # (n_mels, ..., 2, T)
     return np.ascontiguousarray(np.moveaxis(db, (0, -2), (-3, -1)), dtype=np.float32)
 
