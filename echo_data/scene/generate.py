@@ -103,6 +103,7 @@ FAUCET_SPOUT_HEIGHT = 0.1  # above the counter top
 EDGE_MARGIN = 0.08  # object footprint to receptacle edge
 FRONT_REACH = 0.35  # object centre to receptacle front edge, at most
 OBJECT_GAP = 0.03
+OBJECT_WALL_CLEARANCE = 0.25  # object centre to any wall face of its room
 REST_LIFT = 0.0  # objects rest exactly on the top (z = top + sz / 2)
 
 _ROW_PATTERNS: dict[int, tuple[tuple[int, ...], ...]] = {
@@ -541,16 +542,19 @@ def place_object(
 
     The object sits EDGE_MARGIN inside the top's edges, its centre within FRONT_REACH of
     the front edge (a Fetch arm reaches it from the front strip), clear of other objects;
-    its long side runs along the front edge (the gripper closes across the narrow side).
+    its long side runs along the front edge (the gripper closes across the narrow side);
+    it keeps OBJECT_WALL_CLEARANCE from the room's walls (room for the arm in corners).
     """
     cands = [f.index for f in plan.furniture if f.receptacle] if receptacles is None else list(receptacles)
     if not cands:
         return None
     r = object_radius(category)
     sz = object_size(category)[2]
+    t = plan.walls[0].thickness if plan.walls else 0.0
     for _ in range(tries):
         f = plan.furniture[cands[int(rng.integers(len(cands)))]]
         n, lat, half_depth, half_len = _front_frame(f)
+        room_inner = plan.rooms[f.room].rect.expanded(-t / 2.0)
         u_max = half_len - EDGE_MARGIN - r
         d_lo = EDGE_MARGIN + r
         d_hi = min(FRONT_REACH, 2.0 * half_depth - EDGE_MARGIN - r)
@@ -560,6 +564,8 @@ def place_object(
         d = rng.uniform(d_lo, d_hi)  # from the front edge
         x = f.center[0] + n[0] * (half_depth - d) + lat[0] * u
         y = f.center[1] + n[1] * (half_depth - d) + lat[1] * u
+        if not room_inner.contains(x, y, margin=OBJECT_WALL_CLEARANCE):
+            continue  # an arm reaching into a corner hits the side wall
         if any(
             math.hypot(o.position[0] - x, o.position[1] - y) < r + object_radius(o.category) + OBJECT_GAP
             for o in plan.objects
@@ -668,12 +674,22 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
             break
     if sink is None:
         return None
+    # Rooms where the robot must work after a state event (sink room, belled doors' swing
+    # rooms) get as much furniture as the recipe allows, receptacles first, so a second
+    # (relocation) event usually finds a receptacle to take from and one to put on.
+    key_rooms = {sink.room} | {d.swing_room for d in doors if d.doorbell is not None}
+    lo_f, hi_f = sc.furniture_per_room
     for room in rooms:
-        want = int(rng.integers(sc.furniture_per_room[0], sc.furniture_per_room[1] + 1))
+        want = int(rng.integers(lo_f, hi_f + 1))
+        if room.index in key_rooms and want > 0:
+            want = max(want, min(hi_f, 3))
         have = sum(1 for f in furniture if f.room == room.index)
         kinds_here = ROOM_FURNITURE[room.kind]
-        for _ in range(max(want - have, 0)):
-            kind = kinds_here[int(rng.integers(len(kinds_here)))]
+        n_recep_first = 2 if room.index in key_rooms else 1
+        for k in range(max(want - have, 0)):
+            # the first piece(s) of a room are something to put things on
+            pool = [c for c in kinds_here if FURNITURE_SPECS[c].receptacle] if k < n_recep_first else list(kinds_here)
+            kind = pool[int(rng.integers(len(pool)))]
             f = _place_furniture(kind, room, len(furniture), furniture, keepout, swings, t, str(rng.choice(fmat)), rng)
             if f is None:
                 continue

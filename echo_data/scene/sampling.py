@@ -211,16 +211,18 @@ def _attempt(recipe: Recipe, split: str, index: int, attempt: int, seed: int, li
         except ValueError:
             raise _Reject("no_interaction_pose") from None
         home = _component_of(labels, grid, (sx, sy))
-    else:
+    stand = {f.index: _stand_component(plan, grid, labels, f"furniture:{f.index}") for f in plan.furniture if f.receptacle}
+    if state_target is None:
+        # relocation only: the region with the most receptacles (ties: the larger region)
         sizes = np.bincount(labels.ravel())
-        sizes[0] = 0
-        home = int(np.argmax(sizes))
+        regions = sorted({c for c in stand.values() if c > 0})
+        if not regions:
+            raise _Reject("no_receptacle")
+        home = max(regions, key=lambda c: (sum(v == c for v in stand.values()), int(sizes[c]), -c))
     if home == 0:
         raise _Reject("no_interaction_pose")
 
-    receptacles = [
-        f.index for f in plan.furniture if f.receptacle and _stand_component(plan, grid, labels, f"furniture:{f.index}") == home
-    ]
+    receptacles = [i for i, c in stand.items() if c == home]
     events: list[tuple[str, str, Vec3]] = []  # (category, target, source)
     goal: int | None = None
     if reloc_cat is not None:
