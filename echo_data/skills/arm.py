@@ -30,7 +30,7 @@ from echo_data.robot.planner import ArmPlanner, Box
 from echo_data.robot.robot import GRIPPER_OPEN, HEAD_PAN, HEAD_TILT, TUCK_QPOS, Robot
 from echo_data.scene.objects import object_size
 
-ARM_SPEED = 1.0  # rad/s per joint
+ARM_SPEED = 1.3  # rad/s per joint
 TORSO_SPEED = 0.15  # m/s
 SETTLE_TOL = 0.03  # rad: a path ends when every joint is this close to its target ...
 SETTLE_MAX = 8  # ... or after this many extra steps

@@ -127,6 +127,7 @@ def _place(world: Any, name: str, goal: int) -> Generator[np.ndarray, None, None
     start = arm.commanded_group(robot)
     chosen = None
     for x, y in place_spots(world, name, goal)[:12]:
+        options = []
         for yaw in (jaw, jaw + math.pi, jaw + math.pi / 2, jaw - math.pi / 2):
             above = arm.top_down_pose(x, y, top + ABOVE + tcp_above_bottom, yaw)
             q_above = planner.ik(above, start, tries=8)
@@ -134,13 +135,13 @@ def _place(world: Any, name: str, goal: int) -> Generator[np.ndarray, None, None
                 continue
             down = arm.top_down_pose(x, y, top + RELEASE_GAP + tcp_above_bottom, yaw)
             descent = arm.cartesian_path(planner, q_above, arm.line_poses(above, down))
-            if descent is None:
-                continue
+            if descent is not None:
+                options.append((float(np.max(np.abs(q_above[1:] - start[1:]))), q_above, descent, down))
+        for _, q_above, descent, down in sorted(options, key=lambda t: t[0]):
             path = planner.path(start, q_above)
-            if path is None:
-                continue
-            chosen = (path, descent, down)
-            break
+            if path is not None:
+                chosen = (path, descent, down)
+                break
         if chosen is not None:
             break
     planner.detach()
