@@ -130,6 +130,12 @@ class BoxLattice:
             else:
                 self.open_mat.append(-1)  # no reflection: the path leaves through the opening
         self.mat_log_r = np.asarray(self.mat_log_r)
+        self._local: tuple[int, Occluders] | None = None
+
+    def local(self, occ: Occluders) -> Occluders:
+        if self._local is None or self._local[0] != id(occ):
+            self._local = (id(occ), occ.local(self.box))
+        return self._local[1]
 
     def trace(
         self,
@@ -140,7 +146,8 @@ class BoxLattice:
         walls: bool,
         cell_mask: np.ndarray | None = None,
     ) -> ImagePaths:
-        """Paths from sources (3,) or (R, I, 3) to receivers (R, 3) via this box's images."""
+        """Paths from sources (3,) or (R, I, 3) to receivers (R, 3) via this box's images.
+        `occ` is the whole plan's obstacles; segments inside the box meet only its local ones."""
         R, I = len(rcv), len(self.cells)
         src = np.broadcast_to(np.asarray(src, dtype=np.float64), (R, I, 3))
         out = ImagePaths(
@@ -215,10 +222,17 @@ class BoxLattice:
                 # padding repeats the receiver, so the real last segment may sit earlier
                 nev = used.sum(axis=2)[ri]
                 need[np.arange(n), nev] = need[:, -1]
-            los = segment_losses(p0, p1, occ, door_loss_db, need.reshape(-1))
-            blocked = los.blocked.reshape(n, K + 1).any(axis=1)
-            door = los.door_db.reshape(n, K + 1).sum(axis=1)
-            furn = np.minimum(los.furn_db.reshape(n, K + 1, -1).sum(axis=1), 40.0)
+            need = need.reshape(-1)
+            blocked = np.zeros(len(p0), dtype=bool)
+            door = np.zeros(len(p0))
+            furn = np.zeros((len(p0), len(BANDS)))
+            for sel, o in ((~need, self.local(occ)), (need, occ)):
+                if sel.any():
+                    los = segment_losses(p0[sel], p1[sel], o, door_loss_db, True)
+                    blocked[sel], door[sel], furn[sel] = los.blocked, los.door_db, los.furn_db
+            blocked = blocked.reshape(n, K + 1).any(axis=1)
+            door = door.reshape(n, K + 1).sum(axis=1)
+            furn = np.minimum(furn.reshape(n, K + 1, -1).sum(axis=1), 40.0)
             ok[ri] = ~blocked
             out.door_db[s0 + ri[0], ri[1]] = door
             log_gain[ri] -= furn * (np.log(10.0) / 20.0)

@@ -128,7 +128,9 @@ class AcousticScene:
         # 1) image sources of the source room, for every receiver
         lat = self.lattices[a_room]
         ip = lat.trace(S, rcv, self.occ, self.cfg.closed_door_loss_db, walls=True)
-        direct_ok = ip.valid[:, 0] & (ip.door_db[:, 0] == 0.0)
+        # a geometric direct path (possibly through a door panel) makes the doorway's
+        # secondary direct path redundant
+        direct_ok = ip.valid[:, 0].copy()
         paths.add(np.arange(n), ip, np.zeros(ip.log_gain.shape), 0.0, np.zeros(ip.length.shape), None)
 
         # 2) through doorways into the other rooms
@@ -283,16 +285,17 @@ class AcousticScene:
         pa, pb = self._doorway_points(op, e.frm, e.room, p)
         ip = lat.trace(pb, rcv, self.occ, self.cfg.closed_door_loss_db, walls=False, cell_mask=cmask)
         # legs hub → doorway (inside the upstream room) and through the doorway
-        legs = segment_losses(
-            np.concatenate([np.broadcast_to(Q, pa.shape).reshape(-1, 3), pa.reshape(-1, 3)]),
-            np.concatenate([pa.reshape(-1, 3), pb.reshape(-1, 3)]),
-            self.occ,
-            self.cfg.closed_door_loss_db,
-            False,
+        # (only for paths still valid: the hub leg stays in the upstream room)
+        vr, vi = np.nonzero(ip.valid)
+        loss_db = self.cfg.closed_door_loss_db
+        hub_leg = segment_losses(
+            np.broadcast_to(Q, (len(vr), 3)), pa[vr, vi], self.lattices[e.frm].local(self.occ), loss_db, False
         )
-        nleg = R * I
-        leg_door = (legs.door_db[:nleg] + legs.door_db[nleg:]).reshape(R, I)
-        leg_furn = (legs.furn_db[:nleg] + legs.furn_db[nleg:]).reshape(R, I, -1)
+        door_leg = segment_losses(pa[vr, vi], pb[vr, vi], self.occ, loss_db, False)
+        leg_door = np.zeros((R, I))
+        leg_furn = np.zeros((R, I, len(BANDS)))
+        leg_door[vr, vi] = hub_leg.door_db + door_leg.door_db
+        leg_furn[vr, vi] = hub_leg.furn_db + door_leg.furn_db
         a_len = np.linalg.norm(pa - Q, axis=2) + np.linalg.norm(pb - pa, axis=2)
         # edge diffraction at the doorway point: detour against the straight continuation
         din = (pb - Q) / np.maximum(np.linalg.norm(pb - Q, axis=2, keepdims=True), 1e-12)
