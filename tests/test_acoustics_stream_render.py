@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -198,3 +199,24 @@ def test_generated_apartment_with_room_model():
     e = (a[: 8 * STEP].astype(np.float64) ** 2).sum(axis=0)
     assert e[0] > e[1] > 0
     assert np.all(a[8 * STEP + FADE + (len(a) - n * STEP - FADE) :] == 0.0)
+
+
+def test_grid_points_stay_in_the_heads_room():
+    """A wall on a grid line: heads on either side share (ix, iy) but never a receiver."""
+    from echo_data.scene.floorplan import Rect
+
+    class Plan:
+        rooms = (SimpleNamespace(index=0, rect=Rect(0.0, 0.0, 3.0, 3.0)), SimpleNamespace(index=1, rect=Rect(3.0, 0.0, 6.0, 3.0)))
+        walls = (SimpleNamespace(thickness=0.1),)
+
+        def room_at(self, x, y):
+            return next((r.index for r in self.rooms if r.rect.contains(x, y)), -1)
+
+    scene = FreeFieldScene()
+    scene.plan = Plan()
+    cache = RirCache(scene, [(1.0, 1.0, 1.0)], CFG, Hrtf.load("sphere", FS))
+    z = CFG.ear_height
+    west, east = cache.key(0, (2.8, 1.5, z, 0.0)), cache.key(0, (3.2, 1.5, z, 0.0))
+    assert west[2:] == east[2:] and west != east
+    assert cache.receiver(west)[0][0] < 3.0 - 0.05 and cache.receiver(east)[0][0] > 3.0 + 0.05
+    assert cache.receiver(cache.key(0, (1.4, 1.6, z, 0.0)))[0] == pytest.approx((1.5, 1.5, z))  # inside: plain grid
