@@ -1,0 +1,162 @@
+"""Pick and Place experts in SAPIEN physics on a hand-made one-room plan (no rendering)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Generator
+
+import numpy as np
+import pytest
+import sapien
+
+from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
+from echo_data.recipe import Recipe
+from echo_data.records import ACTION_DIM, SkillOutcome
+from echo_data.scene.floorplan import FloorPlan, Furniture, PlacedObject, Rect, Room, WallSegment
+from echo_data.scene.objects import object_size
+from echo_data.skills.pick import pick
+from echo_data.skills.place import place
+from echo_data.skills.success import LIFT_MIN, object_bottom, pick_success, place_success
+from echo_data.world import World
+
+TABLE_TOP = 0.75
+COUNTER_TOP = 0.9
+RECIPE = Recipe(name="pick-place-test")
+
+
+def make_spec(category: str = "phone", yaw: float = 0.3, depth: float = 0.2, standoff: float = 0.62) -> EpisodeSpec:
+    """A 5 x 4 m room: a table (index 0) against the north wall facing south holding the object,
+    a counter (index 1) against the south wall facing north; the robot faces the object."""
+    room = Room(0, "living", Rect(0.0, 0.0, 5.0, 4.0), "linoleum_on_concrete", "plasterboard", "ceiling_plasterboard")
+    walls = tuple(
+        WallSegment(a, b, 0.1, 2.5, "plasterboard", True)
+        for a, b in (((0, 0), (5, 0)), ((0, 4), (5, 4)), ((0, 0), (0, 4)), ((5, 0), (5, 4)))
+    )
+    table = Furniture(0, "table", 0, (2.5, 3.6), (1.2, 0.7, TABLE_TOP), -math.pi / 2, "wooden_door", True)
+    counter = Furniture(1, "counter", 0, (2.5, 0.4), (1.2, 0.7, COUNTER_TOP), math.pi / 2, "wooden_door", True)
+    sz = object_size(category)[2]
+    obj = PlacedObject(0, f"{category}_0", category, (2.5, 3.25 + depth, TABLE_TOP + sz / 2.0), yaw, 0, True)
+    plan = FloorPlan(0, (room,), walls, (), (), (table, counter), (), (obj,))
+    start = (2.5, obj.position[1] - standoff, math.pi / 2)
+    return EpisodeSpec(
+        "test-000000", "train", 0, 0, 0, "object_relocation", plan, start,
+        (SoundEvent(category, f"{category}_train_00", obj.name, obj.position, 0),),
+        (SkillCall("Pick", obj.name, 0), SkillCall("Place", "furniture:1", 0)),
+    )
+
+
+def run_expert(world: World, gen: Generator[np.ndarray, None, SkillOutcome], watch: Any = None) -> SkillOutcome:
+    """Apply every action the expert yields; `watch(world)` after each step."""
+    try:
+        while True:
+            action = next(gen)
+            assert action.shape == (ACTION_DIM,) and action.dtype == np.float32
+            world.step(action)
+            if watch is not None:
+                watch(world)
+    except StopIteration as stop:
+        return stop.value
+
+
+def body(world: World, name: str) -> sapien.physx.PhysxRigidDynamicComponent:
+    return world.handles.objects[name].find_component_by_type(sapien.physx.PhysxRigidDynamicComponent)
+
+
+@pytest.fixture(scope="module")
+def picked_and_placed() -> dict[str, Any]:
+    """One pick then one place of the phone, with per-step traces (shared by the tests below)."""
+    spec = make_spec("phone")
+    world = World(spec, RECIPE, render=False)
+    name = spec.chain[0].target
+    trace: dict[str, list] = {"held_bottom": [], "tcp_gap": [], "place_holding": []}
+
+    def watch_pick(w: World) -> None:
+        if w.robot.holding == name:
+            trace["held_bottom"].append(object_bottom(w, name))
+            # a held object moves with the gripper: its offset from the TCP stays put
+            trace["tcp_gap"].append(np.asarray(w.robot.ee_pose().p) - np.asarray(w.object_pose(name).p))
+
+    pick_out = run_expert(world, pick(world, spec.chain[0], spec), watch_pick)
+    picked = pick_success(world, name)
+    start_of_place = world.robot.base_pose()
+
+    def watch_place(w: World) -> None:
+        st = w.robot.state()
+        trace["place_holding"].append((w.robot.holding, object_bottom(w, name), float(np.hypot(st[12], st[13]))))
+
+    place_out = run_expert(world, place(world, spec.chain[1], spec), watch_place)
+    return {
+        "world": world, "spec": spec, "name": name, "pick": pick_out, "place": place_out, "picked": picked,
+        "trace": trace, "start_of_place": start_of_place,
+    }
+
+
+def test_pick_lifts_the_phone_and_carries_it(picked_and_placed: dict[str, Any]) -> None:
+    out = picked_and_placed["pick"]
+    assert out.success, out.reason
+    assert out.reason == "" and 0 < out.steps <= RECIPE.robot.max_steps["Pick"]
+    assert picked_and_placed["picked"]
+    bottoms = np.array(picked_and_placed["trace"]["held_bottom"])
+    # carried: many control steps with the object held and its bottom >= 5 cm above the table
+    assert np.sum(bottoms >= TABLE_TOP + LIFT_MIN) >= 10
+    assert bottoms.max() >= TABLE_TOP + 0.3  # carry pose holds it high above the table
+    # a physical grasp: once lifted, the object keeps its offset to the TCP (< 1 cm slip)
+    gaps = np.array(picked_and_placed["trace"]["tcp_gap"])
+    lifted = gaps[bottoms >= TABLE_TOP + LIFT_MIN]
+    assert np.max(np.linalg.norm(lifted - lifted[0], axis=1)) < 0.01
+
+
+def test_place_rests_the_phone_on_the_counter(picked_and_placed: dict[str, Any]) -> None:
+    world, name = picked_and_placed["world"], picked_and_placed["name"]
+    out = picked_and_placed["place"]
+    assert out.success, out.reason
+    assert out.steps <= RECIPE.robot.max_steps["Place"]
+    # the base really drove across the room (from the table to the counter)
+    sx, sy, _ = picked_and_placed["start_of_place"]
+    x, y, _ = world.robot.base_pose()
+    assert sy - y > 1.0
+    # at rest on the counter top, inside its footprint, released
+    assert world.robot.holding is None
+    assert object_bottom(world, name) == pytest.approx(COUNTER_TOP, abs=0.02)
+    p = world.object_pose(name).p
+    assert world.plan.furniture[1].footprint.contains(float(p[0]), float(p[1]))
+    assert np.linalg.norm(body(world, name).linear_velocity) < 0.05
+    assert place_success(world, name, 1)
+    assert not place_success(world, name, 0)
+    # it was carried (held, above every top) while the base drove, then lowered and let go
+    holding = picked_and_placed["trace"]["place_holding"]
+    driving = [(h, b) for h, b, speed in holding if speed > 0.05]
+    assert len(driving) > 20
+    assert all(h == name and b > COUNTER_TOP + LIFT_MIN for h, b in driving)
+    first_release = next(i for i, (h, _, _) in enumerate(holding) if h is None)
+    assert all(b > COUNTER_TOP - 0.002 for _, b, _ in holding[:first_release])
+
+
+@pytest.mark.parametrize("category", ["alarm", "furby"])
+def test_each_target_category_is_graspable(category: str) -> None:
+    spec = make_spec(category, yaw=-0.4, depth=0.15)
+    world = World(spec, RECIPE, render=False)
+    name = spec.chain[0].target
+    out = run_expert(world, pick(world, spec.chain[0], spec))
+    assert out.success, out.reason
+    assert world.robot.holding == name
+    assert object_bottom(world, name) >= TABLE_TOP + LIFT_MIN
+    world.close()
+
+
+def test_pick_out_of_reach_fails_with_a_reason() -> None:
+    # robot 1.3 m from the object: no top-down grasp exists from there
+    spec = make_spec("phone", standoff=1.3)
+    world = World(spec, RECIPE, render=False)
+    name = spec.chain[0].target
+    out = run_expert(world, pick(world, spec.chain[0], spec))
+    assert not out.success and out.reason == "no IK solution"
+    assert not pick_success(world, name)
+    assert object_bottom(world, name) == pytest.approx(TABLE_TOP, abs=0.002)
+
+
+def test_place_without_an_object_fails() -> None:
+    spec = make_spec("phone")
+    world = World(spec, RECIPE, render=False)
+    out = run_expert(world, place(world, spec.chain[1], spec))
+    assert not out.success and out.reason == "not holding" and out.steps == 0
