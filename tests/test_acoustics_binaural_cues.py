@@ -193,3 +193,27 @@ def test_shipped_kemar_table():
     # nearest-direction lookup returns the measured direction's response
     k = int(np.argmin(np.abs(np.degrees(np.arctan2(h.directions[:, 1], h.directions[:, 0])) - 90) + np.abs(h.directions[:, 2]) * 100))
     np.testing.assert_array_equal(h.hrir(math.pi / 2, 0.0), h.table[k])
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_other_sample_rates_keep_the_itd(kind):
+    fs = 48000
+    ir = Hrtf.load(kind, fs).hrir(math.pi / 2, 0.0).astype(np.float64)
+    up = 4
+    x = resample(np.pad(ir, ((0, 64), (0, 0))), (len(ir) + 64) * up, axis=0)
+    lag = (int(np.argmax(correlate(x[:, 1], x[:, 0], mode="full"))) - (len(x) - 1)) / (fs * up)
+    assert 0.6e-3 <= lag <= 0.8e-3
+
+
+def test_sphere_head_shadow_grows_with_frequency():
+    """Brown-Duda: the far ear loses highs, not lows; the near ear gains up to +6 dB at high frequency."""
+    from echo_data.acoustics.hrtf import sphere_hrir_table
+
+    ir = sphere_hrir_table(np.array([[0.0, 1.0, 0.0]]), FS)[0]  # source at the left ear
+    spec = np.abs(np.fft.rfft(ir, 4096, axis=0))
+    f = np.fft.rfftfreq(4096, 1.0 / FS)
+    lo, hi = (f > 50) & (f < 150), (f > 6000) & (f < 7500)
+    ild_lo = 20 * np.log10(spec[lo, 0].mean() / spec[lo, 1].mean())
+    ild_hi = 20 * np.log10(spec[hi, 0].mean() / spec[hi, 1].mean())
+    assert abs(ild_lo) < 1.0 and ild_hi > 12.0
+    assert 20 * np.log10(spec[hi, 0].mean()) == pytest.approx(20 * np.log10(2.0), abs=1.0)

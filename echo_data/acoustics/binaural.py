@@ -13,6 +13,7 @@ coherence that of a diffuse field); it does not depend on head yaw.
 
 from __future__ import annotations
 
+import weakref
 from typing import Sequence
 
 import numpy as np
@@ -88,11 +89,14 @@ class _KernelBank:
         self.centre = (BAND_TAPS - 1) // 2 + hrtf.delay_s * hrtf.fs  # samples from kernel start to "the arrival"
 
 
+_BANKS: "weakref.WeakKeyDictionary[Hrtf, _KernelBank]" = weakref.WeakKeyDictionary()
+
+
 def _bank(hrtf: Hrtf) -> _KernelBank:
-    bank = getattr(hrtf, "_kernel_bank", None)
+    """The kernel bank of `hrtf`, built on first use and kept as long as the HRTF lives."""
+    bank = _BANKS.get(hrtf)
     if bank is None:
-        bank = _KernelBank(hrtf)
-        hrtf._kernel_bank = bank  # type: ignore[attr-defined]
+        bank = _BANKS[hrtf] = _KernelBank(hrtf)
     return bank
 
 

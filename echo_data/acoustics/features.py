@@ -73,8 +73,14 @@ def _mel_from_mag(mag: np.ndarray, fs: int, n_mels: int) -> np.ndarray:
 
 
 def soundspaces_spectrogram(x2: np.ndarray, fs: int = 16000) -> np.ndarray:
-    """(65, 26, 2) float32 for 1 s of binaural audio (samples, 2) at 16 kHz (channel 0 = left)."""
+    """(65, 26, 2) float32 for 1 s of binaural audio (samples, 2) at 16 kHz (channel 0 = left).
+
+    The STFT is defined in samples (SoundSpaces' recipe), so `fs` does not change it; other
+    lengths or rates give (65, ceil((1 + n // 160) / 4), 2).
+    """
     x2 = np.asarray(x2)
+    if x2.ndim != 2 or x2.shape[1] != 2:
+        raise ValueError(f"expected (samples, 2) binaural audio, got shape {x2.shape}")
     return _spectrogram_from_mag(_stft_mag(x2.T))
 
 
