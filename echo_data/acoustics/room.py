@@ -101,6 +101,14 @@ class AcousticScene:
         d = [float(np.linalg.norm(np.maximum(b.lo - p, 0.0) + np.maximum(p - b.hi, 0.0))) for b in self.boxes]
         return int(np.argmin(d))
 
+    def _rooms_of(self, pts: np.ndarray) -> np.ndarray:
+        """Vectorised `room_of` for points (n, 3)."""
+        lo = np.stack([b.lo for b in self.boxes])[None]
+        hi = np.stack([b.hi for b in self.boxes])[None]
+        p = pts[:, None, :]
+        d = np.linalg.norm(np.maximum(lo - p, 0.0) + np.maximum(p - hi, 0.0), axis=2)
+        return np.argmin(d, axis=1)
+
     def free_field(self, source: Vec3, receiver: Vec3) -> AcousticResponse:
         """Direct sound only (no room), for tests and as a reference for the binaural stage."""
         s, r = np.asarray(source, dtype=np.float64), np.asarray(receiver, dtype=np.float64)
@@ -120,7 +128,7 @@ class AcousticScene:
         rcv = np.asarray(receivers, dtype=np.float64).reshape(-1, 3)
         n = len(rcv)
         a_room = self.room_of(S)
-        rooms = np.asarray([self.room_of(r) for r in rcv])
+        rooms = self._rooms_of(rcv)
         c = SPEED_OF_SOUND
         max_len = self.length / self.fs * c
 
@@ -177,7 +185,7 @@ class AcousticScene:
         t60 = self.acoustics.t60[room]
         # shift the decay to start at t0: exp(-6.91 (t - t0) / T) = exp(6.91 t0 / T) exp(-6.91 t / T)
         scale = np.sqrt(level) * np.exp(6.91 * t0 / t60)
-        x = (scale[:, None] * self._tail_base[room] * noise).sum(axis=0)
+        x = np.einsum("b,bt,bt->t", scale, self._tail_base[room], noise)
         i0 = int(math.floor(t0 * self.fs))
         x[: max(i0, 0)] = 0.0
         ramp = np.clip((np.arange(i0, i0 + 17) / self.fs - t0) * self.fs / 16.0, 0.0, 1.0)
