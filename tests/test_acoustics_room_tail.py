@@ -115,3 +115,23 @@ def test_deterministic_bytes_independent_of_global_state() -> None:
     a, b, c = (sc.response(src, p).tail for p in ((2.5, 2.5, 1.2), (2.50004, 2.5, 1.2), (2.51, 2.5, 1.2)))
     assert np.corrcoef(a[2000:], b[2000:])[0, 1] > 0.999
     assert abs(np.corrcoef(a[2000:], c[2000:])[0, 1]) < 0.2
+
+
+def test_far_room_is_reached_through_both_doorways(three_rooms: AcousticScene) -> None:
+    """Room 2 is two doorways away: its first arrival follows the doorway route (never the
+    blocked straight line) and comes from the near doorway's side."""
+    src, rcv = np.array([1.5, 1.5, 1.0]), np.array([10.0, 3.0, 1.2])
+    r = three_rooms.response(tuple(src), tuple(rcv))
+    # shortest route through the openings y ∈ [2.5, 3.5] at x = 4 and y ∈ [0.5, 1.5] at x = 8
+    corners = [np.array([4.0, 2.5, 1.1]), np.array([8.0, 1.5, 1.1])]
+    bound = np.linalg.norm(corners[0] - src) + np.linalg.norm(corners[1] - corners[0]) + np.linalg.norm(rcv - corners[1])
+    first = r.arrivals[0]
+    assert first.order == 0 and bound - 0.05 <= first.delay_s * SPEED_OF_SOUND <= bound + 1.0
+    assert np.dot(first.direction[:2], (corners[1] - rcv)[:2] / np.linalg.norm((corners[1] - rcv)[:2])) > 0.9
+    # and twice diffracted, it is weaker than the free-field sound over the same distance
+    assert first.gain * first.band_gains[3] < 1.0 / (first.delay_s * SPEED_OF_SOUND)
+
+
+def test_unknown_material_is_a_clear_error() -> None:
+    with pytest.raises(ValueError, match="no_such_material"):
+        AcousticScene(shoebox_plan(4.0, 4.0, "no_such_material", "carpet_cotton", "ceiling_plasterboard"), AcousticsConfig())
