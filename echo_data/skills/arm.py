@@ -231,12 +231,24 @@ def tuck_waypoints(start: np.ndarray, torso_end: float | None = None) -> list[np
 
 
 def plan_through(planner: ArmPlanner, waypoints: Sequence[np.ndarray], gripper: float | None = None) -> list[np.ndarray] | None:
-    """Join waypoints by straight segments; a colliding segment is replaced by an RRTConnect path."""
-    out = [np.asarray(waypoints[0], dtype=np.float64)]
-    for a, b in zip(waypoints[:-1], waypoints[1:]):
-        seg = planner.path(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64), gripper)
+    """Join waypoints by straight segments; a colliding segment is replaced by an RRTConnect path.
+
+    Intermediate waypoints that collide here (a wall beside the robot) are skipped; if a
+    segment cannot be planned, the rest is planned directly to the last waypoint.
+    """
+    pts = [np.asarray(w, dtype=np.float64) for w in waypoints]
+    pts = [pts[0]] + [w for w in pts[1:-1] if not planner.collisions(w, gripper)] + [pts[-1]]
+    out = [pts[0]]
+    for i, (a, b) in enumerate(zip(pts[:-1], pts[1:])):
+        seg = planner.path(a, b, gripper)
         if seg is None:
-            return None
+            if i + 1 == len(pts) - 1:
+                return None
+            seg = planner.path(a, pts[-1], gripper)
+            if seg is None:
+                return None
+            out.extend(seg[1:])
+            return out
         out.extend(seg[1:])
     return out
 
