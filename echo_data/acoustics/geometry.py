@@ -34,7 +34,7 @@ class Opening:
     u0: float  # extent along the face's in-plane horizontal axis
     u1: float
     height: float
-    other_room: int  # room on the far side (-1 outside)
+    other_room: int  # box index (position in plan.rooms) on the far side, -1 outside
     openness: float  # 0 closed leaf ... 1 fully open (acoustic aperture share)
     closed: bool  # the leaf seals the opening (reflects like a panel, transmits with a loss)
     door_material: str | None
@@ -44,7 +44,7 @@ class Opening:
 class RoomBox:
     """A room as a shoebox between its wall faces, floor and ceiling."""
 
-    index: int
+    index: int  # position in plan.rooms
     lo: np.ndarray  # (3,)
     hi: np.ndarray  # (3,)
     room: Room
@@ -82,7 +82,8 @@ def room_boxes(plan: FloorPlan, door_angles: dict[int, float]) -> list[RoomBox]:
     """Shoebox per room (inner wall faces) with the doorways on each of its faces."""
     boxes: list[RoomBox] = []
     door_by_way = {d.doorway: d for d in plan.doors}
-    for room in plan.rooms:
+    pos = {r.index: i for i, r in enumerate(plan.rooms)}  # boxes are indexed by position
+    for i_box, room in enumerate(plan.rooms):
         r = room.rect
         lo = np.array(
             [r.xmin + _face_offset(plan, room, 0, r.xmin), r.ymin + _face_offset(plan, room, 1, r.ymin), 0.0]
@@ -90,7 +91,7 @@ def room_boxes(plan: FloorPlan, door_angles: dict[int, float]) -> list[RoomBox]:
         hi = np.array(
             [r.xmax - _face_offset(plan, room, 0, r.xmax), r.ymax - _face_offset(plan, room, 1, r.ymax), plan.wall_height]
         )
-        box = RoomBox(room.index, lo, hi, room)
+        box = RoomBox(i_box, lo, hi, room)
         for dw in plan.doorways:
             if room.index not in dw.rooms:
                 continue
@@ -101,7 +102,7 @@ def room_boxes(plan: FloorPlan, door_angles: dict[int, float]) -> list[RoomBox]:
             else:
                 face = 0 if abs(dw.center[0] - r.xmin) < abs(dw.center[0] - r.xmax) else 1
                 u = dw.center[1]
-            other = dw.rooms[1] if dw.rooms[0] == room.index else dw.rooms[0]
+            other = pos.get(dw.rooms[1] if dw.rooms[0] == room.index else dw.rooms[0], -1)
             door = door_by_way.get(dw.index)
             if door is None:
                 openness, closed, mat = 1.0, False, None

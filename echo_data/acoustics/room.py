@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from echo_data.acoustics.geometry import RoomBox, diffraction_loss_db, image_cells, occluders, room_boxes
+from echo_data.acoustics.geometry import Opening, RoomBox, diffraction_loss_db, image_cells, occluders, room_boxes
 from echo_data.acoustics.ism import BoxLattice, segment_losses
 from echo_data.acoustics.materials import BANDS, absorption, air_absorption, reflection_amplitude
 from echo_data.acoustics.tail import NoiseBank, RoomAcoustics, band_masks, tail_envelope
@@ -60,7 +60,7 @@ class _Entry:
 
     room: int
     frm: int
-    opening: object  # geometry.Opening as seen from `room`
+    opening: Opening  # as seen from `room`
 
 
 class AcousticScene:
