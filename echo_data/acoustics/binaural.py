@@ -138,7 +138,12 @@ def binaural_irs(response: AcousticResponse, head_yaws: Sequence[float], hrtf: H
         dirs = hrtf.nearest(np.stack([head_relative(world, y) for y in yaws]))  # (n_y, n_arr)
         rows = (dirs * SUBSAMPLE + phase[None, :]).ravel()  # row gather on a 2-D view is fast
         sel = np.take(bank.rows, rows, axis=0).reshape(n_y, len(arrivals), len(BAND_CENTERS), T * 2)
-        contrib = np.matmul(weights.astype(np.float32)[None, :, None, :], sel).reshape(n_y, len(arrivals), T, 2)
+        # band-weighted sum as plain element-wise float32 ops (bit-identical on any CPU, unlike BLAS)
+        w32 = weights.astype(np.float32)
+        contrib = sel[:, :, 0] * w32[None, :, 0, None]
+        for b in range(1, len(BAND_CENTERS)):
+            contrib += sel[:, :, b] * w32[None, :, b, None]
+        contrib = contrib.reshape(n_y, len(arrivals), T, 2)
         for i in range(len(arrivals)):
             lo, hi = max(int(start[i]), 0), min(int(start[i]) + T, length)
             if lo < hi:

@@ -63,11 +63,18 @@ def _spectrogram_from_mag(mag: np.ndarray) -> np.ndarray:
 
 
 def _mel_from_mag(mag: np.ndarray, fs: int, n_mels: int) -> np.ndarray:
-    """(..., 2, 257, T) magnitudes -> (..., n_mels, T, 2) float32 log-mel (dB)."""
+    """(..., 2, 257, T) magnitudes -> (..., n_mels, T, 2) float32 log-mel (dB).
+
+    The filterbank is applied as element-wise multiply-adds over each band's non-zero bins in
+    a fixed order (not BLAS), so the bytes do not depend on the CPU or on the batch size.
+    """
     *lead, f, t = mag.shape
-    # one BLAS product; float64 so a step's values do not depend on how many steps share the batch
-    power = np.moveaxis(np.square(mag, dtype=np.float64), -2, 0).reshape(f, -1)
-    mel = (mel_filterbank(fs, n_mels).astype(np.float64) @ power).reshape(n_mels, *lead, t)
+    power = np.ascontiguousarray(np.moveaxis(np.square(mag, dtype=np.float64), -2, 0))  # (257, ..., T)
+    fb = mel_filterbank(fs, n_mels).astype(np.float64)
+    mel = np.zeros((n_mels, *lead, t))
+    for b in range(n_mels):
+        for k in np.flatnonzero(fb[b]):
+            mel[b] += fb[b, k] * power[k]
     db = 10.0 * np.log10(np.maximum(mel, MEL_FLOOR))  # (n_mels, ..., 2, T)
     return np.ascontiguousarray(np.moveaxis(db, (0, -2), (-3, -1)), dtype=np.float32)
 
