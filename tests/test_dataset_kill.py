@@ -71,7 +71,7 @@ def test_sigkill_at_random_moments_then_resume(reference: Path, tmp_path: Path) 
     script.write_text(SCRIPT.format(tests=str(TESTS), out=str(out)))
     rng = random.Random(20261121)
     interrupted = 0
-    for _ in range(5):
+    for _ in range(4):
         before = _files(out)
         proc = subprocess.Popen([sys.executable, str(script)], start_new_session=True, stderr=subprocess.PIPE)
         deadline = time.monotonic() + 30
