@@ -215,6 +215,10 @@ def render_track(
     n_steps, S = len(poses), int(step_samples)
     if cache is None:
         cache = RirCache(scene, [s.position for s in sources], cfg, hrtf)
+    elif cache.positions != [tuple(float(v) for v in s.position) for s in sources]:
+        raise ValueError("the RIR cache was made for other source positions")
+    if cache.hrtf.fs != fs:
+        raise ValueError(f"HRTF at {cache.hrtf.fs} Hz but the config asks for {fs} Hz")
     fade = int(round(FADE_S * fs))
     n_play = n_steps * S
     dry = [dry_signal(s, n_play, fs) for s in sources]
