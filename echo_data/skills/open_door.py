@@ -52,7 +52,13 @@ BACK_OFF = 0.15  # m the base backs away after letting go
 
 ARM_GROUP = ("torso_lift_joint",) + robot_urdf.ARM_JOINTS  # the planner's move group, in order
 REACH_REF = np.array([0.0, -1.0, 0.0, 1.6, 0.0, -0.6, 0.0])  # arm bent forward: IK reference
-APPROACH_SPEED = 0.3  # m/s, final base approach
+ARM_SPEED = 1.1  # rad/s, fastest joint on a straight joint-space move (URDF limits 1.26-2.27)
+# Via poses between the tuck and a reach (arm raised beside the torso), torso up: straight
+# joint lines through them are collision free where RRT needs seconds next to a counter.
+UNTUCK_VIAS = (np.array([1.32, -0.5, -0.2, 1.72, 0.0, 1.66, 0.0]), np.array([1.32, -0.8, 0.0, 1.5, 0.0, 1.0, 0.0]))
+VIA_TORSO = 0.38
+APPROACH_SPEED = 0.4  # m/s, final base approach
+APPROACH_MIN_SPEED = 0.04  # m/s, so the last centimetres do not crawl
 APPROACH_TURN = 0.8  # rad/s
 APPROACH_TOL = 0.015  # m
 APPROACH_YAW_TOL = math.radians(1.5)
@@ -91,6 +97,47 @@ def _set_base(base: tuple[float, float, float]) -> None:
     planner().set_base_pose(mplib.Pose([x, y, 0.0], [math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)]))
 
 
+def set_obstacles(world: object, around: tuple[float, float], radius: float = 2.0) -> int:
+    """Give the planner the apartment near `around` as boxes: floor, walls, furniture, door leaves.
+
+    Door leaves are placed at their current hinge angle; their handles and faucet levers are
+    left out (the gripper must touch them). FINDINGS: plan only against nearby obstacles.
+    Returns how many boxes were set.
+    """
+    from mplib.collision_detection import fcl
+
+    pl = planner()
+    for name in pl.planning_world.get_object_names():
+        pl.planning_world.remove_object(name)
+    plan = world.plan  # type: ignore[attr-defined]
+    cx, cy = around
+    boxes: list[tuple[tuple[float, float, float], tuple[float, float, float], float]] = []
+    boxes.append(((cx, cy, -0.05), (2 * radius, 2 * radius, 0.1), 0.0))  # floor
+    for w in plan.walls:
+        r = w.footprint
+        boxes.append(((*r.center, w.height / 2.0), (*r.size, w.height), 0.0))
+    for f in plan.furniture:
+        r = f.footprint
+        boxes.append(((*r.center, f.size[2] / 2.0), (*r.size, f.size[2]), 0.0))
+    angles = world.handles.door_angles() if getattr(world, "handles", None) is not None else {}  # type: ignore[attr-defined]
+    for d in plan.doors:
+        yaw = d.leaf_yaw(angles.get(d.index, d.angle))
+        mid = (d.hinge[0] + d.width / 2.0 * math.cos(yaw), d.hinge[1] + d.width / 2.0 * math.sin(yaw))
+        boxes.append(((*mid, d.height / 2.0), (d.width, d.thickness, d.height), yaw))
+    n = 0
+    for (x, y, z), (sx, sy, sz), yaw in boxes:
+        # distance from `around` to the box's footprint (rotation ignored: a conservative cut)
+        half = max(sx, sy) / 2.0 if yaw else None
+        dx = max(abs(x - cx) - (half if half is not None else sx / 2.0), 0.0)
+        dy = max(abs(y - cy) - (half if half is not None else sy / 2.0), 0.0)
+        if math.hypot(dx, dy) > radius:
+            continue
+        pose = mplib.Pose([x, y, z], [math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)])
+        pl.planning_world.add_object(f"obstacle_{n}", fcl.CollisionObject(fcl.Box(sx, sy, sz), pose))
+        n += 1
+    return n
+
+
 def solve_ik(
     world: object,
     position: np.ndarray,
@@ -98,13 +145,18 @@ def solve_ik(
     base: tuple[float, float, float] | None = None,
     torso: float | None = None,
     seed: np.ndarray | None = None,
+    restarts: int = 40,
+    ref: np.ndarray = REACH_REF,
+    lock_torso: bool = False,
 ) -> np.ndarray | None:
     """Torso + 7 arm joints that put the gripper's TCP at a world pose, or None.
 
-    `base` is where the base will stand (default: where it is). Without `seed` the search
-    starts from a forward-bent arm (`REACH_REF`, torso `torso`) and returns the solution
-    closest to it; with `seed` it returns the one closest to the seed (smooth sequences).
-    mplib's IK works in the base frame and respects joint limits and self-collision.
+    `base` is where the base will stand (default: where it is). The search starts from
+    `seed` (smooth sequences: the first answer near it wins) or from a forward-bent arm
+    (`ref`, default `REACH_REF`, with torso `torso`), then from fixed pseudo-random restarts; among the answers
+    within joint limits and free of self-collision it returns the one closest to the start.
+    `lock_torso` keeps the torso at its start value (CLIK otherwise likes to push it to a limit).
+    Deterministic (mplib's own IK draws unseeded restarts).
     """
     robot = world.robot  # type: ignore[attr-defined]
     x, y, yaw = robot.base_pose() if base is None else base
@@ -112,6 +164,7 @@ def solve_ik(
     rz_inv = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
     p_base = rz_inv @ (np.asarray(position, dtype=np.float64) - [x, y, 0.0])
     r_base = rz_inv @ np.asarray(rotation, dtype=np.float64)
+    goal = mplib.Pose(p_base, mat2quat(r_base))
     pl = planner()
     slots = _group_slots()
     start = _planner_qpos(robot)
@@ -119,27 +172,74 @@ def solve_ik(
         start[slots] = seed
     else:
         start[slots[0]] = robot.torso() if torso is None else torso  # type: ignore[attr-defined]
-        start[slots[1:]] = REACH_REF
+        start[slots[1:]] = ref
     mask = np.ones(len(start), dtype=bool)
-    mask[slots] = False
-    status, sol = pl.IK(
-        mplib.Pose(p_base, mat2quat(r_base)), start, mask=mask, return_closest=True, n_init_qpos=8 if seed is not None else 40
-    )
-    if sol is None:
-        return None
-    return np.asarray(sol, dtype=np.float64)[slots]
+    mask[slots[1 if lock_torso else 0 :]] = False
+    _set_base((x, y, yaw))  # collision checks against the obstacles happen in the world frame
+    lo, hi = pl.joint_limits[slots, 0], pl.joint_limits[slots, 1]
+    rng = np.random.default_rng(0)
+    link = pl.link_name_2_idx[pl.move_group]
+    best, best_dist = None, math.inf
+    for k in range(restarts + 1):
+        q0 = start.copy()
+        if k > 0:
+            q0[slots] = rng.uniform(lo, hi)
+            if lock_torso:
+                q0[slots[0]] = start[slots[0]]
+        q, ok, _ = pl.pinocchio_model.compute_IK_CLIK(link, goal, q0, list(mask))
+        q = np.asarray(q, dtype=np.float64)
+        if not ok or not pl.wrap_joint_limit(q):
+            continue
+        pl.planning_world.set_qpos_all(q[pl.move_group_joint_indices])
+        if pl.planning_world.check_collision():
+            continue
+        dist = float(np.linalg.norm(q[slots] - start[slots]))
+        if dist < best_dist:
+            best, best_dist = q[slots].copy(), dist
+        if seed is not None and k == 0:
+            break  # converged from the seed: the nearby answer
+    return best
+
+
+def _line_is_free(a: np.ndarray, b: np.ndarray, step: float = 0.05) -> bool:
+    """True when the straight joint-space segment a -> b (planner order) is free of collisions."""
+    pl = planner()
+    n = max(2, int(math.ceil(float(np.abs(b - a).max()) / step)) + 1)
+    for s in np.linspace(0.0, 1.0, n):
+        q = a + (b - a) * s
+        pl.planning_world.set_qpos_all(q[pl.move_group_joint_indices])
+        if pl.planning_world.check_collision():
+            return False
+    return True
 
 
 def plan_arm(world: object, goal: np.ndarray) -> list[np.ndarray] | None:
-    """A collision-free (self) joint path from the current arm to `goal` (torso + 7), one point per control step."""
+    """A collision-free joint path from the current arm to `goal` (torso + 7), one point per control step.
+
+    Against the obstacles of the last `set_obstacles`. A straight joint-space line is used when
+    it is free (deterministic, the common case in open space), else two lines through one of
+    `UNTUCK_VIAS`; otherwise mplib's RRTConnect
+    (random, so its answer is recorded as actions, never re-planned on replay — FINDINGS).
+    """
     robot = world.robot  # type: ignore[attr-defined]
     _set_base(robot.base_pose())
     pl = planner()
+    slots = _group_slots()
     start = _planner_qpos(robot)
     target = start.copy()
-    target[_group_slots()] = goal
+    target[slots] = goal
     dt = 1.0 / robot.cfg.control_hz
-    for planning_time in (1.0, 2.0):
+    def timed(a: np.ndarray, b: np.ndarray) -> list[np.ndarray]:
+        return line(a, b, max(3, int(math.ceil(float(np.abs(b - a).max()) / (ARM_SPEED * dt)))))
+
+    if _line_is_free(start, target):
+        return timed(start[slots], goal)
+    for arm_via in UNTUCK_VIAS:  # out of (or into) the tuck through a raised side pose
+        via = start.copy()
+        via[slots] = np.concatenate([[VIA_TORSO], arm_via])
+        if _line_is_free(start, via) and _line_is_free(via, target):
+            return timed(start[slots], via[slots]) + timed(via[slots], goal)
+    for planning_time in (1.0, 2.0, 3.0):
         res = pl.plan_qpos([target], start, time_step=dt, planning_time=planning_time)
         if res.get("status") == "Success":
             return [np.asarray(q, dtype=np.float64) for q in res["position"]]
@@ -186,10 +286,12 @@ def approach_base(
         if steps >= max_steps:
             return Moved(False, "timeout", steps)
         c, s = math.cos(yaw), math.sin(yaw)
-        v = 1.5 * np.array([c * ex + s * ey, -s * ex + c * ey])
+        v = 2.0 * np.array([c * ex + s * ey, -s * ex + c * ey])
         speed = float(np.linalg.norm(v))
         if speed > APPROACH_SPEED:
             v *= APPROACH_SPEED / speed
+        elif 0.0 < speed < APPROACH_MIN_SPEED:
+            v *= APPROACH_MIN_SPEED / speed
         action = np.array(hold, dtype=np.float32)
         action[0:3] = (v[0], v[1], float(np.clip(2.0 * eyaw, -APPROACH_TURN, APPROACH_TURN)))
         yield action
@@ -315,6 +417,7 @@ def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray
     # 1. stance and grasp solution: the first stance whose swing is free and whose grasp is reachable
     rot = _grasp_rotation(door, q_start)
     handle = door_handle_world(door, q_start, door.open_sign)
+    set_obstacles(world, (float(handle[0]), float(handle[1])))
     approach_dir = rot[:, 0]
     plan_choice = None
     for stance in door_stances(door, q_start):

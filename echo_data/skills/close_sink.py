@@ -1,0 +1,218 @@
+"""The CloseSink expert: push the running faucet's lever back along its arc with closed fingers.
+
+Where it wants to start: in front of the sink cabinet, facing it — `interaction_pose(plan,
+"faucet:<i>")` of `echo_data.scene.nav` is fine. The expert drives the last few decimetres
+itself to its stance: on the cabinet's front normal through the lever pivot, `FRONT_GAP`
+from the cabinet face (base radius included), facing the cabinet (`sink_stances`).
+
+The lever turns about the vertical axis through `Faucet.pivot` and opens counter-clockwise
+(`echo_data.scene.articulated`). With the fingers closed and the gripper pitched down, the
+finger block is lowered beside the lever on its opening side (a lead angle ahead of it on
+the arc of radius `CONTACT_RADIUS`) and then swept clockwise along the arc past angle 0, so
+the lever is pushed to its closed limit (FINDINGS: 60/60 this way); the water stops. The
+arm then lifts and tucks.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Generator
+
+import numpy as np
+
+from echo_data.records import SkillOutcome
+from echo_data.scene.articulated import LEVER_SECTION
+from echo_data.scene.floorplan import Faucet, Furniture
+from echo_data.skills.open_door import (
+    approach_base,
+    arm_action,
+    line,
+    plan_arm,
+    set_obstacles,
+    solve_ik,
+    tuck_arm,
+)
+
+BASE_RADIUS = 0.28  # m, the robot's base disc
+FRONT_GAP = 0.06  # m between the base disc and the cabinet face
+LATERAL_SHIFTS = (0.0, -0.1, 0.1, -0.2, 0.2)  # m along the cabinet face, tried in order
+PITCH = math.radians(75)  # gripper approach below the horizontal (steep: the wrist stays far from the shoulder)
+FINGER_HALF = 0.02  # m, horizontal half-extent of the closed finger block
+CONTACT_CLEAR = 0.006  # m between the finger block and the lever before the sweep
+CONTACT_INSET = 0.025  # m from the lever tip to the contact point
+HOVER = 0.08  # m above the lever before descending
+UNTUCK_BACK = 0.35  # m back from the stance where the arm unfolds (FINDINGS: untuck in open space)
+SWEEP_RATE = 0.6  # rad/s of the finger along the arc
+SWEEP_PAST = 0.2  # rad beyond closed the finger aims at (the joint limit stops the lever at 0)
+IK_STEP = 0.15  # rad between IK waypoints along the arc (joint-space lines in between)
+SINK_TORSO = 0.38  # m, preferred torso height (the lever is ≈1 m up, beyond a counter)
+# IK reference: the arm in its vertical plane, elbow up, lift + elbow + wrist flex = PITCH
+# (the planar solution for a lever ≈0.75 m ahead at ≈1 m height with the torso at 0.38 m)
+PUSH_REF = np.array([0.0, -0.86, 0.0, 1.29, 0.0, PITCH - 0.43, 0.0])
+
+
+def sink_closed_success(world: object, i: int) -> bool:
+    """CloseSink succeeded: faucet i's lever is within its closed tolerance and its water is off."""
+    faucet = world.plan.faucets[i]  # type: ignore[attr-defined]
+    art = world.handles.faucets[i]  # type: ignore[attr-defined]
+    stream = world.handles.water[i]  # type: ignore[attr-defined]
+    stream.update(float(art.get_qpos()[0]))
+    return float(art.get_qpos()[0]) <= faucet.closed_tolerance and not stream.flowing
+
+
+def _front(cabinet: Furniture) -> tuple[np.ndarray, np.ndarray, float]:
+    """Outward unit normal of the cabinet's front face, the lateral axis, and the half depth."""
+    n = np.array([round(math.cos(cabinet.yaw)), round(math.sin(cabinet.yaw))], dtype=float)
+    lat = np.array([-n[1], n[0]])
+    half_depth = (abs(n[0]) * cabinet.size[0] + abs(n[1]) * cabinet.size[1]) / 2.0
+    return n, lat, half_depth
+
+
+def sink_stances(faucet: Faucet, cabinet: Furniture) -> list[tuple[float, float, float]]:
+    """Candidate stances (x, y, yaw) in front of the cabinet, facing it, preferred first."""
+    n, lat, half_depth = _front(cabinet)
+    pivot = np.array(faucet.pivot[:2])
+    centre = np.array(cabinet.center)
+    depth_in = half_depth - float((pivot - centre) @ n)  # pivot behind the front face
+    yaw = math.atan2(-n[1], -n[0])
+    out = []
+    for shift in LATERAL_SHIFTS:
+        p = pivot + (depth_in + BASE_RADIUS + FRONT_GAP) * n + shift * lat
+        out.append((float(p[0]), float(p[1]), yaw))
+    return out
+
+
+def _push_rotation(yaw: float) -> np.ndarray:
+    """Gripper rotation: approach along the base heading, pitched down; fingers across it, horizontal."""
+    h = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    x_axis = math.cos(PITCH) * h + np.array([0.0, 0.0, -math.sin(PITCH)])
+    y_axis = np.array([-h[1], h[0], 0.0])
+    z_axis = np.cross(x_axis, y_axis)
+    return np.stack([x_axis, y_axis, z_axis], axis=1)
+
+
+def _finger_point(faucet: Faucet, phi: float, z: float) -> np.ndarray:
+    """Where the TCP goes for finger angle phi on the contact arc (lever convention)."""
+    r = faucet.lever_length - CONTACT_INSET
+    yaw = faucet.yaw + phi
+    return np.array([faucet.pivot[0] + r * math.cos(yaw), faucet.pivot[1] + r * math.sin(yaw), z])
+
+
+def _sweep_waypoints(faucet: Faucet, angle: float) -> tuple[list[float], float]:
+    """Finger angles from the start (ahead of the lever) to past closed, and the lead angle."""
+    r = faucet.lever_length - CONTACT_INSET
+    lead = (LEVER_SECTION / 2.0 + FINGER_HALF + CONTACT_CLEAR) / r
+    start, end = angle + lead, lead - SWEEP_PAST
+    n = max(2, int(math.ceil((start - end) / IK_STEP)) + 1)
+    return [float(v) for v in np.linspace(start, end, n)], lead
+
+
+def _solve_sweep(
+    world: object, faucet: Faucet, angle: float, stance: tuple[float, float, float]
+) -> tuple[np.ndarray, list[np.ndarray]] | None:
+    """IK for the hover point and every arc waypoint from `stance`, each seeded by the previous."""
+    rot = _push_rotation(stance[2])
+    phis, _ = _sweep_waypoints(faucet, angle)
+    z = faucet.pivot[2]
+    first = solve_ik(
+        world, _finger_point(faucet, phis[0], z), rot, base=stance, torso=SINK_TORSO, ref=PUSH_REF, lock_torso=True
+    )
+    if first is None:
+        return None
+    hover = solve_ik(world, _finger_point(faucet, phis[0], z + HOVER), rot, base=stance, seed=first, lock_torso=True)
+    if hover is None:
+        return None
+    sweep = [first]
+    for phi in phis[1:]:
+        q = solve_ik(world, _finger_point(faucet, phi, z), rot, base=stance, seed=sweep[-1], lock_torso=True)
+        if q is None or np.abs(q - sweep[-1]).max() > 0.6:  # a branch jump would swing the arm through the lever
+            return None
+        sweep.append(q)
+    return hover, sweep
+
+
+def close_sink(world: object, call: object, spec: object) -> Generator[np.ndarray, None, SkillOutcome]:
+    """The CloseSink expert for `call.target` = "faucet:<i>" (see the module docstring)."""
+    skill, target = call.skill, call.target  # type: ignore[attr-defined]
+    robot = world.robot  # type: ignore[attr-defined]
+    max_steps = int(robot.cfg.max_steps["CloseSink"])
+    dt = 1.0 / robot.cfg.control_hz
+    i = int(target.partition(":")[2])
+    faucet: Faucet = world.plan.faucets[i]  # type: ignore[attr-defined]
+    cabinet: Furniture = world.plan.furniture[faucet.furniture]  # type: ignore[attr-defined]
+    art = world.handles.faucets[i]  # type: ignore[attr-defined]
+    steps = 0
+
+    def fail(reason: str) -> SkillOutcome:
+        return SkillOutcome(skill, target, False, reason, steps)
+
+    angle = float(art.get_qpos()[0])
+    if sink_closed_success(world, i):
+        return SkillOutcome(skill, target, True, "", 0)
+
+    # 1. a stance from which the whole sweep is reachable
+    set_obstacles(world, (faucet.pivot[0], faucet.pivot[1]))
+    grid = getattr(world, "nav", None)
+    choice = None
+    for stance in sink_stances(faucet, cabinet):
+        if grid is not None and not grid.is_free(stance[0], stance[1]):
+            continue
+        solved = _solve_sweep(world, faucet, angle, stance)
+        if solved is not None:
+            choice = (stance, solved)
+            break
+    if choice is None:
+        return fail("no_push_stance")
+    stance, (q_hover, q_sweep) = choice
+
+    # 2. unfold the arm a step back from the counter (open space), then drive in with it raised
+    fx, fy = math.cos(stance[2]), math.sin(stance[2])
+    back_pose = (stance[0] - UNTUCK_BACK * fx, stance[1] - UNTUCK_BACK * fy, stance[2])
+    moved = yield from approach_base(world, back_pose, robot.rest_action(), max_steps - steps)
+    steps += moved.steps
+    if not moved.success:
+        return fail(moved.reason)
+    path = plan_arm(world, q_hover)
+    if path is None:
+        return fail("arm_plan_failed")
+    for q in path:
+        yield arm_action(robot, q, gripper=0.0)
+        steps += 1
+    moved = yield from approach_base(world, stance, arm_action(robot, q_hover, gripper=0.0), max_steps - steps)
+    steps += moved.steps
+    if not moved.success:
+        return fail(moved.reason)
+
+    # 3. closed fingers down beside the lever, sweep clockwise along the arc (IK from where the base stands)
+    solved = _solve_sweep(world, faucet, float(art.get_qpos()[0]), robot.base_pose())
+    if solved is None:
+        return fail("no_ik")
+    q_hover_now, q_sweep = solved
+    phis, _ = _sweep_waypoints(faucet, float(art.get_qpos()[0]))
+    per_segment = max(1, int(round(IK_STEP / SWEEP_RATE / dt)))
+    motion = line(q_hover, q_hover_now, 2) + line(q_hover_now, q_sweep[0], 5)
+    for a, b in zip(q_sweep, q_sweep[1:]):
+        motion += line(a, b, per_segment)
+    motion += [q_sweep[-1]] * 3
+    for q in motion:
+        if steps >= max_steps:
+            return fail("timeout")
+        yield arm_action(robot, q, gripper=0.0)
+        steps += 1
+
+    # 4. lift clear of the lever, back away from the counter, tuck
+    last = q_sweep[-1]
+    lift_point = _finger_point(faucet, phis[-1], faucet.pivot[2] + HOVER)
+    lift = solve_ik(world, lift_point, _push_rotation(robot.base_pose()[2]), seed=last, lock_torso=True)
+    lift = last if lift is None else lift
+    for q in line(last, lift, 4):
+        yield arm_action(robot, q, gripper=0.0)
+        steps += 1
+    x, y, yaw = robot.base_pose()
+    retreat = (x - UNTUCK_BACK * math.cos(yaw), y - UNTUCK_BACK * math.sin(yaw), yaw)
+    moved = yield from approach_base(world, retreat, arm_action(robot, lift, gripper=0.0), max(0, max_steps - steps))
+    steps += moved.steps
+    tucked = yield from tuck_arm(world, arm_action(robot, lift, gripper=0.0), max(0, max_steps - steps))
+    steps += tucked
+    ok = sink_closed_success(world, i)
+    return SkillOutcome(skill, target, ok, "" if ok else "still_running", steps)
