@@ -84,6 +84,8 @@ class Robot:
         loader.fix_root_link = True
         for name in U.FINGER_LINKS:
             loader.set_link_material(name, FINGER_FRICTION, FINGER_FRICTION, 0.0)
+            loader.set_link_patch_radius(name, 0.01)  # torsional friction: held objects do not swing
+            loader.set_link_min_patch_radius(name, 0.005)
         builder = loader.load_file_as_articulation_builder(str(U.URDF_PATH), str(U.SRDF_PATH))
         if not self.render:  # a physics-only scene refuses visual shapes
             for lb in builder.link_builders:

@@ -29,6 +29,10 @@ CATEGORIES = TARGET_CATEGORIES + DISTRACTOR_CATEGORIES
 OBJECT_STATIC_FRICTION = 1.0
 OBJECT_DYNAMIC_FRICTION = 0.8
 OBJECT_RESTITUTION = 0.0
+# Torsional friction (PhysX patch radius): a round object held at two points would otherwise
+# swing freely about the jaw axis while the robot drives.
+PATCH_RADIUS = 0.01
+MIN_PATCH_RADIUS = 0.005
 
 
 @dataclass(frozen=True)
@@ -219,12 +223,13 @@ def build_object(scene: "sapien.Scene", obj: "PlacedObject") -> "sapien.Entity":
         elif p.kind == "ycyl":
             at = at * to_y
         if p.collide:
+            patch = {"patch_radius": PATCH_RADIUS, "min_patch_radius": MIN_PATCH_RADIUS}
             if p.kind == "box":
-                builder.add_box_collision(at, p.dims, material=mat, density=density)
+                builder.add_box_collision(at, p.dims, material=mat, density=density, **patch)
             elif p.kind == "sphere":
-                builder.add_sphere_collision(at, p.dims[0], material=mat, density=density)
+                builder.add_sphere_collision(at, p.dims[0], material=mat, density=density, **patch)
             else:
-                builder.add_cylinder_collision(at, p.dims[0], p.dims[1], material=mat, density=density)
+                builder.add_cylinder_collision(at, p.dims[0], p.dims[1], material=mat, density=density, **patch)
         if with_visuals:
             color = sapien.render.RenderMaterial(base_color=[*p.color, 1.0], roughness=0.6)
             if p.kind == "box":

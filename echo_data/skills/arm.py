@@ -122,12 +122,14 @@ def _action(robot: Robot, g: np.ndarray, gripper: float) -> np.ndarray:
     return a
 
 
-def follow_path(world: Any, waypoints: Sequence[np.ndarray], gripper: float | None = None, speed_scale: float = 1.0) -> Actions:
+def follow_path(
+    world: Any, waypoints: Sequence[np.ndarray], gripper: float | None = None, speed_scale: float = 1.0, settle: bool = True
+) -> Actions:
     """Yield actions that move (torso, arm) through `waypoints` at bounded joint speeds.
 
-    The gripper target stays where it is unless `gripper` is given. Ends when the measured
-    joints are within SETTLE_TOL of the last waypoint or after SETTLE_MAX extra steps;
-    returns the number of actions yielded.
+    The gripper target stays where it is unless `gripper` is given. With `settle`, ends when
+    the measured joints are within SETTLE_TOL of the last waypoint or after SETTLE_MAX extra
+    steps; returns the number of actions yielded.
     """
     robot: Robot = world.robot
     dt = 1.0 / robot.cfg.control_hz
@@ -142,7 +144,7 @@ def follow_path(world: Any, waypoints: Sequence[np.ndarray], gripper: float | No
             yield _action(robot, a + (b - a) * (i / k), grip)
             n += 1
     goal = np.asarray(waypoints[-1], dtype=np.float64)
-    for _ in range(SETTLE_MAX):
+    for _ in range(SETTLE_MAX if settle else 0):
         if np.max(np.abs(group_q(robot) - goal)) < SETTLE_TOL:
             break
         yield _action(robot, goal, grip)

@@ -5,6 +5,8 @@ navigation follower (`echo_data.skills.navigate.drive_to`) while the arm holds t
 (READY, object above every receptacle height); then a free spot on the top within reach is
 chosen, the object is brought above it, lowered until its bottom is RELEASE_GAP above the top,
 released, and the arm retreats up and tucks (the torso stays up; Navigate does not mind).
+Step limits: the drive may use max_steps["Navigate"], the arm work max_steps["Place"];
+`SkillOutcome.steps` counts both.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from echo_data.skills.pick import SLOW, Budget, SkillFailed
 from echo_data.skills.success import object_bottom, place_success
 
 ABOVE = 0.08  # m: object bottom above the top before the final descent
-RELEASE_GAP = 0.006  # m: object bottom above the top when the fingers open
+RELEASE_GAP = 0.012  # m: object bottom above the top when the fingers open (drops the rest)
 RETREAT = 0.12  # m straight up after releasing
 OPEN_STEPS = 6
 EDGE_MARGIN = 0.06  # m: object footprint to the top's edges
@@ -30,6 +32,7 @@ CLEARANCE = 0.05  # m: object footprint to other objects
 REACH = (0.45, 0.74)  # m: base centre to the placing point
 PREFERRED_REACH = 0.6
 GRID = 0.03  # m
+TUCK_SPEED = 1.4  # speed scale of the empty-handed tuck (1.8 rad/s, within Fetch's joint limits)
 
 
 def held_object(world: Any, call: Any, spec: Any) -> str | None:
@@ -77,6 +80,9 @@ def place_spots(world: Any, name: str, furniture: int) -> list[tuple[float, floa
 def place(world: Any, call: Any, spec: Any) -> Generator[np.ndarray, None, SkillOutcome]:
     """Place expert (generator of actions; returns the SkillOutcome)."""
     robot = world.robot
+    # Place includes a drive across the apartment: the drive gets Navigate's step limit, the
+    # arm work Place's own.
+    drive_budget = Budget(int(robot.cfg.max_steps["Navigate"]))
     budget = Budget(int(robot.cfg.max_steps["Place"]))
     kind, _, idx = str(call.target).partition(":")
     if kind != "furniture" or not idx:
@@ -86,14 +92,14 @@ def place(world: Any, call: Any, spec: Any) -> Generator[np.ndarray, None, Skill
     if name is None or robot.holding != name:
         return SkillOutcome(call.skill, call.target, False, "not holding", 0)
     try:
-        yield from budget.run(_drive(world, goal, budget))
+        yield from drive_budget.run(_drive(world, goal, drive_budget))
         yield from budget.run(_place(world, name, goal))
         yield from budget.run(arm.hold(world, 3))
     except SkillFailed as e:
-        return SkillOutcome(call.skill, call.target, False, str(e), budget.steps)
+        return SkillOutcome(call.skill, call.target, False, str(e), drive_budget.steps + budget.steps)
     ok = place_success(world, name, goal)
     reason = "" if ok else ("still held" if robot.holding == name else "not on goal")
-    return SkillOutcome(call.skill, call.target, ok, reason, budget.steps)
+    return SkillOutcome(call.skill, call.target, ok, reason, drive_budget.steps + budget.steps)
 
 
 def _drive(world: Any, goal: int, budget: Budget) -> Generator[np.ndarray, None, None]:
@@ -151,6 +157,7 @@ def _place(world: Any, name: str, goal: int) -> Generator[np.ndarray, None, None
     yield from arm.follow_path(world, path)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
+    yield from arm.hold(world, 2)  # let a swinging object come to rest before going down
     yield from arm.follow_path(world, descent, speed_scale=SLOW)
     yield from arm.set_gripper(world, GRIPPER_OPEN, OPEN_STEPS)
     up = arm.top_down_pose(float(down.p[0]), float(down.p[1]), float(down.p[2]) + RETREAT, jaw_yaw_of(down))
@@ -162,7 +169,7 @@ def _place(world: Any, name: str, goal: int) -> Generator[np.ndarray, None, None
     home = arm.plan_through(planner, arm.tuck_waypoints(np.asarray(retreat[-1])), gripper=GRIPPER_OPEN)
     if home is None:
         raise SkillFailed("no motion plan")
-    yield from arm.follow_path(world, home, gripper=GRIPPER_OPEN)
+    yield from arm.follow_path(world, home, gripper=GRIPPER_OPEN, speed_scale=TUCK_SPEED, settle=False)
 
 
 def jaw_yaw_of(pose: Any) -> float:
