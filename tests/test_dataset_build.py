@@ -63,7 +63,10 @@ def test_layout_and_names(built: Path) -> None:
     assert {"numpy", "pyarrow", "sapien", "pyroomacoustics", "echo-data"} <= set(m["versions"])
     for e in m["shards"]:
         assert hashlib.sha256((built / e["file"]).read_bytes()).hexdigest() == e["sha256"]
-        assert pq.ParquetFile(built / e["file"]).metadata.num_rows == e["rows"]
+        md = pq.ParquetFile(built / e["file"]).metadata
+        assert md.num_rows == e["rows"]
+        mel = next(md.row_group(0).column(i) for i in range(md.num_columns) if md.row_group(0).column(i).path_in_schema.startswith("observation.audio.mel"))
+        assert "BYTE_STREAM_SPLIT" in mel.encodings  # float features are not dictionary-encoded
     for name in ("meta/episodes.parquet", "meta/stats.json", "meta/info.json", "planner/train.json", "planner/dataset_info.json"):
         assert (built / name).is_file(), name
     assert not (built / ".work").exists()

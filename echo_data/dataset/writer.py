@@ -377,11 +377,17 @@ def write_shard(
     table = conform(table, schema.with_metadata(metadata))
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = tmp_path(path)
+    leaf = ".list.element"  # Parquet leaf paths of the float lists (1 level for vectors, 3 for arrays)
+    floats = [ACTION + leaf, STATE + leaf] + [col + leaf * 3 for col in layout.arrays]
     with pq.ParquetWriter(
         tmp,
         table.schema,
         compression=PARQUET_COMPRESSION,
         compression_level=PARQUET_COMPRESSION_LEVEL,
+        # Dictionaries only where values repeat: on float features they made real shards 1/3
+        # larger and slower to read; byte-stream split shaves a little more off the floats.
+        use_byte_stream_split=floats,
+        use_dictionary=["setting", "skill", "task_index", "skill_index", "episode_index"],
         write_statistics=True,
         store_schema=True,
     ) as w:
