@@ -17,6 +17,7 @@ from echo_data.scene.generate import (
     DOORBELL_Z,
     EDGE_MARGIN,
     FRONT_REACH,
+    door_operation_zone,
     door_swing_zone,
     front_zone,
     generate_floorplan,
@@ -278,3 +279,32 @@ def test_robot_can_reach_every_piece_with_doors_open() -> None:
         x, y, _ = interaction_pose(plan, "faucet:0", grid=grid)
         comps.add(int(labels[grid.cell(x, y)]))
         assert len(comps) == 1 and 0 not in comps, plan.seed
+
+
+def test_belled_doors_leave_room_to_open_them() -> None:
+    """The robot holds the handle and drives its base about the hinge to past the open
+    threshold; some stance in front of the handle must keep the base on free floor."""
+    n_doors = 0
+    for _, plan in PLANS[::2]:
+        grid = NavGrid.from_plan(plan)
+        for d in plan.doors:
+            if d.doorbell is None:
+                continue
+            n_doors += 1
+            zone = door_operation_zone(d)
+            assert not any(zone.intersects(f.footprint) for f in plan.furniture), (plan.seed, d.index)
+            u = np.array([math.cos(d.closed_yaw), math.sin(d.closed_yaw)])
+            n = d.open_sign * np.array([-u[1], u[0]])
+            hinge = np.array(d.hinge)
+            ok = False
+            for dist in (0.88, 0.95):
+                for shift in (-0.3, -0.15, 0.0):
+                    p0 = (d.width - 0.07 + shift) * u + dist * n
+                    free = True
+                    for q in np.linspace(0.0, d.open_threshold + 0.12, 12):
+                        c, s = math.cos(d.open_sign * q), math.sin(d.open_sign * q)
+                        p = hinge + np.array([c * p0[0] - s * p0[1], s * p0[0] + c * p0[1]])
+                        free &= grid.is_free(float(p[0]), float(p[1]))
+                    ok |= free
+            assert ok, (plan.seed, d.index)
+    assert n_doors >= len(PLANS) // 2

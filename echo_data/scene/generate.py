@@ -51,6 +51,12 @@ INTERIOR_BELL_PROBABILITY = 0.25
 DOORWAY_CORNER_MARGIN = 0.45
 DOOR_CLEARANCE_DEPTH = 1.2  # free of furniture in front of a doorway, both sides
 DOOR_CLEARANCE_SIDE = 0.35  # beyond each doorway edge (covers the leaf behind the hinge)
+# A door that gets opened (one with a bell): the OpenDoor expert holds the handle and drives
+# its base on a circle about the hinge, ending ≈0.55 m behind the hinge and ≈1 m out; with
+# the base radius that needs this much free wall beyond the hinge-side edge and this deep a
+# furniture-free area on the swing side.
+DOOR_HINGE_SIDE_ROOM = 1.05
+DOOR_OPERATION_DEPTH = 1.55
 
 # --- furniture -------------------------------------------------------------------------
 WALL_GAP = 0.02  # furniture back to wall face
@@ -293,10 +299,29 @@ def _doorway_zone(dw: Doorway, depth: float, side: float) -> Rect:
     return _rect_uv(dw.axis, cu - dw.width / 2.0 - side, cu + dw.width / 2.0 + side, cv - depth, cv + depth)
 
 
+def _side_room(dw: Doorway, room: Room, t: float) -> tuple[float, float]:
+    """Free wall inside `room` beyond the doorway's low-u and high-u edges."""
+    inner = room.rect.expanded(-t / 2.0)
+    cu = dw.center[0] if dw.axis == "x" else dw.center[1]
+    lo, hi = (inner.xmin, inner.xmax) if dw.axis == "x" else (inner.ymin, inner.ymax)
+    return (cu - dw.width / 2.0 - lo, hi - (cu + dw.width / 2.0))
+
+
 def _pick_doorway(
-    piece: _Piece, width: float, t: float, taken: list[Doorway], rng: np.random.Generator, index: int, height: float
+    piece: _Piece,
+    width: float,
+    t: float,
+    taken: list[Doorway],
+    rng: np.random.Generator,
+    index: int,
+    height: float,
+    opened_from: Room | None = None,
 ) -> Doorway | None:
-    """A doorway on `piece`, DOORWAY_CORNER_MARGIN from its ends, clear of other doorways' zones."""
+    """A doorway on `piece`, DOORWAY_CORNER_MARGIN from its ends, clear of other doorways' zones.
+
+    `opened_from`: the door will be opened from this room, so one side needs
+    DOOR_HINGE_SIDE_ROOM of wall there.
+    """
     margin = t / 2.0 + DOORWAY_CORNER_MARGIN + width / 2.0
     lo, hi = piece.lo + margin, piece.hi - margin
     if hi < lo:
@@ -304,6 +329,8 @@ def _pick_doorway(
     for _ in range(8):
         cu = _r2(rng.uniform(lo, hi))
         dw = Doorway(index, _xy(piece.axis, cu, piece.coord), piece.axis, width, height, piece.rooms)
+        if opened_from is not None and max(_side_room(dw, opened_from, t)) < DOOR_HINGE_SIDE_ROOM:
+            continue
         zone = _doorway_zone(dw, DOOR_CLEARANCE_DEPTH, DOOR_CLEARANCE_SIDE)
         if all(not zone.intersects(_doorway_zone(o, DOOR_CLEARANCE_DEPTH, DOOR_CLEARANCE_SIDE)) for o in taken):
             return dw
@@ -318,6 +345,9 @@ def _make_door(
     room_v = swing_room.rect.center[1] if dw.axis == "x" else swing_room.rect.center[0]
     s = 1.0 if room_v > cv else -1.0  # swing side along the wall normal
     hinge_low = bool(rng.random() < 0.5)  # hinge at the low-u end of the opening
+    if bell:  # it will be opened: the hinge goes where the wall leaves room for the robot
+        room_low, room_high = _side_room(dw, swing_room, t)
+        hinge_low = room_low >= room_high
     width = dw.width + 2.0 * DOOR_OVERLAP
     hu = cu - dw.width / 2.0 - DOOR_OVERLAP if hinge_low else cu + dw.width / 2.0 + DOOR_OVERLAP
     hv = cv + s * (t / 2.0 + DOOR_FACE_GAP + DOOR_THICKNESS / 2.0)
@@ -364,6 +394,19 @@ def door_swing_zone(door: Door) -> Rect:
     xs = [p[0] for p in pts]
     ys = [p[1] for p in pts]
     return Rect(min(xs) - 0.05, min(ys) - 0.05, max(xs) + 0.05, max(ys) + 0.05)
+
+
+def door_operation_zone(door: Door) -> Rect:
+    """Floor the robot's base may sweep while opening `door` (swing side; see DOOR_HINGE_SIDE_ROOM)."""
+    d = (math.cos(door.closed_yaw), math.sin(door.closed_yaw))  # hinge -> free edge
+    n = (-door.open_sign * d[1], door.open_sign * d[0])  # swing side
+    pts = [
+        (door.hinge[0] + a * d[0] + b * n[0], door.hinge[1] + a * d[1] + b * n[1])
+        for a in (-(DOOR_HINGE_SIDE_ROOM - DOOR_OVERLAP), door.width + 0.1)
+        for b in (0.0, DOOR_OPERATION_DEPTH)
+    ]
+    xs, ys = [p[0] for p in pts], [p[1] for p in pts]
+    return Rect(min(xs), min(ys), max(xs), max(ys))
 
 
 def _spanning_doorways(
@@ -642,7 +685,7 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
     )
     entrance = None
     for p in ext:
-        entrance = _pick_doorway(p, sc.doorway_width, t, doorways, rng, len(doorways), height)
+        entrance = _pick_doorway(p, sc.doorway_width, t, doorways, rng, len(doorways), height, opened_from=rooms[max(p.rooms)])
         if entrance is not None:
             break
     if entrance is None:
@@ -660,9 +703,11 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
         else:
             swing = rooms[dw.rooms[int(rng.integers(2))]]
         bell = is_entrance or bool(rng.random() < INTERIOR_BELL_PROBABILITY)
+        if not is_entrance and max(_side_room(dw, swing, t)) < DOOR_HINGE_SIDE_ROOM:
+            bell = False  # no room beside it to open it
         doors.append(_make_door(dw, len(doors), swing, t, bell, rng, door_material))
 
-    swings = [door_swing_zone(d) for d in doors]
+    swings = [door_swing_zone(d) for d in doors] + [door_operation_zone(d) for d in doors if d.doorbell is not None]
     keepout = [_doorway_zone(dw, DOOR_CLEARANCE_DEPTH, DOOR_CLEARANCE_SIDE) for dw in doorways] + swings
 
     furniture: list[Furniture] = []
