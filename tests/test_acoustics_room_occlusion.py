@@ -139,3 +139,12 @@ def test_furniture_occludes_with_frequency_dependent_loss() -> None:
     b_f = AcousticScene(plan_f, CFG).response((1.0, 2.0, 2.2), (3.0, 2.0, 2.2)).arrivals[0]
     b_0 = AcousticScene(plan_0, CFG).response((1.0, 2.0, 2.2), (3.0, 2.0, 2.2)).arrivals[0]
     assert b_f.band_gains == b_0.band_gains
+
+
+def test_receiver_inside_a_wall_is_heard_at_the_nearest_room_face(two_rooms: AcousticScene) -> None:
+    """Grid cells can fall on a wall line; such a point is taken 1 cm inside the nearest room."""
+    src = (2.0, 1.0, 1.2)
+    in_wall = two_rooms.response(src, (3.98, 1.0, 1.2))
+    at_face = two_rooms.response(src, (3.94, 1.0, 1.2))
+    assert in_wall.arrivals and in_wall.arrivals == at_face.arrivals
+    assert abs(in_wall.arrivals[0].delay_s * SPEED_OF_SOUND - 1.94) < 1e-9

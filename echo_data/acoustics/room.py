@@ -109,6 +109,13 @@ class AcousticScene:
         d = np.linalg.norm(np.maximum(lo - p, 0.0) + np.maximum(p - hi, 0.0), axis=2)
         return np.argmin(d, axis=1)
 
+    def _into_room(self, pts: np.ndarray, rooms: np.ndarray) -> np.ndarray:
+        lo = np.stack([self.boxes[r].lo for r in rooms])
+        hi = np.stack([self.boxes[r].hi for r in rooms])
+        inside = np.all((pts >= lo) & (pts <= hi), axis=1)
+        m = np.minimum(0.01, 0.25 * (hi - lo))
+        return np.where(inside[:, None], pts, np.clip(pts, lo + m, hi - m))
+
     def free_field(self, source: Vec3, receiver: Vec3) -> AcousticResponse:
         """Direct sound only (no room), for tests and as a reference for the binaural stage."""
         s, r = np.asarray(source, dtype=np.float64), np.asarray(receiver, dtype=np.float64)
@@ -124,11 +131,15 @@ class AcousticScene:
     def responses(self, source: Vec3, receivers: np.ndarray) -> list[AcousticResponse]:
         """Responses from one source to many receivers (n, 3); the source's image sources,
         routes and room energies are computed once for all of them."""
-        S = np.asarray(source, dtype=np.float64)
-        rcv = np.asarray(receivers, dtype=np.float64).reshape(-1, 3)
-        n = len(rcv)
-        a_room = self.room_of(S)
-        rooms = self._rooms_of(rcv)
+        S0 = np.asarray(source, dtype=np.float64)
+        rcv0 = np.asarray(receivers, dtype=np.float64).reshape(-1, 3)
+        n = len(rcv0)
+        a_room = self.room_of(S0)
+        rooms = self._rooms_of(rcv0)
+        # a point inside a wall (e.g. a grid cell on a wall line) is taken at the nearest
+        # room's face, 1 cm into the room: a head or a sound source cannot sit in a wall
+        S = self._into_room(S0[None], np.asarray([a_room]))[0]
+        rcv = self._into_room(rcv0, rooms)
         c = SPEED_OF_SOUND
         max_len = self.length / self.fs * c
 
@@ -157,11 +168,11 @@ class AcousticScene:
         per_row = paths.arrivals(n, self.air, max_len)
         levels = self.acoustics.levels(a_room)
         out: list[AcousticResponse] = []
-        qs = [int(round(v * 1000.0)) for v in S]
+        qs = [int(round(v * 1000.0)) for v in S0]
         for i in range(n):
             x = rooms[i]
             if np.isfinite(onset[i]) and levels[x].max() > 0.0:
-                key = (self.plan.seed, *qs, *(int(round(v * 1000.0)) for v in rcv[i]))
+                key = (self.plan.seed, *qs, *(int(round(v * 1000.0)) for v in rcv0[i]))
                 tail = self._tail(x, levels[x], float(onset[i]), self.noise.segment(key))
             else:
                 tail = np.zeros(self.length, dtype=np.float32)
