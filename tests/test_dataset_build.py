@@ -241,3 +241,25 @@ def test_cli_bad_recipe_exit_2(tmp_path: Path) -> None:
     bad.write_text("name: x\nsplits: {train: -1}\n")
     res = _cli(["build", str(bad), "--out", str(tmp_path / "o")])
     assert res.exit_code == 2 and "splits" in res.output and not (tmp_path / "o").exists()
+
+
+def wrong_shapes(recipe, split, index, library, recipe_dir, attempt=0):  # noqa: ANN001, ANN201
+    ep = synth_generate(recipe, split, index, library, recipe_dir, attempt=1)
+    ep.mel = ep.mel[:, :10]
+    return ep
+
+
+def test_result_that_breaks_the_contract_is_a_clear_error(tmp_path: Path) -> None:
+    with pytest.raises(BuildError, match=r"train episode 0: cannot be stored: observation.audio.mel has shape"):
+        _build(tmp_path / "synth", generate=wrong_shapes)
+
+
+def test_ray_executor_missing_is_a_clear_input_error(tmp_path: Path) -> None:
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        with pytest.raises(OutputError, match=r"pip install 'echo-data\[ray\]'"):
+            _build(tmp_path / "synth", executor="ray")
+        assert not (tmp_path / "synth").exists()
+    else:
+        pytest.skip("Ray is installed")

@@ -112,6 +112,7 @@ class FailedEpisode:
     split: str
     index: int
     failures: list[dict[str, Any]]
+    error: str = ""  # set when the episode broke the EpisodeResult contract (not retried)
 
 
 _UNSET = object()
@@ -168,14 +169,17 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
             continue
         spec = result.spec
         if (spec.split, int(spec.index)) != (split, index):
-            raise ValueError(f"generator returned episode {spec.split}/{spec.index} for {split}/{index}")
+            return FailedEpisode(split, index, failures, f"generator returned episode {spec.split}/{spec.index}")
         rejected.update({str(k): int(v) for k, v in result.rejected.items()})
         for o in result.outcomes:
             s = skills.setdefault(o.skill, [0, 0])
             s[0] += 1
             s[1] += int(bool(o.success))
         if result.success:
-            enc = encode_episode(result, job.layout)
+            try:
+                enc = encode_episode(result, job.layout)
+            except ValueError as e:  # the result does not fit the dataset contract: a bug, not bad luck
+                return FailedEpisode(split, index, failures, f"cannot be stored: {_one_line(str(e))}")
             enc.failures, enc.rejected, enc.skills = failures, dict(sorted(rejected.items())), dict(sorted(skills.items()))
             return enc
         bad = next((o for o in result.outcomes if not o.success), None)
@@ -455,7 +459,7 @@ def build(
     manifest = _prepare(out, recipe, limit, layout, mode, workers, executor)
 
     writer = _Writer(out, recipe, layout, manifest, plans)
-    reused = writer.verify_shards()
+    writer.verify_shards()
     writer.remove_leftovers()
     for split in plans:
         writer.flush(split)
@@ -481,6 +485,8 @@ def build(
         raise OutputError(str(e)) from None
     try:
         for res in ex.imap_unordered(_run_episode, todo):
+            if isinstance(res, FailedEpisode) and res.error:
+                raise BuildError(f"{res.split} episode {res.index}: {res.error}")
             if isinstance(res, FailedEpisode):
                 reasons = "; ".join(f"attempt {f['attempt']}: {f['reason']}" for f in res.failures[-3:])
                 raise BuildError(

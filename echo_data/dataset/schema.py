@@ -155,6 +155,17 @@ class StepLayout:
         s = self.schema()
         return s.remove(s.get_field_index("index")).remove_metadata()
 
+    @staticmethod
+    def from_dict(d: dict[str, Any]) -> "StepLayout":
+        """The layout as the manifest stores it (readers need no recipe validation)."""
+        return StepLayout(
+            fps=int(d["fps"]),
+            sample_rate=int(d["sample_rate"]),
+            images={k: (v[0], int(v[1]), int(v[2])) for k, v in d["images"].items()},
+            spectrogram_shape=tuple(d["spectrogram_shape"]) if d.get("spectrogram_shape") else None,  # type: ignore[arg-type]
+            mel_shape=tuple(d["mel_shape"]) if d.get("mel_shape") else None,  # type: ignore[arg-type]
+        )
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "fps": self.fps,

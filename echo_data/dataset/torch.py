@@ -21,7 +21,6 @@ import pyarrow.parquet as pq
 
 from echo_data.dataset.manifest import load_manifest
 from echo_data.dataset.schema import ACTION, STATE, StepLayout, column_to_numpy
-from echo_data.recipe import Recipe
 from echo_data.records import ACTION_DIM, STATE_DIM
 
 _INDEX_COLUMNS = ["episode_index", "frame_index", "setting", "skill"]
@@ -53,7 +52,7 @@ class _Shards:
     def __init__(self, root: Path, split: str) -> None:
         manifest = load_manifest(root)
         self.root = root
-        self.layout = StepLayout.from_recipe(Recipe.model_validate(manifest["recipe"]))
+        self.layout = StepLayout.from_dict(manifest["layout"])
         self.files = [root / e["file"] for e in manifest["shards"] if e["split"] == split]
         if split not in manifest["splits"]:
             raise ValueError(f"{root}: no split {split!r} (has {', '.join(manifest['splits'])})")
