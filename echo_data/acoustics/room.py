@@ -19,7 +19,17 @@ Early part (directional `arrivals`):
 - Per reflection the specular amplitude is sqrt((1 - alpha)(1 - s)) per band (material from
   pyroomacoustics' database, s = `cfg.scattering`); air absorption over the path length.
 
-Late part (`tail`): statistical, see `echo_data.acoustics.tail`.
+Late part (`tail`): statistical, see `echo_data.acoustics.tail` (`cfg.rays` is not used:
+a statistical tail is deterministic, cheap per receiver and, with scattering, matches
+Sabine/Eyring, where pyroomacoustics' ray tracer costs grow with the receiver count).
+
+Why our own image sources rather than pyroomacoustics' polygon ISM: see
+`echo_data.acoustics.geometry`. Cost: a source's lattice, routes and room energies are
+computed once per `responses` call and vectorised over all receivers.
+
+Points inside a wall (grid cells on wall lines) are taken 1 cm inside the nearest room.
+Wall, floor and ceiling materials are the room's (`Room.*_material`); doors use
+`Door.material`, furniture `Furniture.material`.
 """
 
 from __future__ import annotations
