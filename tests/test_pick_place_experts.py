@@ -160,3 +160,22 @@ def test_place_without_an_object_fails() -> None:
     world = World(spec, RECIPE, render=False)
     out = run_expert(world, place(world, spec.chain[1], spec))
     assert not out.success and out.reason == "not holding" and out.steps == 0
+
+
+def test_pick_is_reproducible_to_the_byte() -> None:
+    def actions_and_states() -> bytes:
+        spec = make_spec("alarm", yaw=0.9, depth=0.25)
+        world = World(spec, RECIPE, render=False)
+        out: list[bytes] = []
+        gen = pick(world, spec.chain[0], spec)
+        try:
+            while True:
+                a = next(gen)
+                world.step(a)
+                out.append(a.tobytes() + world.robot.state().tobytes())
+        except StopIteration as stop:
+            assert stop.value.success
+        world.close()
+        return b"".join(out)
+
+    assert actions_and_states() == actions_and_states()
