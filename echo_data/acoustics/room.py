@@ -375,11 +375,18 @@ class _PathSet:
         band = np.exp(lg - 0.5 * air[None] * L[:, None])
         gain = 10.0 ** (-door / 20.0) / L
         srt = np.lexsort((order, L, row))
-        delay = (L / SPEED_OF_SOUND)[srt].tolist()
-        dl, gl, bl, ol = d[srt].tolist(), gain[srt].tolist(), band[srt].tolist(), order[srt].tolist()
-        for k, r in enumerate(row[srt].tolist()):
-            out[r].append(Arrival(delay[k], tuple(dl[k]), gl[k], tuple(bl[k]), ol[k]))
-        return out
+        objs = list(
+            map(
+                Arrival,
+                (L / SPEED_OF_SOUND)[srt].tolist(),
+                map(tuple, d[srt].tolist()),
+                gain[srt].tolist(),
+                map(tuple, band[srt].tolist()),
+                order[srt].tolist(),
+            )
+        )
+        bounds = np.searchsorted(row[srt], np.arange(n + 1)).tolist()
+        return [objs[bounds[i] : bounds[i + 1]] for i in range(n)]
 
 
 def omni_rir(response: AcousticResponse) -> np.ndarray:
