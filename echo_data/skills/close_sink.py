@@ -23,14 +23,15 @@ import numpy as np
 from echo_data.records import SkillOutcome
 from echo_data.scene.articulated import LEVER_SECTION
 from echo_data.scene.floorplan import Faucet, Furniture
+from echo_data.skills import arm
 from echo_data.skills.open_door import (
     approach_base,
     arm_action,
-    line,
-    plan_arm,
-    set_obstacles,
-    solve_ik,
+    near_ik,
+    planner_at,
+    reach_ik,
     tuck_arm,
+    untuck_waypoints,
 )
 
 BASE_RADIUS = 0.28  # m, the robot's base disc
@@ -110,22 +111,21 @@ def _sweep_waypoints(faucet: Faucet, angle: float) -> tuple[list[float], float]:
 def _solve_sweep(
     world: object, faucet: Faucet, angle: float, stance: tuple[float, float, float]
 ) -> tuple[np.ndarray, list[np.ndarray]] | None:
-    """IK for the hover point and every arc waypoint from `stance`, each seeded by the previous."""
+    """IK (torso fixed) for the hover point and every arc waypoint from `stance`, each seeded by the previous."""
+    planner = planner_at(world, stance)
     rot = _push_rotation(stance[2])
     phis, _ = _sweep_waypoints(faucet, angle)
     z = faucet.pivot[2]
-    first = solve_ik(
-        world, _finger_point(faucet, phis[0], z), rot, base=stance, torso=SINK_TORSO, ref=PUSH_REF, lock_torso=True
-    )
+    first = reach_ik(planner, _finger_point(faucet, phis[0], z), rot, SINK_TORSO, PUSH_REF, fix_torso=True)
     if first is None:
         return None
-    hover = solve_ik(world, _finger_point(faucet, phis[0], z + HOVER), rot, base=stance, seed=first, lock_torso=True)
+    hover = near_ik(planner, _finger_point(faucet, phis[0], z + HOVER), rot, first, fix_torso=True)
     if hover is None:
         return None
     sweep = [first]
     for phi in phis[1:]:
-        q = solve_ik(world, _finger_point(faucet, phi, z), rot, base=stance, seed=sweep[-1], lock_torso=True)
-        if q is None or np.abs(q - sweep[-1]).max() > 0.6:  # a branch jump would swing the arm through the lever
+        q = near_ik(planner, _finger_point(faucet, phi, z), rot, sweep[-1], fix_torso=True)
+        if q is None:  # only another arm branch reaches it: that would swing the arm through the lever
             return None
         sweep.append(q)
     return hover, sweep
@@ -136,7 +136,6 @@ def close_sink(world: object, call: object, spec: object) -> Generator[np.ndarra
     skill, target = call.skill, call.target  # type: ignore[attr-defined]
     robot = world.robot  # type: ignore[attr-defined]
     max_steps = int(robot.cfg.max_steps["CloseSink"])
-    dt = 1.0 / robot.cfg.control_hz
     i = int(target.partition(":")[2])
     faucet: Faucet = world.plan.faucets[i]  # type: ignore[attr-defined]
     cabinet: Furniture = world.plan.furniture[faucet.furniture]  # type: ignore[attr-defined]
@@ -151,7 +150,6 @@ def close_sink(world: object, call: object, spec: object) -> Generator[np.ndarra
         return SkillOutcome(skill, target, True, "", 0)
 
     # 1. a stance from which the whole sweep is reachable
-    set_obstacles(world, (faucet.pivot[0], faucet.pivot[1]))
     grid = getattr(world, "nav", None)
     choice = None
     for stance in sink_stances(faucet, cabinet):
@@ -172,12 +170,11 @@ def close_sink(world: object, call: object, spec: object) -> Generator[np.ndarra
     steps += moved.steps
     if not moved.success:
         return fail(moved.reason)
-    path = plan_arm(world, q_hover)
+    planner = planner_at(world)
+    path = arm.plan_through(planner, untuck_waypoints(arm.commanded_group(robot), q_hover), gripper=0.0)
     if path is None:
         return fail("arm_plan_failed")
-    for q in path:
-        yield arm_action(robot, q, gripper=0.0)
-        steps += 1
+    steps += yield from arm.follow_path(world, path, gripper=0.0)
     moved = yield from approach_base(world, stance, arm_action(robot, q_hover, gripper=0.0), max_steps - steps)
     steps += moved.steps
     if not moved.success:
@@ -189,30 +186,27 @@ def close_sink(world: object, call: object, spec: object) -> Generator[np.ndarra
         return fail("no_ik")
     q_hover_now, q_sweep = solved
     phis, _ = _sweep_waypoints(faucet, float(art.get_qpos()[0]))
-    per_segment = max(1, int(round(IK_STEP / SWEEP_RATE / dt)))
-    motion = line(q_hover, q_hover_now, 2) + line(q_hover_now, q_sweep[0], 5)
-    for a, b in zip(q_sweep, q_sweep[1:]):
-        motion += line(a, b, per_segment)
-    motion += [q_sweep[-1]] * 3
-    for q in motion:
-        if steps >= max_steps:
-            return fail("timeout")
-        yield arm_action(robot, q, gripper=0.0)
-        steps += 1
+    steps += yield from arm.follow_path(world, [q_hover, q_hover_now, q_sweep[0]], gripper=0.0, speed_scale=0.5)
+    # the sweep: joint speed scaled so the finger moves at about SWEEP_RATE along the arc
+    widest = max(float(np.max(np.abs(b - a))) for a, b in zip(q_sweep, q_sweep[1:]))
+    scale = min(1.0, widest / IK_STEP * SWEEP_RATE / arm.ARM_SPEED)
+    steps += yield from arm.follow_path(world, q_sweep, gripper=0.0, speed_scale=scale)
+    if steps >= max_steps:
+        return fail("timeout")
 
     # 4. lift clear of the lever, back away from the counter, tuck
     last = q_sweep[-1]
     lift_point = _finger_point(faucet, phis[-1], faucet.pivot[2] + HOVER)
-    lift = solve_ik(world, lift_point, _push_rotation(robot.base_pose()[2]), seed=last, lock_torso=True)
+    lift = near_ik(planner_at(world), lift_point, _push_rotation(robot.base_pose()[2]), last, fix_torso=True)
     lift = last if lift is None else lift
-    for q in line(last, lift, 4):
-        yield arm_action(robot, q, gripper=0.0)
-        steps += 1
+    steps += yield from arm.follow_path(world, [last, lift], gripper=0.0, settle=False)
     x, y, yaw = robot.base_pose()
     retreat = (x - UNTUCK_BACK * math.cos(yaw), y - UNTUCK_BACK * math.sin(yaw), yaw)
     moved = yield from approach_base(world, retreat, arm_action(robot, lift, gripper=0.0), max(0, max_steps - steps))
     steps += moved.steps
-    tucked = yield from tuck_arm(world, arm_action(robot, lift, gripper=0.0), max(0, max_steps - steps))
+    tucked = yield from tuck_arm(world, gripper=0.0)
+    if tucked is None:
+        return fail("tuck_failed")
     steps += tucked
     ok = sink_closed_success(world, i)
     return SkillOutcome(skill, target, ok, "" if ok else "still_running", steps)

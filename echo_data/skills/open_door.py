@@ -22,15 +22,15 @@ from __future__ import annotations
 import math
 from collections.abc import Generator
 
-import mplib
 import numpy as np
 import sapien
-from transforms3d.quaternions import mat2quat
 
 from echo_data.records import ACTION_DIM, SkillOutcome
-from echo_data.robot import urdf as robot_urdf
+from echo_data.robot.planner import ArmPlanner, Box
+from echo_data.robot.robot import HEAD_PAN, HEAD_TILT
 from echo_data.scene.articulated import door_handle_world
 from echo_data.scene.floorplan import Door
+from echo_data.skills import arm
 
 # Grasp stances, preferred first: (distance from the bar along the leaf normal, shift along the
 # leaf towards its free edge). Standing 0.3 m towards the hinge keeps the swing radius small
@@ -48,21 +48,16 @@ LOST_GRIP = 0.35  # rad between commanded and measured hinge angle: the handle s
 BACK_OFF = 0.15  # m the base backs away after letting go
 
 # ---------------------------------------------------------------------------------------------
-# Arm and base helpers shared with the CloseSink expert (mplib on the fixed-base arm URDF).
+# Helpers shared with the CloseSink expert: planning on `echo_data.robot.planner.ArmPlanner`
+# (via `echo_data.skills.arm`) from a stance the base has not reached yet, a short holonomic
+# base approach, and the grasp attachment.
 
-ARM_GROUP = ("torso_lift_joint",) + robot_urdf.ARM_JOINTS  # the planner's move group, in order
 REACH_REF = np.array([0.0, -1.0, 0.0, 1.6, 0.0, -0.6, 0.0])  # arm bent forward: IK reference
-ARM_SPEED = 1.1  # rad/s, fastest joint on a straight joint-space move (URDF limits 1.26-2.27)
-# Via poses between the tuck and a reach (arm raised beside the torso), torso up: straight
-# joint lines through them are collision free where RRT needs seconds next to a counter.
-UNTUCK_VIAS = (np.array([1.32, -0.5, -0.2, 1.72, 0.0, 1.66, 0.0]), np.array([1.32, -0.8, 0.0, 1.5, 0.0, 1.0, 0.0]))
-VIA_TORSO = 0.38
 APPROACH_SPEED = 0.4  # m/s, final base approach
 APPROACH_MIN_SPEED = 0.04  # m/s, so the last centimetres do not crawl
 APPROACH_TURN = 0.8  # rad/s
 APPROACH_TOL = 0.015  # m
 APPROACH_YAW_TOL = math.radians(1.5)
-_PLANNER: list[mplib.Planner] = []
 
 
 def wrap(a: float) -> float:
@@ -70,180 +65,50 @@ def wrap(a: float) -> float:
     return math.remainder(a, 2.0 * math.pi)
 
 
-def planner() -> mplib.Planner:
-    """The process-wide mplib planner of the fixed-base arm (building one costs ≈0.1 s)."""
-    if not _PLANNER:
-        _PLANNER.append(
-            mplib.Planner(
-                urdf=str(robot_urdf.ARM_URDF_PATH), srdf=str(robot_urdf.ARM_SRDF_PATH), move_group=robot_urdf.EE_LINK
-            )
-        )
-    return _PLANNER[0]
-
-
-def _planner_qpos(robot: object) -> np.ndarray:
-    """The robot's joint positions in the planner's joint order."""
-    q = robot.articulation.get_qpos()  # type: ignore[attr-defined]
-    return np.array([q[robot.joint_index[n]] for n in planner().user_joint_names], dtype=np.float64)  # type: ignore[attr-defined]
-
-
-def _group_slots() -> list[int]:
-    names = planner().user_joint_names
-    return [names.index(n) for n in ARM_GROUP]
-
-
-def _set_base(base: tuple[float, float, float]) -> None:
-    x, y, yaw = base
-    planner().set_base_pose(mplib.Pose([x, y, 0.0], [math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)]))
-
-
-def set_obstacles(world: object, around: tuple[float, float], radius: float = 2.0) -> int:
-    """Give the planner the apartment near `around` as boxes: floor, walls, furniture, door leaves.
-
-    Door leaves are placed at their current hinge angle; their handles and faucet levers are
-    left out (the gripper must touch them). FINDINGS: plan only against nearby obstacles.
-    Returns how many boxes were set.
-    """
-    from mplib.collision_detection import fcl
-
-    pl = planner()
-    for name in pl.planning_world.get_object_names():
-        pl.planning_world.remove_object(name)
+def door_boxes(world: object) -> list[Box]:
+    """Door leaves at their current hinge angles (handles left out: the gripper takes them) and
+    the floor, as planner boxes; `arm.scene_boxes` has walls, furniture and objects."""
     plan = world.plan  # type: ignore[attr-defined]
-    cx, cy = around
-    boxes: list[tuple[tuple[float, float, float], tuple[float, float, float], float]] = []
-    boxes.append(((cx, cy, -0.05), (2 * radius, 2 * radius, 0.1), 0.0))  # floor
-    for w in plan.walls:
-        r = w.footprint
-        boxes.append(((*r.center, w.height / 2.0), (*r.size, w.height), 0.0))
-    for f in plan.furniture:
-        r = f.footprint
-        boxes.append(((*r.center, f.size[2] / 2.0), (*r.size, f.size[2]), 0.0))
-    angles = world.handles.door_angles() if getattr(world, "handles", None) is not None else {}  # type: ignore[attr-defined]
+    angles = world.handles.door_angles()  # type: ignore[attr-defined]
+    x, y, _ = world.robot.base_pose()  # type: ignore[attr-defined]
+    boxes = [Box("floor", (x, y, -0.05), (6.0, 6.0, 0.1))]
     for d in plan.doors:
         yaw = d.leaf_yaw(angles.get(d.index, d.angle))
         mid = (d.hinge[0] + d.width / 2.0 * math.cos(yaw), d.hinge[1] + d.width / 2.0 * math.sin(yaw))
-        boxes.append(((*mid, d.height / 2.0), (d.width, d.thickness, d.height), yaw))
-    n = 0
-    for (x, y, z), (sx, sy, sz), yaw in boxes:
-        # distance from `around` to the box's footprint (rotation ignored: a conservative cut)
-        half = max(sx, sy) / 2.0 if yaw else None
-        dx = max(abs(x - cx) - (half if half is not None else sx / 2.0), 0.0)
-        dy = max(abs(y - cy) - (half if half is not None else sy / 2.0), 0.0)
-        if math.hypot(dx, dy) > radius:
-            continue
-        pose = mplib.Pose([x, y, z], [math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)])
-        pl.planning_world.add_object(f"obstacle_{n}", fcl.CollisionObject(fcl.Box(sx, sy, sz), pose))
-        n += 1
-    return n
+        if math.hypot(mid[0] - x, mid[1] - y) < arm.OBSTACLE_RADIUS + d.width:
+            boxes.append(Box(f"door_{d.index}", (mid[0], mid[1], d.height / 2.0), (d.width, d.thickness, d.height), yaw))
+    return boxes
 
 
-def solve_ik(
-    world: object,
-    position: np.ndarray,
-    rotation: np.ndarray,
-    base: tuple[float, float, float] | None = None,
-    torso: float | None = None,
-    seed: np.ndarray | None = None,
-    restarts: int = 40,
-    ref: np.ndarray = REACH_REF,
-    lock_torso: bool = False,
-) -> np.ndarray | None:
-    """Torso + 7 arm joints that put the gripper's TCP at a world pose, or None.
-
-    `base` is where the base will stand (default: where it is). The search starts from
-    `seed` (smooth sequences: the first answer near it wins) or from a forward-bent arm
-    (`ref`, default `REACH_REF`, with torso `torso`), then from fixed pseudo-random restarts; among the answers
-    within joint limits and free of self-collision it returns the one closest to the start.
-    `lock_torso` keeps the torso at its start value (CLIK otherwise likes to push it to a limit).
-    Deterministic (mplib's own IK draws unseeded restarts).
-    """
+def planner_at(world: object, base: tuple[float, float, float] | None = None) -> ArmPlanner:
+    """The world's arm planner with the apartment's nearby boxes, its base at `base` (default: where it is)."""
     robot = world.robot  # type: ignore[attr-defined]
-    x, y, yaw = robot.base_pose() if base is None else base
-    c, s = math.cos(yaw), math.sin(yaw)
-    rz_inv = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-    p_base = rz_inv @ (np.asarray(position, dtype=np.float64) - [x, y, 0.0])
-    r_base = rz_inv @ np.asarray(rotation, dtype=np.float64)
-    goal = mplib.Pose(p_base, mat2quat(r_base))
-    pl = planner()
-    slots = _group_slots()
-    start = _planner_qpos(robot)
-    if seed is not None:
-        start[slots] = seed
-    else:
-        start[slots[0]] = robot.torso() if torso is None else torso  # type: ignore[attr-defined]
-        start[slots[1:]] = ref
-    mask = np.ones(len(start), dtype=bool)
-    mask[slots[1 if lock_torso else 0 :]] = False
-    _set_base((x, y, yaw))  # collision checks against the obstacles happen in the world frame
-    lo, hi = pl.joint_limits[slots, 0], pl.joint_limits[slots, 1]
-    rng = np.random.default_rng(0)
-    link = pl.link_name_2_idx[pl.move_group]
-    best, best_dist = None, math.inf
-    for k in range(restarts + 1):
-        q0 = start.copy()
-        if k > 0:
-            q0[slots] = rng.uniform(lo, hi)
-            if lock_torso:
-                q0[slots[0]] = start[slots[0]]
-        q, ok, _ = pl.pinocchio_model.compute_IK_CLIK(link, goal, q0, list(mask))
-        q = np.asarray(q, dtype=np.float64)
-        if not ok or not pl.wrap_joint_limit(q):
-            continue
-        pl.planning_world.set_qpos_all(q[pl.move_group_joint_indices])
-        if pl.planning_world.check_collision():
-            continue
-        dist = float(np.linalg.norm(q[slots] - start[slots]))
-        if dist < best_dist:
-            best, best_dist = q[slots].copy(), dist
-        if seed is not None and k == 0:
-            break  # converged from the seed: the nearby answer
-    return best
+    planner = arm.arm_planner(world, extra=door_boxes(world))
+    if base is not None:
+        planner.sync(base, arm.commanded_group(robot), robot.gripper_opening(), (HEAD_PAN, HEAD_TILT))
+        planner.set_obstacles(arm.scene_boxes(world) + door_boxes(world))  # re-expressed in the new base frame
+    return planner
 
 
-def _line_is_free(a: np.ndarray, b: np.ndarray, step: float = 0.05) -> bool:
-    """True when the straight joint-space segment a -> b (planner order) is free of collisions."""
-    pl = planner()
-    n = max(2, int(math.ceil(float(np.abs(b - a).max()) / step)) + 1)
-    for s in np.linspace(0.0, 1.0, n):
-        q = a + (b - a) * s
-        pl.planning_world.set_qpos_all(q[pl.move_group_joint_indices])
-        if pl.planning_world.check_collision():
-            return False
-    return True
+def tcp_pose(position: np.ndarray, rotation: np.ndarray) -> sapien.Pose:
+    """A world TCP pose from a position and a 3x3 rotation (columns: approach, finger travel, normal)."""
+    m = np.eye(4)
+    m[:3, :3] = rotation
+    m[:3, 3] = position
+    return sapien.Pose(m)
 
 
-def plan_arm(world: object, goal: np.ndarray) -> list[np.ndarray] | None:
-    """A collision-free joint path from the current arm to `goal` (torso + 7), one point per control step.
+def reach_ik(planner: ArmPlanner, position: np.ndarray, rotation: np.ndarray, torso: float, ref: np.ndarray, fix_torso: bool = False) -> np.ndarray | None:
+    """IK for a first reach: the solution nearest the reference arm shape `ref` at `torso`."""
+    return planner.ik(tcp_pose(position, rotation), np.concatenate([[torso], ref]), fix_torso=fix_torso, tries=40)
 
-    Against the obstacles of the last `set_obstacles`. A straight joint-space line is used when
-    it is free (deterministic, the common case in open space), else two lines through one of
-    `UNTUCK_VIAS`; otherwise mplib's RRTConnect
-    (random, so its answer is recorded as actions, never re-planned on replay — FINDINGS).
-    """
-    robot = world.robot  # type: ignore[attr-defined]
-    _set_base(robot.base_pose())
-    pl = planner()
-    slots = _group_slots()
-    start = _planner_qpos(robot)
-    target = start.copy()
-    target[slots] = goal
-    dt = 1.0 / robot.cfg.control_hz
-    def timed(a: np.ndarray, b: np.ndarray) -> list[np.ndarray]:
-        return line(a, b, max(3, int(math.ceil(float(np.abs(b - a).max()) / (ARM_SPEED * dt)))))
 
-    if _line_is_free(start, target):
-        return timed(start[slots], goal)
-    for arm_via in UNTUCK_VIAS:  # out of (or into) the tuck through a raised side pose
-        via = start.copy()
-        via[slots] = np.concatenate([[VIA_TORSO], arm_via])
-        if _line_is_free(start, via) and _line_is_free(via, target):
-            return timed(start[slots], via[slots]) + timed(via[slots], goal)
-    for planning_time in (1.0, 2.0, 3.0):
-        res = pl.plan_qpos([target], start, time_step=dt, planning_time=planning_time)
-        if res.get("status") == "Success":
-            return [np.asarray(q, dtype=np.float64) for q in res["position"]]
-    return None
+def near_ik(planner: ArmPlanner, position: np.ndarray, rotation: np.ndarray, seed: np.ndarray, fix_torso: bool = False) -> np.ndarray | None:
+    """IK next to `seed` (smooth sequences): None when only a different arm branch reaches it."""
+    q = planner.ik(tcp_pose(position, rotation), seed, fix_torso=fix_torso, tries=8)
+    if q is None or float(np.max(np.abs(q - seed))) > 0.6:
+        return None
+    return q
 
 
 def line(q0: np.ndarray, q1: np.ndarray, n: int) -> list[np.ndarray]:
@@ -302,19 +167,27 @@ def approach_base(
     return Moved(True, "", steps + 1)
 
 
-def tuck_arm(world: object, hold: np.ndarray, max_steps: int) -> Generator[np.ndarray, None, int]:
-    """Bring the arm back to the robot's tuck pose (planned; a straight joint line if planning fails)."""
+def untuck_waypoints(start: np.ndarray, goal: np.ndarray) -> list[np.ndarray]:
+    """Joint waypoints from `start` to a reach `goal`: out of the tuck with the upper arm raised
+    while the torso already travels (shorter than passing through the robot's READY pose)."""
+    if not arm.is_tucked(start):
+        return [start, goal]
+    raised = arm.tuck_group(float(goal[0]))
+    raised[2] = arm.UNTUCK_LIFT
+    return [start, raised, goal]
+
+
+def tuck_arm(world: object, gripper: float) -> Generator[np.ndarray, None, int | None]:
+    """Bring the arm back into the tuck (upper arm raised on the way in); None when no path is found."""
     robot = world.robot  # type: ignore[attr-defined]
-    goal = np.concatenate([[robot.torso()], robot.tuck_qpos])  # type: ignore[attr-defined]
-    path = plan_arm(world, goal)
+    planner = planner_at(world)
+    start = arm.commanded_group(robot)
+    raised = arm.tuck_group(float(start[0]))
+    raised[2] = arm.UNTUCK_LIFT
+    path = arm.plan_through(planner, [start, raised, arm.tuck_group(float(start[0]))], gripper=gripper)
     if path is None:
-        now = np.concatenate([[robot.torso()], robot.arm_qpos()])  # type: ignore[attr-defined]
-        path = line(now, goal, 20)
-    steps = 0
-    for q in path[:max_steps]:
-        yield arm_action(robot, q, gripper=float(hold[11]))
-        steps += 1
-    return steps
+        return None
+    return (yield from arm.follow_path(world, path, gripper=gripper))
 
 
 def attach(world: object, ee_link: sapien.physx.PhysxArticulationLinkComponent, body: sapien.physx.PhysxRigidBaseComponent) -> sapien.physx.PhysxDriveComponent:
@@ -417,20 +290,17 @@ def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray
     # 1. stance and grasp solution: the first stance whose swing is free and whose grasp is reachable
     rot = _grasp_rotation(door, q_start)
     handle = door_handle_world(door, q_start, door.open_sign)
-    set_obstacles(world, (float(handle[0]), float(handle[1])))
-    approach_dir = rot[:, 0]
+    pre_point = handle - PREGRASP_BACK * rot[:, 0]
     plan_choice = None
     for stance in door_stances(door, q_start):
         if not _swing_is_free(world, door, stance, q_start, q_goal):
             continue
-        grasp = solve_ik(world, handle, rot, base=stance, torso=GRASP_TORSO)
-        if grasp is None:
-            continue
-        pre = solve_ik(world, handle - PREGRASP_BACK * approach_dir, rot, base=stance, seed=grasp)
-        if pre is None:
-            continue
-        plan_choice = (stance, grasp, pre)
-        break
+        planner = planner_at(world, stance)
+        grasp = reach_ik(planner, handle, rot, GRASP_TORSO, REACH_REF)
+        pre = None if grasp is None else near_ik(planner, pre_point, rot, grasp)
+        if pre is not None:
+            plan_choice = (stance, grasp, pre)
+            break
     if plan_choice is None:
         return fail("no_grasp_stance")
     stance, q_grasp, q_pre = plan_choice
@@ -442,19 +312,19 @@ def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray
     if not moved.success:
         return fail(moved.reason)
 
-    # 3. arm: planned motion to the pre-grasp, straight in, close the fingers
-    q_grasp = solve_ik(world, handle, rot, seed=q_grasp)  # from where the base really stands
-    q_pre = None if q_grasp is None else solve_ik(world, handle - PREGRASP_BACK * approach_dir, rot, seed=q_grasp)
+    # 3. arm: out of the tuck to the pre-grasp, straight in, close the fingers
+    planner = planner_at(world)  # from where the base really stands
+    q_grasp = near_ik(planner, handle, rot, q_grasp)
+    q_pre = None if q_grasp is None else near_ik(planner, pre_point, rot, q_grasp)
     if q_grasp is None or q_pre is None:
         return fail("no_ik")
-    path = plan_arm(world, q_pre)
+    path = arm.plan_through(planner, untuck_waypoints(arm.commanded_group(robot), q_pre), gripper=arm.GRIPPER_OPEN)
     if path is None:
         return fail("arm_plan_failed")
-    for q in path + line(q_pre, q_grasp, 8):
-        if steps >= max_steps:
-            return fail("timeout")
-        yield arm_action(robot, q, gripper=0.1)
-        steps += 1
+    steps += yield from arm.follow_path(world, path, gripper=arm.GRIPPER_OPEN)
+    steps += yield from arm.follow_path(world, [q_pre, q_grasp], gripper=arm.GRIPPER_OPEN, speed_scale=0.4)
+    if steps >= max_steps:
+        return fail("timeout")
     leaf_entity = leaf.entity
     closed = arm_action(robot, q_grasp, gripper=0.0)
     touching = False
@@ -476,7 +346,6 @@ def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray
     q_cmd = float(art.get_qpos()[0])
     q_ref = q_cmd
     t = 0.0
-    trajectory = [q_cmd]
     while True:
         if steps >= max_steps:
             detach(drive)
@@ -498,7 +367,6 @@ def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray
         yield action
         steps += 1
         q = float(art.get_qpos()[0])
-        trajectory.append(q)
         if q_cmd - q > LOST_GRIP:
             detach(drive)
             return fail("lost_handle")
@@ -508,7 +376,7 @@ def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray
     # 5. let go, back off, tuck
     detach(drive)
     released = closed.copy()
-    released[11] = 0.1
+    released[11] = arm.GRIPPER_OPEN
     for _ in range(4):
         yield released
         steps += 1
@@ -517,7 +385,9 @@ def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray
     for _ in range(int(round(0.8 / dt))):
         yield back
         steps += 1
-    tucked = yield from tuck_arm(world, released, max_steps - steps)
+    tucked = yield from tuck_arm(world, gripper=arm.GRIPPER_OPEN)
+    if tucked is None:
+        return fail("tuck_failed")
     steps += tucked
     ok = door_open_success(world, i)
     return SkillOutcome(skill, target, ok, "" if ok else "not_open", steps)
