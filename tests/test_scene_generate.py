@@ -308,3 +308,13 @@ def test_belled_doors_leave_room_to_open_them() -> None:
                     ok |= free
             assert ok, (plan.seed, d.index)
     assert n_doors >= len(PLANS) // 2
+
+
+def test_bare_rooms_still_get_a_sink_and_two_receptacles() -> None:
+    r = Recipe(name="bare", scene={"furniture_per_room": (0, 0)})
+    for s in range(4):
+        plan = generate_floorplan(r, np.random.default_rng(s))
+        kinds = [f.kind for f in plan.furniture]
+        assert kinds.count("sink_cabinet") == 1
+        assert sum(f.receptacle for f in plan.furniture) >= 2
+        assert len(plan.furniture) <= 3

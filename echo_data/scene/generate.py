@@ -747,17 +747,16 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
     for room in rooms:
         if not _room_connected(room, [f for f in furniture if f.room == room.index], doorways, t):
             return None
-    if not any(f.receptacle for f in furniture):
-        return None
+    # a relocation needs a receptacle to take from and another to put on: top up with
+    # tables in the largest rooms (even when the recipe asks for bare rooms)
+    for room in sorted(rooms, key=lambda r: (-r.rect.area, r.index)):
+        if sum(1 for f in furniture if f.receptacle) >= 2:
+            break
+        f = _place_furniture("table", room, len(furniture), furniture, keepout, swings, t, str(rng.choice(fmat)), rng)
+        if f is not None and _room_connected(room, [o for o in furniture if o.room == room.index] + [f], doorways, t):
+            furniture.append(f)
     if sum(1 for f in furniture if f.receptacle) < 2:
-        # a relocation needs a receptacle to take from and another to put on
-        extra_room = rooms[int(np.argmax([r.rect.area for r in rooms]))]
-        f = _place_furniture("table", extra_room, len(furniture), furniture, keepout, swings, t, str(rng.choice(fmat)), rng)
-        if f is None:
-            return None
-        furniture.append(f)
-        if not _room_connected(extra_room, [o for o in furniture if o.room == extra_room.index], doorways, t):
-            return None
+        return None
 
     faucet = _make_faucet(sink)
     walls = _segments(pieces, doorways, t, sc.wall_height, rooms)
