@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -158,3 +159,25 @@ def test_generated_doors_swing_their_full_range_without_jamming(seed: int) -> No
         for art, door in zip(doors, plan.doors):
             want = door.max_angle if expect == "max" else 0.0
             assert float(art.qpos[0]) == pytest.approx(want, abs=0.02), (door.index, expect)
+
+
+def test_door_open_success_needs_threshold_and_rest() -> None:
+    from types import SimpleNamespace
+
+    from echo_data.scene.floorplan import FloorPlan
+    from echo_data.skills.success import door_open_success
+
+    door = dataclasses.replace(make_door(angle=0.0), index=0)  # plan.doors[i].index == i
+    scene = physics_scene()
+    art = build_door(scene, door)
+    world = SimpleNamespace(plan=FloorPlan(0, (), (), (), (door,), (), (), ()), handles=SimpleNamespace(doors=[art]))
+    assert not door_open_success(world, 0)  # closed
+    art.set_qpos(np.array([door.open_threshold + 0.05], dtype=np.float32))
+    art.set_qvel(np.array([0.8], dtype=np.float32))
+    assert not door_open_success(world, 0)  # open enough but still swinging
+    for _ in range(200):
+        scene.step()
+    assert door_open_success(world, 0)
+    art.set_qpos(np.array([door.open_threshold - 0.02], dtype=np.float32))
+    art.set_qvel(np.zeros(1, dtype=np.float32))
+    assert not door_open_success(world, 0)  # at rest, just short of the threshold

@@ -156,3 +156,24 @@ def test_generated_faucet_sweeps_its_range_clear_of_cabinet_and_walls(seed: int)
         stream.update(float(art.qpos[0]))
         assert float(art.qpos[0]) == pytest.approx(want, abs=0.02)
     assert not stream.flowing
+
+
+def test_sink_closed_success_needs_lever_closed_and_water_off() -> None:
+    from types import SimpleNamespace
+
+    from echo_data.scene.floorplan import FloorPlan
+    from echo_data.skills.success import sink_closed_success
+
+    faucet = make_faucet(angle=1.2)
+    scene = physics_scene()
+    art = build_faucet(scene, faucet, CABINET)
+    stream = WaterStream(scene, faucet, bottom_z=CABINET.top_z)
+    world = SimpleNamespace(
+        plan=FloorPlan(0, (), (), (), (), (CABINET,), (faucet,), ()),
+        handles=SimpleNamespace(faucets=[art], water=[stream]),
+    )
+    assert not sink_closed_success(world, 0) and stream.flowing
+    art.set_qpos(np.array([faucet.closed_tolerance + 0.03], dtype=np.float32))
+    assert not sink_closed_success(world, 0) and stream.flowing  # a trickle still runs
+    art.set_qpos(np.array([faucet.closed_tolerance * 0.5], dtype=np.float32))
+    assert sink_closed_success(world, 0) and not stream.flowing

@@ -24,6 +24,7 @@ from echo_data.records import SkillOutcome
 from echo_data.scene.articulated import LEVER_SECTION
 from echo_data.scene.floorplan import Faucet, Furniture
 from echo_data.skills import arm
+from echo_data.skills.success import sink_closed_success
 from echo_data.skills.open_door import (
     approach_base,
     arm_action,
@@ -50,15 +51,6 @@ SINK_TORSO = 0.38  # m, preferred torso height (the lever is ≈1 m up, beyond a
 # IK reference: the arm in its vertical plane, elbow up, lift + elbow + wrist flex = PITCH
 # (the planar solution for a lever ≈0.75 m ahead at ≈1 m height with the torso at 0.38 m)
 PUSH_REF = np.array([0.0, -0.86, 0.0, 1.29, 0.0, PITCH - 0.43, 0.0])
-
-
-def sink_closed_success(world: object, i: int) -> bool:
-    """CloseSink succeeded: faucet i's lever is within its closed tolerance and its water is off."""
-    faucet = world.plan.faucets[i]  # type: ignore[attr-defined]
-    art = world.handles.faucets[i]  # type: ignore[attr-defined]
-    stream = world.handles.water[i]  # type: ignore[attr-defined]
-    stream.update(float(art.get_qpos()[0]))
-    return float(art.get_qpos()[0]) <= faucet.closed_tolerance and not stream.flowing
 
 
 def _front(cabinet: Furniture) -> tuple[np.ndarray, np.ndarray, float]:

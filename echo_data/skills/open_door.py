@@ -31,6 +31,7 @@ from echo_data.robot.robot import HEAD_PAN, HEAD_TILT
 from echo_data.scene.articulated import door_handle_world
 from echo_data.scene.floorplan import Door
 from echo_data.skills import arm
+from echo_data.skills.success import DOOR_REST_QVEL, door_open_success
 
 # Grasp stances, preferred first: (distance from the bar along the leaf normal, shift along the
 # leaf towards its free edge). Standing 0.3 m towards the hinge keeps the swing radius small
@@ -43,7 +44,6 @@ SWING_RATE = 0.35  # rad/s hinge rate while the base swings
 SWING_RAMP = 1.0  # s, velocity ramp at the start of the swing (FINDINGS)
 K_POSE = 2.0  # 1/s, base pose feedback during the swing
 OPEN_MARGIN = 0.12  # rad beyond the open threshold before letting go
-REST_QVEL = 0.05  # rad/s: a door slower than this is at rest
 LOST_GRIP = 0.35  # rad between commanded and measured hinge angle: the handle slipped
 BACK_OFF = 0.15  # m the base backs away after letting go
 
@@ -208,13 +208,6 @@ def detach(drive: sapien.physx.PhysxDriveComponent) -> None:
         entity.remove_component(drive)
 
 
-def door_open_success(world: object, i: int) -> bool:
-    """OpenDoor succeeded: door i's hinge angle is at least its open threshold and it is at rest."""
-    door = world.plan.doors[i]  # type: ignore[attr-defined]
-    art = world.handles.doors[i]  # type: ignore[attr-defined]
-    return float(art.get_qpos()[0]) >= door.open_threshold and abs(float(art.get_qvel()[0])) < REST_QVEL
-
-
 def _swing_frame(door: Door) -> tuple[np.ndarray, np.ndarray]:
     """Unit vectors of the closed leaf (hinge -> free edge) and of its swing-side normal."""
     u = np.array([math.cos(door.closed_yaw), math.sin(door.closed_yaw)])
@@ -370,7 +363,7 @@ def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray
         if q_cmd - q > LOST_GRIP:
             detach(drive)
             return fail("lost_handle")
-        if q_cmd >= q_goal and q >= door.open_threshold and abs(float(art.get_qvel()[0])) < REST_QVEL:
+        if q_cmd >= q_goal and q >= door.open_threshold and abs(float(art.get_qvel()[0])) < DOOR_REST_QVEL:
             break
 
     # 5. let go, back off, tuck

@@ -91,3 +91,23 @@ def navigate_success(world: Any, target: str) -> bool:
     tx, ty = target_point(plan, target, angles or None)
     heading_error = abs(math.remainder(math.atan2(ty - y, tx - x) - yaw, 2.0 * math.pi))
     return math.hypot(px - x, py - y) <= NAV_SUCCESS_DIST and heading_error <= NAV_SUCCESS_YAW
+
+
+# ------------------------------------------------------------------ OpenDoor / CloseSink
+DOOR_REST_QVEL = 0.05  # rad/s: a door whose hinge turns slower than this is at rest
+
+
+def door_open_success(world: Any, i: int) -> bool:
+    """Door i's hinge angle is at least its `open_threshold` and the leaf is at rest (SPEC §4)."""
+    door = world.plan.doors[i]
+    art = world.handles.doors[i]
+    return float(art.get_qpos()[0]) >= door.open_threshold and abs(float(art.get_qvel()[0])) < DOOR_REST_QVEL
+
+
+def sink_closed_success(world: Any, i: int) -> bool:
+    """Faucet i's lever is within its `closed_tolerance` of 0 and its water stream is off (SPEC §4)."""
+    faucet = world.plan.faucets[i]
+    angle = float(world.handles.faucets[i].get_qpos()[0])
+    stream = world.handles.water[i]
+    stream.update(angle)
+    return angle <= faucet.closed_tolerance and not stream.flowing
