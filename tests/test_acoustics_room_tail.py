@@ -135,3 +135,21 @@ def test_far_room_is_reached_through_both_doorways(three_rooms: AcousticScene) -
 def test_unknown_material_is_a_clear_error() -> None:
     with pytest.raises(ValueError, match="no_such_material"):
         AcousticScene(shoebox_plan(4.0, 4.0, "no_such_material", "carpet_cotton", "ceiling_plasterboard"), AcousticsConfig())
+
+
+def test_coupled_room_energy_builds_up_and_integrates_to_the_steady_level(three_rooms: AcousticScene) -> None:
+    """Diffuse energy after an impulse in room 0: its time integral is the steady-state
+    energy balance; rooms further away build up later and decay no faster (coupled rooms)."""
+    ac = three_rooms.acoustics
+    env = ac.energy_envelopes(0, FS, 3 * FS)
+    np.testing.assert_allclose(env.sum(axis=2), ac.levels(0), rtol=5e-3)
+    peaks = env.argmax(axis=2)  # (rooms, bands)
+    assert np.all(peaks[0] == 0) and np.all(peaks[1] > 0) and np.all(peaks[2] > peaks[1])
+    i, j = int(0.3 * FS), int(0.6 * FS)
+    slope = 10 * np.log10(env[:, :, j] / env[:, :, i])  # dB over 0.3 s
+    assert np.all(slope[1] >= slope[0] - 0.5) and np.all(slope[2] >= slope[1] - 0.5)
+    # a room alone decays with Eyring's time
+    single = AcousticScene(shoebox_plan(4.0, 4.0, "plasterboard", "linoleum_on_concrete", "ceiling_plasterboard"), AcousticsConfig())
+    e1 = single.acoustics.energy_envelopes(0, FS, FS)[0]
+    t60 = -60.0 / (10 * np.log10(e1[:, 8000 - 1] / e1[:, 0]) / ((8000 - 1) / FS))
+    np.testing.assert_allclose(t60, single.acoustics.t60[0], rtol=1e-3)

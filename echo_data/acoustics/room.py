@@ -43,7 +43,7 @@ import numpy as np
 from echo_data.acoustics.geometry import Opening, RoomBox, diffraction_loss_db, image_cells, occluders, room_boxes
 from echo_data.acoustics.ism import BoxLattice, segment_losses
 from echo_data.acoustics.materials import BANDS, absorption, air_absorption, reflection_amplitude
-from echo_data.acoustics.tail import NoiseBank, RoomAcoustics, band_masks, tail_envelope
+from echo_data.acoustics.tail import NoiseBank, RoomAcoustics, band_masks, scattered_share
 from echo_data.acoustics.types import SPEED_OF_SOUND, AcousticResponse, Arrival
 from echo_data.recipe import AcousticsConfig
 from echo_data.scene.floorplan import FloorPlan
@@ -88,7 +88,7 @@ class AcousticScene:
         self.air = air_absorption() if cfg.air_absorption else np.zeros(len(BANDS))
         self.acoustics = RoomAcoustics(plan, self.boxes, cfg.closed_door_loss_db)
         self.noise = NoiseBank(self.fs, self.length, plan.seed)
-        self._tail_base: dict[int, np.ndarray] = {}
+        self._tail_base: dict[int, np.ndarray] = {}  # source room -> (rooms, bands, length) amplitudes
         # the tail ends within the RIR length: a 20 ms raised-cosine fade instead of a cut
         n_fade = max(1, min(self.length // 4, int(0.02 * self.fs)))
         self._fade_out = np.cos(0.5 * np.pi * (np.arange(n_fade) + 1) / n_fade) ** 2
@@ -176,37 +176,32 @@ class AcousticScene:
 
         # 3) assemble
         per_row = paths.arrivals(n, self.air, max_len)
-        levels = self.acoustics.levels(a_room)
+        base = self._tail_amplitudes(a_room)
         out: list[AcousticResponse] = []
         qs = [int(round(v * 1000.0)) for v in S0]
         for i in range(n):
             x = rooms[i]
-            if np.isfinite(onset[i]) and levels[x].max() > 0.0:
+            if np.isfinite(onset[i]) and base[x].any():
                 key = (self.plan.seed, *qs, *(int(round(v * 1000.0)) for v in rcv0[i]))
-                tail = self._tail(x, levels[x], float(onset[i]), self.noise.segment(key))
+                tail = self._tail(base[x], float(onset[i]), self.noise.segment(key))
             else:
                 tail = np.zeros(self.length, dtype=np.float32)
             out.append(AcousticResponse(self.fs, per_row[i], tail, self.length))
         return out
 
-    def _tail(self, room: int, level: np.ndarray, t0: float, noise: np.ndarray) -> np.ndarray:
-        """Diffuse tail of a receiver in `room` with onset t0 (s); see `tail_envelope`."""
-        if room not in self._tail_base:
-            self._tail_base[room] = tail_envelope(
-                np.ones(len(BANDS)),
-                self.acoustics.t60[room],
-                0.0,
-                float(self.acoustics.mean_free_path[room]),
-                self.cfg.scattering,
-                self.cfg.ism_order,
-                self.fs,
-                self.length,
-                gate=False,
-            )
-        t60 = self.acoustics.t60[room]
-        # shift the decay to start at t0: exp(-6.91 (t - t0) / T) = exp(6.91 t0 / T) exp(-6.91 t / T)
-        scale = np.sqrt(level) * np.exp(6.91 * t0 / t60)
-        x = np.einsum("b,bt,bt->t", scale, self._tail_base[room], noise)
+    def _tail_amplitudes(self, a_room: int) -> np.ndarray:
+        """Per room and band, the tail's amplitude envelope for a source in `a_room`."""
+        if a_room not in self._tail_base:
+            env = self.acoustics.energy_envelopes(a_room, self.fs, self.length)
+            t = np.arange(self.length) / self.fs
+            for x in range(len(self.boxes)):
+                env[x] *= scattered_share(t, float(self.acoustics.mean_free_path[x]), self.cfg.scattering, self.cfg.ism_order)[None]
+            self._tail_base[a_room] = np.sqrt(env)
+        return self._tail_base[a_room]
+
+    def _tail(self, amp: np.ndarray, t0: float, noise: np.ndarray) -> np.ndarray:
+        """Band noise under the amplitude envelope `amp` (bands, length), gated on at t0 (s)."""
+        x = np.einsum("bt,bt->t", amp, noise)
         i0 = int(math.floor(t0 * self.fs))
         x[: max(i0, 0)] = 0.0
         ramp = np.clip((np.arange(i0, i0 + 17) / self.fs - t0) * self.fs / 16.0, 0.0, 1.0)

@@ -1,23 +1,27 @@
-"""Statistical late reverberation: room decay times, coupled-room energy, tail synthesis.
+"""Statistical late reverberation: room absorption, coupled-room energy decay, tail synthesis.
 
 Model (stated so it can be checked):
-- Each room decays with Eyring's time per band, T = 24 ln10 V / (c (-S ln(1 - ā) + 4 m V)),
-  from its wall/floor/ceiling materials, furniture surfaces, door panels and open doorways
-  (an opening absorbs everything that hits it) and air absorption m.
-- Steady-state reverberant energy per room comes from an energy balance over the rooms:
-  A_i P_i - Σ_j S_ij τ_ij P_j = 16 π (1 - ā_s) δ_is, with A_i the equivalent absorption area
-  and S_ij τ_ij the doorway area between rooms times its transmission (1 open; closed leaf:
-  10^(-closed_door_loss_db/10); partly open: by the open share of the aperture). P is in
-  units where the direct sound at r metres has energy 1/r², so 16π/R is the classical
-  reverberant level of a room with room constant R. Hence source room > adjacent > far.
-- The tail of a response is band-split noise with envelope sqrt(13.82 P / (fs T)) e^{-6.91 (t - t0)/T}
-  (its energy is P), starting at the first arrival time t0 in the receiver's room, and weighted
-  by the share of energy already scattered, 1 - (1 - s)^k with k = c t / mean free path the
-  number of reflections so far; beyond the image-source order all energy counts as diffuse.
-  This avoids counting the specular early reflections (kept by the image sources with the
-  factor (1 - s) per reflection) twice.
+- Each room i has Eyring's equivalent absorption area per band,
+  A_i = -S ln(1 - ā) + 4 m V, from its wall/floor/ceiling materials, furniture surfaces,
+  door panels and open doorways (an opening absorbs everything that hits it) and air
+  absorption m; alone it decays with T = 24 ln10 V / (c A) (Eyring).
+- Rooms exchange diffuse energy through their doorways (area S_ij times transmission τ_ij:
+  1 open; closed leaf 10^(-closed_door_loss_db/10); partly open by the open share of the
+  aperture). The diffuse energy per room follows the coupled-room balance
+  (4 V_i / c) dE_i/dt = -A_i E_i + Σ_j S_ij τ_ij E_j, excited at t = 0 in the source room
+  with the classical amount 16 π (1 - ā_s) (units where the direct sound at r metres has
+  energy 1/r²). Its time integral is the steady reverberant level P = M⁻¹ b (16π/R in a
+  single room), so source room > adjacent > far room; an adjacent room builds up and then
+  decays with the coupled modes (double slope), a single room with Eyring's T.
+- The tail of a response is band-split noise whose per-sample energy follows E_room(t) from
+  emission (so the late level falls with distance, as in Barron's revised theory), gated
+  on at the first arrival in the receiver's room and weighted by the share of energy already
+  scattered, 1 - (1 - s)^k with k = c t / mean free path the number of reflections so far;
+  beyond the image-source order all energy counts as diffuse. This avoids counting the
+  specular early reflections (kept by the image sources with the factor (1 - s) per
+  reflection) twice.
 - Noise is deterministic: a per-scene bank of independent band noises, read at an offset
-  drawn from a seed built from the quantised source and receiver positions.
+  drawn from a hash of the quantised source and receiver positions.
 """
 
 from __future__ import annotations
@@ -104,18 +108,41 @@ class RoomAcoustics:
         self.mean_free_path = 4.0 * self.volume / self.surface
         self._levels: dict[int, np.ndarray] = {}
 
+    def _rhs(self, source_room: int) -> np.ndarray:
+        """Diffuse energy injected by a unit source (rooms, bands)."""
+        b = np.zeros(self.eq_area.shape)
+        b[source_room] = 16.0 * math.pi * (1.0 - self.mean_alpha[source_room])
+        return b
+
+    def _matrix(self, b: int) -> np.ndarray:
+        return np.diag(self.eq_area[:, b]) - self.transfer[:, :, b]
+
     def levels(self, source_room: int) -> np.ndarray:
         """Steady reverberant energy per room and band (rooms, bands) for a unit source."""
         if source_room not in self._levels:
-            nr, nb = self.eq_area.shape
-            out = np.zeros((nr, nb))
-            for b in range(nb):
-                M = np.diag(self.eq_area[:, b]) - self.transfer[:, :, b]
-                rhs = np.zeros(nr)
-                rhs[source_room] = 16.0 * math.pi * (1.0 - self.mean_alpha[source_room, b])
-                out[:, b] = np.linalg.solve(M, rhs)
+            rhs = self._rhs(source_room)
+            out = np.stack([np.linalg.solve(self._matrix(b), rhs[:, b]) for b in range(rhs.shape[1])], axis=1)
             self._levels[source_room] = np.maximum(out, 0.0)
         return self._levels[source_room]
+
+    def energy_envelopes(self, source_room: int, fs: int, length: int) -> np.ndarray:
+        """Diffuse energy per sample (rooms, bands, length) after an impulse at t = 0.
+
+        Solves (4V/c) dE/dt = -M E by the eigenvectors of the symmetric D^½ M D^½
+        (D = c / 4V; M is symmetric because S_ij τ_ij = S_ji τ_ji), so every mode decays.
+        Scaled so that the sum over samples equals `levels`.
+        """
+        t = np.arange(length) / fs
+        d = SPEED_OF_SOUND / (4.0 * self.volume)
+        sq = np.sqrt(d)
+        rhs = self._rhs(source_room)
+        out = np.zeros((len(self.volume), rhs.shape[1], length))
+        for b in range(rhs.shape[1]):
+            lam, q = np.linalg.eigh(sq[:, None] * self._matrix(b) * sq[None, :])
+            left = sq[:, None] * q  # (rooms, modes)
+            coef = q.T @ (sq * rhs[:, b]) / fs  # (modes,)
+            out[:, b] = left @ (coef[:, None] * np.exp(-np.maximum(lam, 1e-9)[:, None] * t[None]))
+        return np.maximum(out, 0.0)
 
 
 class NoiseBank:
@@ -137,25 +164,7 @@ class NoiseBank:
         return self.bands[:, o : o + self.length]
 
 
-def tail_envelope(
-    level: np.ndarray,
-    t60: np.ndarray,
-    t0: float,
-    mfp: float,
-    scattering: float,
-    order: int,
-    fs: int,
-    length: int,
-    gate: bool = True,
-) -> np.ndarray:
-    """Amplitude envelope per band (bands, length) of the diffuse tail (onset gate optional)."""
-    t = np.arange(length) / fs
-    amp = np.sqrt(13.82 * level / (fs * t60))  # (bands,)
-    dec = np.exp(-6.91 * np.maximum(t[None] - t0, 0.0) / t60[:, None])
+def scattered_share(t: np.ndarray, mfp: float, scattering: float, order: int) -> np.ndarray:
+    """Share of the diffuse energy not yet represented by specular image sources at times t."""
     k = SPEED_OF_SOUND * t / mfp
-    early = (1.0 - scattering) ** k * np.clip(order + 1.0 - k, 0.0, 1.0)
-    w = 1.0 - early
-    if gate:
-        ramp = np.clip((t - t0) * fs / 16.0, 0.0, 1.0)  # 16-sample onset
-        w = w * np.sin(0.5 * np.pi * ramp) ** 2
-    return amp[:, None] * dec * np.sqrt(w)[None]
+    return 1.0 - (1.0 - scattering) ** k * np.clip(order + 1.0 - k, 0.0, 1.0)
