@@ -144,6 +144,8 @@ class AcousticScene:
         S0 = np.asarray(source, dtype=np.float64)
         rcv0 = np.asarray(receivers, dtype=np.float64).reshape(-1, 3)
         n = len(rcv0)
+        if n == 0:
+            return []
         a_room = self.room_of(S0)
         rooms = self._rooms_of(rcv0)
         # a point inside a wall (e.g. a grid cell on a wall line) is taken at the nearest
