@@ -336,8 +336,9 @@ class AcousticScene:
         ip.door_db = ip.door_db + hub.door_db
         paths.add(rows, ip, log0, 0.0, total_len, direct_ok)
         first = np.where(ip.valid, total_len + ip.length, np.inf).min(axis=1)
-        mid = self._clamp_in_opening(op, self._opening_centre(op, float(Q[2])))
-        centre = hub.length + np.linalg.norm(mid - Q) + np.linalg.norm(rcv - mid, axis=1)
+        # (a receiver no path reaches still gets its tail from the doorway centre on)
+        mid_a, mid_b = self._doorway_points(op, e.frm, e.room, self._clamp_in_opening(op, self._opening_centre(op, float(Q[2]))))
+        centre = hub.length + np.linalg.norm(mid_a - Q) + np.linalg.norm(mid_b - mid_a) + np.linalg.norm(rcv - mid_b, axis=1)
         return np.minimum(first, centre) / SPEED_OF_SOUND
 
 
