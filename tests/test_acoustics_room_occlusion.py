@@ -148,3 +148,17 @@ def test_receiver_inside_a_wall_is_heard_at_the_nearest_room_face(two_rooms: Aco
     at_face = two_rooms.response(src, (two_rooms.boxes[0].hi[0] - 0.01, 1.0, 1.2))  # x = 3.94
     assert in_wall.arrivals and in_wall.arrivals == at_face.arrivals
     assert abs(in_wall.arrivals[0].delay_s * SPEED_OF_SOUND - 1.94) < 1e-9
+
+
+def test_open_leaf_is_a_panel_at_its_angle(door_plan) -> None:
+    """Swung to 90° the leaf stands in room 1 along y ≈ 2.78 from x ≈ 4.08 to 5.12: a path
+    across it is a transmission path; with the leaf closed (in the doorway) it is free."""
+    src, rcv = (4.6, 3.5, 1.2), (4.6, 2.0, 1.2)
+    loss = 10 ** (-CFG.closed_door_loss_db / 20)
+    open_ = AcousticScene(door_plan, CFG, door_angles={0: math.pi / 2}).response(src, rcv).arrivals[0]
+    shut = AcousticScene(door_plan, CFG, door_angles={0: 0.0}).response(src, rcv).arrivals[0]
+    assert shut.order == 0 and abs(shut.gain - 1 / 1.5) < 1e-12
+    assert open_.order == -1 and abs(open_.gain - loss / 1.5) < 1e-12
+    # above the leaf's top edge the path is free again
+    over = AcousticScene(door_plan, CFG, door_angles={0: math.pi / 2}).response((4.6, 3.5, 2.3), (4.6, 2.0, 2.3))
+    assert over.arrivals[0].order == 0
