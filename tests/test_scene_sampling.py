@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import pickle
 
 import pytest
 
@@ -125,6 +126,8 @@ def test_rejections_are_counted_and_budget_is_bounded() -> None:
     with pytest.raises(SamplingError) as err:
         sample_episode(tight, "train", i, LIB)
     assert err.value.counts == counts
+    again = pickle.loads(pickle.dumps(err.value))  # crosses process boundaries intact
+    assert again.counts == counts and str(again) == str(err.value)
     # a retry after an expert failure samples from fresh seeds
     retry, _ = sample_episode(r, "train", i, LIB, attempt=1)
     assert retry.attempt >= r.max_attempts_per_episode and retry.seed != spec.seed

@@ -36,9 +36,13 @@ SETTLE_MAX_TILT = math.radians(5.0)
 class SamplingError(RuntimeError):
     """No acceptable episode within the attempt budget; `counts` holds rejections by reason."""
 
-    def __init__(self, message: str, counts: dict[str, int]) -> None:
+    def __init__(self, message: str, counts: dict[str, int] | None = None) -> None:
         super().__init__(message)
-        self.counts = dict(counts)
+        self.counts = dict(counts or {})
+
+    def __reduce__(self) -> tuple:
+        # picklable with its counts (it crosses process-pool boundaries)
+        return (SamplingError, (str(self), self.counts))
 
 
 class _Reject(Exception):
