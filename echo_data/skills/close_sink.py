@@ -2,8 +2,9 @@
 
 Where it wants to start: in front of the sink cabinet, facing it — `interaction_pose(plan,
 "faucet:<i>")` of `echo_data.scene.nav` is fine. The expert drives the last few decimetres
-itself to its stance: on the cabinet's front normal through the lever pivot, `FRONT_GAP`
-from the cabinet face (base radius included), facing the cabinet (`sink_stances`).
+itself to its stance: on the cabinet's front normal through the lever pivot, at least
+`PIVOT_DISTANCE` from the pivot and `FRONT_GAP` from the cabinet face, facing the cabinet,
+shifted sideways if needed (`sink_stances`).
 
 The lever turns about the vertical axis through `Faucet.pivot` and opens counter-clockwise
 (`echo_data.scene.articulated`). With the fingers closed and the gripper pitched down, the
@@ -36,7 +37,9 @@ from echo_data.skills.open_door import (
 )
 
 BASE_RADIUS = 0.28  # m, the robot's base disc
-FRONT_GAP = 0.06  # m between the base disc and the cabinet face
+FRONT_GAP = 0.06  # m between the base disc and the cabinet face, at least
+PIVOT_DISTANCE = 0.8  # m from the base centre to the lever pivot, at least (closer needs the shoulder beyond its limit)
+BASE_CLEARANCE = 0.02  # m between the base disc and any wall, furniture or door leaf at a stance
 LATERAL_SHIFTS = (0.0, -0.1, 0.1, -0.2, 0.2)  # m along the cabinet face, tried in order
 PITCH = math.radians(75)  # gripper approach below the horizontal (steep: the wrist stays far from the shoulder)
 FINGER_HALF = 0.02  # m, horizontal half-extent of the closed finger block
@@ -69,10 +72,35 @@ def sink_stances(faucet: Faucet, cabinet: Furniture) -> list[tuple[float, float,
     depth_in = half_depth - float((pivot - centre) @ n)  # pivot behind the front face
     yaw = math.atan2(-n[1], -n[0])
     out = []
+    distance = max(depth_in + BASE_RADIUS + FRONT_GAP, PIVOT_DISTANCE)
     for shift in LATERAL_SHIFTS:
-        p = pivot + (depth_in + BASE_RADIUS + FRONT_GAP) * n + shift * lat
+        p = pivot + distance * n + shift * lat
         out.append((float(p[0]), float(p[1]), yaw))
     return out
+
+
+def _base_fits(world: object, x: float, y: float) -> bool:
+    """True when the base disc at (x, y) keeps BASE_CLEARANCE from walls, furniture and door leaves.
+
+    Exact geometry rather than the navigation grid, whose cells and comfort margin reject
+    stances the base fits in (a stance is reached by a straight, slow approach).
+    """
+    plan = world.plan  # type: ignore[attr-defined]
+    need = BASE_RADIUS + BASE_CLEARANCE
+    rects = [w.footprint for w in plan.walls] + [f.footprint for f in plan.furniture]
+    for r in rects:
+        dx = max(r.xmin - x, 0.0, x - r.xmax)
+        dy = max(r.ymin - y, 0.0, y - r.ymax)
+        if math.hypot(dx, dy) < need:
+            return False
+    angles = world.handles.door_angles()  # type: ignore[attr-defined]
+    for d in plan.doors:
+        a = np.array(d.hinge)
+        b = np.array(d.free_edge(angles.get(d.index, d.angle)))
+        s = float(np.clip(np.dot([x, y] - a, b - a) / float(np.dot(b - a, b - a)), 0.0, 1.0))
+        if float(np.linalg.norm(a + s * (b - a) - [x, y])) < need + d.thickness / 2.0:
+            return False
+    return True
 
 
 def _push_rotation(yaw: float) -> np.ndarray:
@@ -142,10 +170,9 @@ def close_sink(world: object, call: object, spec: object) -> Generator[np.ndarra
         return SkillOutcome(skill, target, True, "", 0)
 
     # 1. a stance from which the whole sweep is reachable
-    grid = getattr(world, "nav", None)
     choice = None
     for stance in sink_stances(faucet, cabinet):
-        if grid is not None and not grid.is_free(stance[0], stance[1]):
+        if not _base_fits(world, stance[0], stance[1]):
             continue
         solved = _solve_sweep(world, faucet, angle, stance)
         if solved is not None:
