@@ -153,3 +153,16 @@ def test_coupled_room_energy_builds_up_and_integrates_to_the_steady_level(three_
     e1 = single.acoustics.energy_envelopes(0, FS, FS)[0]
     t60 = -60.0 / (10 * np.log10(e1[:, 8000 - 1] / e1[:, 0]) / ((8000 - 1) / FS))
     np.testing.assert_allclose(t60, single.acoustics.t60[0], rtol=1e-3)
+
+
+def test_diffuse_level_is_continuous_through_a_doorway() -> None:
+    """Walking through the doorway the late level changes smoothly (the opening shows each
+    side the other room's diffuse field), while the rooms' own levels differ."""
+    scene = AcousticScene(row_plan((4.0, 4.0), doorway_y=(3.3,)), AcousticsConfig())
+    xs = np.array([1.5, 3.94, 4.06, 6.5])
+    resp = scene.responses((1.0, 1.0, 1.2), np.array([(x, 3.3, 1.2) for x in xs]))
+    # late energy (after 60 ms: past every onset here) in dB
+    late = np.asarray([10 * np.log10(np.sum(r.tail[960:].astype(np.float64) ** 2)) for r in resp])
+    assert late[0] - late[3] > 2.0  # source room louder than the next room
+    assert abs(late[1] - late[2]) < 1.0  # but no step at the doorway plane
+    assert late[0] > late[1] and late[2] > late[3]

@@ -243,6 +243,20 @@ def fold(v: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return lo + np.where(u <= L, u, 2.0 * L - u)
 
 
+def opening_solid_angle(p: np.ndarray, op: Opening, plane: float) -> np.ndarray:
+    """Solid angle (sr) under which points p (n, 3) see the rectangle of an opening that
+    lies in the plane `plane` (normal along x for faces 0/1, along y for 2/3)."""
+    a, u_axis = (0, 1) if op.face in (0, 1) else (1, 0)
+    d = np.maximum(np.abs(p[:, a] - plane), 1e-4)
+    us = (op.u0 - p[:, u_axis], op.u1 - p[:, u_axis])
+    zs = (0.0 - p[:, 2], op.height - p[:, 2])
+
+    def f(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return np.arctan2(x * y, d * np.sqrt(x * x + y * y + d * d))
+
+    return f(us[1], zs[1]) - f(us[0], zs[1]) - f(us[1], zs[0]) + f(us[0], zs[0])
+
+
 def diffraction_loss_db(delta: np.ndarray, freqs: np.ndarray, cap_db: float = 30.0) -> np.ndarray:
     """Edge-diffraction insertion loss (dB) for path detour `delta` (m) per frequency.
 

@@ -40,7 +40,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from echo_data.acoustics.geometry import Opening, RoomBox, diffraction_loss_db, image_cells, occluders, room_boxes
+from echo_data.acoustics.geometry import (
+    Opening,
+    RoomBox,
+    diffraction_loss_db,
+    image_cells,
+    occluders,
+    opening_solid_angle,
+    room_boxes,
+)
 from echo_data.acoustics.ism import BoxLattice, segment_losses
 from echo_data.acoustics.materials import BANDS, absorption, air_absorption, reflection_amplitude
 from echo_data.acoustics.tail import NoiseBank, RoomAcoustics, band_masks, scattered_share
@@ -179,16 +187,51 @@ class AcousticScene:
         # 3) assemble
         per_row = paths.arrivals(n, self.air, max_len)
         base = self._tail_amplitudes(a_room)
+        mix = self._aperture_mix(rcv, rooms)
         out: list[AcousticResponse] = []
         qs = [int(round(v * 1000.0)) for v in S0]
         for i in range(n):
             x = rooms[i]
-            if np.isfinite(onset[i]) and base[x].any():
+            if mix[i]:
+                amp = np.sqrt(sum(h * base[y] ** 2 for y, h in mix[i].items()))
+            else:
+                amp = base[x]
+            if np.isfinite(onset[i]) and amp.any():
                 key = (self.plan.seed, *qs, *(int(round(v * 1000.0)) for v in rcv0[i]))
-                tail = self._tail(base[x], float(onset[i]), self.noise.segment(key))
+                tail = self._tail(amp, float(onset[i]), self.noise.segment(key))
             else:
                 tail = np.zeros(self.length, dtype=np.float32)
             out.append(AcousticResponse(self.fs, per_row[i], tail, self.length))
+        return out
+
+    def _aperture_mix(self, rcv: np.ndarray, rooms: np.ndarray) -> list[dict[int, float]]:
+        """Per receiver, weights of the rooms whose diffuse field it hears (see
+        `echo_data.acoustics.tail`); empty where only its own room counts (h < 1e-3)."""
+        out: list[dict[int, float]] = [{} for _ in range(len(rcv))]
+        for x, box in enumerate(self.boxes):
+            sel = np.nonzero(rooms == x)[0]
+            if len(sel) == 0:
+                continue
+            for op in box.openings:
+                if op.other_room < 0:
+                    continue
+                a = 0 if op.face in (0, 1) else 1
+                other = self.boxes[op.other_room]
+                face_x = box.lo[a] if op.face in (0, 2) else box.hi[a]
+                face_y = other.hi[a] if op.face in (0, 2) else other.lo[a]
+                plane = 0.5 * (face_x + face_y)
+                h = opening_solid_angle(rcv[sel], op, plane) / (4.0 * math.pi)
+                h *= self.acoustics.transfer_share[(x, op.doorway)]
+                for i, hv in zip(sel.tolist(), h.tolist()):
+                    if hv > 1e-3:
+                        d = out[i]
+                        d[op.other_room] = d.get(op.other_room, 0.0) + hv
+        for i, d in enumerate(out):
+            if d:
+                total = sum(d.values())
+                if total > 0.5:  # openings on several sides: never more than half-space
+                    d.update({k: v * 0.5 / total for k, v in d.items()})
+                d[int(rooms[i])] = 1.0 - sum(d.values())
         return out
 
     def _tail_amplitudes(self, a_room: int) -> np.ndarray:

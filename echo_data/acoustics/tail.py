@@ -13,7 +13,11 @@ Model (stated so it can be checked):
   energy 1/r²). Its time integral is the steady reverberant level P = M⁻¹ b (16π/R in a
   single room), so source room > adjacent > far room; an adjacent room builds up and then
   decays with the coupled modes (double slope), a single room with Eyring's T.
-- The tail of a response is band-split noise whose per-sample energy follows E_room(t) from
+- Near a doorway a receiver sees the neighbouring room's diffuse field through the opening:
+  its diffuse energy is (1 - Σ h) E_room + Σ h E_neighbour, h = Ω / 4π × transmission, Ω the
+  solid angle of the opening. On the doorway plane h = 1/2 from both sides, so the level is
+  continuous from room to room; a metre away it is a small correction.
+- The tail of a response is band-split noise whose per-sample energy follows that E(t) from
   emission (so the late level falls with distance, as in Barron's revised theory), gated
   on at the first arrival in the receiver's room and weighted by the share of energy already
   scattered, 1 - (1 - s)^k with k = c t / mean free path the number of reflections so far;
@@ -68,10 +72,12 @@ class RoomAcoustics:
         nb, nr = len(BANDS), len(boxes)
         m_air = air_absorption()
         tau_closed = 10.0 ** (-door_loss_db / 10.0)
+        self.transfer_share: dict[tuple[int, int], float] = {}  # (box, doorway) -> transmission
         self.volume = np.zeros(nr)
         self.surface = np.zeros(nr)
         self.alpha_sum = np.zeros((nr, nb))  # Σ S α
         self.transfer = np.zeros((nr, nr, nb))  # S_ij τ_ij
+        self.tau_closed = tau_closed
         for i, box in enumerate(boxes):
             sx, sy, sz = box.size
             self.volume[i] = sx * sy * sz
@@ -91,6 +97,7 @@ class RoomAcoustics:
                 a = a + area * (share + (1.0 - share) * panel)
                 if op.other_room >= 0:
                     self.transfer[i, op.other_room] += area * (share + (1.0 - share) * tau_closed)
+                self.transfer_share[(i, op.doorway)] = share + (1.0 - share) * tau_closed
             a = a + walls * absorption(room.wall_material)
             for f in plan.furniture:
                 if f.room != room.index:
