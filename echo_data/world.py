@@ -40,7 +40,8 @@ class World:
 
     Attributes: `spec`, `recipe`, `plan`, `scene`, `robot` (Robot), `handles` (SceneHandles of
     `echo_data.scene.build`), `nav` (NavGrid at the initial door angles, built on first use),
-    `control_hz`, `substeps`, `steps` (control steps taken).
+    `control_hz`, `substeps`, `steps` (control steps taken), `receptacles` (object name ->
+    furniture index it rests on now; the plan's at the start, updated by Place).
     `builder` replaces `build_scene` (tests with hand-made scenes).
     """
 
@@ -67,6 +68,8 @@ class World:
         self.robot.set_base_pose(*spec.start)
         self._nav: Any = None
         self.steps = 0
+        # Where each object rests now (furniture index); Place updates it after a success.
+        self.receptacles: dict[str, int] = {o.name: o.receptacle for o in self.plan.objects}
 
     # ------------------------------------------------------------------ simulation
     def step(self, action: np.ndarray) -> None:

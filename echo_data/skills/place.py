@@ -98,6 +98,8 @@ def place(world: Any, call: Any, spec: Any) -> Generator[np.ndarray, None, Skill
     except SkillFailed as e:
         return SkillOutcome(call.skill, call.target, False, str(e), drive_budget.steps + budget.steps)
     ok = place_success(world, name, goal)
+    if ok and isinstance(getattr(world, "receptacles", None), dict):
+        world.receptacles[name] = goal
     reason = "" if ok else ("still held" if robot.holding == name else "not on goal")
     return SkillOutcome(call.skill, call.target, ok, reason, drive_budget.steps + budget.steps)
 

@@ -27,6 +27,12 @@ def object_bottom(world: Any, name: str) -> float:
     return float(p.p[2]) - object_size(o.category)[2] / 2.0
 
 
+def receptacle_of(world: Any, name: str) -> int:
+    """Furniture index the object rests on (before a pick): the world's record, else the plan's."""
+    known = getattr(world, "receptacles", None) or {}
+    return int(known.get(name, world.plan.object_by_name(name).receptacle))
+
+
 def tcp_in_base(world: Any) -> np.ndarray:
     """TCP position in the base frame (x forward, y left, z above the floor)."""
     x, y, yaw = world.robot.base_pose()
@@ -44,8 +50,7 @@ def pick_success(world: Any, name: str) -> bool:
     """Held between both fingers, bottom >= LIFT_MIN above its receptacle's top, arm at the carry pose."""
     if world.robot.holding != name:
         return False
-    o = world.plan.object_by_name(name)
-    top = world.plan.furniture[o.receptacle].top_z
+    top = world.plan.furniture[receptacle_of(world, name)].top_z
     return object_bottom(world, name) >= top + LIFT_MIN and arm_at_carry(world)
 
 
