@@ -144,15 +144,30 @@ def test_each_target_category_is_graspable(category: str) -> None:
     world.close()
 
 
+def test_pick_steps_closer_when_navigate_stopped_far() -> None:
+    spec = make_spec("phone", standoff=0.95)
+    world = World(spec, RECIPE, render=False)
+    name = spec.chain[0].target
+    out = run_expert(world, pick(world, spec.chain[0], spec))
+    assert out.success, out.reason
+    x, y, _ = world.robot.base_pose()
+    o = world.plan.objects[0].position
+    assert math.hypot(o[0] - x, o[1] - y) < 0.75  # it moved in to reach
+    assert world.robot.holding == name
+
+
 def test_pick_out_of_reach_fails_with_a_reason() -> None:
-    # robot 1.3 m from the object: no top-down grasp exists from there
-    spec = make_spec("phone", standoff=1.3)
+    # object at the back of the table: 0.95 m from the nearest free stance, no top-down grasp
+    spec = make_spec("phone", depth=0.62, standoff=0.99)
     world = World(spec, RECIPE, render=False)
     name = spec.chain[0].target
     out = run_expert(world, pick(world, spec.chain[0], spec))
     assert not out.success and out.reason == "no IK solution"
     assert not pick_success(world, name)
     assert object_bottom(world, name) == pytest.approx(TABLE_TOP, abs=0.002)
+    # the base never entered the table
+    x, y, _ = world.robot.base_pose()
+    assert y <= 3.25 - 0.3
 
 
 def test_place_without_an_object_fails() -> None:

@@ -88,24 +88,17 @@ def _pick(world: Any, name: str, budget: Budget) -> Generator[np.ndarray, None, 
     bottom = object_bottom(world, name)
     gz = grasp_height(bottom, sz)
 
+    best = _grasp_plan(world, name, ox, oy, oyaw, gz)
+    if best is None:
+        # out of reach from where Navigate stopped: step the base towards the object, retry
+        moved = yield from _approach(world, ox, oy)
+        if moved:
+            best = _grasp_plan(world, name, ox, oy, oyaw, gz)
+    if best is None:
+        raise SkillFailed("no IK solution")
     planner = arm.arm_planner(world, exclude={name})
     start = arm.commanded_group(robot)
     untuck = arm.untuck_waypoints(start)
-    ready = untuck[-1]
-    best: tuple[float, np.ndarray, np.ndarray, float] | None = None
-    for yaw in (oyaw, oyaw + math.pi):
-        above = arm.top_down_pose(ox, oy, gz + PRE_GRASP_HEIGHT, yaw)
-        pre = planner.ik(above, ready, tries=16, gripper=GRIPPER_OPEN)
-        if pre is None:
-            continue
-        descent = arm.cartesian_path(planner, pre, arm.line_poses(above, arm.top_down_pose(ox, oy, gz, yaw)))
-        if descent is None:
-            continue
-        cost = float(np.max(np.abs(pre[1:] - ready[1:])))
-        if best is None or cost < best[0]:
-            best = (cost, pre, np.asarray(descent), yaw)
-    if best is None:
-        raise SkillFailed("no IK solution")
     _, pre, descent, yaw = best
     path = arm.plan_through(planner, untuck + [pre], gripper=GRIPPER_OPEN)
     if path is None:
@@ -135,3 +128,63 @@ def _pick(world: Any, name: str, budget: Budget) -> Generator[np.ndarray, None, 
     yield from arm.follow_path(world, carry, speed_scale=0.6)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
+
+
+def _grasp_plan(world: Any, name: str, ox: float, oy: float, oyaw: float, gz: float) -> tuple[float, np.ndarray, np.ndarray, float] | None:
+    """(cost, pre-grasp q, descent path, jaw yaw) of the cheapest top-down grasp from here."""
+    planner = arm.arm_planner(world, exclude={name})
+    ready = arm.untuck_waypoints(arm.commanded_group(world.robot))[-1]
+    best: tuple[float, np.ndarray, np.ndarray, float] | None = None
+    for yaw in (oyaw, oyaw + math.pi):
+        above = arm.top_down_pose(ox, oy, gz + PRE_GRASP_HEIGHT, yaw)
+        pre = planner.ik(above, ready, tries=16, gripper=GRIPPER_OPEN)
+        if pre is None:
+            continue
+        descent = arm.cartesian_path(planner, pre, arm.line_poses(above, arm.top_down_pose(ox, oy, gz, yaw)))
+        if descent is None:
+            continue
+        cost = float(np.max(np.abs(pre[1:] - ready[1:])))
+        if best is None or cost < best[0]:
+            best = (cost, pre, np.asarray(descent), yaw)
+    return best
+
+
+APPROACH_DISTANCES = (0.6, 0.65, 0.7, 0.55)  # m, base centre to object for a retry stance
+APPROACH_SPEED = 0.25  # m/s
+APPROACH_TURN = 0.8  # rad/s
+
+
+def _approach(world: Any, ox: float, oy: float) -> Generator[np.ndarray, None, bool]:
+    """Drive the base (holonomic, straight) to a free stance facing the object; False if none."""
+    robot = world.robot
+    x, y, _ = robot.base_pose()
+    d = math.hypot(ox - x, oy - y)
+    if d < 1e-6:
+        return False
+    ux, uy = (ox - x) / d, (oy - y) / d
+    grid = world.nav
+    goal = None
+    for dist in APPROACH_DISTANCES:
+        gx, gy = ox - ux * dist, oy - uy * dist
+        steps = max(2, int(math.hypot(gx - x, gy - y) / 0.05))
+        if all(grid.is_free(x + (gx - x) * t, y + (gy - y) * t) for t in np.linspace(0.0, 1.0, steps)):
+            goal = (gx, gy, math.atan2(uy, ux))
+            break
+    if goal is None or math.hypot(goal[0] - x, goal[1] - y) < 0.02:
+        return False
+    dt = 1.0 / robot.cfg.control_hz
+    for _ in range(int(4.0 / dt)):
+        x, y, yaw = robot.base_pose()
+        ex, ey = goal[0] - x, goal[1] - y
+        eyaw = math.remainder(goal[2] - yaw, 2 * math.pi)
+        if math.hypot(ex, ey) < 0.01 and abs(eyaw) < 0.02:
+            break
+        c, s_ = math.cos(yaw), math.sin(yaw)
+        vx, vy = c * ex + s_ * ey, -s_ * ex + c * ey
+        scale = min(1.0, APPROACH_SPEED / max(math.hypot(vx, vy) / dt * 0.5, 1e-9))
+        a = robot.rest_action()
+        a[0], a[1] = vx / dt * 0.5 * scale, vy / dt * 0.5 * scale
+        a[2] = float(np.clip(eyaw / dt * 0.5, -APPROACH_TURN, APPROACH_TURN))
+        yield a
+    yield robot.rest_action()
+    return True
