@@ -5,7 +5,8 @@ the closed leaf, roughly in front of the handle — `interaction_pose(plan, "doo
 `echo_data.scene.nav` (0.8 m from the leaf, facing the swing-side handle) is fine. The
 expert first drives the base itself (holonomic, a few decimetres at most) to its grasp
 stance: 0.88 m from the swing-side handle bar along the leaf normal and 0.3 m towards the
-hinge, facing the leaf (`STANCES`), chosen among a few stances so that the whole swing stays on free floor.
+hinge, facing the leaf — the first of `STANCES` whose whole swing stays on free floor and
+whose grasp the arm reaches.
 
 Then (FINDINGS: 19-20/20 this way): reach a pre-grasp 7 cm in front of the bar with a
 planned arm motion, move in, close the fingers on the vertical bar; once both fingers touch
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Generator
+from dataclasses import dataclass
 
 import numpy as np
 import sapien
@@ -111,11 +113,6 @@ def near_ik(planner: ArmPlanner, position: np.ndarray, rotation: np.ndarray, see
     return q
 
 
-def line(q0: np.ndarray, q1: np.ndarray, n: int) -> list[np.ndarray]:
-    """n joint targets from q0 (excluded) to q1 (included) on a straight line."""
-    return [q0 + (q1 - q0) * (k + 1) / n for k in range(n)]
-
-
 def arm_action(robot: object, q: np.ndarray, gripper: float, base: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
     """An action holding torso + arm at `q` (8 values) and the gripper at `gripper` (m)."""
     a = np.zeros(ACTION_DIM, dtype=np.float32)
@@ -126,11 +123,13 @@ def arm_action(robot: object, q: np.ndarray, gripper: float, base: tuple[float, 
     return a
 
 
+@dataclass
 class Moved:
-    """How a helper motion ended."""
+    """How a base approach ended."""
 
-    def __init__(self, success: bool, reason: str, steps: int) -> None:
-        self.success, self.reason, self.steps = success, reason, steps
+    success: bool
+    reason: str
+    steps: int
 
 
 def approach_base(
