@@ -162,3 +162,20 @@ def test_open_leaf_is_a_panel_at_its_angle(door_plan) -> None:
     # above the leaf's top edge the path is free again
     over = AcousticScene(door_plan, CFG, door_angles={0: math.pi / 2}).response((4.6, 3.5, 2.3), (4.6, 2.0, 2.3))
     assert over.arrivals[0].order == 0
+
+
+def test_table_top_reflects_a_source_standing_on_it() -> None:
+    """Furniture tops are first-order reflectors: a phone on a table is heard with the
+    table's reflection (image mirrored in the top plane), and its floor reflection is shadowed."""
+    tab = Furniture(0, "table", 0, (2.0, 2.0), (1.2, 0.8, 0.75), 0.0, "wooden_door", True)
+    src, rcv = (2.0, 2.0, 0.80), (3.5, 2.0, 1.2)
+    with_t = AcousticScene(row_plan((4.0,), furniture=(tab,)), CFG).response(src, rcv)
+    without = AcousticScene(row_plan((4.0,)), CFG).response(src, rcv)
+    top_len = math.dist((2.0, 2.0, 2 * 0.75 - 0.80), rcv)
+    hits = [a for a in with_t.arrivals if abs(a.delay_s * SPEED_OF_SOUND - top_len) < 1e-9]
+    assert len(hits) == 1 and hits[0].order == 1
+    assert not any(abs(a.delay_s * SPEED_OF_SOUND - top_len) < 1e-6 for a in without.arrivals)
+    floor_len = math.dist((2.0, 2.0, -0.80), rcv)
+    fl_t = next(a for a in with_t.arrivals if abs(a.delay_s * SPEED_OF_SOUND - floor_len) < 1e-9)
+    fl_0 = next(a for a in without.arrivals if abs(a.delay_s * SPEED_OF_SOUND - floor_len) < 1e-9)
+    assert fl_t.band_gains[-1] < 0.5 * fl_0.band_gains[-1]

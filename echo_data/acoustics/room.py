@@ -15,7 +15,8 @@ Early part (directional `arrivals`):
   like a door panel. An open leaf is a thin panel at its hinge angle: paths crossing it
   take the same transmission loss; reflections off open leaves are not modelled.
 - Furniture: solid blocks that occlude (over-the-top diffraction loss on each path through
-  them) and absorb (their surfaces join the room's absorption); no specular reflections.
+  them), absorb (their surfaces join the room's absorption) and reflect off their tops
+  (first order, source room); side faces do not reflect.
 - Per reflection the specular amplitude is sqrt((1 - alpha)(1 - s)) per band (material from
   pyroomacoustics' database, s = `cfg.scattering`); air absorption over the path length.
 
@@ -49,7 +50,7 @@ from echo_data.acoustics.geometry import (
     opening_solid_angle,
     room_boxes,
 )
-from echo_data.acoustics.ism import BoxLattice, segment_losses
+from echo_data.acoustics.ism import BoxLattice, ImagePaths, segment_losses
 from echo_data.acoustics.materials import BANDS, absorption, air_absorption, reflection_amplitude
 from echo_data.acoustics.tail import NoiseBank, RoomAcoustics, band_masks, scattered_share
 from echo_data.acoustics.types import SPEED_OF_SOUND, AcousticResponse, Arrival
@@ -171,6 +172,8 @@ class AcousticScene:
         # secondary direct path redundant
         direct_ok = ip.valid[:, 0].copy()
         paths.add(np.arange(n), ip, np.zeros(ip.log_gain.shape), 0.0, np.zeros(ip.length.shape), None)
+        for fp in self._furniture_tops(S, rcv, rooms, a_room):
+            paths.add(np.arange(n), fp, np.zeros(fp.log_gain.shape), 0.0, np.zeros(fp.length.shape), None)
 
         # 2) through doorways into the other rooms
         hubs, entries = self._routes(S, a_room)
@@ -256,6 +259,49 @@ class AcousticScene:
         return x.astype(np.float32)
 
     # ------------------------------------------------------------------ internals
+    def _furniture_tops(self, S: np.ndarray, rcv: np.ndarray, rooms: np.ndarray, a_room: int) -> list[ImagePaths]:
+        """First-order specular reflections off the tops of the source room's furniture
+        (a phone on a table is heard with the table's reflection); side faces are not
+        modelled as reflectors."""
+        out: list[ImagePaths] = []
+        box = self.boxes[a_room]
+        outside = rooms != a_room
+        for f in self.plan.furniture:
+            fp = f.footprint
+            top = f.top_z
+            if S[2] <= top + 1e-6 or fp.xmax <= box.lo[0] or fp.xmin >= box.hi[0] or fp.ymax <= box.lo[1] or fp.ymin >= box.hi[1]:
+                continue
+            img = np.array([S[0], S[1], 2.0 * top - S[2]])
+            D = rcv - img
+            dz = np.where(np.abs(D[:, 2]) < 1e-12, 1e-12, D[:, 2])
+            t = (top - img[2]) / dz
+            P = img + t[:, None] * D
+            ok = (rcv[:, 2] > top + 1e-6) & (P[:, 0] > fp.xmin) & (P[:, 0] < fp.xmax) & (P[:, 1] > fp.ymin) & (P[:, 1] < fp.ymax)
+            length = np.linalg.norm(D, axis=1)
+            log_r = np.log(reflection_amplitude(absorption(f.material), self.cfg.scattering))
+            door = np.zeros(len(rcv))
+            furn = np.zeros((len(rcv), len(BANDS)))
+            idx = np.nonzero(ok)[0]
+            if len(idx):
+                loss_db = self.cfg.closed_door_loss_db
+                leg1 = segment_losses(np.broadcast_to(S, (len(idx), 3)), P[idx], self.lattices[a_room].local(self.occ), loss_db, False)
+                leg2 = segment_losses(P[idx], rcv[idx], self.occ, loss_db, outside[idx])
+                ok[idx] = ~(leg1.blocked | leg2.blocked)
+                door[idx] = leg1.door_db + leg2.door_db
+                furn[idx] = np.minimum(leg1.furn_db + leg2.furn_db, 40.0)
+            out.append(
+                ImagePaths(
+                    ok[:, None],
+                    length[:, None],
+                    (-D / np.maximum(length[:, None], 1e-12))[:, None, :],
+                    (log_r[None] - furn * (math.log(10.0) / 20.0))[:, None, :],
+                    door[:, None],
+                    np.ones(1, dtype=np.int64),
+                    np.zeros((len(rcv), 1, 3)),
+                )
+            )
+        return out
+
     def _doorway_points(self, op, frm: int, to: int, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Points just inside the two faces of a doorway at lateral/vertical position of p."""
         a = 0 if op.face in (0, 1) else 1  # normal axis
