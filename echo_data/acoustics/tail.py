@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from functools import lru_cache
 
 import numpy as np
 
@@ -43,6 +44,7 @@ from echo_data.scene.floorplan import FloorPlan
 _LN10 = math.log(10.0)
 
 
+@lru_cache(maxsize=16)
 def band_masks(n_fft: int, fs: int, power: bool) -> np.ndarray:
     """Octave-band masks (bands, n_fft//2+1) on an rfft grid around BANDS.
 
@@ -62,7 +64,9 @@ def band_masks(n_fft: int, fs: int, power: bool) -> np.ndarray:
             m[b] *= np.sin(0.5 * np.pi * np.clip((lf - edges[b - 1] + 0.25) / 0.5, 0.0, 1.0))
         if b + 1 < len(BANDS):
             m[b] *= np.cos(0.5 * np.pi * np.clip((lf - edges[b] + 0.25) / 0.5, 0.0, 1.0))
-    return m if power else m**2
+    out = m if power else m**2
+    out.setflags(write=False)  # cached: shared by all callers
+    return out
 
 
 class RoomAcoustics:
