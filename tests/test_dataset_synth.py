@@ -104,7 +104,7 @@ def synth_generate(
 
 
 def slow_generate(*args: object, **kw: object) -> EpisodeResult:
-    return synth_generate(*args, **kw, delay=0.15)  # type: ignore[arg-type]
+    return synth_generate(*args, **kw, delay=0.25)  # type: ignore[arg-type]
 
 
 def null_library(recipe: Recipe, recipe_dir: Path) -> None:
