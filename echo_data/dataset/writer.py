@@ -331,18 +331,21 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
 
 def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
     """Rebuild `table` with exactly `schema` (re-wrapping extension columns that a round trip
-    through IPC returned as their plain storage)."""
-    arrays = []
+    through IPC returned as their plain storage). Chunk by chunk: one chunk per episode keeps
+    32-bit list/binary offsets far from overflowing however large a shard is."""
+    columns = []
     for f in schema:
-        col = table.column(f.name).combine_chunks()
-        if isinstance(f.type, pa.BaseExtensionType):
-            if isinstance(col.type, pa.BaseExtensionType):
-                col = col.storage
-            col = pa.ExtensionArray.from_storage(f.type, col.cast(f.type.storage_type))
-        elif col.type != f.type:
-            col = col.cast(f.type)
-        arrays.append(col)
-    return pa.Table.from_arrays(arrays, schema=schema)
+        chunks = []
+        for chunk in table.column(f.name).chunks:
+            if isinstance(f.type, pa.BaseExtensionType):
+                if isinstance(chunk.type, pa.BaseExtensionType):
+                    chunk = chunk.storage
+                chunk = pa.ExtensionArray.from_storage(f.type, chunk.cast(f.type.storage_type))
+            elif chunk.type != f.type:
+                chunk = chunk.cast(f.type)
+            chunks.append(chunk)
+        columns.append(pa.chunked_array(chunks, type=f.type))
+    return pa.Table.from_arrays(columns, schema=schema)
 
 
 def read_ipc(data: bytes) -> pa.Table:
