@@ -194,3 +194,14 @@ def test_pick_is_reproducible_to_the_byte() -> None:
         return b"".join(out)
 
     assert actions_and_states() == actions_and_states()
+
+
+@pytest.mark.parametrize("yaw", [-2.5, 0.0, 0.4, 3.0])
+def test_top_down_pose_points_down_and_jaw_yaw_inverts_it(yaw: float) -> None:
+    from echo_data.skills.arm import jaw_yaw, top_down_pose
+
+    pose = top_down_pose(1.0, 2.0, 0.8, yaw)
+    r = pose.to_transformation_matrix()[:3, :3]
+    assert r[:, 0] == pytest.approx([0.0, 0.0, -1.0], abs=1e-6)  # approach straight down
+    assert r[:, 1] == pytest.approx([-math.sin(yaw), math.cos(yaw), 0.0], abs=1e-6)  # jaws close across yaw
+    assert math.remainder(jaw_yaw(pose) - yaw, 2 * math.pi) == pytest.approx(0.0, abs=1e-6)

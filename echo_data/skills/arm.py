@@ -54,6 +54,12 @@ def top_down_pose(x: float, y: float, z: float, yaw: float) -> sapien.Pose:
     return sapien.Pose(m)
 
 
+def jaw_yaw(pose: sapien.Pose) -> float:
+    """The `yaw` of `top_down_pose` that gives this TCP pose's jaw direction (inverse of it)."""
+    r = pose.to_transformation_matrix()[:3, :3]
+    return math.atan2(-r[0, 1], r[1, 1])
+
+
 def group_q(robot: Robot) -> np.ndarray:
     """Measured (torso, 7 arm joints)."""
     return np.concatenate([[robot.torso()], robot.arm_qpos()])
@@ -260,6 +266,7 @@ __all__ = [
     "TORSO_SPEED",
     "GRIPPER_OPEN",
     "top_down_pose",
+    "jaw_yaw",
     "group_q",
     "commanded_group",
     "scene_boxes",

@@ -14,16 +14,13 @@ import math
 from typing import Any, Generator
 
 import numpy as np
-import sapien
 
 from echo_data.records import SkillOutcome
-from echo_data.robot import urdf as U
 from echo_data.robot.robot import GRIPPER_OPEN, yaw_of
 from echo_data.scene.objects import object_size
 from echo_data.skills import arm
-from echo_data.skills.success import CARRY_TCP, object_bottom, pick_success
+from echo_data.skills.success import object_bottom, pick_success
 
-PICK_TORSO = U.TORSO_RANGE[1]  # m: highest torso - table tops 0.6-0.9 m are reached from above
 PRE_GRASP_HEIGHT = 0.12  # m above the grasp point
 LIFT_HEIGHT = 0.15  # m
 GRASP_BELOW_TOP = 0.03  # m: pads centred this far below the object's top ...

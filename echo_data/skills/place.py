@@ -17,7 +17,7 @@ from typing import Any, Generator
 import numpy as np
 
 from echo_data.records import SkillOutcome
-from echo_data.robot.robot import GRIPPER_OPEN, yaw_of
+from echo_data.robot.robot import GRIPPER_OPEN
 from echo_data.scene.objects import object_size
 from echo_data.skills import arm
 from echo_data.skills.pick import SLOW, Budget, SkillFailed
@@ -128,8 +128,7 @@ def _place(world: Any, name: str, goal: int) -> Generator[np.ndarray, None, None
     tcp_above_bottom = float(tcp.p[2]) - object_bottom(world, name)
     tcp_to_obj = tcp.inv() * world.handles.objects[name].pose
     # keep the object's current yaw relative to the jaws: try the current jaw direction first
-    r = tcp.to_transformation_matrix()[:3, :3]
-    jaw = math.atan2(-r[0, 1], r[1, 1])
+    jaw = arm.jaw_yaw(tcp)
     planner = arm.arm_planner(world, exclude={name})
     planner.attach_box([sx, sy, sz], tcp_to_obj)
     start = arm.commanded_group(robot)
@@ -162,7 +161,7 @@ def _place(world: Any, name: str, goal: int) -> Generator[np.ndarray, None, None
     yield from arm.hold(world, 2)  # let a swinging object come to rest before going down
     yield from arm.follow_path(world, descent, speed_scale=SLOW)
     yield from arm.set_gripper(world, GRIPPER_OPEN, OPEN_STEPS)
-    up = arm.top_down_pose(float(down.p[0]), float(down.p[1]), float(down.p[2]) + RETREAT, jaw_yaw_of(down))
+    up = arm.top_down_pose(float(down.p[0]), float(down.p[1]), float(down.p[2]) + RETREAT, arm.jaw_yaw(down))
     retreat = arm.cartesian_path(planner, descent[-1], arm.line_poses(down, up), gripper=GRIPPER_OPEN)
     if retreat is None:
         raise SkillFailed("no IK solution")
@@ -174,9 +173,4 @@ def _place(world: Any, name: str, goal: int) -> Generator[np.ndarray, None, None
     yield from arm.follow_path(world, home, gripper=GRIPPER_OPEN, speed_scale=TUCK_SPEED, settle=False)
 
 
-def jaw_yaw_of(pose: Any) -> float:
-    r = pose.to_transformation_matrix()[:3, :3]
-    return math.atan2(-r[0, 1], r[1, 1])
-
-
-__all__ = ["place", "place_spots", "held_object", "yaw_of"]
+__all__ = ["place", "place_spots", "held_object"]
