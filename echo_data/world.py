@@ -67,6 +67,7 @@ class World:
         self.robot = Robot(self.scene, cfg)
         self.robot.set_base_pose(*spec.start)
         self._nav: Any = None
+        self._arm_planner: Any = None
         self.steps = 0
         # Where each object rests now (furniture index); Place updates it after a success.
         self.receptacles: dict[str, int] = {o.name: o.receptacle for o in self.plan.objects}
@@ -120,6 +121,7 @@ class World:
         for e in list(scene.entities):
             scene.remove_entity(e)
         self.handles = None
+        self._arm_planner = None  # set by echo_data.skills.arm.arm_planner
         self.robot = None  # type: ignore[assignment]
         self.scene = None  # type: ignore[assignment]
 
