@@ -125,7 +125,7 @@ def _builtin_instances() -> tuple[SoundInstance, ...]:
     out = []
     for iid in synth.builtin_ids():
         cat, split, _ = synth.parse_builtin_id(iid)
-        out.append(SoundInstance(iid, cat, split, round(synth.design(iid)["duration"], 4), "builtin"))
+        out.append(SoundInstance(iid, cat, split, synth.design(iid)["duration"], "builtin"))
     return tuple(out)
 
 

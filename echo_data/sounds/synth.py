@@ -44,6 +44,7 @@ CATEGORY_COUNTS: dict[str, tuple[int, int]] = {
 PEAK_DBFS: dict[str, float] = {"alarm": -1.0, "phone": -3.0, "doorbell": -3.0, "furby": -4.0, "sink": -6.0}
 
 Design = dict[str, Any]
+DURATION_GRID_S = 0.04
 
 
 def builtin_ids() -> list[str]:
@@ -78,7 +79,9 @@ def design(instance_id: str) -> Design:
     """The instance's structure (style, notes, timing, pitches) with its loop `duration` in seconds."""
     cat, _, k = parse_builtin_id(instance_id)
     d = _DESIGNERS[cat](k, _rng(instance_id, "design"))
-    d["duration"] = float(d["duration"])
+    # Round the period up (a slightly longer pause) to the 40 ms grid: an exact whole number of
+    # samples at every common rate (8, 11.025, 16, 22.05, 44.1, 48 kHz ...).
+    d["duration"] = round(float(np.ceil(float(d["duration"]) / DURATION_GRID_S - 1e-9)) * DURATION_GRID_S, 2)
     return d
 
 
@@ -111,7 +114,7 @@ def _design_phone(k: int, rng: np.random.Generator) -> Design:
         units = int(rng.choice([1, 1, 1, 2]))
         notes.append((t, units * unit, midi))
         t += units * unit
-        deg = int(np.clip(deg + rng.choice([-3, -2, -1, 1, 1, 2, 3, 0]), -2, 2 * len(scale)))
+        deg = int(np.clip(deg + rng.choice([-3, -2, -1, 1, 1, 2, 3, 0]), -2, len(scale) + 2))  # ~1.5 octaves
     melody = t
     repeats = 2 if melody < 1.5 else 1
     notes = [(t0 + r * melody, g, m) for r in range(repeats) for (t0, g, m) in notes]
@@ -120,7 +123,7 @@ def _design_phone(k: int, rng: np.random.Generator) -> Design:
         "fm_bell": {"ratio": float(rng.choice([1.4, 2.0, 3.5, 2.76])), "index": float(rng.uniform(1.5, 4.0)), "tau": float(rng.uniform(0.2, 0.6))},
         "square": {"duty": float(rng.choice([0.5, 0.25, 0.125])), "staccato": float(rng.uniform(0.55, 0.9)), "tau": float(rng.uniform(0.4, 2.0))},
         "marimba": {"tau": float(rng.uniform(0.25, 0.55)), "bright": float(rng.uniform(0.2, 0.5))},
-        "pluck": {"tau": float(rng.uniform(0.25, 0.7)), "damp": float(rng.uniform(0.15, 0.5))},
+        "pluck": {"tau": float(rng.uniform(0.25, 0.7)), "damp": float(rng.uniform(0.6, 1.5))},
     }[style]
     return {"style": style, "notes": notes, "timbre": timbre, "duration": min(4.0, repeats * melody + pause)}
 
@@ -168,10 +171,10 @@ def _phone_note(style: str, tb: dict[str, float], f: float, gate: float, sr: int
         return partials([f, 4.0 * f, 9.8 * f], [1.0, b, 0.3 * b], [tau, tau / 5, tau / 12], n, sr)
     # pluck: a bright, harmonic attack whose upper partials die faster (kalimba / synth pluck)
     y = np.zeros(n)
-    for k in range(1, 16):
+    for k in range(1, 11):
         if k * f >= 0.45 * sr:
             break
-        y += (1.0 / k) * np.exp(-t * (1.0 / tau + tb["damp"] * k * 4)) * np.sin(2 * np.pi * k * f * t)
+        y += k**-1.5 * np.exp(-t * (1.0 / tau + tb["damp"] * k * 4)) * np.sin(2 * np.pi * k * f * t)
     return y * decay_envelope(n, sr, 10.0)
 
 
@@ -214,10 +217,12 @@ PIEZO = [1.0, 0.0, 0.35, 0.0, 0.15, 0.0, 0.08]
 def _design_alarm(k: int, rng: np.random.Generator) -> Design:
     style = ALARM_STYLES[k % len(ALARM_STYLES)]
     if style == "digital":
-        f = float(rng.uniform(1900, 3900))
+        # A unique (pitch band, beeps per group) per digital instance; the rest is drawn.
+        lo = 2900.0 if k % len(ALARM_STYLES) == 0 else 1900.0
+        f = float(rng.uniform(lo, lo + 1000.0))
         beep = float(rng.uniform(0.05, 0.14))
         gap = float(rng.uniform(0.04, 0.10))
-        group = int(rng.integers(1, 5))
+        group = 1 + (k // len(ALARM_STYLES)) % 4
         pause = float(rng.uniform(0.25, 0.7))
         period = group * (beep + gap) + pause
         repeats = int(max(1, min(np.ceil(1.0 / period), 4.0 // period)))
@@ -290,10 +295,9 @@ def _syllable(rng: np.random.Generator, t0: float, dur: float, st0: float, vib: 
 
 def _design_furby(k: int, rng: np.random.Generator) -> Design:
     style = FURBY_STYLES[k % len(FURBY_STYLES)]
-    voice = {"f0": float(rng.uniform(230, 520)), "fscale": float(rng.uniform(1.15, 1.55)), "slope": float(rng.uniform(0.9, 1.6))}
-    breath = float(rng.uniform(0.0, 0.08))
+    voice = {"f0": float(rng.uniform(230, 520)), "fscale": float(rng.uniform(1.15, 1.55)), "slope": float(rng.uniform(1.3, 2.0))}
+    breath = float(rng.uniform(0.0, 0.04))
     syl: list[dict[str, Any]] = []
-    chirps: list[tuple[float, float, float, float]] = []
     t = 0.0
     if style == "babble":
         for _ in range(int(rng.integers(1, 3))):
@@ -320,16 +324,18 @@ def _design_furby(k: int, rng: np.random.Generator) -> Design:
             vib = (float(rng.uniform(6, 13)), float(rng.uniform(1.0, 3.0)))
             syl.append(_syllable(rng, t, dur, float(rng.uniform(-2, 4)), vib, breath, rng.random() < 0.3))
             t += dur + float(rng.uniform(0.08, 0.3))
-    else:  # chirp: squeaky whistled sweeps, in one or two bursts
+    else:  # chirp: quick squeaks an octave above the speaking voice, swooping up or down
         for _ in range(int(rng.integers(1, 3))):
             for _ in range(int(rng.integers(3, 7))):
-                dur = float(rng.uniform(0.04, 0.12))
-                fa = float(rng.uniform(1200, 2600))
-                chirps.append((t, dur, fa, fa * 2 ** float(rng.uniform(-1, 1))))
+                dur = float(rng.uniform(0.05, 0.13))
+                s = _syllable(rng, t, dur, 12.0, (9.0, 0.0), breath, False)
+                a, b = float(rng.uniform(8, 16)), float(rng.uniform(8, 16))
+                s["contour"] = (a, (a + b) / 2 + float(rng.uniform(-3, 3)), b)
+                syl.append(s)
                 t += dur + float(rng.uniform(0.03, 0.12))
             t += float(rng.uniform(0.15, 0.3))
     pause = float(rng.uniform(0.3, 0.9))
-    return {"style": style, "voice": voice, "syllables": syl, "chirps": chirps, "duration": min(4.0, max(1.0, t + pause))}
+    return {"style": style, "voice": voice, "syllables": syl, "duration": min(4.0, max(1.0, t + pause))}
 
 
 def _voiced(s: dict[str, Any], voice: dict[str, float], sr: int, rng: np.random.Generator) -> np.ndarray:
@@ -347,13 +353,13 @@ def _voiced(s: dict[str, Any], voice: dict[str, float], sr: int, rng: np.random.
 
     def amps(k: int, fk: np.ndarray) -> np.ndarray:
         env = sum(g / (1.0 + ((fk - fc) / (0.5 * bw)) ** 2) for fc, bw, g in forms)
-        return k**-slope * (0.05 + env)
+        return k**-slope * (0.01 + env)
 
     y = harmonic_tone(f0, n, sr, amps)
     peak = float(np.max(np.abs(y))) or 1.0
     y = y / peak
     if s["breath"] > 0:
-        y += s["breath"] * shaped_burst(n, sr, rng, 1000, 6000)
+        y += s["breath"] * shaped_burst(n, sr, rng, 800, 4500)
     y *= ramp_envelope(n, sr, 0.012, 0.03)
     if s["cons"] is not None:
         lo, dur = s["cons"]
@@ -365,11 +371,6 @@ def _voiced(s: dict[str, Any], voice: dict[str, float], sr: int, rng: np.random.
 def _render_furby(d: Design, loop: Loop, sr: int, rng: np.random.Generator) -> None:
     for s in d["syllables"]:
         loop.add(seconds_to_samples(s["t"], sr), _voiced(s, d["voice"], sr, rng))
-    for t0, dur, fa, fb in d["chirps"]:
-        n = seconds_to_samples(dur, sr)
-        f = fa * (fb / fa) ** (np.arange(n) / n)
-        y = harmonic_tone(f, n, sr, [1.0, 0.25, 0.08]) * ramp_envelope(n, sr, 0.006, 0.012)
-        loop.add(seconds_to_samples(t0, sr), y)
 
 
 # --------------------------------------------------------------------------- doorbell
@@ -386,23 +387,23 @@ CHIMES = {
 def _design_doorbell(k: int, rng: np.random.Generator) -> Design:
     style = DOORBELL_STYLES[k % len(DOORBELL_STYLES)]
     if style == "buzzer":
-        f = float(rng.uniform(55, 130))
-        if rng.random() < 0.5:
+        f = (60.0, 100.0, 120.0, 80.0)[(k // len(DOORBELL_STYLES)) % 4] * float(rng.uniform(0.95, 1.05))
+        if (k // len(DOORBELL_STYLES)) % 2 == 0:
             bursts = [(0.0, float(rng.uniform(0.7, 1.4)))]
         else:
             on = float(rng.uniform(0.25, 0.45))
             bursts = [(0.0, on), (on + float(rng.uniform(0.15, 0.3)), on)]
         return {"style": style, "f": f, "res": float(rng.uniform(500, 1600)), "bursts": bursts,
                 "duration": float(rng.uniform(2.0, 3.0))}
-    timbre = str(rng.choice(list(CHIMES)))
+    timbre = list(CHIMES)[(k // len(DOORBELL_STYLES)) % len(CHIMES)]
     top = int(rng.integers(72, 85))
     if style == "dingdong":
         gap = float(rng.uniform(0.45, 0.8))
-        notes = [(0.0, top), (gap, top - int(rng.choice([3, 4, 5])))]
+        notes = [(0.0, top), (gap, top - (4, 3, 5, 7)[(k // len(DOORBELL_STYLES)) % 4])]
         ring = float(rng.uniform(1.6, 2.6))
     elif style == "threetone":
         gap = float(rng.uniform(0.3, 0.5))
-        pattern = [(0, -4, -7), (0, -3, -7), (-7, -3, 0), (-7, -4, 0), (0, -5, -9)][int(rng.integers(5))]
+        pattern = [(0, -4, -7), (0, -3, -7), (-7, -3, 0), (-7, -4, 0), (0, -5, -9)][(k // len(DOORBELL_STYLES)) % 5]
         notes = [(i * gap, top + p) for i, p in enumerate(pattern)]
         ring = float(rng.uniform(1.5, 2.4))
     else:
@@ -468,12 +469,12 @@ def _render_sink(d: Design, loop: Loop, sr: int, rng: np.random.Generator) -> No
     times = rng.uniform(0, d["duration"], count)
     f0s = np.exp(rng.uniform(np.log(lo), np.log(hi), count))
     taus = rng.uniform(0.004, 0.025, count) * (2.0 if flow == "trickle" else 1.0)
-    rises = rng.uniform(0.1, 0.6, count)
+    rises = rng.uniform(0.3, 1.0, count)  # pitch rise over a bubble's life (x1.3 .. x2)
     gains = rng.uniform(0.3, 1.0, count)
     for t0, f0, tau, rise, g in zip(times, f0s, taus, rises, gains):
         m = seconds_to_samples(5 * tau, sr)
         t = np.arange(m) / sr
-        f = np.minimum(f0 * (1 + rise * t / tau), 0.45 * sr)  # a rising bubble's resonance goes up
+        f = np.minimum(f0 * (1 + rise * t / (5 * tau)), 0.45 * sr)  # a rising bubble's resonance goes up
         y = np.sin(cumulative_phase(f, m, sr)) * decay_envelope(m, sr, tau, attack=0.001)
         loop.add(seconds_to_samples(t0, sr), g * y)
     bubble_rms = float(np.sqrt(np.mean(loop.buf**2))) or 1.0
