@@ -68,8 +68,14 @@ def cumulative_phase(freq: np.ndarray | float, n: int, sr: int, phase0: float = 
     return phase0 + 2.0 * np.pi * np.concatenate(([0.0], np.cumsum(f[:-1]))) / sr
 
 
-def _nyquist_gain(f: np.ndarray, sr: int) -> np.ndarray:
-    """1 well below the guard band, fading to 0 at NYQUIST_GUARD * sr."""
+def _nyquist_gain(f: np.ndarray, sr: int, fundamental: bool = False) -> np.ndarray:
+    """1 well below the guard band, fading to 0 at NYQUIST_GUARD * sr.
+
+    A fundamental cannot alias below Nyquist, so it keeps up to 0.49 * sr: a 3.9 kHz alarm beep
+    stays audible at an 8 kHz rate instead of vanishing with its overtones.
+    """
+    if fundamental:
+        return np.clip((0.49 * sr - f) / (0.01 * sr), 0.0, 1.0)
     lim = NYQUIST_GUARD * sr
     return np.clip((lim - f) / (0.05 * sr), 0.0, 1.0)
 
@@ -84,7 +90,7 @@ def harmonic_tone(
     """Band-limited sum of harmonics k*f0 (f0 may glide); `amps` per harmonic or a function (k, fk)."""
     f = np.broadcast_to(np.asarray(f0, dtype=np.float64), (n,))
     ph = cumulative_phase(f, n, sr)
-    kmax = int(NYQUIST_GUARD * sr / max(1.0, float(f.min())))
+    kmax = max(1, int(NYQUIST_GUARD * sr / max(1.0, float(f.min()))))
     if not callable(amps):
         kmax = min(kmax, len(amps))
     out = np.zeros(n)
@@ -93,7 +99,7 @@ def harmonic_tone(
         a = amps(k, fk) if callable(amps) else amps[k - 1]
         if np.all(a == 0):
             continue
-        out += a * _nyquist_gain(fk, sr) * np.sin(k * ph)
+        out += a * _nyquist_gain(fk, sr, fundamental=k == 1) * np.sin(k * ph)
     return out
 
 
