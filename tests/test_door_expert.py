@@ -170,3 +170,24 @@ def test_open_door_expert_reports_a_blocked_door(door_world_factory) -> None:
     assert outcome.reason == "lost_handle", outcome.reason  # it grasped and swung, the door did not follow
     assert 0.1 < max(angles) < world.plan.doors[0].open_threshold
     assert not door_open_success(world, 0)
+
+
+def test_open_door_expert_stopped_mid_swing_lets_go(door_world_factory) -> None:
+    """The rollout closes an expert that runs out of steps: the door must not stay welded to the gripper."""
+    import sapien
+
+    from echo_data.skills.open_door import open_door
+
+    world, spec = door_world_factory(False)
+    leaf_entity = world.handles.doors[0].links[1].entity
+    gen = open_door(world, spec.chain[0], spec)
+    attached_steps = 0
+    for _ in range(world.recipe.robot.max_steps["OpenDoor"]):
+        world.step(next(gen))
+        if leaf_entity.find_component_by_type(sapien.physx.PhysxDriveComponent) is not None:
+            attached_steps += 1
+            if attached_steps == 5:
+                break
+    assert attached_steps == 5  # it did grasp and start swinging
+    gen.close()
+    assert leaf_entity.find_component_by_type(sapien.physx.PhysxDriveComponent) is None

@@ -201,7 +201,7 @@ def attach(world: object, ee_link: sapien.physx.PhysxArticulationLinkComponent, 
 
 
 def detach(drive: sapien.physx.PhysxDriveComponent) -> None:
-    """Remove an attachment made by `attach`."""
+    """Remove an attachment made by `attach` (a no-op when it is gone already)."""
     entity = drive.entity
     if entity is not None:
         entity.remove_component(drive)
@@ -256,6 +256,42 @@ def _grasp_rotation(door: Door, q: float) -> np.ndarray:
     if z_axis[2] < 0:
         y_axis, z_axis = -y_axis, -z_axis
     return np.stack([x_axis, y_axis, z_axis], axis=1)
+
+
+def _swing(
+    world: object, door: Door, art: object, hold: np.ndarray, q_goal: float, max_steps: int
+) -> Generator[np.ndarray, None, Moved]:
+    """Turn the base about the hinge as one rigid body with the held leaf until the hinge is at
+    `q_goal` and at rest: feed-forward rigid rotation (ramped over SWING_RAMP) plus pose feedback."""
+    robot = world.robot  # type: ignore[attr-defined]
+    dt = 1.0 / robot.cfg.control_hz
+    hinge = np.asarray(door.hinge)
+    x0, y0, yaw0 = robot.base_pose()
+    p0 = np.array([x0, y0])
+    q_ref = q_cmd = float(art.get_qpos()[0])  # type: ignore[attr-defined]
+    steps = 0
+    while True:
+        if steps >= max_steps:
+            return Moved(False, "timeout", steps)
+        rate = SWING_RATE * min(1.0, (steps + 1) * dt / SWING_RAMP)
+        q_cmd = min(q_cmd + rate * dt, q_goal)
+        ang = door.open_sign * (q_cmd - q_ref)
+        p_des = _rotate_about(p0, hinge, ang)
+        x, y, yaw = robot.base_pose()
+        w_ff = door.open_sign * (rate if q_cmd < q_goal else 0.0)
+        rel = np.array([x, y]) - hinge
+        v_world = w_ff * np.array([-rel[1], rel[0]]) + K_POSE * (p_des - [x, y])
+        wz = w_ff + K_POSE * wrap(yaw0 + ang - yaw)
+        c, s = math.cos(yaw), math.sin(yaw)
+        action = hold.copy()
+        action[0:3] = (c * v_world[0] + s * v_world[1], -s * v_world[0] + c * v_world[1], wz)
+        yield action
+        steps += 1
+        q = float(art.get_qpos()[0])  # type: ignore[attr-defined]
+        if q_cmd - q > LOST_GRIP:
+            return Moved(False, "lost_handle", steps)
+        if q_cmd >= q_goal and q >= door.open_threshold and abs(float(art.get_qvel()[0])) < DOOR_REST_QVEL:  # type: ignore[attr-defined]
+            return Moved(True, "", steps)
 
 
 def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray, None, SkillOutcome]:
@@ -329,44 +365,18 @@ def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray
             break
     if not touching:
         return fail("grasp_failed")
-    drive = attach(world, robot.ee_link, leaf)
 
     # 4. swing the base about the hinge as one rigid body with the leaf
-    hinge = np.asarray(door.hinge)
-    x0, y0, yaw0 = robot.base_pose()
-    p0 = np.array([x0, y0])
-    q_cmd = float(art.get_qpos()[0])
-    q_ref = q_cmd
-    t = 0.0
-    while True:
-        if steps >= max_steps:
-            detach(drive)
-            return fail("timeout")
-        t += dt
-        rate = SWING_RATE * min(1.0, t / SWING_RAMP)
-        q_cmd = min(q_cmd + rate * dt, q_goal)
-        ang = door.open_sign * (q_cmd - q_ref)
-        p_des = _rotate_about(p0, hinge, ang)
-        yaw_des = yaw0 + ang
-        x, y, yaw = robot.base_pose()
-        w_ff = door.open_sign * (rate if q_cmd < q_goal else 0.0)
-        rel = np.array([x, y]) - hinge
-        v_world = w_ff * np.array([-rel[1], rel[0]]) + K_POSE * (p_des - [x, y])
-        wz = w_ff + K_POSE * wrap(yaw_des - yaw)
-        c, s = math.cos(yaw), math.sin(yaw)
-        action = closed.copy()
-        action[0:3] = (c * v_world[0] + s * v_world[1], -s * v_world[0] + c * v_world[1], wz)
-        yield action
-        steps += 1
-        q = float(art.get_qpos()[0])
-        if q_cmd - q > LOST_GRIP:
-            detach(drive)
-            return fail("lost_handle")
-        if q_cmd >= q_goal and q >= door.open_threshold and abs(float(art.get_qvel()[0])) < DOOR_REST_QVEL:
-            break
+    drive = attach(world, robot.ee_link, leaf)
+    try:
+        swung = yield from _swing(world, door, art, closed, q_goal, max_steps - steps)
+    finally:  # also when the caller closes the generator (rollout timeout): never leave the door attached
+        detach(drive)
+    steps += swung.steps
+    if not swung.success:
+        return fail(swung.reason)
 
     # 5. let go, back off, tuck
-    detach(drive)
     released = closed.copy()
     released[11] = arm.GRIPPER_OPEN
     for _ in range(4):
