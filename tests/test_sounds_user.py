@@ -92,6 +92,9 @@ def test_unreadable_file_names_the_file(tmp_path: Path) -> None:
         lib.waveform(lib.instances()[0].id)
     with pytest.raises(SoundLibraryError, match="missing"):
         SoundLibrary.from_recipe(_recipe({"furby": "missing"}), recipe_dir=tmp_path)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(SoundLibraryError, match="no audio files"):
+        SoundLibrary.from_recipe(_recipe({"sink": "empty"}), recipe_dir=tmp_path)
 
 
 def test_crossfaded_file_loop_has_no_click() -> None:

@@ -17,6 +17,7 @@ import numpy as np
 from echo_data.sounds import synth
 from echo_data.sounds.dsp import peak_normalise
 from echo_data.sounds.user_folders import (
+    AUDIO_SUFFIXES,
     SoundLibraryError,
     audio_files,
     crossfade_loop,
@@ -132,6 +133,8 @@ def _builtin_instances() -> tuple[SoundInstance, ...]:
 def folder_instances(category: str, folder: Path, test_fraction: float) -> list[SoundInstance]:
     """Instances for the user's files of one category, ids "<category>-<split>-file-<name>"."""
     files = audio_files(folder)
+    if not files:
+        raise SoundLibraryError(f"{folder}: no audio files ({', '.join(AUDIO_SUFFIXES)}) for category {category}")
     splits = split_files(files, test_fraction)
     out, used = [], set()
     for p in files:  # sorted by name: stable order
