@@ -9,7 +9,7 @@ shifted sideways if needed (`sink_stances`).
 The lever turns about the vertical axis through `Faucet.pivot` and opens counter-clockwise
 (`echo_data.scene.articulated`). With the fingers closed and the gripper pitched down, the
 finger block is lowered beside the lever on its opening side (a lead angle ahead of it on
-the arc of radius `CONTACT_RADIUS`) and then swept clockwise along the arc past angle 0, so
+the contact arc, `CONTACT_INSET` inside the lever tip) and then swept clockwise along the arc past angle 0, so
 the lever is pushed to its closed limit (FINDINGS: 60/60 this way); the water stops. The
 arm then lifts and tucks.
 """
@@ -25,7 +25,6 @@ from echo_data.records import SkillOutcome
 from echo_data.scene.articulated import LEVER_SECTION
 from echo_data.scene.floorplan import Faucet, Furniture
 from echo_data.skills import arm
-from echo_data.skills.success import sink_closed_success
 from echo_data.skills.open_door import (
     approach_base,
     arm_action,
@@ -35,6 +34,7 @@ from echo_data.skills.open_door import (
     tuck_arm,
     untuck_waypoints,
 )
+from echo_data.skills.success import sink_closed_success
 
 BASE_RADIUS = 0.28  # m, the robot's base disc
 FRONT_GAP = 0.06  # m between the base disc and the cabinet face, at least
@@ -46,7 +46,7 @@ FINGER_HALF = 0.02  # m, horizontal half-extent of the closed finger block
 CONTACT_CLEAR = 0.006  # m between the finger block and the lever before the sweep
 CONTACT_INSET = 0.025  # m from the lever tip to the contact point
 HOVER = 0.08  # m above the lever before descending
-UNTUCK_BACK = 0.35  # m back from the stance where the arm unfolds (FINDINGS: untuck in open space)
+UNTUCK_BACK = (0.35, 0.25, 0.15)  # m back from the stance where the arm unfolds (FINDINGS: untuck in open space)
 SWEEP_RATE = 0.6  # rad/s of the finger along the arc
 SWEEP_PAST = 0.2  # rad beyond closed the finger aims at (the joint limit stops the lever at 0)
 IK_STEP = 0.15  # rad between IK waypoints along the arc (joint-space lines in between)
@@ -101,6 +101,16 @@ def _base_fits(world: object, x: float, y: float) -> bool:
         if float(np.linalg.norm(a + s * (b - a) - [x, y])) < need + d.thickness / 2.0:
             return False
     return True
+
+
+def _step_back(world: object, pose: tuple[float, float, float]) -> tuple[float, float, float]:
+    """The pose the first of UNTUCK_BACK behind `pose` (along its heading) where the base fits."""
+    x, y, yaw = pose
+    for back in UNTUCK_BACK:
+        bx, by = x - back * math.cos(yaw), y - back * math.sin(yaw)
+        if _base_fits(world, bx, by):
+            return (bx, by, yaw)
+    return pose
 
 
 def _push_rotation(yaw: float) -> np.ndarray:
@@ -183,8 +193,7 @@ def close_sink(world: object, call: object, spec: object) -> Generator[np.ndarra
     stance, (q_hover, q_sweep) = choice
 
     # 2. unfold the arm a step back from the counter (open space), then drive in with it raised
-    fx, fy = math.cos(stance[2]), math.sin(stance[2])
-    back_pose = (stance[0] - UNTUCK_BACK * fx, stance[1] - UNTUCK_BACK * fy, stance[2])
+    back_pose = _step_back(world, stance)
     moved = yield from approach_base(world, back_pose, robot.rest_action(), max_steps - steps)
     steps += moved.steps
     if not moved.success:
@@ -219,9 +228,7 @@ def close_sink(world: object, call: object, spec: object) -> Generator[np.ndarra
     lift = near_ik(planner_at(world), lift_point, _push_rotation(robot.base_pose()[2]), last, fix_torso=True)
     lift = last if lift is None else lift
     steps += yield from arm.follow_path(world, [last, lift], gripper=0.0, settle=False)
-    x, y, yaw = robot.base_pose()
-    retreat = (x - UNTUCK_BACK * math.cos(yaw), y - UNTUCK_BACK * math.sin(yaw), yaw)
-    moved = yield from approach_base(world, retreat, arm_action(robot, lift, gripper=0.0), max(0, max_steps - steps))
+    moved = yield from approach_base(world, _step_back(world, robot.base_pose()), arm_action(robot, lift, gripper=0.0), max(0, max_steps - steps))
     steps += moved.steps
     tucked = yield from tuck_arm(world, gripper=0.0)
     if tucked is None:
