@@ -144,7 +144,7 @@ def _design_phone_classic(sub: str, rng: np.random.Generator) -> Design:
         gap = float(rng.uniform(0.15, 0.3))
         return {"style": "double", "fa": fa, "fb": fa + float(rng.uniform(25, 70)), "bursts": [(0.0, on), (on + gap, on)],
                 "duration": 2 * on + gap + float(rng.uniform(1.4, 2.2))}
-    fb = float(rng.uniform(900, 1400))
+    fb = float(rng.uniform(650, 1050))  # a desk telephone's gongs are larger (lower) than an alarm clock's
     on = float(rng.uniform(1.0, 1.8))
     return {"style": "bell", "f1": fb, "f2": fb * float(rng.uniform(1.06, 1.25)), "rate": float(rng.uniform(18, 25)),
             "on": on, "duration": on + float(rng.uniform(1.2, 2.0))}
@@ -229,10 +229,10 @@ def _design_alarm(k: int, rng: np.random.Generator) -> Design:
         beeps = [r * period + b * (beep + gap) for r in range(repeats) for b in range(group)]
         return {"style": style, "f": f, "beep": beep, "beeps": beeps, "duration": repeats * period}
     if style == "bell":
-        f0 = float(rng.uniform(1100, 2400))
+        f0 = float(rng.uniform(1800, 3000))
         on = float(rng.uniform(1.2, 2.2))
         return {"style": style, "ratios": [1.0] + sorted((np.array([2.32, 4.25, 6.63]) * rng.uniform(0.95, 1.05, 3)).tolist()),
-                "f0": f0, "rate": float(rng.uniform(14, 30)), "tau": float(rng.uniform(0.08, 0.25)), "on": on,
+                "f0": f0, "rate": float(rng.uniform(22, 34)), "tau": float(rng.uniform(0.08, 0.25)), "on": on,
                 "duration": on + float(rng.uniform(0.4, 1.0))}
     on = float(rng.uniform(1.0, 2.0))
     sub = "twotone" if (k // len(ALARM_STYLES)) % 2 == 0 else "sweep"
