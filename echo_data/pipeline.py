@@ -26,6 +26,20 @@ def step_samples(recipe: Recipe) -> int:
     return recipe.acoustics.sample_rate // recipe.robot.control_hz
 
 
+def _epoch_window(n: int, start: int | None, end: int | None, ramp: int) -> np.ndarray:
+    """Weight of one geometry epoch: 1 inside [start, end), raised-cosine ramps of `ramp` samples
+    centred on the boundaries (None = open-ended), so consecutive windows sum to exactly 1."""
+    t = np.arange(n, dtype=np.float64)
+    w = np.ones(n)
+    for edge, rising in ((start, True), (end, False)):
+        if edge is None:
+            continue
+        x = np.clip((t - (edge - ramp / 2)) / ramp, 0.0, 1.0)
+        up = 0.5 - 0.5 * np.cos(np.pi * x)
+        w *= up if rising else 1.0 - up
+    return w
+
+
 def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True) -> Rollout:
     """Build the SAPIEN world for `spec` and run its skill chain with the scripted experts."""
     from echo_data.world import World
@@ -65,9 +79,20 @@ def render_episode_audio(spec: EpisodeSpec, rollout: Rollout, recipe: Recipe, li
         wave = library.waveform(ev.sound_id, fs, seconds)  # type: ignore[attr-defined]
         stop = rollout.resolved_frame[e]
         sources.append(SourceTrack(position=tuple(ev.source), waveform=wave, stop_sample=None if stop is None else (stop + pre_steps) * hop))
-    scene = AcousticScene(spec.plan, cfg)
     hrtf = Hrtf.load(cfg.hrtf, fs)
-    track = render_track(scene, sources, poses, hop, cfg, hrtf=hrtf)
+    # One acoustic geometry per door state: closed doors until an OpenDoor succeeds, then the
+    # leaf at its measured hinge angle. Superposition is linear, so the episode track is the
+    # epoch renders joined with one-step raised-cosine crossfades (as between cached RIRs).
+    epochs: list[tuple[int, dict[int, float] | None]] = [(0, None)]
+    epochs += [((frame + pre_steps) * hop, angles) for frame, angles in rollout.door_changes]
+    track = None
+    for e, (start, angles) in enumerate(epochs):
+        part = render_track(AcousticScene(spec.plan, cfg, door_angles=angles), sources, poses, hop, cfg, hrtf=hrtf)
+        if track is None:
+            track = np.zeros_like(part)
+        end = epochs[e + 1][0] if e + 1 < len(epochs) else len(part)
+        track += part * _epoch_window(len(part), start if e else None, end if e + 1 < len(epochs) else None, hop)[:, None]
+    assert track is not None
     offsets = (pre_steps + np.arange(n_steps, dtype=np.int64)) * hop
     return track.astype(np.float32), offsets
 

@@ -8,7 +8,7 @@ across skills and an expert cannot forget to log a step.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -30,6 +30,9 @@ class Rollout:
     outcomes: list[SkillOutcome]
     resolved_frame: list[int | None]  # per event: frame index at which its sound stops
     chain_length: int
+    # (frame, hinge angles of every door) after each successful OpenDoor: the acoustics
+    # switch to the opened geometry from that frame on.
+    door_changes: list[tuple[int, dict[int, float]]] = field(default_factory=list)
 
     @property
     def success(self) -> bool:
@@ -60,11 +63,14 @@ def run_chain(
     outcomes: list[SkillOutcome] = []
     resolved: list[int | None] = [None] * len(spec.events)
     flags = [False] * len(spec.chain)
+    door_changes: list[tuple[int, dict[int, float]]] = []
     last_of_event = {call.event: k for k, call in enumerate(spec.chain) if call.skill in RESOLVING_SKILLS}
 
     for k, call in enumerate(spec.chain):
         expert = experts[call.skill](world, call, spec)
-        budget = max_steps[call.skill] + _GUARD_STEPS
+        # Place drives to its goal receptacle before it lowers the object: it may use the
+        # Navigate budget for the drive on top of its own.
+        budget = max_steps[call.skill] + (max_steps["Navigate"] if call.skill == "Place" else 0) + _GUARD_STEPS
         n = 0
         outcome: SkillOutcome | None = None
         while True:
@@ -110,7 +116,24 @@ def run_chain(
             break
         if last_of_event.get(call.event) == k:
             resolved[call.event] = len(steps)
+        if call.skill == "OpenDoor":
+            door_changes.append((len(steps), dict(world.door_angles())))  # type: ignore[attr-defined]
     if steps:
         steps[-1].done = True
         steps[-1].skill_success = tuple(flags)
-    return Rollout(steps=steps, outcomes=outcomes, resolved_frame=resolved, chain_length=len(spec.chain))
+    return Rollout(steps=steps, outcomes=outcomes, resolved_frame=resolved, chain_length=len(spec.chain), door_changes=door_changes)
+
+
+def records_digest(steps: list[StepRecord]) -> str:
+    """sha256 over every field of every step record: equal digests mean bit-identical rollouts."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for s in steps:
+        h.update(f"{s.frame_index}|{s.timestamp!r}|{s.skill}|{s.skill_index}|{s.ear_position!r}|{s.ear_yaw!r}|{s.sounding}|{s.skill_success}|{s.done}".encode())
+        for arr in (s.action, s.state, s.head_rgb, s.head_depth, s.wrist_depth):
+            if arr is not None:
+                a = np.ascontiguousarray(arr)
+                h.update(f"{a.dtype}{a.shape}".encode())
+                h.update(a.tobytes())
+    return h.hexdigest()

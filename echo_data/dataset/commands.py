@@ -21,7 +21,7 @@ def _fail(message: str, code: int) -> typer.Exit:
 
 def build_cmd(
     recipe: Annotated[Path, typer.Argument(help="Recipe YAML file.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Output root; the dataset goes to OUT/<recipe name>.")] = Path("out"),
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Dataset folder (default: out/<recipe name>).")] = None,
     workers: Annotated[int, typer.Option("--workers", "-w", help="Parallel episode workers.")] = 1,
     limit: Annotated[Optional[int], typer.Option("--limit", help="At most N episodes per split (quick runs).")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted build.")] = False,
@@ -41,7 +41,7 @@ def build_cmd(
         raise _fail(str(e), 2) from None
     mode = "resume" if resume else "overwrite" if overwrite else "new"
     try:
-        summary = build(r, recipe, out / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress)  # type: ignore[arg-type]
+        summary = build(r, recipe, out if out is not None else Path("out") / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress)  # type: ignore[arg-type]
     except OutputError as e:
         raise _fail(str(e), 2) from None
     except BuildError as e:
