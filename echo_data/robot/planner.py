@@ -198,11 +198,35 @@ class ArmPlanner:
         n = max(2, int(math.ceil(float(np.max(np.abs(b - a))) / step)) + 1)
         return all(not self.collisions(a + (b - a) * t, gripper) for t in np.linspace(0.0, 1.0, n))
 
+    def via_path(self, start: np.ndarray, goal: np.ndarray, gripper: float | None = None, tries: int = 150) -> list[np.ndarray] | None:
+        """start -> via -> goal through one collision-free via configuration, or None.
+
+        Vias are drawn from the planner's seeded generator, biased towards the straight
+        segment's midpoint, so (unlike OMPL's clock-seeded RRT) the same episode always
+        finds the same path.
+        """
+        lim = self.limits[self.group]
+        lo, hi = np.maximum(lim[:, 0], -math.pi), np.minimum(lim[:, 1], math.pi)
+        mid = (start + goal) / 2.0
+        for k in range(tries):
+            spread = min(1.0, 0.15 + k / tries)  # widen the search as it goes
+            rand = lo + (hi - lo) * self.rng.random(len(self.group))
+            via = np.clip(mid + spread * (rand - mid), lo, hi)
+            if self.collisions(via, gripper):
+                continue
+            if self.segment_free(start, via, gripper) and self.segment_free(via, goal, gripper):
+                return [start.copy(), via, goal.copy()]
+        return None
+
     def path(self, start: np.ndarray, goal: np.ndarray, gripper: float | None = None, planning_time: float = 1.5) -> list[np.ndarray] | None:
         """Waypoints (group q) from start to goal: straight if free, else RRTConnect (simplified)."""
         if self.segment_free(start, goal, gripper):
             return [start.copy(), goal.copy()]
-        # via a lifted/folded midpoint first: cheap and reproducible
+        via = self.via_path(start, goal, gripper)
+        if via is not None:
+            return via
+        # Last resort: mplib's RRTConnect. OMPL seeds it from the clock, so an episode that
+        # reaches this line may not repeat bit for bit (the recorded actions stay valid).
         res = self.mp.plan_qpos(
             [self.full(goal, gripper)],
             self.full(start, gripper),
