@@ -132,11 +132,11 @@ def test_planner_export(built: Path) -> None:
     assert user["role"] == "user" and user["content"].startswith("<audio><image>") and "CloseSink" in user["content"]
     assert assistant["role"] == "assistant"
     assert json.loads(assistant["content"])[0] == {"skill": "Navigate", "target": "phone"}
-    assert rec["audios"] == ["planner/audio/train/train-000000.wav"] and rec["images"] == ["planner/images/train/train-000000.png"]
-    info = sf.info(str(built / rec["audios"][0]))
+    assert rec["audios"] == ["audio/train/train-000000.wav"] and rec["images"] == ["images/train/train-000000.png"]
+    info = sf.info(str(built / "planner" / rec["audios"][0]))
     heard = pq.read_table(built / "meta" / "episodes.parquet").column("audio_samples")[0].as_py()
     assert (info.samplerate, info.channels, info.frames) == (16000, 1, min(3 * 16000, heard))
-    assert (built / rec["images"][0]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (built / "planner" / rec["images"][0]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     di = json.loads((built / "planner" / "dataset_info.json").read_text())["synth_train"]
     assert di["formatting"] == "sharegpt" and di["file_name"] == "train.json"
     assert di["columns"] == {"messages": "messages", "audios": "audios", "images": "images"}

@@ -3,8 +3,9 @@
 One record per episode: the user turn holds `<audio><image>` and a prompt listing the skill
 library; the assistant answers with the ground-truth skill chain as JSON. The audio is the
 first seconds the robot heard (16 kHz mono, as Qwen2.5-Omni expects), the image its first head
-RGB frame; both were written next to the episode by the build. Media paths are relative to the
-dataset root: in LLaMA-Factory set `dataset_dir` to <root>/planner and `media_dir` to <root>.
+RGB frame; both were written next to the episode by the build. Media paths are relative to
+planner/ itself, so LLaMA-Factory with `dataset_dir` = <root>/planner finds them with its default
+`media_dir` (= dataset_dir).
 """
 
 from __future__ import annotations
@@ -52,10 +53,10 @@ def planner_record(row: dict[str, Any], has_image: bool) -> dict[str, Any]:
             {"role": "user", "content": prompt(has_image)},
             {"role": "assistant", "content": answer(row["chain"])},
         ],
-        "audios": [f"planner/audio/{row['split']}/{row['episode_id']}.wav"],
+        "audios": [f"audio/{row['split']}/{row['episode_id']}.wav"],
     }
     if has_image:
-        rec["images"] = [f"planner/images/{row['split']}/{row['episode_id']}.png"]
+        rec["images"] = [f"images/{row['split']}/{row['episode_id']}.png"]
     return rec
 
 

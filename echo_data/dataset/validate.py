@@ -178,7 +178,7 @@ def _meta_problems(out: Path, recipe: Recipe, rows: list[dict[str, Any]]) -> lis
                 problems.append(f"planner/{split}.json: {len(records)} records for a split of different size")
             for rec in records:
                 for media in rec.get("audios", []) + rec.get("images", []):
-                    if not (out / media).is_file():
+                    if not (out / "planner" / media).is_file():
                         problems.append(f"planner/{split}.json: missing {media}")
         if not (out / "planner" / "dataset_info.json").is_file():
             problems.append("planner/dataset_info.json: missing")
