@@ -6,6 +6,7 @@ of every robot camera — the floor no pipeline on SAPIEN can go under.
 Measured against it:
   rollout   the expert chain with observations (planning, control, proprioception, images)
   episode   the whole episode: sampling + world build + rollout + binaural audio + features
+  written   the episode plus its encoding for the dataset (PNG images, Parquet-ready columns)
 Usage: python benchmarks/bench_pipeline.py [RECIPE] [-n EPISODES]
 """
 
@@ -21,6 +22,7 @@ os.environ.setdefault("LP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from echo_data.recipe import load_recipe  # noqa: E402
+from echo_data.robot.robot import COLOR_PICTURE, POSITION_PICTURE  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -39,9 +41,9 @@ def bare_step_render(world: object, steps: int) -> float:
             c.take_picture()
             cfg = names[id(c)]
             if cfg.rgb:
-                c.get_picture("Color")
+                c.get_picture(COLOR_PICTURE)
             if cfg.depth:
-                c.get_picture("Position")
+                c.get_picture(POSITION_PICTURE)
     return (time.perf_counter() - t0) / steps
 
 
@@ -51,6 +53,8 @@ def main() -> None:
     ap.add_argument("-n", type=int, default=3, help="episodes")
     args = ap.parse_args()
 
+    from echo_data.dataset.schema import StepLayout
+    from echo_data.dataset.writer import encode_episode
     from echo_data.pipeline import generate_episode
     from echo_data.rollout import run_chain
     from echo_data.scene.sampling import sample_episode
@@ -62,7 +66,7 @@ def main() -> None:
     base: list[float] = []
     ncam = 0
     roll_steps = full_steps = 0
-    t_roll = t_full = 0.0
+    t_roll = t_full = t_enc = 0.0
     for i in range(args.n):
         spec, _ = sample_episode(recipe, "train", i, library)
         w = World(spec, recipe, render=True)
@@ -81,6 +85,9 @@ def main() -> None:
         res = generate_episode(recipe, "train", i, library)
         t_full += time.perf_counter() - t0
         full_steps += len(res.steps)
+        t0 = time.perf_counter()
+        encode_episode(res, StepLayout.from_recipe(recipe))
+        t_enc += time.perf_counter() - t0
         print(f"episode {i}: {spec.setting:18s} steps {len(ro.steps):4d} success {ro.success}")
     b = float(np.median(base))
     r = t_roll / max(roll_steps, 1)
@@ -88,7 +95,9 @@ def main() -> None:
     print(f"baseline  bare SAPIEN step+render ({ncam} cameras): {b * 1e3:7.2f} ms/step")
     print(f"rollout   experts + observations:          {r * 1e3:7.2f} ms/step  ratio {r / b:5.2f}x")
     print(f"episode   sampling+world+rollout+audio:    {f * 1e3:7.2f} ms/step  ratio {f / b:5.2f}x")
-    print(f"throughput: {t_full / args.n:.1f} s/episode on one process, {full_steps / max(t_full, 1e-9):.1f} steps/s")
+    e = (t_full + t_enc) / max(full_steps, 1)
+    print(f"written   episode + dataset encoding:      {e * 1e3:7.2f} ms/step  ratio {e / b:5.2f}x")
+    print(f"throughput: {(t_full + t_enc) / args.n:.1f} s/episode on one process, {full_steps / max(t_full + t_enc, 1e-9):.1f} steps/s")
 
 
 if __name__ == "__main__":
