@@ -263,3 +263,18 @@ def test_ray_executor_missing_is_a_clear_input_error(tmp_path: Path) -> None:
         assert not (tmp_path / "synth").exists()
     else:
         pytest.skip("Ray is installed")
+
+
+def test_ray_executor_gives_the_same_bytes(built: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`--executor ray` (when Ray is installed: `pip install .[ray]`) writes what the local pool writes."""
+    ray = pytest.importorskip("ray")
+    import os
+
+    # Ray workers unpickle the synthetic generator by module name: let them import it.
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]))
+    try:
+        summary = _build(tmp_path / "ray", workers=2, executor="ray")
+    finally:
+        ray.shutdown()
+    assert summary.episodes == {"train": 5, "test": 3}
+    assert _digests(tmp_path / "ray") == _digests(built)
