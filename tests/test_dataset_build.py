@@ -236,11 +236,37 @@ def test_read_only_directory_exit_2(tmp_path: Path) -> None:
     assert list(ro.iterdir()) == []
 
 
-def test_cli_bad_recipe_exit_2(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    "text, key",
+    [
+        ("name: x\nscene: [1, 2\n", "malformed YAML"),
+        ("name: x\nscene:\n  roomz: [2, 3]\n", "scene.roomz: unknown key"),
+        ("name: x\nacoustics:\n  sample_rate: fast\n", "acoustics.sample_rate"),
+        ("name: x\nsplits: {train: -1}\n", "splits"),
+        ("name: x\nscene:\n  rooms: [4, 2]\n", "scene.rooms"),
+        ("name: x\nsounds:\n  folders: {phone: no_such_folder}\n", "sounds.folders.phone"),
+    ],
+)
+def test_cli_bad_recipe_exit_2(tmp_path: Path, text: str, key: str) -> None:
     bad = tmp_path / "bad.yaml"
-    bad.write_text("name: x\nsplits: {train: -1}\n")
+    bad.write_text(text)
     res = _cli(["build", str(bad), "--out", str(tmp_path / "o")])
-    assert res.exit_code == 2 and "splits" in res.output and not (tmp_path / "o").exists()
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert res.exit_code == 2 and len(lines) == 1 and key in lines[0] and "bad.yaml" in lines[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_cli_unreadable_sound_file_exit_2_nothing_written(tmp_path: Path) -> None:
+    folder = tmp_path / "my_phones"
+    folder.mkdir()
+    (folder / "ring.wav").write_bytes(b"RIFF not really a wav")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: x\nsounds:\n  folders: {phone: my_phones}\n")
+    res = _cli(["build", str(bad), "--out", str(tmp_path / "o")])
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert res.exit_code == 2, res.output
+    assert len(lines) == 1 and "ring.wav" in lines[0]
+    assert not (tmp_path / "o").exists()
 
 
 def wrong_shapes(recipe, split, index, library, recipe_dir, attempt=0):  # noqa: ANN001, ANN201

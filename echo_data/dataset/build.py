@@ -456,6 +456,14 @@ def build(
     layout = StepLayout.from_recipe(recipe)
     plans = plan_shards(recipe, limit)
     gen = generate or _default_generate()
+    # Read the sound library once before anything is written: an unreadable user WAV is bad
+    # input (exit 2, nothing written), not a crash inside a worker halfway through the build.
+    try:
+        (make_library or default_library)(recipe, Path(recipe_path).resolve().parent)
+    except Exception as e:
+        if type(e).__name__ != "SoundLibraryError":
+            raise
+        raise OutputError(str(e).splitlines()[0]) from None
     manifest = _prepare(out, recipe, limit, layout, mode, workers, executor)
 
     writer = _Writer(out, recipe, layout, manifest, plans)
