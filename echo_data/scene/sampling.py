@@ -19,7 +19,7 @@ from scipy import ndimage
 
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, episode_seed
 from echo_data.recipe import RELOCATION_CATEGORIES, STATE_CATEGORIES, Recipe
-from echo_data.scene.floorplan import FloorPlan, Furniture, Rect, Vec3
+from echo_data.scene.floorplan import FloorPlan, Rect, Vec3
 from echo_data.scene.generate import GenerationError, door_swing_zone, front_zone, generate_floorplan, place_object
 from echo_data.scene.nav import NavGrid, interaction_pose
 
