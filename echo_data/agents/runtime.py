@@ -135,7 +135,7 @@ def run_episode(env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any]
     from echo_data.envs.env import skill_budget
 
     env = getattr(env, "unwrapped", env)
-    spec: EpisodeSpec = env.spec
+    spec: EpisodeSpec = env.episode
     truth = true_chain(spec)
     if callable(getattr(planner, "reset", None)):
         planner.reset({**info, "true_chain": truth, "spec_object": spec})

@@ -3,7 +3,7 @@
 One episode = one `EpisodeSpec` (floor plan, sounds, events, robot start, true skill chain).
 `reset(options={"split": s, "index": i})` samples exactly the spec `echo-data build` samples for
 (recipe seed, s, i) (`"attempt": k` for the build's k-th retry); `reset(seed=n)` draws a fresh
-episode. `step(action)` applies the dataset's 12-float action for one control period, then:
+episode (the recipe under a seed drawn from n). `step(action)` applies the dataset's 12-float action for one control period, then:
 events whose resolving skill's success test now holds stop sounding (a door found open changes
 the acoustics), the robot's ears hear the control period just played (`OnlineTrack`, from the
 pose the head had during it) and the cameras look. Observations carry the dataset's column
@@ -122,7 +122,7 @@ class EchoDataEnv(gym.Env):
         self.action_space = action_space()
         self.world: Any = None
         self.track: Any = None
-        self.spec: EpisodeSpec | None = None
+        self.episode: EpisodeSpec | None = None
         self._obs: dict[str, np.ndarray] | None = None
 
     # ------------------------------------------------------------------ episode
@@ -152,11 +152,13 @@ class EchoDataEnv(gym.Env):
             spec = options["spec"]
         elif "index" in options:
             spec = self.sample_spec(options.get("split", self.split), int(options["index"]), int(options.get("attempt", 0)))
-        else:  # a fresh episode: an index no build uses, drawn from the seeded generator
+        else:  # a fresh episode: the recipe under another seed, both drawn from the seeded generator
             from echo_data.scene.sampling import sample_episode
 
-            index = int(self.np_random.integers(10**6, 2**31))
-            spec, _ = sample_episode(self.recipe, options.get("split", self.split), index, self.library)
+            split = options.get("split", self.split)
+            fresh = self.recipe.model_copy(update={"seed": int(self.np_random.integers(2**31))})
+            index = int(self.np_random.integers(max(self.recipe.splits.get(split, 1), 1)))
+            spec, _ = sample_episode(fresh, split, index, self.library)
         self._start(spec)
         return self._obs, self._info(reset=True)  # type: ignore[return-value]
 
@@ -164,7 +166,7 @@ class EchoDataEnv(gym.Env):
         from echo_data.world import World
 
         self._close_world()
-        self.spec = spec
+        self.episode = spec
         self.world = World(spec, self.recipe, render=self.images)
         self.sounding = [True] * len(spec.events)
         self.resolved_step: list[int | None] = [None] * len(spec.events)
@@ -201,18 +203,18 @@ class EchoDataEnv(gym.Env):
         block = None
         if self.track is not None:
             for e in newly:
-                if self.spec.chain[self._resolver[e]].skill == "OpenDoor":  # type: ignore[union-attr]
+                if self.episode.chain[self._resolver[e]].skill == "OpenDoor":  # type: ignore[union-attr]
                     self.track.open_doors(self.world.door_angles(), at=self.track.samples + self.track.hop)
             block = self.track.step(pose)
             for e in newly:
                 self.track.stop(e)
         for e in newly:
-            if self.spec.chain[self._resolver[e]].skill == "OpenDoor":  # type: ignore[union-attr]
+            if self.episode.chain[self._resolver[e]].skill == "OpenDoor":  # type: ignore[union-attr]
                 self.door_changes.append((self.steps, self.world.door_angles()))
         before = self.progress
         self._advance()
         self._obs = self._observe(block)
-        terminated = self.progress == len(self.spec.chain)  # type: ignore[union-attr]
+        terminated = self.progress == len(self.episode.chain)  # type: ignore[union-attr]
         truncated = not terminated and self.steps >= self.max_episode_steps
         return self._obs, float(self.progress - before), terminated, truncated, self._info()
 
@@ -220,14 +222,14 @@ class EchoDataEnv(gym.Env):
         """Events whose resolving skill's success test holds now (latched): they stop sounding."""
         newly = []
         for e, k in self._resolver.items():
-            if self.sounding[e] and self.skill_success(self.spec.chain[k]):  # type: ignore[union-attr]
+            if self.sounding[e] and self.skill_success(self.episode.chain[k]):  # type: ignore[union-attr]
                 self.sounding[e] = False
                 self.resolved_step[e] = self.steps
                 newly.append(e)
         return sorted(newly)
 
     def _advance(self) -> None:
-        chain = self.spec.chain  # type: ignore[union-attr]
+        chain = self.episode.chain  # type: ignore[union-attr]
         while self.progress < len(chain) and self.skill_success(chain[self.progress]):
             call = chain[self.progress]
             if call.skill == "Place":  # the object rests on its goal now (a later Pick lifts it from there)
@@ -264,7 +266,7 @@ class EchoDataEnv(gym.Env):
         return obs
 
     def _info(self, reset: bool = False) -> dict[str, Any]:
-        spec = self.spec
+        spec = self.episode
         assert spec is not None
         info: dict[str, Any] = {
             "episode_id": spec.episode_id,
@@ -310,7 +312,7 @@ class EchoDataEnv(gym.Env):
 
     def _held_object(self, call: SkillCall) -> str | None:
         """The object a Place call carries: the Pick target of the same event."""
-        for c in self.spec.chain:  # type: ignore[union-attr]
+        for c in self.episode.chain:  # type: ignore[union-attr]
             if c.event == call.event and c.skill == "Pick":
                 return c.target
         return None

@@ -135,7 +135,7 @@ class _VideoRecorder:
         from echo_data.evaluation.video import TopDown
 
         self.env = env
-        self.top = TopDown(env.spec)
+        self.top = TopDown(env.episode)
         self.frames: list[Any] = []
         self.path: list[tuple[float, float]] = []
 
