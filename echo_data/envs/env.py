@@ -10,6 +10,10 @@ pose the head had during it) and the cameras look. Observations carry the datase
 names, dtypes and shapes, plus `observation.audio.binaural`: the (hop, 2) float32 samples of that
 control period (the episode WAV is these blocks one after another).
 
+Reward: the number of true-chain skills newly completed in order at this step (their success
+tests, latched); `terminated` when the whole chain is done or a non-finite action arrived (the
+reason in `info["failure"]`); `truncated` past the sum of the chain's step budgets.
+
 The build drives this same environment with the scripted experts (`echo_data.agents`), so a
 dataset episode replays here action by action to the same states, images and audio.
 """
