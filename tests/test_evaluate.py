@@ -87,6 +87,27 @@ def test_checkpoint_folder_that_does_not_load(tmp_path: Path) -> None:
     assert r.exit_code == 2 and "cannot import" in r.output
 
 
+class _FromCheckpoint(_BadShape):
+    def __init__(self, checkpoint: Path, gain: float = 1.0) -> None:
+        self.checkpoint, self.gain = checkpoint, gain
+
+    def act(self, obs):  # noqa: ANN001
+        a = [0.0] * 12
+        a[3:12] = list(obs["observation.state"][3:12])
+        return a
+
+
+def test_checkpoint_folder_loads_with_its_kwargs(tmp_path: Path) -> None:
+    (tmp_path / "agent.json").write_text(json.dumps({"class": "test_evaluate:_FromCheckpoint", "kwargs": {"gain": 2.0}}))
+    (tmp_path / "weights.bin").write_bytes(b"0123")
+    out = tmp_path / "r.json"
+    r = _run("--policy", str(tmp_path), "--json", str(out))
+    assert r.exit_code == 0, r.output
+    ident = json.loads(out.read_text())["policy"]
+    assert ident["class"] == "test_evaluate:_FromCheckpoint" and ident["checkpoint"] == str(tmp_path)
+    assert len(ident["checkpoint_sha256"]) == 64
+
+
 def test_nan_action_fails_that_episode_with_its_reason(tmp_path: Path) -> None:
     out = tmp_path / "r.json"
     r = _run("--policy", "test_evaluate:_NaN", "-n", "1", "--json", str(out))

@@ -78,6 +78,7 @@ def action_space() -> spaces.Box:
 
 def observation_space(recipe: Recipe, images: bool = True, audio: bool = True) -> spaces.Dict:
     """Keys, dtypes and shapes of the dataset's observation columns (+ the binaural samples)."""
+    from echo_data.acoustics.features import MEL_FLOOR
     from echo_data.dataset.schema import StepLayout
 
     layout = StepLayout.from_recipe(recipe)
@@ -92,8 +93,9 @@ def observation_space(recipe: Recipe, images: bool = True, audio: bool = True) -
     if audio:
         hop = recipe.acoustics.sample_rate // recipe.robot.control_hz
         d[BINAURAL] = spaces.Box(-np.inf, np.inf, (hop, 2), np.float32)
-        for col, shape in layout.arrays.items():
-            d[col] = spaces.Box(-np.inf, np.inf, shape, np.float32)
+        for col, shape in layout.arrays.items():  # log1p magnitudes >= 0; log-mel floored at -100 dB
+            low = 0.0 if col == SPECTROGRAM else 10.0 * np.log10(MEL_FLOOR)
+            d[col] = spaces.Box(np.float32(low), np.inf, shape, np.float32)
     return spaces.Dict(d)
 
 
