@@ -56,7 +56,7 @@ def main() -> None:
     from echo_data.dataset.schema import StepLayout
     from echo_data.dataset.writer import encode_episode
     from echo_data.pipeline import generate_episode
-    from echo_data.rollout import run_chain
+    from echo_data.pipeline import simulate
     from echo_data.scene.sampling import sample_episode
     from echo_data.sounds import SoundLibrary
     from echo_data.world import World
@@ -74,13 +74,10 @@ def main() -> None:
         base.append(bare_step_render(w, 50))
         ncam = len(w.robot.cameras)
         w.close()
-        w = World(spec, recipe, render=True)
-        w.observe()
         t0 = time.perf_counter()
-        ro = run_chain(w, spec, dict(recipe.robot.max_steps), recipe.robot.control_hz)
+        ro = simulate(spec, recipe, observe=True)  # experts acting in the env, cameras, no ears
         t_roll += time.perf_counter() - t0
         roll_steps += len(ro.steps)
-        w.close()
         t0 = time.perf_counter()
         res = generate_episode(recipe, "train", i, library)
         t_full += time.perf_counter() - t0

@@ -112,6 +112,24 @@ def preview(
     typer.echo(f"wrote {', '.join(sorted(p.name for p in out.iterdir()))} to {out}")
 
 
+@app.command()
+def evaluate(
+    recipe_path: Path = typer.Argument(..., metavar="RECIPE", help="Recipe YAML (its episodes, split sizes and budgets)."),
+    split: str = typer.Option("test", "--split", help="Split to evaluate on."),
+    n: int = typer.Option(30, "-n", min=1, help="Episodes: indices 0..n-1 of the split."),
+    policy: str = typer.Option("oracle", "--policy", help="Skill policy: oracle | random | still | module:Class | checkpoint folder."),
+    planner: str = typer.Option("oracle", "--planner", help="Planner: oracle | module:Class | checkpoint folder."),
+    workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="Write the results (metrics, per-episode outcomes) here."),
+    video: Optional[Path] = typer.Option(None, "--video", help="Write one MP4 per episode (picture + binaural sound) into this folder."),
+) -> None:
+    """Run a policy closed-loop on a split and report the paper's metrics with 95 % intervals."""
+    from echo_data.evaluation.cli import run_evaluate
+
+    code = run_evaluate(_load(recipe_path), recipe_path, split, n, policy, planner, workers, json_out, video)
+    raise typer.Exit(code)
+
+
 # Dataset commands (build, validate, info) live in echo_data.dataset.commands.
 from echo_data.dataset.commands import register as _register_dataset_commands  # noqa: E402
 

@@ -1,7 +1,9 @@
-"""One episode end to end: sample the spec, simulate the expert, render what the robot hears.
+"""One episode end to end: sample the spec, let the experts act in the environment, keep what it saw and heard.
 
 `generate_episode` is a plain function of (recipe, split, index, attempt): every worker on
-every machine computes the same bytes for the same arguments.
+every machine computes the same bytes for the same arguments. Episodes are run by
+`echo_data.agents.runtime.run_episode` in `echo_data.envs.EchoDataEnv` (the same loop that
+evaluates policies), so a dataset episode is exactly what the environment gives back.
 """
 
 from __future__ import annotations
@@ -10,91 +12,102 @@ from pathlib import Path
 
 import numpy as np
 
+from echo_data.envs.audio import PRE_ROLL_SECONDS, step_samples  # noqa: F401  (re-exported)
 from echo_data.episode import EpisodeSpec
 from echo_data.recipe import Recipe
-from echo_data.records import EpisodeResult
-from echo_data.rollout import Rollout, run_chain
-
-# The event has been sounding for this long when the robot's first observation is taken:
-# the first step's spectrogram then holds a full second of the event, as a robot that reacts
-# to a sound would hear it. The episode WAV starts at the beginning of this pre-roll.
-PRE_ROLL_SECONDS = 1.0
+from echo_data.records import EpisodeResult, StepRecord
+from echo_data.rollout import Rollout
 
 
-def step_samples(recipe: Recipe) -> int:
-    """Audio samples per control step."""
-    return recipe.acoustics.sample_rate // recipe.robot.control_hz
+def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: object | None = None) -> Rollout:
+    """Run `spec`'s chain with the scripted experts acting in the environment; record every step.
 
+    `observe`: render the cameras. With a sound `library` the robot also hears (online audio,
+    per-step features) and the rollout carries the finished episode track.
+    """
+    from echo_data.agents.builtin import OraclePlanner, OracleSkills
+    from echo_data.agents.runtime import run_episode
+    from echo_data.envs.env import EchoDataEnv
 
-def _epoch_window(n: int, start: int | None, end: int | None, ramp: int) -> np.ndarray:
-    """Weight of one geometry epoch: 1 inside [start, end), raised-cosine ramps of `ramp` samples
-    centred on the boundaries (None = open-ended), so consecutive windows sum to exactly 1."""
-    t = np.arange(n, dtype=np.float64)
-    w = np.ones(n)
-    for edge, rising in ((start, True), (end, False)):
-        if edge is None:
-            continue
-        x = np.clip((t - (edge - ramp / 2)) / ramp, 0.0, 1.0)
-        up = 0.5 - 0.5 * np.cos(np.pi * x)
-        w *= up if rising else 1.0 - up
-    return w
-
-
-def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True) -> Rollout:
-    """Build the SAPIEN world for `spec` and run its skill chain with the scripted experts."""
-    from echo_data.world import World
-
-    world = World(spec, recipe, render=observe)
+    env = EchoDataEnv(recipe, split=spec.split, images=observe, audio=library is not None, library=library)
+    recorder = _Recorder(recipe.robot.control_hz)
+    policy = OracleSkills()
     try:
-        return run_chain(world, spec, dict(recipe.robot.max_steps), recipe.robot.control_hz, observe=observe)
+        obs, info = env.reset(options={"spec": spec})
+        run = run_episode(env, obs, info, OraclePlanner(), policy, on_step=recorder)
+        if recorder.steps:
+            recorder.steps[-1].done = True
+            recorder.steps[-1].skill_success = tuple(o.success for o in run.outcomes) + (False,) * (len(spec.chain) - len(run.outcomes))
+        ro = Rollout(recorder.steps, run.outcomes, list(env.resolved_step), len(spec.chain), list(env.door_changes))
+        if env.track is not None and recorder.steps:
+            ro.audio, ro.audio_offsets = env.episode_audio()
+            ro.spectrogram = _stack(recorder.spectrogram)
+            ro.mel = _stack(recorder.mel)
+        return ro
     finally:
-        world.close()
+        policy.close()
+        env.close()
+
+
+def _stack(xs: list[np.ndarray]) -> np.ndarray | None:
+    return np.stack(xs) if xs else None
+
+
+class _Recorder:
+    """Turns each (observation, action) the runtime is about to apply into a StepRecord."""
+
+    def __init__(self, control_hz: int) -> None:
+        self.control_hz = control_hz
+        self.steps: list[StepRecord] = []
+        self.spectrogram: list[np.ndarray] = []
+        self.mel: list[np.ndarray] = []
+
+    def __call__(self, env: object, obs: dict[str, np.ndarray], action: np.ndarray, k: int, call: object, flags: tuple[bool, ...]) -> None:
+        from echo_data.dataset.schema import IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE
+
+        x, y, z, yaw = env.ear_pose()  # type: ignore[attr-defined]
+        frame = len(self.steps)
+        self.steps.append(StepRecord(
+            frame_index=frame,
+            timestamp=frame / self.control_hz,
+            skill=call.skill,  # type: ignore[attr-defined]
+            skill_index=k,
+            action=action,
+            state=obs[STATE],
+            head_rgb=obs.get(IMAGE_COLUMNS["head_rgb"]),
+            head_depth=obs.get(IMAGE_COLUMNS["head_depth"]),
+            wrist_depth=obs.get(IMAGE_COLUMNS["wrist_depth"]),
+            ear_position=(x, y, z),
+            ear_yaw=yaw,
+            sounding=tuple(env.sounding),  # type: ignore[attr-defined]
+            skill_success=flags,
+        ))
+        if SPECTROGRAM in obs:
+            self.spectrogram.append(obs[SPECTROGRAM])
+        if MEL in obs:
+            self.mel.append(obs[MEL])
 
 
 def render_episode_audio(spec: EpisodeSpec, rollout: Rollout, recipe: Recipe, library: object) -> tuple[np.ndarray, np.ndarray]:
-    """The binaural episode track along the robot's actual path, and each step's sample offset.
+    """The binaural track of a recorded rollout (its ear poses, stops and door changes) and each
+    step's sample offset: the same `OnlineTrack` the environment hears with, fed after the fact."""
+    from echo_data.envs.audio import OnlineTrack
 
-    Sources play from the start of the pre-roll until the step at which their event was
-    resolved (then fade out; reverberation decays naturally). The head stays at its first
-    pose during the pre-roll.
-    """
-    from echo_data.acoustics.hrtf import Hrtf
-    from echo_data.acoustics.room import AcousticScene
-    from echo_data.acoustics.stream import SourceTrack, render_track
-
-    cfg = recipe.acoustics
-    fs = cfg.sample_rate
-    hop = step_samples(recipe)
-    pre_steps = int(round(PRE_ROLL_SECONDS * recipe.robot.control_hz))
-    n_steps = len(rollout.steps)
-    poses = np.array(
-        [[*s.ear_position, s.ear_yaw] for s in rollout.steps] or [[*spec.start[:2], cfg.ear_height, spec.start[2]]],
-        dtype=np.float64,
-    )
-    poses = np.concatenate([np.repeat(poses[:1], pre_steps, axis=0), poses], axis=0)
-    total_steps = len(poses)
-    seconds = total_steps * hop / fs + cfg.rir_seconds
-    sources = []
-    for e, ev in enumerate(spec.events):
-        wave = library.waveform(ev.sound_id, fs, seconds)  # type: ignore[attr-defined]
-        stop = rollout.resolved_frame[e]
-        sources.append(SourceTrack(position=tuple(ev.source), waveform=wave, stop_sample=None if stop is None else (stop + pre_steps) * hop))
-    hrtf = Hrtf.load(cfg.hrtf, fs)
-    # One acoustic geometry per door state: closed doors until an OpenDoor succeeds, then the
-    # leaf at its measured hinge angle. Superposition is linear, so the episode track is the
-    # epoch renders joined with one-step raised-cosine crossfades (as between cached RIRs).
-    epochs: list[tuple[int, dict[int, float] | None]] = [(0, None)]
-    epochs += [((frame + pre_steps) * hop, angles) for frame, angles in rollout.door_changes]
-    track = None
-    for e, (start, angles) in enumerate(epochs):
-        part = render_track(AcousticScene(spec.plan, cfg, door_angles=angles), sources, poses, hop, cfg, hrtf=hrtf)
-        if track is None:
-            track = np.zeros_like(part)
-        end = epochs[e + 1][0] if e + 1 < len(epochs) else len(part)
-        track += part * _epoch_window(len(part), start if e else None, end if e + 1 < len(epochs) else None, hop)[:, None]
-    assert track is not None
-    offsets = (pre_steps + np.arange(n_steps, dtype=np.int64)) * hop
-    return track.astype(np.float32), offsets
+    track = OnlineTrack(spec, recipe, library)
+    poses = [[*s.ear_position, s.ear_yaw] for s in rollout.steps] or [[*spec.start[:2], recipe.acoustics.ear_height, spec.start[2]]]
+    doors = dict(rollout.door_changes)
+    track.pre_roll(poses[0])
+    for e, f in enumerate(rollout.resolved_frame):
+        if f == 0:
+            track.stop(e)
+    for t, pose in enumerate(poses[: len(rollout.steps)]):
+        if t + 1 in doors:
+            track.open_doors(doors[t + 1], at=track.samples + track.hop)
+        track.step(pose)
+        for e, f in enumerate(rollout.resolved_frame):
+            if f == t + 1:
+                track.stop(e)
+    return track.finish(), track.offsets(len(rollout.steps))
 
 
 def generate_episode(
@@ -110,18 +123,15 @@ def generate_episode(
     Raises `echo_data.scene.sampling.SamplingError` when no solvable episode is found within
     the recipe's attempt budget. An expert failure is returned (success False) with reasons.
     """
-    from echo_data.acoustics.features import step_features
     from echo_data.scene.sampling import sample_episode
 
     spec, rejected = sample_episode(recipe, split, index, library, attempt=attempt)
-    rollout = simulate(spec, recipe, observe=True)
+    rollout = simulate(spec, recipe, observe=True, library=library)
     result = EpisodeResult(spec=spec, steps=rollout.steps, outcomes=rollout.outcomes, success=rollout.success, rejected=rejected)
     if not result.success or not rollout.steps:
         return result
-    track, offsets = render_episode_audio(spec, rollout, recipe, library)
-    spec_feats, mel = step_features(track, offsets, recipe.acoustics.sample_rate, recipe.acoustics.mel_bands)
-    result.audio = track
-    result.audio_offsets = offsets
-    result.spectrogram = spec_feats
-    result.mel = mel
+    result.audio = rollout.audio
+    result.audio_offsets = rollout.audio_offsets
+    result.spectrogram = rollout.spectrogram
+    result.mel = rollout.mel
     return result

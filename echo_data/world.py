@@ -3,7 +3,13 @@
 `World` is what experts and the rollout drive: `step(action)` applies one control action and
 advances physics by physics_hz / control_hz sub-steps; `observe()` renders the robot cameras.
 One `sapien.render.RenderSystem` stays alive for the whole process so the pipeline build
-(3.5-30 s on lavapipe, FINDINGS) is paid once, not per episode.
+(3.5-30 s on lavapipe) is paid once, not per episode.
+
+Door grasps are a rule of the world, not of an expert: a gripper commanded closed whose two
+fingers both press on a door leaf (its handle bar) holds the leaf with a stiff drive, as a
+firm hand would (a heavy leaf slips out of a purely frictional two-finger grasp); the hold ends
+as soon as the gripper is commanded open. So the 12-float action is all it takes to replay an
+episode: nothing an expert does outside its actions changes the physics.
 """
 
 from __future__ import annotations
@@ -19,6 +25,8 @@ from echo_data.robot.robot import Robot
 from echo_data.scene.floorplan import FloorPlan
 
 _RENDER_KEEPALIVE: list[Any] = []  # one RenderSystem per process, never freed
+# A gripper commanded to open less than this (m) is closing on what it touches.
+GRIP_CLOSED = 0.02
 
 SceneBuilder = Callable[[sapien.Scene, FloorPlan, Recipe], Any]
 
@@ -68,6 +76,7 @@ class World:
         self.robot.set_base_pose(*spec.start)
         self._nav: Any = None
         self._arm_planner: Any = None
+        self._door_hold: Any = None  # the drive holding a door leaf in the gripper
         self.steps = 0
         # Where each object rests now (furniture index); Place updates it after a success.
         self.receptacles: dict[str, int] = {o.name: o.receptacle for o in self.plan.objects}
@@ -76,13 +85,38 @@ class World:
     def step(self, action: np.ndarray) -> None:
         """Apply one control action and advance physics by one control period."""
         self.robot.apply(action)
+        if self._door_hold is not None and not self._gripper_closed():
+            detach(self._door_hold)
+            self._door_hold = None
         for _ in range(self.substeps):
             self.robot.before_substep()
             self.scene.step()
         update = getattr(self.handles, "update", None)
         if update is not None:
             update()
+        if self._door_hold is None and self._gripper_closed():
+            self._grasp_door()
         self.steps += 1
+
+    def _gripper_closed(self) -> bool:
+        return float(self.robot.last_action()[11]) < GRIP_CLOSED
+
+    def _grasp_door(self) -> None:
+        """Hold a door leaf both fingers press on (see the module docstring)."""
+        doors = getattr(self.handles, "doors", None) or []
+        if not doors:
+            return
+        left, right = self.robot.finger_contacts()
+        for art in doors:
+            leaf = art.links[1]
+            if leaf.entity in left and leaf.entity in right:
+                self._door_hold = attach(self.scene, self.robot.ee_link, leaf)
+                return
+
+    @property
+    def holding_door(self) -> bool:
+        """A door leaf is held in the gripper now."""
+        return self._door_hold is not None
 
     def observe(self) -> dict[str, np.ndarray]:
         """Robot camera images (see `Robot.observe`); empty without rendering."""
@@ -121,6 +155,7 @@ class World:
         for e in list(scene.entities):
             scene.remove_entity(e)
         self.handles = None
+        self._door_hold = None
         self._arm_planner = None  # set by echo_data.skills.arm.arm_planner
         self.robot = None  # type: ignore[assignment]
         self.scene = None  # type: ignore[assignment]
@@ -130,3 +165,21 @@ class World:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def attach(scene: sapien.Scene, ee_link: Any, body: Any) -> Any:
+    """A stiff drive that holds `body` where it is relative to the gripper (a firm grasp)."""
+    rel = body.entity_pose.inv() * ee_link.entity_pose
+    drive = scene.create_drive(ee_link.entity, sapien.Pose(), body.entity, rel)
+    for set_axis in (drive.set_drive_property_x, drive.set_drive_property_y, drive.set_drive_property_z):
+        set_axis(2.0e4, 2.0e2, 1.0e4)
+    drive.set_drive_property_slerp(2.0e2, 2.0e1, 1.0e3)
+    drive.set_drive_target(sapien.Pose())
+    return drive
+
+
+def detach(drive: Any) -> None:
+    """Remove a drive made by `attach` (a no-op when it is gone already)."""
+    entity = drive.entity
+    if entity is not None:
+        entity.remove_component(drive)

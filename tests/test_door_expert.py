@@ -173,7 +173,8 @@ def test_open_door_expert_reports_a_blocked_door(door_world_factory) -> None:
 
 
 def test_open_door_expert_stopped_mid_swing_lets_go(door_world_factory) -> None:
-    """The rollout closes an expert that runs out of steps: the door must not stay welded to the gripper."""
+    """An expert closed mid-swing leaves the door held only while the gripper stays closed: the
+    world holds a door leaf in a closed gripper and lets go as soon as the gripper opens."""
     import sapien
 
     from echo_data.skills.open_door import open_door
@@ -188,6 +189,10 @@ def test_open_door_expert_stopped_mid_swing_lets_go(door_world_factory) -> None:
             attached_steps += 1
             if attached_steps == 5:
                 break
-    assert attached_steps == 5  # it did grasp and start swinging
+    assert attached_steps == 5 and world.holding_door  # it did grasp and start swinging
     gen.close()
+    open_hand = world.robot.rest_action()
+    open_hand[11] = 0.1
+    world.step(open_hand)
+    assert not world.holding_door
     assert leaf_entity.find_component_by_type(sapien.physx.PhysxDriveComponent) is None

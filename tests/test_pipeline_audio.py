@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
-from echo_data.pipeline import PRE_ROLL_SECONDS, _epoch_window, render_episode_audio, step_samples
+from echo_data.envs.audio import epoch_window
+from echo_data.pipeline import PRE_ROLL_SECONDS, render_episode_audio, step_samples
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_DIM, STATE_DIM, StepRecord
 from echo_data.rollout import Rollout
@@ -18,7 +19,8 @@ from echo_data.sounds import SoundLibrary
 
 def test_epoch_windows_partition_unity() -> None:
     n, hop = 5000, 160
-    ws = [_epoch_window(n, None, 1200, hop), _epoch_window(n, 1200, 3100, hop), _epoch_window(n, 3100, None, hop)]
+    t = np.arange(n)
+    ws = [epoch_window(t, None, 1200, hop), epoch_window(t, 1200, 3100, hop), epoch_window(t, 3100, None, hop)]
     assert np.allclose(sum(ws), 1.0, atol=1e-12)
     assert ws[0][1000] == 1.0 and ws[0][1300] == 0.0 and ws[1][2000] == 1.0
 

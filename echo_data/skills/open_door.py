@@ -10,8 +10,8 @@ whose grasp the arm reaches.
 
 Then (FINDINGS: 19-20/20 this way): reach a pre-grasp 7 cm in front of the bar with a
 planned arm motion, move in, close the fingers on the vertical bar; once both fingers touch
-the bar the grasp is completed by a stiff drive between gripper and leaf (a heavy door
-otherwise slips out of a parallel gripper). The base then turns about the hinge as one rigid
+the bar the world completes the grasp with a stiff drive between gripper and leaf (a heavy
+door otherwise slips out of a parallel gripper; see `echo_data.world`). The base then turns about the hinge as one rigid
 body with the leaf — constant robot-frame velocity for a rigid rotation, ramped over ≈1 s,
 with feedback on the pose error — while the arm holds still, until the hinge is
 `OPEN_MARGIN` beyond `Door.open_threshold`; the door is let go at rest, the base backs off
@@ -52,7 +52,7 @@ BACK_OFF = 0.15  # m the base backs away after letting go
 # ---------------------------------------------------------------------------------------------
 # Helpers shared with the CloseSink expert: planning on `echo_data.robot.planner.ArmPlanner`
 # (via `echo_data.skills.arm`) from a stance the base has not reached yet, a short holonomic
-# base approach, and the grasp attachment.
+# base approach.
 
 REACH_REF = np.array([0.0, -1.0, 0.0, 1.6, 0.0, -0.6, 0.0])  # arm bent forward: IK reference
 APPROACH_SPEED = 0.4  # m/s, final base approach
@@ -187,24 +187,6 @@ def tuck_arm(world: object, gripper: float) -> Generator[np.ndarray, None, int |
     if path is None:
         return None
     return (yield from arm.follow_path(world, path, gripper=gripper))
-
-
-def attach(world: object, ee_link: sapien.physx.PhysxArticulationLinkComponent, body: sapien.physx.PhysxRigidBaseComponent) -> sapien.physx.PhysxDriveComponent:
-    """Complete a physical grasp with a stiff drive that holds `body` where it is in the gripper."""
-    rel = body.entity_pose.inv() * ee_link.entity_pose
-    drive = world.scene.create_drive(ee_link.entity, sapien.Pose(), body.entity, rel)  # type: ignore[attr-defined]
-    for set_axis in (drive.set_drive_property_x, drive.set_drive_property_y, drive.set_drive_property_z):
-        set_axis(2.0e4, 2.0e2, 1.0e4)
-    drive.set_drive_property_slerp(2.0e2, 2.0e1, 1.0e3)
-    drive.set_drive_target(sapien.Pose())
-    return drive
-
-
-def detach(drive: sapien.physx.PhysxDriveComponent) -> None:
-    """Remove an attachment made by `attach` (a no-op when it is gone already)."""
-    entity = drive.entity
-    if entity is not None:
-        entity.remove_component(drive)
 
 
 def _swing_frame(door: Door) -> tuple[np.ndarray, np.ndarray]:
@@ -366,12 +348,9 @@ def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray
     if not touching:
         return fail("grasp_failed")
 
-    # 4. swing the base about the hinge as one rigid body with the leaf
-    drive = attach(world, robot.ee_link, leaf)
-    try:
-        swung = yield from _swing(world, door, art, closed, q_goal, max_steps - steps)
-    finally:  # also when the caller closes the generator (rollout timeout): never leave the door attached
-        detach(drive)
+    # 4. swing the base about the hinge as one rigid body with the leaf (the world holds the
+    #    leaf in the closed gripper from the step both fingers touched it; opening lets go)
+    swung = yield from _swing(world, door, art, closed, q_goal, max_steps - steps)
     steps += swung.steps
     if not swung.success:
         return fail(swung.reason)

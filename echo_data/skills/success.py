@@ -75,11 +75,12 @@ NAV_SUCCESS_DIST = 1.5  # m from the target's interaction point (SPEC §4, Habit
 NAV_SUCCESS_YAW = math.radians(15)  # base heading vs the bearing to the target
 
 
-def navigate_success(world: Any, target: str) -> bool:
+def navigate_success(world: Any, target: str, grid: Any = None) -> bool:
     """Base within NAV_SUCCESS_DIST of the target's interaction point and facing the target.
 
     Facing: the base heading points at the target (object centre, swing-side door handle,
     faucet lever, furniture centre) within NAV_SUCCESS_YAW. Doors count where they stand now.
+    `grid`: a NavGrid of the doors' current angles to reuse (the test is then cheap per step).
     """
     from echo_data.scene.nav import NavGrid, interaction_pose, target_point
 
@@ -87,7 +88,8 @@ def navigate_success(world: Any, target: str) -> bool:
     angles = world.handles.door_angles() if getattr(world, "handles", None) is not None else {}
     nav = getattr(world, "nav", None)
     radius = nav.robot_radius if nav is not None else 0.32
-    grid = NavGrid.from_plan(plan, robot_radius=radius, door_angles=angles)
+    if grid is None:
+        grid = NavGrid.from_plan(plan, robot_radius=radius, door_angles=angles)
     x, y, yaw = world.robot.base_pose()
     try:
         px, py, _ = interaction_pose(plan, target, door_angles=angles or None, grid=grid)

@@ -1,0 +1,109 @@
+"""Built-in agents: the scripted experts as the upper bound, a random and a still baseline, the true plan.
+
+`OracleSkills` runs the scripted expert of each skill (`echo_data.skills.EXPERTS`) on the live
+world, so it is privileged: it reads the world handle the runtime puts in its reset info. It
+ends each skill itself (the expert returns), which is also how the build records its
+demonstrations. `RandomSkills` samples the action space from a generator seeded by the episode
+and skill, so evaluations repeat; `StillSkills` holds every joint where it is.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from echo_data.records import ACTION_DIM
+
+
+class OracleSkills:
+    """Scripted experts driven by the true chain (the upper bound of the benchmark)."""
+
+    name = "oracle"
+    ends_itself = True  # the expert says when the skill is over (act returns None)
+    observations = ("observation.state",)  # experts read the world, not the observation
+
+    def __init__(self, experts: Any = None) -> None:
+        if experts is None:
+            from echo_data.skills import EXPERTS
+
+            experts = EXPERTS
+        self.experts = experts
+        self._gen: Any = None
+        self.outcome: Any = None
+
+    def reset(self, info: dict[str, Any]) -> None:
+        self.close()
+        self.outcome = None
+        self._gen = self.experts[info["skill"]](info["world"], info["call"], info["spec_object"])
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray | None:
+        try:
+            return np.asarray(next(self._gen), dtype=np.float32)
+        except StopIteration as stop:
+            self.outcome = stop.value
+            self._gen = None
+            return None
+
+    def close(self) -> None:
+        """Stop a running expert (it releases what it holds: planners, door attachments)."""
+        if self._gen is not None:
+            self._gen.close()
+            self._gen = None
+
+
+class RandomSkills:
+    """Uniform samples of the action space, seeded per (episode seed, skill index)."""
+
+    name = "random"
+    ends_itself = False
+    observations = ("observation.state",)
+
+    def __init__(self) -> None:
+        from echo_data.envs.env import action_space
+
+        self.space = action_space()
+        self.rng = np.random.default_rng(0)
+
+    def reset(self, info: dict[str, Any]) -> None:
+        self.rng = np.random.default_rng([int(info["episode_seed"]) & 0xFFFFFFFF, int(info["skill_index"])])
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        lo, hi = self.space.low.astype(np.float64), self.space.high.astype(np.float64)
+        return (lo + (hi - lo) * self.rng.random(ACTION_DIM)).astype(np.float32)
+
+
+class StillSkills:
+    """Does nothing: zero base velocity, every joint held at its current position."""
+
+    name = "still"
+    ends_itself = False
+    observations = ("observation.state",)
+
+    def reset(self, info: dict[str, Any]) -> None:
+        pass
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        s = np.asarray(obs["observation.state"], dtype=np.float32)
+        a = np.zeros(ACTION_DIM, dtype=np.float32)
+        a[3:12] = s[3:12]  # torso, 7 arm joints, gripper opening: hold where they are
+        return a
+
+
+class OraclePlanner:
+    """Returns the episode's true skill chain (the paper's starred rows score low-level skills alone)."""
+
+    name = "oracle"
+
+    def __init__(self) -> None:
+        self._chain: list[dict[str, str]] = []
+
+    def reset(self, info: dict[str, Any]) -> None:
+        self._chain = list(info["true_chain"])
+
+    def plan(self, first_obs: dict[str, np.ndarray]) -> list[dict[str, str]]:
+        return [dict(c) for c in self._chain]
+
+
+BUILTIN_POLICIES = {"oracle": OracleSkills, "random": RandomSkills, "still": StillSkills}
+BUILTIN_PLANNERS = {"oracle": OraclePlanner}

@@ -1,0 +1,99 @@
+"""Load an agent by name: a built-in, `module:Class`, or a checkpoint folder.
+
+A checkpoint folder holds `agent.json`: {"class": "module:Class", "kwargs": {...}}; the class is
+constructed as `Class(checkpoint=<folder>, **kwargs)` so it can read its weights from there.
+Every failure is an `AgentLoadError` whose message is one line naming what was asked for.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+from pathlib import Path
+from typing import Any
+
+from echo_data.agents.builtin import BUILTIN_PLANNERS, BUILTIN_POLICIES
+
+CHECKPOINT_FILE = "agent.json"
+
+
+class AgentLoadError(ValueError):
+    """An agent that cannot be loaded (unknown name, import error, bad checkpoint)."""
+
+
+def _one_line(e: BaseException) -> str:
+    return " ".join(f"{type(e).__name__}: {e}".split())
+
+
+def _import(target: str, what: str) -> Any:
+    module, _, cls = target.partition(":")
+    if not module or not cls:
+        raise AgentLoadError(f"{what} {target!r}: expected module:Class")
+    try:
+        obj = importlib.import_module(module)
+        for part in cls.split("."):
+            obj = getattr(obj, part)
+    except Exception as e:  # any import-time failure of user code is reported, not raised through
+        raise AgentLoadError(f"{what} {target!r}: cannot import ({_one_line(e)})") from None
+    return obj
+
+
+def _construct(cls: Any, what: str, target: str, **kwargs: Any) -> Any:
+    try:
+        return cls(**kwargs)
+    except Exception as e:
+        raise AgentLoadError(f"{what} {target!r}: constructor failed ({_one_line(e)})") from None
+
+
+def _load(target: str, builtins: dict[str, Any], what: str, methods: tuple[str, ...]) -> Any:
+    if target in builtins:
+        agent = builtins[target]()
+    elif Path(target).is_dir():
+        f = Path(target) / CHECKPOINT_FILE
+        try:
+            meta = json.loads(f.read_text())
+            cls_name, kwargs = meta["class"], dict(meta.get("kwargs", {}))
+        except FileNotFoundError:
+            raise AgentLoadError(f"{what} {target}: checkpoint folder has no {CHECKPOINT_FILE}") from None
+        except (ValueError, KeyError, TypeError, AttributeError) as e:
+            raise AgentLoadError(f"{f}: not a checkpoint description ({_one_line(e)})") from None
+        agent = _construct(_import(cls_name, f"{f}: class"), what, target, checkpoint=Path(target), **kwargs)
+    elif ":" in target:
+        agent = _construct(_import(target, what), what, target)
+    else:
+        known = ", ".join(sorted(builtins))
+        raise AgentLoadError(f"{what} {target!r}: not a built-in ({known}), a module:Class or a checkpoint folder")
+    missing = [m for m in methods if not callable(getattr(agent, m, None))]
+    if missing:
+        raise AgentLoadError(f"{what} {target!r}: has no {', '.join(missing)}() method")
+    return agent
+
+
+def load_policy(target: str) -> Any:
+    """A low-level skill policy: `reset(info)`, `act(obs) -> action | None`."""
+    return _load(target, BUILTIN_POLICIES, "policy", ("reset", "act"))
+
+
+def load_planner(target: str) -> Any:
+    """A high-level planner: `plan(first_obs) -> [{"skill": ..., "target": ...}, ...]` (optional `reset(info)`)."""
+    return _load(target, BUILTIN_PLANNERS, "planner", ("plan",))
+
+
+def identity(agent: Any, target: str) -> dict[str, Any]:
+    """What was evaluated, for the results file: the name asked for, the class, its version if any."""
+    cls = type(agent)
+    out: dict[str, Any] = {"name": target, "class": f"{cls.__module__}:{cls.__qualname__}"}
+    for attr in ("version", "checkpoint"):
+        v = getattr(agent, attr, None)
+        if v is not None:
+            out[attr] = str(v)
+    if Path(target).is_dir():
+        import hashlib
+
+        h = hashlib.sha256()
+        for p in sorted(Path(target).rglob("*")):
+            if p.is_file():
+                h.update(p.relative_to(target).as_posix().encode())
+                h.update(p.read_bytes())
+        out["checkpoint_sha256"] = h.hexdigest()
+    return out

@@ -1,0 +1,199 @@
+"""The paper's two-level agent run in the environment: one plan, then one policy per skill.
+
+`run_episode` is the one loop that runs an episode, for the build's experts and for any policy
+under evaluation:
+1. the planner answers with a skill chain in the planner export's JSON
+   (`[{"skill": "Navigate", "target": "phone"}, ...]`); the plan is right when it equals the
+   episode's true chain exactly, order included;
+2. with a right plan, each skill of the chain runs until its success test holds (policies that
+   end themselves, like the scripted experts, run until they return and are then tested) or its
+   step budget from the recipe runs out; a failed skill ends the episode.
+
+A non-finite action ends the episode as failed with that reason; an action of the wrong shape
+is the policy's bug and raises `AgentActionError`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from echo_data.episode import EpisodeSpec, SkillCall
+from echo_data.records import ACTION_DIM, SkillOutcome
+
+
+class AgentActionError(ValueError):
+    """A policy returned something that is not an action of the dataset's shape."""
+
+
+@dataclass
+class NavigateRecord:
+    """One Navigate skill as SPL needs it: success, the agent's path, the expert's planned path."""
+
+    skill_index: int
+    success: bool
+    path_length: float  # metres the base travelled during the skill
+    expert_length: float  # metres of the navigation expert's planned path from the skill's start
+
+    @property
+    def spl(self) -> float:
+        """Success weighted by path length: S * l / max(l, p) (Anderson et al., 2018)."""
+        if not self.success:
+            return 0.0
+        return self.expert_length / max(self.expert_length, self.path_length, 1e-9)
+
+
+@dataclass
+class EpisodeRun:
+    """How one episode went under one agent."""
+
+    episode_id: str
+    setting: str
+    seed: int
+    true_chain: list[dict[str, str]]
+    planned_chain: Any
+    plan_correct: bool
+    outcomes: list[SkillOutcome] = field(default_factory=list)
+    navigate: list[NavigateRecord] = field(default_factory=list)
+    steps: int = 0
+    failure: str = ""
+
+    @property
+    def skills_completed(self) -> int:
+        """Skills of the true chain that succeeded in order (0 when the plan is wrong)."""
+        n = 0
+        for o in self.outcomes:
+            if not o.success:
+                break
+            n += 1
+        return n if self.plan_correct else 0
+
+    @property
+    def success(self) -> bool:
+        """Skill-completion success: the plan right and every skill succeeded in order."""
+        return self.plan_correct and self.skills_completed == len(self.true_chain)
+
+
+def true_chain(spec: EpisodeSpec) -> list[dict[str, str]]:
+    """The episode's chain as the planner export writes it (targets named as a listener would)."""
+    from echo_data.dataset.writer import target_kind
+
+    return [{"skill": c.skill, "target": target_kind(c.target, spec.plan)} for c in spec.chain]
+
+
+def normalise_plan(plan: Any) -> list[dict[str, str]] | None:
+    """A planner's answer (a list of {"skill", "target"} or its JSON text) -> list, or None if malformed."""
+    import json
+
+    if isinstance(plan, str):
+        try:
+            plan = json.loads(plan)
+        except ValueError:
+            return None
+    if not isinstance(plan, (list, tuple)):
+        return None
+    out = []
+    for c in plan:
+        if not isinstance(c, dict) or not isinstance(c.get("skill"), str) or not isinstance(c.get("target"), str):
+            return None
+        out.append({"skill": c["skill"], "target": c["target"]})
+    return out
+
+
+def _expert_path_length(env: Any, call: SkillCall) -> float:
+    """Length of the navigation expert's planned path from where the base stands to the interaction pose."""
+    from echo_data.scene.nav import interaction_pose
+    from echo_data.skills.navigate import START_SNAP
+
+    grid = env._nav_grid()
+    world = env.world
+    x, y, _ = world.robot.base_pose()
+    try:
+        gx, gy, _ = interaction_pose(world.plan, call.target, door_angles=world.door_angles() or None, grid=grid)
+    except ValueError:
+        return math.nan
+    path = grid.plan_path((x, y), (gx, gy), start_snap=START_SNAP)
+    if not path:
+        return math.nan
+    pts = [(x, y), *path]
+    return float(sum(math.dist(a, b) for a, b in zip(pts, pts[1:])))
+
+
+StepHook = Callable[[Any, dict[str, np.ndarray], np.ndarray, int, SkillCall, tuple[bool, ...]], None]
+
+
+def run_episode(env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any], planner: Any, policy: Any, on_step: StepHook | None = None) -> EpisodeRun:
+    """Run one episode already reset in `env` (its first observation and info) with a planner and a skill policy.
+
+    `on_step(env, obs, action, skill_index, call, skill_flags)` is called before each action is
+    applied (the build records its rows there).
+    """
+    from echo_data.envs.env import skill_budget
+
+    env = getattr(env, "unwrapped", env)
+    spec: EpisodeSpec = env.episode
+    truth = true_chain(spec)
+    if callable(getattr(planner, "reset", None)):
+        planner.reset({**info, "true_chain": truth, "spec_object": spec})
+    raw = planner.plan(first_obs)
+    planned = normalise_plan(raw)
+    run = EpisodeRun(spec.episode_id, spec.setting, spec.seed, truth, planned if planned is not None else raw, planned == truth)
+    if not run.plan_correct:
+        run.failure = "plan wrong" if planned is not None else "plan malformed"
+        return run
+    obs = first_obs
+    flags = [False] * len(spec.chain)
+    ends_itself = bool(getattr(policy, "ends_itself", False))
+    for k, call in enumerate(spec.chain):
+        budget = skill_budget(env.recipe, call.skill)
+        policy.reset({
+            "skill": call.skill, "target": call.target, "target_kind": truth[k]["target"], "skill_index": k,
+            "event": call.event, "budget": budget, "episode_seed": spec.seed,
+            # privileged: for scripted experts only
+            "call": call, "spec_object": spec, "world": env.world,
+        })
+        expert_len = _expert_path_length(env, call) if call.skill == "Navigate" else math.nan
+        path = 0.0
+        n = 0
+        reason = ""
+        while True:
+            if not ends_itself and env.skill_success(call):
+                break
+            action = policy.act(obs)
+            if action is None:  # the policy ended the skill itself
+                break
+            if n >= budget:
+                reason = "timeout"
+                break
+            a = np.asarray(action, dtype=np.float32)
+            if a.shape != (ACTION_DIM,):
+                raise AgentActionError(f"policy action: expected shape ({ACTION_DIM},), got {a.shape} at step {env.steps}")
+            if on_step is not None:
+                on_step(env, obs, a, k, call, tuple(flags))
+            x0, y0, _ = env.world.robot.base_pose()
+            obs, _, _, _, step_info = env.step(a)
+            n += 1
+            if step_info.get("failure"):
+                reason = step_info["failure"]
+                break
+            x1, y1, _ = env.world.robot.base_pose()
+            path += math.hypot(x1 - x0, y1 - y0)
+        if reason == "timeout" and ends_itself and callable(getattr(policy, "close", None)):
+            policy.close()
+        ok = not reason and env.skill_success(call)
+        if not ok and not reason:
+            expert = getattr(policy, "outcome", None)
+            reason = getattr(expert, "reason", "") or "success test false"
+        run.outcomes.append(SkillOutcome(call.skill, call.target, ok, "" if ok else reason, n))
+        if call.skill == "Navigate":
+            run.navigate.append(NavigateRecord(k, ok, path, expert_len))
+        flags[k] = ok
+        if not ok:
+            run.failure = f"{call.skill}({call.target}): {reason}"
+            break
+    run.steps = env.steps
+    return run

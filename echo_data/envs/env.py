@@ -1,0 +1,363 @@
+"""`EchoDataEnv`: the dataset's world as a gymnasium environment, with live binaural audio.
+
+One episode = one `EpisodeSpec` (floor plan, sounds, events, robot start, true skill chain).
+`reset(options={"split": s, "index": i})` samples exactly the spec `echo-data build` samples for
+(recipe seed, s, i) (`"attempt": k` for the build's k-th retry); `reset(seed=n)` draws a fresh
+episode (the recipe under a seed drawn from n). `step(action)` applies the dataset's 12-float action for one control period, then:
+events whose resolving skill's success test now holds stop sounding (a door found open changes
+the acoustics), the robot's ears hear the control period just played (`OnlineTrack`, from the
+pose the head had during it) and the cameras look. Observations carry the dataset's column
+names, dtypes and shapes, plus `observation.audio.binaural`: the (hop, 2) float32 samples of that
+control period (the episode WAV is these blocks one after another).
+
+Reward: the number of true-chain skills newly completed in order at this step (their success
+tests, latched); `terminated` when the whole chain is done or a non-finite action arrived (the
+reason in `info["failure"]`); `truncated` past the sum of the chain's step budgets.
+
+The build drives this same environment with the scripted experts (`echo_data.agents`), so a
+dataset episode replays here action by action to the same states, images and audio.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from echo_data.episode import EpisodeSpec, SkillCall
+from echo_data.recipe import Recipe
+from echo_data.records import ACTION_DIM, STATE_DIM
+
+STATE = "observation.state"
+BINAURAL = "observation.audio.binaural"
+SPECTROGRAM = "observation.audio.spectrogram"
+MEL = "observation.audio.mel"
+# The skill whose success resolves an event (and silences its sound): a ringing phone is
+# resolved when it is picked up, a doorbell when the door is open, a running faucet when closed.
+RESOLVING_SKILLS = ("Pick", "OpenDoor", "CloseSink")
+# Extra steps granted beyond a skill's own limit before it is called stuck.
+GUARD_STEPS = 20
+SHIPPED_RECIPES = Path(__file__).resolve().parents[2] / "recipes"
+
+
+class EnvInputError(ValueError):
+    """A bad argument to the environment (index past a split, wrong action shape): one line."""
+
+
+def resolve_recipe(recipe: Recipe | str | Path) -> tuple[Recipe, Path | None]:
+    """A Recipe, a recipe YAML path, or a shipped recipe's name ("multi_event") -> (recipe, its folder)."""
+    from echo_data.recipe import load_recipe
+
+    if isinstance(recipe, Recipe):
+        return recipe, None
+    p = Path(recipe)
+    if not p.suffix and not p.exists():
+        p = SHIPPED_RECIPES / f"{recipe}.yaml"
+    return load_recipe(p), p.resolve().parent
+
+
+def skill_budget(recipe: Recipe, skill: str) -> int:
+    """Control steps a skill may take: its recipe limit (Place also drives: plus Navigate's) plus a guard."""
+    ms = recipe.robot.max_steps
+    return ms[skill] + (ms["Navigate"] if skill == "Place" else 0) + GUARD_STEPS
+
+
+def action_space() -> spaces.Box:
+    """The dataset's action: base velocities (robot frame), torso and 7 arm joint targets, gripper opening."""
+    from echo_data.robot import urdf as U
+    from echo_data.robot.robot import MAX_BASE_SPEED, MAX_BASE_TURN
+
+    arm = [U.ARM_LIMITS[n] for n in U.ARM_JOINTS]
+    low = [-MAX_BASE_SPEED, -MAX_BASE_SPEED, -MAX_BASE_TURN, U.TORSO_RANGE[0], *[a for a, _ in arm], 0.0]
+    high = [MAX_BASE_SPEED, MAX_BASE_SPEED, MAX_BASE_TURN, U.TORSO_RANGE[1], *[b for _, b in arm], 2 * U.FINGER_RANGE[1]]
+    return spaces.Box(np.array(low, np.float32), np.array(high, np.float32), (ACTION_DIM,), np.float32)
+
+
+def observation_space(recipe: Recipe, images: bool = True, audio: bool = True) -> spaces.Dict:
+    """Keys, dtypes and shapes of the dataset's observation columns (+ the binaural samples)."""
+    from echo_data.acoustics.features import MEL_FLOOR
+    from echo_data.dataset.schema import StepLayout
+
+    layout = StepLayout.from_recipe(recipe)
+    d: dict[str, spaces.Space] = {}
+    if images:
+        for col, (kind, h, w) in layout.images.items():
+            if kind == "rgb":
+                d[col] = spaces.Box(0, 255, (h, w, 3), np.uint8)
+            else:
+                d[col] = spaces.Box(0, 65535, (h, w), np.uint16)
+    d[STATE] = spaces.Box(-np.inf, np.inf, (STATE_DIM,), np.float32)
+    if audio:
+        hop = recipe.acoustics.sample_rate // recipe.robot.control_hz
+        d[BINAURAL] = spaces.Box(-np.inf, np.inf, (hop, 2), np.float32)
+        for col, shape in layout.arrays.items():  # log1p magnitudes >= 0; log-mel floored at -100 dB
+            low = 0.0 if col == SPECTROGRAM else 10.0 * np.log10(MEL_FLOOR)
+            d[col] = spaces.Box(np.float32(low), np.inf, shape, np.float32)
+    return spaces.Dict(d)
+
+
+class EchoDataEnv(gym.Env):
+    """Closed-loop episodes of a recipe. See the module docstring."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(
+        self,
+        recipe: Recipe | str | Path = "multi_event",
+        split: str = "test",
+        images: bool = True,
+        audio: bool = True,
+        library: Any = None,
+        recipe_dir: str | Path | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        self.recipe, rdir = resolve_recipe(recipe)
+        self.recipe_dir = Path(recipe_dir) if recipe_dir is not None else rdir
+        if split not in ("train", "val", "test"):
+            raise EnvInputError(f"split: {split!r} is not one of train, val, test")
+        self.split = split
+        self.images = images
+        self.audio = audio
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": self.recipe.robot.control_hz}
+        self._library = library
+        self.observation_space = observation_space(self.recipe, images, audio)
+        self.action_space = action_space()
+        self.world: Any = None
+        self.track: Any = None
+        self.episode: EpisodeSpec | None = None
+        self._obs: dict[str, np.ndarray] | None = None
+
+    # ------------------------------------------------------------------ episode
+    @property
+    def library(self) -> Any:
+        if self._library is None:
+            from echo_data.sounds import SoundLibrary
+
+            self._library = SoundLibrary.from_recipe(self.recipe, self.recipe_dir)
+        return self._library
+
+    def sample_spec(self, split: str, index: int, attempt: int = 0) -> EpisodeSpec:
+        """The spec `echo-data build` samples for (recipe seed, split, index, attempt)."""
+        from echo_data.scene.sampling import sample_episode
+
+        size = self.recipe.splits.get(split, 0)
+        if not 0 <= index < size:
+            raise EnvInputError(f"index: {index} is outside the {split} split of recipe {self.recipe.name} ({size} episodes)")
+        spec, _ = sample_episode(self.recipe, split, int(index), self.library, attempt=int(attempt))
+        return spec
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
+        """Enter an episode: options {"spec": EpisodeSpec} | {"split", "index"[, "attempt"]}; else a fresh draw."""
+        super().reset(seed=seed)
+        options = dict(options or {})
+        if "spec" in options:
+            spec = options["spec"]
+        elif "index" in options:
+            spec = self.sample_spec(options.get("split", self.split), int(options["index"]), int(options.get("attempt", 0)))
+        else:  # a fresh episode: the recipe under another seed, both drawn from the seeded generator
+            from echo_data.scene.sampling import sample_episode
+
+            split = options.get("split", self.split)
+            fresh = self.recipe.model_copy(update={"seed": int(self.np_random.integers(2**31))})
+            index = int(self.np_random.integers(max(self.recipe.splits.get(split, 1), 1)))
+            spec, _ = sample_episode(fresh, split, index, self.library)
+        self._start(spec)
+        return self._obs, self._info(reset=True)  # type: ignore[return-value]
+
+    def _start(self, spec: EpisodeSpec) -> None:
+        from echo_data.world import World
+
+        self._close_world()
+        self.episode = spec
+        self.world = World(spec, self.recipe, render=self.images)
+        self.sounding = [True] * len(spec.events)
+        self.resolved_step: list[int | None] = [None] * len(spec.events)
+        self.door_changes: list[tuple[int, dict[int, float]]] = []
+        self.progress = 0  # true-chain skills completed in order (latched)
+        self.steps = 0
+        self.failure = ""
+        self._grids: dict[tuple, Any] = {}
+        self._resolver = {call.event: k for k, call in enumerate(spec.chain) if call.skill in RESOLVING_SKILLS}
+        self.max_episode_steps = sum(skill_budget(self.recipe, c.skill) for c in spec.chain)
+        self.track = None
+        block = None
+        if self.audio:
+            from echo_data.envs.audio import OnlineTrack
+
+            self.track = OnlineTrack(spec, self.recipe, self.library)
+            self.track.pre_roll(self.ear_pose())
+            block = self.track.blocks[-1]
+        self._obs = self._observe(block)
+
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        if self.world is None:
+            raise EnvInputError("step() before reset()")
+        a = np.asarray(action, dtype=np.float32)
+        if a.shape != (ACTION_DIM,):
+            raise EnvInputError(f"action: expected shape ({ACTION_DIM},), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            self.failure = f"non-finite action at step {self.steps}"
+            return self._obs, 0.0, True, False, self._info()  # type: ignore[return-value]
+        pose = self.ear_pose()  # the head during this control period
+        self.world.step(a)
+        self.steps += 1
+        newly = self._update_events()
+        block = None
+        if self.track is not None:
+            for e in newly:
+                if self.episode.chain[self._resolver[e]].skill == "OpenDoor":  # type: ignore[union-attr]
+                    self.track.open_doors(self.world.door_angles(), at=self.track.samples + self.track.hop)
+            block = self.track.step(pose)
+            for e in newly:
+                self.track.stop(e)
+        for e in newly:
+            if self.episode.chain[self._resolver[e]].skill == "OpenDoor":  # type: ignore[union-attr]
+                self.door_changes.append((self.steps, self.world.door_angles()))
+        before = self.progress
+        self._advance()
+        self._obs = self._observe(block)
+        terminated = self.progress == len(self.episode.chain)  # type: ignore[union-attr]
+        truncated = not terminated and self.steps >= self.max_episode_steps
+        return self._obs, float(self.progress - before), terminated, truncated, self._info()
+
+    def _update_events(self) -> list[int]:
+        """Events whose resolving skill's success test holds now (latched): they stop sounding."""
+        newly = []
+        for e, k in self._resolver.items():
+            if self.sounding[e] and self.skill_success(self.episode.chain[k]):  # type: ignore[union-attr]
+                self.sounding[e] = False
+                self.resolved_step[e] = self.steps
+                newly.append(e)
+        return sorted(newly)
+
+    def _advance(self) -> None:
+        chain = self.episode.chain  # type: ignore[union-attr]
+        while self.progress < len(chain) and self.skill_success(chain[self.progress]):
+            call = chain[self.progress]
+            if call.skill == "Place":  # the object rests on its goal now (a later Pick lifts it from there)
+                name = self._held_object(call)
+                if name is not None:
+                    self.world.receptacles[name] = int(call.target.partition(":")[2])
+            self.progress += 1
+
+    # ------------------------------------------------------------------ observations
+    def ear_pose(self) -> tuple[float, float, float, float]:
+        (x, y, z), yaw = self.world.robot.ear_pose()
+        return (float(x), float(y), float(z), float(yaw))
+
+    def _observe(self, block: np.ndarray | None) -> dict[str, np.ndarray]:
+        from echo_data.dataset.schema import IMAGE_COLUMNS
+
+        obs: dict[str, np.ndarray] = {}
+        if self.images:
+            pics = self.world.observe()
+            for key, col in IMAGE_COLUMNS.items():
+                if col in self.observation_space.spaces:
+                    obs[col] = pics[key]
+        obs[STATE] = self.world.robot.state().astype(np.float32)
+        if self.track is not None:
+            from echo_data.acoustics.features import step_features
+
+            obs[BINAURAL] = np.asarray(block, dtype=np.float32)
+            fs = self.track.fs
+            spec, mel = step_features(self.track.last_second(), np.array([fs]), fs, self.recipe.acoustics.mel_bands)
+            if SPECTROGRAM in self.observation_space.spaces:
+                obs[SPECTROGRAM] = spec[0]
+            if MEL in self.observation_space.spaces:
+                obs[MEL] = mel[0]
+        return obs
+
+    def _info(self, reset: bool = False) -> dict[str, Any]:
+        spec = self.episode
+        assert spec is not None
+        info: dict[str, Any] = {
+            "episode_id": spec.episode_id,
+            "setting": spec.setting,
+            "steps": self.steps,
+            "events": [
+                {"category": ev.category, "target": ev.target, "sounding": self.sounding[e], "resolved_step": self.resolved_step[e]}
+                for e, ev in enumerate(spec.events)
+            ],
+            "skills": [
+                {"skill": c.skill, "target": c.target, "event": c.event, "success": self.skill_success(c), "done": k < self.progress}
+                for k, c in enumerate(spec.chain)
+            ],
+            "active_skill": spec.chain[self.progress].skill if self.progress < len(spec.chain) else None,
+            "active_skill_index": self.progress,
+            "success": self.progress == len(spec.chain),
+        }
+        if self.failure:
+            info["failure"] = self.failure
+        if reset:
+            info["spec"] = spec.to_dict()
+        return info
+
+    # ------------------------------------------------------------------ success tests
+    def skill_success(self, call: SkillCall) -> bool:
+        """The success test of `call` on the current state (the tests of `echo_data.skills.success`)."""
+        from echo_data.skills import success as S
+
+        w = self.world
+        kind, _, idx = call.target.partition(":")
+        if call.skill == "Navigate":
+            return S.navigate_success(w, call.target, grid=self._nav_grid())
+        if call.skill == "Pick":
+            return S.pick_success(w, call.target)
+        if call.skill == "Place":
+            name = self._held_object(call)
+            return name is not None and S.place_success(w, name, int(idx))
+        if call.skill == "OpenDoor":
+            return S.door_open_success(w, int(idx))
+        if call.skill == "CloseSink":
+            return S.sink_closed_success(w, int(idx))
+        return False
+
+    def _held_object(self, call: SkillCall) -> str | None:
+        """The object a Place call carries: the Pick target of the same event."""
+        for c in self.episode.chain:  # type: ignore[union-attr]
+            if c.event == call.event and c.skill == "Pick":
+                return c.target
+        return None
+
+    def _nav_grid(self) -> Any:
+        """Navigation grid at the doors' current angles (cached per angle to 1 mrad, ~1 mm at a door's edge)."""
+        from echo_data.scene.nav import NavGrid
+
+        angles = self.world.door_angles()
+        key = tuple(sorted((i, round(a, 3)) for i, a in angles.items()))
+        grid = self._grids.get(key)
+        if grid is None:
+            radius = self.world.nav.robot_radius
+            grid = NavGrid.from_plan(self.world.plan, robot_radius=radius, door_angles={i: a for i, a in key})
+            self._grids[key] = grid
+        return grid
+
+    # ------------------------------------------------------------------ misc
+    def episode_audio(self) -> tuple[np.ndarray, np.ndarray]:
+        """The whole episode track (tails rung out) and each recorded observation's sample offset."""
+        if self.track is None:
+            raise EnvInputError("episode_audio(): the environment was made with audio=False")
+        return self.track.finish(), self.track.offsets(self.steps)
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array" or self.world is None:
+            return None
+        from echo_data.dataset.schema import IMAGE_COLUMNS
+
+        col = IMAGE_COLUMNS["head_rgb"]
+        if self._obs is not None and col in self._obs:
+            return self._obs[col]
+        return self.world.observe().get("head_rgb") if self.images else None
+
+    def _close_world(self) -> None:
+        if self.world is not None:
+            self.world.close()
+        self.world = None
+
+    def close(self) -> None:
+        self._close_world()
+

@@ -1,0 +1,216 @@
+"""Run a policy on episodes 0..n-1 of a split, closed-loop, and collect per-episode outcomes.
+
+Each episode is a pure function of (recipe, split, index, policy, planner): a fresh world per
+episode, policies reset per skill with seeds from the episode, results ordered by index. So the
+results are the same whatever the worker count (timings aside). Episodes are sampled as the build
+samples them (attempt 0; a later attempt only when sampling itself finds no solvable layout),
+never chosen by how an agent does on them.
+
+The environment renders only what the agent reads (`policy.observations`, a tuple of
+observation keys; absent = everything) plus what a video needs: the world and its physics are
+the same either way.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any, Callable
+
+from echo_data.recipe import Recipe
+
+IMAGE_PREFIX = "observation.images."
+AUDIO_PREFIX = "observation.audio."
+SAMPLING_RETRIES = 3
+
+
+@dataclass(frozen=True)
+class EvalJob:
+    recipe: Recipe
+    recipe_dir: str | None
+    split: str
+    policy: str
+    planner: str
+    video_dir: str | None = None
+
+
+def needs(policy: Any) -> tuple[bool, bool]:
+    """(images, audio): which observation groups the policy reads."""
+    keys = getattr(policy, "observations", None)
+    if keys is None:
+        return True, True
+    return any(k.startswith(IMAGE_PREFIX) for k in keys), any(k.startswith(AUDIO_PREFIX) for k in keys)
+
+
+_WORKER: dict[str, Any] = {}
+
+
+def _worker_state(job: EvalJob) -> tuple[Any, Any, Any]:
+    """(env, policy, planner) of this process, made once per job."""
+    if _WORKER.get("job") != job:
+        from echo_data.agents.loading import load_planner, load_policy
+        from echo_data.envs.env import EchoDataEnv
+
+        if _WORKER.get("env") is not None:
+            _WORKER["env"].close()
+        policy, planner = load_policy(job.policy), load_planner(job.planner)
+        images, audio = needs(policy)
+        if job.video_dir:
+            images = audio = True
+        env = EchoDataEnv(job.recipe, split=job.split, images=images, audio=audio, recipe_dir=job.recipe_dir)
+        _WORKER.update(job=job, env=env, policy=policy, planner=planner)
+    return _WORKER["env"], _WORKER["policy"], _WORKER["planner"]
+
+
+def episode_record(run: Any, index: int) -> dict[str, Any]:
+    """The JSON-able outcome of one `EpisodeRun`."""
+    return {
+        "index": index,
+        "episode_id": run.episode_id,
+        "setting": run.setting,
+        "seed": run.seed,
+        "true_chain": run.true_chain,
+        "planned_chain": run.planned_chain,
+        "plan_correct": run.plan_correct,
+        "skills": [{"skill": o.skill, "target": o.target, "success": bool(o.success), "reason": o.reason, "steps": int(o.steps)} for o in run.outcomes],
+        "skills_completed": run.skills_completed,
+        "success": run.success,
+        "steps": run.steps,
+        "navigate": [
+            {"skill_index": r.skill_index, "success": r.success, "path_length": round(r.path_length, 6),
+             "expert_length": None if r.expert_length != r.expert_length else round(r.expert_length, 6),
+             "spl": None if r.expert_length != r.expert_length else round(r.spl, 6)}
+            for r in run.navigate
+        ],
+        "failure": run.failure,
+    }
+
+
+def evaluate_episode(job: EvalJob, index: int) -> dict[str, Any]:
+    """Sample, run and score episode `index` of `job.split` (in this process)."""
+    from echo_data.agents.runtime import AgentActionError, run_episode
+    from echo_data.scene.sampling import SamplingError
+
+    t0 = time.perf_counter()
+    env, policy, planner = _worker_state(job)
+    spec = None
+    for attempt in range(SAMPLING_RETRIES):
+        try:
+            spec = env.sample_spec(job.split, index, attempt)
+            break
+        except SamplingError:
+            continue
+    if spec is None:
+        return {"index": index, "skipped": f"no solvable layout in {SAMPLING_RETRIES} sampling attempts", "seconds": time.perf_counter() - t0}
+    obs, info = env.reset(options={"spec": spec})
+    video = _VideoRecorder(env) if job.video_dir else None
+    try:
+        run = run_episode(env, obs, info, planner, policy, on_step=video)
+    except AgentActionError:
+        raise
+    except Exception as e:  # the agent's own code failed mid-episode: that episode fails, the evaluation goes on
+        from echo_data.agents.runtime import EpisodeRun, true_chain
+
+        run = EpisodeRun(spec.episode_id, spec.setting, spec.seed, true_chain(spec), None, False, failure=f"agent error: {type(e).__name__}: {e}".splitlines()[0])
+        run.steps = env.steps
+    finally:
+        close = getattr(policy, "close", None)
+        if callable(close):
+            close()
+    rec = episode_record(run, index)
+    if video is not None and video.frames:
+        rec["video"] = video.write(Path(job.video_dir) / f"{spec.episode_id}.mp4")  # type: ignore[arg-type]
+    rec["seconds"] = time.perf_counter() - t0
+    return rec
+
+
+class _VideoRecorder:
+    """Collects one composed frame per step (head camera, top-down path, spectrogram strip)."""
+
+    def __init__(self, env: Any) -> None:
+        from echo_data.evaluation.video import TopDown
+
+        self.env = env
+        self.top = TopDown(env.episode)
+        self.frames: list[Any] = []
+        self.path: list[tuple[float, float]] = []
+
+    def __call__(self, env: Any, obs: dict, action: Any, k: int, call: Any, flags: tuple[bool, ...]) -> None:
+        from echo_data.evaluation.video import compose
+
+        x, y, yaw = env.world.robot.base_pose()
+        self.path.append((x, y))
+        self.frames.append(compose(obs, self.top.draw(self.path, yaw, env.sounding), f"{call.skill}({call.target})"))
+
+    def write(self, path: Path) -> str:
+        from echo_data.media import write_mp4
+
+        track, offsets = self.env.episode_audio()
+        hop = self.env.track.hop
+        start = int(offsets[0])
+        audio = track[start : start + len(self.frames) * hop]
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_mp4(path, self.frames, fps=float(self.env.recipe.robot.control_hz), audio=audio, sample_rate=self.env.track.fs)
+        return str(path)
+
+
+def _init_worker() -> None:
+    os.environ.setdefault("LP_NUM_THREADS", "1")
+
+
+def run_episodes(job: EvalJob, n: int, workers: int = 1, progress: Callable[[dict[str, Any]], None] | None = None) -> list[dict[str, Any]]:
+    """Episodes 0..n-1 of the split, on `workers` processes; records ordered by index."""
+    out: dict[int, dict[str, Any]] = {}
+    if workers <= 1:
+        for i in range(n):
+            out[i] = evaluate_episode(job, i)
+            if progress:
+                progress(out[i])
+    else:
+        with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_init_worker) as pool:
+            futs = {pool.submit(evaluate_episode, job, i): i for i in range(n)}
+            for f in as_completed(futs):
+                out[futs[f]] = f.result()
+                if progress:
+                    progress(out[futs[f]])
+    return [out[i] for i in range(n)]
+
+
+def evaluate(
+    recipe: Recipe,
+    recipe_path: Path | None,
+    split: str,
+    n: int,
+    policy: str,
+    planner: str,
+    workers: int = 1,
+    video_dir: Path | None = None,
+    progress: Callable[[dict[str, Any]], None] | None = None,
+) -> dict[str, Any]:
+    """The results document: metrics per setting, per-episode outcomes, what was evaluated."""
+    from echo_data.agents.loading import identity, load_planner, load_policy
+    from echo_data.dataset.manifest import versions
+    from echo_data.evaluation.metrics import by_setting
+
+    pol, plan = load_policy(policy), load_planner(planner)  # fail fast, in this process
+    job = EvalJob(recipe, str(recipe_path.parent) if recipe_path else None, split, policy, planner, str(video_dir) if video_dir else None)
+    t0 = time.perf_counter()
+    episodes = run_episodes(job, n, workers, progress)
+    scored = [e for e in episodes if "skipped" not in e]
+    return {
+        "recipe": {"name": recipe.name, "path": str(recipe_path) if recipe_path else None, "content_hash": recipe.content_hash()},
+        "split": split,
+        "n": n,
+        "policy": identity(pol, policy),
+        "planner": identity(plan, planner),
+        "versions": versions(),
+        "metrics": by_setting(scored),
+        "skipped": [e["index"] for e in episodes if "skipped" in e],
+        "episodes": episodes,
+        "wall_seconds": time.perf_counter() - t0,
+        "workers": workers,
+    }

@@ -1,0 +1,144 @@
+"""`echo-data evaluate`: metrics against published values, bad input, determinism across workers, video."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from echo_data.cli import app
+from echo_data.evaluation.metrics import summarise, wilson
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = str(ROOT / "recipes" / "quickstart.yaml")
+
+
+def test_wilson_matches_published_intervals() -> None:
+    # Newcombe (1998), Statistics in Medicine 17:857, Table I: 81/263 -> score interval 0.2553-0.3662
+    lo, hi = wilson(81, 263)
+    assert lo == pytest.approx(0.2553, abs=5e-5) and hi == pytest.approx(0.3662, abs=5e-5)
+    # closed form at k = 0: upper bound z^2 / (n + z^2)
+    z2 = 1.959963984540054**2
+    assert wilson(0, 30) == (0.0, pytest.approx(z2 / (30 + z2)))
+    assert wilson(30, 30)[1] == 1.0 and wilson(30, 30)[0] == pytest.approx(30 / (30 + z2))
+
+
+def _ep(setting: str, chain: int, plan: bool, done: int, spl: list[float | None]) -> dict:
+    return {
+        "setting": setting, "true_chain": [{}] * chain, "plan_correct": plan, "skills_completed": done if plan else 0,
+        "success": plan and done == chain, "steps": 10, "navigate": [{"spl": s} for s in spl],
+    }
+
+
+def test_progressive_success_counts_latched_stages() -> None:
+    eps = [_ep("x", 3, True, 3, [0.8]), _ep("x", 3, True, 1, [1.0]), _ep("x", 2, False, 0, []), _ep("x", 5, True, 4, [0.5, None])]
+    m = summarise(eps)
+    assert m["task_planning"]["k"] == 3 and m["skill_completion"]["k"] == 1
+    through = [(p["k"], p["n"]) for p in m["progressive"]]
+    assert through == [(3, 4), (2, 4), (2, 3), (1, 1), (0, 1)]  # through p: over chains of >= p skills
+    assert m["navigate_spl"]["n"] == 3 and m["navigate_spl"]["value"] == pytest.approx((0.8 + 1.0 + 0.5) / 3)
+
+
+class _BadShape:
+    observations = ("observation.state",)
+
+    def reset(self, info):  # noqa: ANN001
+        pass
+
+    def act(self, obs):  # noqa: ANN001
+        return [0.0, 0.0, 0.0]
+
+
+class _NaN(_BadShape):
+    def act(self, obs):  # noqa: ANN001
+        return [math.nan] * 12
+
+
+def _run(*args: str):
+    return CliRunner().invoke(app, ["evaluate", QUICK, "-n", "1", *args])  # a later -n wins
+
+
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (["--policy", "clever"], "policy 'clever': not a built-in"),
+        (["--policy", "no_such_module:Policy"], "cannot import"),
+        (["--planner", "tests:Nope"], "planner 'tests:Nope'"),
+        (["-n", "4"], "index 3 is past the test split"),
+        (["--split", "val"], "--split val"),
+        (["--policy", "test_evaluate:_BadShape", "-n", "1"], "expected shape (12,), got (3,)"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(args: list[str], says: str) -> None:
+    r = _run(*args)
+    assert r.exit_code == 2, r.output
+    err = [ln for ln in r.output.splitlines() if ln.startswith("error:")]
+    assert len(err) == 1 and says in err[0], r.output
+
+
+def test_checkpoint_folder_that_does_not_load(tmp_path: Path) -> None:
+    r = _run("--policy", str(tmp_path))
+    assert r.exit_code == 2 and "has no agent.json" in r.output
+    (tmp_path / "agent.json").write_text(json.dumps({"class": "test_evaluate:_Missing"}))
+    r = _run("--policy", str(tmp_path))
+    assert r.exit_code == 2 and "cannot import" in r.output
+
+
+class _FromCheckpoint(_BadShape):
+    def __init__(self, checkpoint: Path, gain: float = 1.0) -> None:
+        self.checkpoint, self.gain = checkpoint, gain
+
+    def act(self, obs):  # noqa: ANN001
+        a = [0.0] * 12
+        a[3:12] = list(obs["observation.state"][3:12])
+        return a
+
+
+def test_checkpoint_folder_loads_with_its_kwargs(tmp_path: Path) -> None:
+    (tmp_path / "agent.json").write_text(json.dumps({"class": "test_evaluate:_FromCheckpoint", "kwargs": {"gain": 2.0}}))
+    (tmp_path / "weights.bin").write_bytes(b"0123")
+    out = tmp_path / "r.json"
+    r = _run("--policy", str(tmp_path), "--json", str(out))
+    assert r.exit_code == 0, r.output
+    ident = json.loads(out.read_text())["policy"]
+    assert ident["class"] == "test_evaluate:_FromCheckpoint" and ident["checkpoint"] == str(tmp_path)
+    assert len(ident["checkpoint_sha256"]) == 64
+
+
+def test_nan_action_fails_that_episode_with_its_reason(tmp_path: Path) -> None:
+    out = tmp_path / "r.json"
+    r = _run("--policy", "test_evaluate:_NaN", "-n", "1", "--json", str(out))
+    assert r.exit_code == 0, r.output
+    ep = json.loads(out.read_text())["episodes"][0]
+    assert not ep["success"] and "non-finite action" in ep["failure"]
+
+
+def test_results_do_not_depend_on_workers(tmp_path: Path) -> None:
+    docs = []
+    for w in (1, 2):
+        out = tmp_path / f"w{w}.json"
+        r = _run("--policy", "random", "-n", "3", "--workers", str(w), "--json", str(out))
+        assert r.exit_code == 0, r.output
+        docs.append(json.loads(out.read_text()))
+    strip = lambda d: [{k: v for k, v in e.items() if k != "seconds"} for e in d["episodes"]]  # noqa: E731
+    assert strip(docs[0]) == strip(docs[1])
+    assert docs[0]["policy"]["class"].endswith("RandomSkills") and docs[0]["recipe"]["content_hash"]
+    assert all(e["steps"] > 0 for e in docs[0]["episodes"])
+
+
+@pytest.mark.slow
+def test_video_has_picture_and_binaural_sound(tmp_path: Path) -> None:
+    from echo_data.media import probe_mp4
+
+    out = tmp_path / "r.json"
+    r = _run("-n", "1", "--policy", "oracle", "--video", str(tmp_path / "v"), "--json", str(out))
+    assert r.exit_code == 0, r.output
+    ep = json.loads(out.read_text())["episodes"][0]
+    info = probe_mp4(Path(ep["video"]))
+    assert sorted(info["streams"]) == ["audio", "video"]
+    assert info["audio_channels"] == 2 and info["audio_rate"] == 16000
+    assert info["video_frames"] == ep["steps"]
+    assert info["duration_s"] == pytest.approx(ep["steps"] / 10, abs=0.15)
