@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
-from typing import Literal
+from typing import Literal, Sequence
 
 import numpy as np
 from scipy.signal import resample_poly
@@ -32,7 +32,7 @@ _SPHERE_THETA_MIN = np.deg2rad(150.0)  # ... at this angle from the ear axis
 _SPHERE_LEAD = 8  # samples of lead before the earliest ear delay (room for fractional-delay ringing)
 _SPHERE_TAPS = 64
 _DIFFUSE_SPREAD_S = 0.010  # decorrelation filters spread the directions' HRIRs over 10 ms
-_DIFFUSE_SEED = 0x5EED  # fixed: the decorrelation filters are part of the product, not random per run
+_DIFFUSE_WAVES = 128  # plane waves per diffuse-field realisation
 
 
 def direction_vectors(azimuth_rad: np.ndarray, elevation_rad: np.ndarray) -> np.ndarray:
@@ -51,7 +51,7 @@ class Hrtf:
         self.table = np.ascontiguousarray(table, dtype=np.float32)  # (n_dirs, taps, 2)
         self.directions = np.ascontiguousarray(directions, dtype=np.float64)  # (n_dirs, 3) unit
         self.delay_s = float(delay_s)  # head-centre latency inside every HRIR: the frontal response's onset
-        self._diffuse: np.ndarray | None = None
+        self._spec: tuple[np.ndarray, int] | None = None
         self._tree = cKDTree(self.directions)  # Euclidean nearest on the unit sphere = largest dot product
         self.table.setflags(write=False)
         self.directions.setflags(write=False)
@@ -76,27 +76,49 @@ class Hrtf:
         k = int(self.nearest(direction_vectors(np.array(azimuth_rad), np.array(elevation_rad))))
         return self.table[k].copy()
 
-    def diffuse_filters(self) -> np.ndarray:
-        """(n, 2) float32 pair of unit-energy filters that turn a mono diffuse tail into two ears.
+    @property
+    def diffuse_taps(self) -> int:
+        """Length of the decorrelation filters of `diffuse_field`."""
+        return int(round(_DIFFUSE_SPREAD_S * self.fs)) + self.taps
 
-        Each ear's filter is the sum over all tabulated directions of that ear's HRIR with a
-        random sign and a random delay (0-10 ms), the same signs and delays for both ears: a
-        model of a diffuse field made of plane waves from everywhere. The interaural coherence
-        that results is the HRTF set's own (high at low frequencies, low above ~1 kHz).
+    def diffuse_field(self, seed: int, head_yaws: Sequence[float]) -> np.ndarray:
+        """(len(head_yaws), diffuse_taps, 2) float32 filter pairs: a mono diffuse tail -> two ears.
+
+        A diffuse field at one place is a sum of plane waves from all directions with random
+        phases. Here `_DIFFUSE_WAVES` world-frame directions (uniform on the sphere), signs and
+        delays (0-10 ms) are drawn from `seed` (one seed per receiver position), and each wave
+        reaches each ear through the HRIR of its direction relative to a head at that world
+        yaw. So the interaural differences at one frequency change from place to place and
+        as the head turns, averaging to zero, while their statistics (the interaural
+        coherence: high at low frequencies, low above ~1 kHz) are those of the HRTF set's
+        diffuse field. One gain for both ears sets the mean ear energy to 1 (the level of the
+        tail is preserved; a realisation keeps its own small broadband left/right imbalance).
         """
-        if self._diffuse is None:
-            rng = np.random.default_rng(_DIFFUSE_SEED)
-            n_dirs = self.table.shape[0]
-            spread = int(round(_DIFFUSE_SPREAD_S * self.fs))
-            signs = rng.choice(np.array([-1.0, 1.0]), size=n_dirs)
-            delays = rng.integers(0, spread, size=n_dirs)
-            out = np.zeros((spread + self.taps, 2))
-            for k in range(n_dirs):
-                out[delays[k] : delays[k] + self.taps] += signs[k] * self.table[k]
-            out /= np.sqrt((out**2).sum(axis=0, keepdims=True))
-            self._diffuse = out.astype(np.float32)
-            self._diffuse.setflags(write=False)
-        return self._diffuse
+        rng = np.random.default_rng(np.random.SeedSequence([int(seed) % (1 << 63), 0xD1FF]))
+        z = rng.uniform(-1.0, 1.0, _DIFFUSE_WAVES)
+        phi = rng.uniform(0.0, 2 * np.pi, _DIFFUSE_WAVES)
+        signs = rng.choice(np.array([-1.0, 1.0]), size=_DIFFUSE_WAVES)
+        spread = int(round(_DIFFUSE_SPREAD_S * self.fs))
+        delays = rng.integers(0, spread, size=_DIFFUSE_WAVES)
+        spec_table, n_fft = self._spectra()
+        f = np.arange(spec_table.shape[1])
+        phase = signs[:, None] * np.exp(-2j * np.pi * f[None, :] * delays[:, None] / n_fft)  # (K, F)
+        rho = np.sqrt(1.0 - z * z)
+        out = np.empty((len(head_yaws), self.diffuse_taps, 2), dtype=np.float32)
+        for i, yaw in enumerate(head_yaws):
+            rel = phi - float(yaw)  # world azimuth -> head azimuth
+            idx = self.nearest(np.stack([rho * np.cos(rel), rho * np.sin(rel), z], axis=-1))
+            spec = np.einsum("kf,kfc->fc", phase, spec_table[idx])
+            ir = np.fft.irfft(spec, n_fft, axis=0)[: self.diffuse_taps]
+            out[i] = ir / np.sqrt((ir**2).sum(axis=0).mean())
+        return out
+
+    def _spectra(self) -> tuple[np.ndarray, int]:
+        """rfft of every tabulated HRIR, zero-padded for the diffuse filters (cached)."""
+        if self._spec is None:
+            n_fft = 1 << int(np.ceil(np.log2(self.diffuse_taps)))
+            self._spec = (np.fft.rfft(self.table.astype(np.float64), n_fft, axis=1), n_fft)
+        return self._spec
 
 
 @functools.lru_cache(maxsize=8)

@@ -16,7 +16,9 @@ Model (stated so it can be checked):
 - Near a doorway a receiver sees the neighbouring room's diffuse field through the opening:
   its diffuse energy is (1 - Σ h) E_room + Σ h E_neighbour, h = Ω / 4π × transmission, Ω the
   solid angle of the opening. On the doorway plane h = 1/2 from both sides, so the level is
-  continuous from room to room; a metre away it is a small correction.
+  continuous from room to room. The neighbour's share is not isotropic: it is rendered from
+  points spread over the opening (`types.ApertureTail`), so late sound that comes through a
+  doorway is heard from the doorway.
 - The tail of a response is band-split noise whose per-sample energy follows that E(t) from
   emission (so the late level falls with distance, as in Barron's revised theory), gated
   on at the first arrival in the receiver's room and weighted by the share of energy already
