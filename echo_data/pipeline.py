@@ -54,11 +54,15 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True) -> Rollout
 def render_episode_audio(spec: EpisodeSpec, rollout: Rollout, recipe: Recipe, library: object) -> tuple[np.ndarray, np.ndarray]:
     """The binaural episode track along the robot's actual path, and each step's sample offset.
 
-    Sources play from the start of the pre-roll until the step at which their event was
+    Calibrated (`echo_data.acoustics.levels`): each source plays at its drawn level (dB SPL
+    at 1 m), a room noise bed is added, and samples are pressure / full-scale pressure; a
+    track that would clip raises `ClippingError`. Sources play from the start of the pre-roll until the step at which their event was
     resolved (then fade out; reverberation decays naturally). The head stays at its first
     pose during the pre-roll.
     """
     from echo_data.acoustics.hrtf import Hrtf
+    from echo_data.acoustics.levels import pascal_gain, source_level_db, to_full_scale
+    from echo_data.acoustics.noise import NoiseFloor
     from echo_data.acoustics.room import AcousticScene
     from echo_data.acoustics.stream import SourceTrack, render_track
 
@@ -76,7 +80,10 @@ def render_episode_audio(spec: EpisodeSpec, rollout: Rollout, recipe: Recipe, li
     seconds = total_steps * hop / fs + cfg.rir_seconds
     sources = []
     for e, ev in enumerate(spec.events):
-        wave = library.waveform(ev.sound_id, fs, seconds)  # type: ignore[attr-defined]
+        # dry signal in pascals at 1 m at the event's calibrated source level
+        loop = library.waveform(ev.sound_id, fs)  # type: ignore[attr-defined]
+        gain = pascal_gain(loop, fs, source_level_db(ev.category, spec.plan.seed, e))
+        wave = library.waveform(ev.sound_id, fs, seconds) * np.float32(gain)  # type: ignore[attr-defined]
         stop = rollout.resolved_frame[e]
         sources.append(SourceTrack(position=tuple(ev.source), waveform=wave, stop_sample=None if stop is None else (stop + pre_steps) * hop))
     hrtf = Hrtf.load(cfg.hrtf, fs)
@@ -93,8 +100,9 @@ def render_episode_audio(spec: EpisodeSpec, rollout: Rollout, recipe: Recipe, li
         end = epochs[e + 1][0] if e + 1 < len(epochs) else len(part)
         track += part * _epoch_window(len(part), start if e else None, end if e + 1 < len(epochs) else None, hop)[:, None]
     assert track is not None
+    track = track.astype(np.float64) + NoiseFloor(fs, cfg.noise_floor_dba, spec.plan.seed, hrtf).render(0, len(track))
     offsets = (pre_steps + np.arange(n_steps, dtype=np.int64)) * hop
-    return track.astype(np.float32), offsets
+    return to_full_scale(track, cfg.full_scale_db_spl, what=f"episode {spec.episode_id}"), offsets
 
 
 def generate_episode(

@@ -33,6 +33,7 @@ _SPHERE_LEAD = 8  # samples of lead before the earliest ear delay (room for frac
 _SPHERE_TAPS = 64
 _DIFFUSE_SPREAD_S = 0.010  # decorrelation filters spread the directions' HRIRs over 10 ms
 _DIFFUSE_WAVES = 128  # plane waves per diffuse-field realisation
+_EQ_EXTRA_TAPS = 96  # the diffuse-field equaliser lengthens KEMAR HRIRs by this much
 
 
 def direction_vectors(azimuth_rad: np.ndarray, elevation_rad: np.ndarray) -> np.ndarray:
@@ -113,6 +114,16 @@ class Hrtf:
             out[i] = ir / np.sqrt((ir**2).sum(axis=0).mean())
         return out
 
+    def diffuse_coherence(self, freqs: np.ndarray) -> np.ndarray:
+        """Real interaural coherence of a diffuse field at `freqs` (Hz): the cross-spectrum of the
+        two ears summed over all tabulated directions, over the geometric mean of their powers
+        (near 1 at low frequencies, falling to about 0 above ~1.5 kHz)."""
+        spec, n_fft = self._spectra()
+        cross = (spec[..., 0] * np.conj(spec[..., 1])).sum(axis=0).real
+        power = np.sqrt((np.abs(spec[..., 0]) ** 2).sum(axis=0) * (np.abs(spec[..., 1]) ** 2).sum(axis=0))
+        grid = np.fft.rfftfreq(n_fft, 1.0 / self.fs)
+        return np.interp(np.asarray(freqs, dtype=np.float64), grid, cross / np.maximum(power, 1e-30))
+
     def _spectra(self) -> tuple[np.ndarray, int]:
         """rfft of every tabulated HRIR, zero-padded for the diffuse filters (cached)."""
         if self._spec is None:
@@ -146,9 +157,42 @@ def _kemar(fs: int) -> Hrtf:
     if fs != fs_data:
         g = int(np.gcd(fs, fs_data))
         table = resample_poly(table, fs // g, fs_data // g, axis=1)
-    table = _diffuse_normalise(table)
+    table = _diffuse_normalise(_diffuse_equalise(table, fs))
     front = int(np.argmin(np.abs(np.angle(np.exp(1j * az))) + np.abs(el)))
     return Hrtf("kemar", fs, table, direction_vectors(az, el), _onset_s(table[front], fs))
+
+
+def _diffuse_equalise(table: np.ndarray, fs: int) -> np.ndarray:
+    """Divide every HRIR by the set's diffuse-field magnitude response (minimum phase).
+
+    The MIT KEMAR "full" responses include the measuring loudspeaker's response: averaged over
+    all directions and both ears they are 14-20 dB down at 100-500 Hz and +3 dB at 2-3 kHz.
+    A head barely changes sound pressure at low frequencies, so the diffuse-field average
+    of a head's HRTFs is close to flat there; equalising it (the processing of MIT's own
+    "diffuse" set) makes calibrated levels hold across frequency. The correction is the
+    1/3-octave-smoothed inverse average, limited to ±20 dB and held below 100 Hz, realised
+    as a minimum-phase filter (no pre-ringing, onsets kept), `_EQ_EXTRA_TAPS` longer.
+    """
+    n_fft = 4096
+    taps = table.shape[1]
+    spec = np.fft.rfft(table, n_fft, axis=1)
+    power = (np.abs(spec) ** 2).mean(axis=(0, 2))
+    f = np.fft.rfftfreq(n_fft, 1.0 / fs)
+    fc = np.maximum(f, 100.0)
+    c = np.concatenate([[0.0], np.cumsum(power)])
+    lo = np.searchsorted(f, fc * 2 ** (-1 / 6))
+    hi = np.maximum(np.searchsorted(f, fc * 2 ** (1 / 6), side="right"), lo + 1)
+    smooth = (c[hi] - c[lo]) / (hi - lo)
+    gain_db = np.clip(-10.0 * np.log10(smooth / smooth.max()), 0.0, 40.0)
+    gain_db = np.minimum(gain_db, gain_db.min() + 20.0)
+    cep = np.fft.irfft(np.log(10.0 ** (gain_db / 20.0)), n_fft)
+    cep[1 : n_fft // 2] *= 2.0
+    cep[n_fft // 2 + 1 :] = 0.0
+    eq = np.exp(np.fft.rfft(cep, n_fft))  # minimum phase with that magnitude
+    out = np.fft.irfft(spec * eq[None, :, None], n_fft, axis=1)[:, : taps + _EQ_EXTRA_TAPS]
+    fade = np.cos(0.5 * np.pi * np.arange(1, 33) / 32) ** 2
+    out[:, -32:] *= fade[None, :, None]
+    return out
 
 
 def _onset_s(ir2: np.ndarray, fs: int) -> float:
