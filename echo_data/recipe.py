@@ -190,7 +190,7 @@ class AcousticsConfig(_Strict):
     air_absorption: bool = True
     hrtf: Literal["kemar", "sphere"] = "kemar"
     grid: float = Field(0.5, gt=0.05, le=2.0)  # receiver cache grid (m)
-    yaws: int = Field(8, ge=1, le=72)  # head yaws cached per grid point
+    yaws: int = Field(72, ge=1, le=360)  # head-yaw bins per grid point (RIRs interpolated between two)
     closed_door_loss_db: float = Field(25.0, ge=0.0, le=80.0)
     ear_height: float = Field(1.2, gt=0.2, le=2.0)
     mel_bands: int = Field(64, ge=8, le=256)
