@@ -33,11 +33,11 @@ from scipy.signal import butter, sosfiltfilt  # noqa: E402
 
 from echo_data.acoustics.features import step_features  # noqa: E402
 from echo_data.acoustics.hrtf import Hrtf  # noqa: E402
-from echo_data.acoustics.levels import pascal_gain, source_level_db, to_full_scale  # noqa: E402
+from echo_data.acoustics.levels import to_full_scale  # noqa: E402
 from echo_data.acoustics.noise import NoiseFloor  # noqa: E402
 from echo_data.acoustics.room import AcousticScene  # noqa: E402
 from echo_data.acoustics.stream import SourceTrack, render_track  # noqa: E402
-from echo_data.pipeline import PRE_ROLL_SECONDS, render_episode_audio, simulate, step_samples  # noqa: E402
+from echo_data.pipeline import PRE_ROLL_SECONDS, event_waveform, render_episode_audio, simulate, step_samples  # noqa: E402
 from echo_data.recipe import load_recipe  # noqa: E402
 from echo_data.records import EpisodeResult  # noqa: E402
 from echo_data.scene.sampling import sample_episode  # noqa: E402
@@ -69,8 +69,7 @@ def free_field_audio(spec, rollout, recipe, library) -> np.ndarray:
     seconds = len(poses) * hop / fs + cfg.rir_seconds
     sources = []
     for e, ev in enumerate(spec.events):
-        loop = library.waveform(ev.sound_id, fs)
-        wave = library.waveform(ev.sound_id, fs, seconds) * np.float32(pascal_gain(loop, fs, source_level_db(ev.category, spec.plan.seed, e)))
+        wave = event_waveform(spec, e, library, fs, seconds)
         stop = rollout.resolved_frame[e]
         sources.append(SourceTrack(tuple(ev.source), wave, None if stop is None else (stop + pre) * hop))
     hrtf = Hrtf.load(cfg.hrtf, fs)
@@ -176,7 +175,16 @@ def episode_rows(spec, result, audio: np.ndarray, fs: int, hop: int) -> list[dic
             ds, doff = side(s.ear_position, s.ear_yaw, door)
             door_side = ds if MIN_OFF <= doff <= MAX_OFF else None
         rows.append(
-            dict(cat=ev.category, los=los, side=sgn, door_side=door_side, ild=ild_db(w, fs), itd=itd_s(w, fs), step=i)
+            dict(
+                cat=ev.category,
+                los=los,
+                side=sgn,
+                door_side=door_side,
+                ild=ild_db(w, fs),
+                itd=itd_s(w, fs),
+                step=i,
+                dist=float(np.linalg.norm(np.asarray(ev.source) - np.asarray(s.ear_position))),
+            )
         )
     return rows
 
@@ -272,6 +280,7 @@ def main() -> None:
 
     for cue, key in (("ILD", "ild"), ("ITD", "itd")):
         line(f"{cue} sign = source side, line of sight", lambda nm, key=key: agreement([x for x in rows[nm] if x["los"]], key, "side"), "≥ 0.85")
+        line(f"{cue} sign = source side, line of sight, within 1.2 m", lambda nm, key=key: agreement([x for x in rows[nm] if x["los"] and x["dist"] <= 1.2], key, "side"), "")
         line(f"{cue} sign = source side, behind a wall", lambda nm, key=key: agreement([x for x in rows[nm] if not x["los"]], key, "side"), "")
         line(f"{cue} sign = doorway side, behind a wall", lambda nm, key=key: agreement([x for x in rows[nm] if not x["los"]], key, "door_side"), "≥ 0.75")
     for cat in sorted({x["cat"] for x in rows["room"]}):
@@ -280,7 +289,10 @@ def main() -> None:
             line(f"{cue}, {cat} ({kind}), line of sight", lambda nm, key=key, cat=cat: agreement([x for x in rows[nm] if x["los"] and x["cat"] == cat], key, "side"), "")
     line("median level rise over Navigate (dB)", lambda nm: (float(np.median(rises[nm])) if rises[nm] else float("nan"), len(rises[nm])), "≥ 8")
     line("left/right classifier on test spectrograms", lambda nm: (classifier(feats[(nm, "train")], feats[(nm, "test")]), len(feats[(nm, "test")])), "≥ 0.85")
-    print(f"\n{time.perf_counter() - t0:.0f} s")
+    d = np.asarray([x["dist"] for x in rows["room"] if x["los"]])
+    if len(d):
+        print(f"\nline-of-sight steps: median distance to the source {np.median(d):.2f} m, {np.mean(d <= 1.2):.0%} within 1.2 m")
+    print(f"{time.perf_counter() - t0:.0f} s")
 
 
 if __name__ == "__main__":

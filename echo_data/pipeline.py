@@ -51,6 +51,17 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True) -> Rollout
         world.close()
 
 
+def event_waveform(spec: EpisodeSpec, e: int, library: object, fs: int, seconds: float) -> np.ndarray:
+    """Event `e`'s dry signal in pascals at 1 m, at its calibrated source level (drawn per
+    event, see `echo_data.acoustics.levels`), `seconds` long."""
+    from echo_data.acoustics.levels import pascal_gain, source_level_db
+
+    ev = spec.events[e]
+    loop = library.waveform(ev.sound_id, fs)  # type: ignore[attr-defined]
+    gain = pascal_gain(loop, fs, source_level_db(ev.category, spec.plan.seed, e))
+    return library.waveform(ev.sound_id, fs, seconds) * np.float32(gain)  # type: ignore[attr-defined]
+
+
 def render_episode_audio(spec: EpisodeSpec, rollout: Rollout, recipe: Recipe, library: object) -> tuple[np.ndarray, np.ndarray]:
     """The binaural episode track along the robot's actual path, and each step's sample offset.
 
@@ -61,7 +72,7 @@ def render_episode_audio(spec: EpisodeSpec, rollout: Rollout, recipe: Recipe, li
     pose during the pre-roll.
     """
     from echo_data.acoustics.hrtf import Hrtf
-    from echo_data.acoustics.levels import pascal_gain, source_level_db, to_full_scale
+    from echo_data.acoustics.levels import to_full_scale
     from echo_data.acoustics.noise import NoiseFloor
     from echo_data.acoustics.room import AcousticScene
     from echo_data.acoustics.stream import SourceTrack, render_track
@@ -80,10 +91,7 @@ def render_episode_audio(spec: EpisodeSpec, rollout: Rollout, recipe: Recipe, li
     seconds = total_steps * hop / fs + cfg.rir_seconds
     sources = []
     for e, ev in enumerate(spec.events):
-        # dry signal in pascals at 1 m at the event's calibrated source level
-        loop = library.waveform(ev.sound_id, fs)  # type: ignore[attr-defined]
-        gain = pascal_gain(loop, fs, source_level_db(ev.category, spec.plan.seed, e))
-        wave = library.waveform(ev.sound_id, fs, seconds) * np.float32(gain)  # type: ignore[attr-defined]
+        wave = event_waveform(spec, e, library, fs, seconds)
         stop = rollout.resolved_frame[e]
         sources.append(SourceTrack(position=tuple(ev.source), waveform=wave, stop_sample=None if stop is None else (stop + pre_steps) * hop))
     hrtf = Hrtf.load(cfg.hrtf, fs)
