@@ -109,13 +109,13 @@ CURTAIN_MATERIALS = ("curtains_cotton_0.5", "curtains_densely_woven", "curtains_
 RUG_ROOMS = ("living", "bedroom", "study", "hall")
 FITTED_CARPETS = ("carpet_cotton", "carpet_tufted_9.5mm", "carpet_1.35_kg_m2", "carpet_tufted_9m")  # no rug on these
 CURTAIN_ROOMS = ("living", "bedroom", "study")
-RUG_COVER = (0.35, 0.6)  # share of a room's floor under a rug
+RUG_COVER = (0.4, 0.7)  # share of a room's floor under a rug
 CURTAIN_WIDTH = (1.4, 2.6)  # m, a window's pair of curtains drawn open at its sides
 MIN_CURTAIN_WIDTH = 1.0  # m, narrower free wall gets no window
 CURTAIN_OFF_WALL = 0.002  # m, gap between wall face and curtain ...
 CURTAIN_DEPTH = 0.015  # m, ... so furniture (WALL_GAP off the wall) may stand in front of it
 CURTAIN_TOP_BELOW_CEILING = 0.1
-SECOND_WINDOW_PROBABILITY = 0.5
+SECOND_WINDOW_PROBABILITY = 0.7
 
 # --- faucet ----------------------------------------------------------------------------
 # Pivot behind the cabinet's front face: in the back half of the top, yet within the reach
