@@ -84,3 +84,26 @@ def test_diffuse_field_is_deterministic_per_place_and_differs_between_places() -
     b = hrtf.diffuse_field(12, [0.0])
     assert abs(np.corrcoef(a[0, :, 0], b[0, :, 0])[0, 1]) < 0.3
     np.testing.assert_allclose((a.astype(np.float64) ** 2).sum(axis=1).mean(axis=1), 1.0, rtol=1e-5)
+
+
+def test_diffuse_field_has_the_hrtf_diffuse_coherence() -> None:
+    """Averaged over places, the two ears' late signals have the interaural coherence of a
+    diffuse field for this head: near 1 at low frequencies (a wavelength much longer than the
+    head), falling through zero around 700 Hz and small above 1.5 kHz."""
+    hrtf = Hrtf.load("kemar", FS)
+    n = 1024
+    cross = np.zeros(n // 2 + 1)
+    pl, pr = np.zeros(n // 2 + 1), np.zeros(n // 2 + 1)
+    for seed in range(60):
+        d = np.fft.rfft(hrtf.diffuse_field(seed, [0.3 * seed])[0].astype(np.float64), n, axis=0)
+        cross += (d[:, 0] * np.conj(d[:, 1])).real
+        pl += np.abs(d[:, 0]) ** 2
+        pr += np.abs(d[:, 1]) ** 2
+    coh = cross / np.sqrt(pl * pr)
+    f = np.fft.rfftfreq(n, 1.0 / FS)
+    expect = hrtf.diffuse_coherence(f)
+    for lo, hi in ((100, 200), (200, 400), (400, 800), (800, 1600), (1600, 3200), (3200, 6400)):
+        m = (f >= lo) & (f < hi)
+        assert abs(coh[m].mean() - expect[m].mean()) < 0.15, (lo, coh[m].mean(), expect[m].mean())
+    assert coh[(f >= 100) & (f < 200)].mean() > 0.7
+    assert abs(coh[f >= 1600].mean()) < 0.15
