@@ -22,25 +22,13 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import matplotlib.ticker  # noqa: E402
 import numpy as np  # noqa: E402
-from scipy import signal  # noqa: E402
 
-from echo_data.acoustics.room import AcousticScene, omni_rir  # noqa: E402
+from echo_data.acoustics.survey import room_t30s  # noqa: E402
 from echo_data.recipe import AcousticsConfig, load_recipe  # noqa: E402
-from echo_data.scene.generate import generate_floorplan_from_seed  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BANDS = (125.0, 250.0, 500.0, 1000.0, 2000.0, 4000.0)
 FURNISHED = ("living", "bedroom", "study", "hall")
-
-
-def band_t30(h: np.ndarray, fs: int, fc: float) -> float:
-    sos = signal.butter(3, [fc / np.sqrt(2), min(fc * np.sqrt(2), 0.45 * fs)], btype="band", fs=fs, output="sos")
-    x = signal.sosfiltfilt(sos, h.astype(np.float64))
-    edc = np.cumsum((x**2)[::-1])[::-1]
-    db = 10 * np.log10(edc / edc[0] + 1e-30)
-    i5, i35 = int(np.argmax(db <= -5)), int(np.argmax(db <= -35))
-    t = np.arange(len(x)) / fs
-    return float(-60.0 / np.polyfit(t[i5:i35], db[i5:i35], 1)[0])
 
 
 def main() -> None:
@@ -51,18 +39,7 @@ def main() -> None:
     args = ap.parse_args()
     recipe = load_recipe(args.recipe)
     cfg = AcousticsConfig(**{**recipe.acoustics.model_dump(), "rir_seconds": 1.0})
-    kinds, t30 = [], []
-    for seed in range(args.seeds):
-        plan = generate_floorplan_from_seed(recipe, seed)
-        scene = AcousticScene(plan, cfg)
-        for room in plan.rooms:
-            r = room.rect
-            src = (r.xmin + 0.4 * (r.xmax - r.xmin), r.ymin + 0.4 * (r.ymax - r.ymin), 1.0)
-            rcv = (r.xmin + 0.65 * (r.xmax - r.xmin), r.ymin + 0.6 * (r.ymax - r.ymin), 1.2)
-            h = omni_rir(scene.response(src, rcv))
-            kinds.append(room.kind)
-            t30.append([band_t30(h, cfg.sample_rate, fc) for fc in BANDS])
-    kinds, t30 = np.asarray(kinds), np.asarray(t30)
+    kinds, t30 = room_t30s(recipe, range(args.seeds), cfg, BANDS)
     soft = np.isin(kinds, FURNISHED)
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.5))
     for mask, label, colour in ((soft, "generated: living rooms, bedrooms, studies, halls", "tab:blue"), (~soft, "generated: kitchens, bathrooms", "tab:orange")):
