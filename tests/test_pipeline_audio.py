@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from echo_data.acoustics.hrtf import Hrtf
-from echo_data.acoustics.levels import P_REF, full_scale_pa
+from echo_data.acoustics.levels import P_REF, ClippingError, full_scale_pa
 from echo_data.acoustics.noise import NoiseFloor
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
 from echo_data.pipeline import PRE_ROLL_SECONDS, _epoch_window, render_episode_audio, step_samples
@@ -100,3 +100,19 @@ def test_opening_the_door_lets_the_sound_through(recipe: Recipe) -> None:
     assert np.array_equal(a[before], b[before])  # same geometry until the door opens
     gain_db = 10 * np.log10(np.mean(b[after] ** 2) / np.mean(a[after] ** 2))
     assert gain_db > 6.0, gain_db
+
+
+def test_a_track_that_would_clip_is_refused_not_clipped(recipe: Recipe) -> None:
+    """Calibration: the same episode at a full scale 1 dB below its peak raises ClippingError
+    (the build records the attempt as failed with that one-line reason); 1 dB above it gives the
+    same samples scaled by the calibration ratio."""
+    spec, ro, lib = _spec_and_rollout(recipe, 12, None, None)
+    track, _ = render_episode_audio(spec, ro, recipe, lib)
+    peak_db = 20 * np.log10(np.abs(track.astype(np.float64)).max()) + recipe.acoustics.full_scale_db_spl
+    low = recipe.model_copy(update={"acoustics": recipe.acoustics.model_copy(update={"full_scale_db_spl": peak_db - 1.0})})
+    with pytest.raises(ClippingError, match="would clip"):
+        render_episode_audio(spec, ro, low, lib)
+    high = recipe.model_copy(update={"acoustics": recipe.acoustics.model_copy(update={"full_scale_db_spl": peak_db + 1.0})})
+    louder, _ = render_episode_audio(spec, ro, high, lib)
+    scale = 10 ** ((recipe.acoustics.full_scale_db_spl - peak_db - 1.0) / 20)
+    np.testing.assert_allclose(louder, track * scale, rtol=1e-4, atol=1e-7)
