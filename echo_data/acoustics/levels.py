@@ -5,16 +5,15 @@ gain 1 (1/r spreading, diffuse-field normalised HRIRs), so a dry signal scaled t
 1 m yields ear signals in pascals. A source's level is its maximum RMS over 125 ms windows
 (the F time weighting of a sound level meter, unweighted), in dB re 20 µPa at 1 m.
 
-Source levels (dB SPL at 1 m; a level is drawn uniformly in the range per event). The
-figures are what consumer devices are specified or measured to produce; tables of everyday
-noise put a ringing telephone at about 80 dB and an alarm clock at 65–80 dB, so:
-- phone: 65–78 (a smartphone ringtone at full volume; measured smartphone loudspeakers reach
-  75–85 dB(A) at 10–30 cm, i.e. some 10 dB less at 1 m);
-- alarm: 65–80 (alarm clocks, the range the noise tables give);
-- furby: 60–75 (talking toys; ASTM F963 caps table-top toys at 85 dB(A) at 50 cm, i.e. at most
-  79 dB at 1 m, and speech-like toys sit below the cap);
-- doorbell: 70–85 (wired chimes are made to be heard through a home; makers state 80–85 dB);
-- sink: 50–65 (water from a tap into a sink; quieter than the signalling devices).
+Source levels (dB SPL at 1 m; a level is drawn uniformly in the range per event):
+- phone: 65–78. Purdue University's noise-level chart (the table most sound-level guides
+  reproduce) lists a ringing telephone at 80 dB; a smartphone ringtone at full volume is of
+  that order close to the phone, some dB less at 1 m.
+- alarm: 65–80, the alarm-clock range of the same chart.
+- furby: 60–75. ASTM F963 caps the sound of table-top toys at 85 dB(A) at 50 cm, i.e. at most
+  79 dB at 1 m; a talking toy's speech sits below the cap.
+- doorbell: 70–85 (our estimate: a chime must be heard through a home, above the alarm range).
+- sink: 50–65 (our estimate: water from a tap into a sink, quieter than signalling devices).
 
 Full scale: a WAV sample of ±1 is ±`full_scale_db_spl` (default 120 dB SPL, i.e. 20 Pa peak);
 the loudest source at 30 cm peaks well below it. A track that would still exceed full scale
