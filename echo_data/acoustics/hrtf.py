@@ -8,8 +8,9 @@ binaural renderer can precompute per-direction kernels; `hrir()` returns the nea
 sphere: a 5 deg grid over the whole sphere).
 
 Both tables are diffuse-field power normalised (mean energy over directions and ears = 1), so
-the early (HRIR-filtered) and late (decorrelated) parts of a binaural response, and the two
-kinds, have comparable levels.
+the early (HRIR-filtered) and late (diffuse-field) parts of a binaural response, and the two
+kinds, have comparable levels; the KEMAR set is also diffuse-field equalised (flat average
+over directions, see `_diffuse_equalise`), so calibrated levels hold across frequency.
 """
 
 from __future__ import annotations
