@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from echo_data.envs.audio import PRE_ROLL_SECONDS, step_samples  # noqa: F401  (re-exported)
+from echo_data.envs.audio import PRE_ROLL_SECONDS, event_waveform, step_samples  # noqa: F401  (re-exported)
 from echo_data.episode import EpisodeSpec
 from echo_data.recipe import Recipe
 from echo_data.records import EpisodeResult, StepRecord

@@ -26,10 +26,14 @@ def _save_png(path: Path, img: np.ndarray) -> None:
 
 
 def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: object) -> np.ndarray:
-    """Binaural audio at the start pose for the first HEARD_SECONDS, every source sounding."""
+    """Binaural audio at the start pose for the first HEARD_SECONDS, every source sounding,
+    calibrated as the dataset's WAVs (levels, noise floor, full scale)."""
     from echo_data.acoustics.hrtf import Hrtf
+    from echo_data.acoustics.levels import to_full_scale
+    from echo_data.acoustics.noise import NoiseFloor
     from echo_data.acoustics.room import AcousticScene
     from echo_data.acoustics.stream import SourceTrack, render_track
+    from echo_data.pipeline import event_waveform
 
     cfg = recipe.acoustics
     fs = cfg.sample_rate
@@ -38,11 +42,13 @@ def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: object) -> np.nda
     x, y, yaw = spec.start
     poses = np.tile(np.array([[x, y, cfg.ear_height, yaw]]), (n, 1))
     srcs = [
-        SourceTrack(position=tuple(ev.source), waveform=library.waveform(ev.sound_id, fs, HEARD_SECONDS + cfg.rir_seconds), stop_sample=None)  # type: ignore[attr-defined]
-        for ev in spec.events
+        SourceTrack(position=tuple(ev.source), waveform=event_waveform(spec, e, library, fs, HEARD_SECONDS + cfg.rir_seconds), stop_sample=None)
+        for e, ev in enumerate(spec.events)
     ]
-    track = render_track(AcousticScene(spec.plan, cfg), srcs, poses, hop, cfg, hrtf=Hrtf.load(cfg.hrtf, fs))
-    return track[: int(HEARD_SECONDS * fs)]
+    hrtf = Hrtf.load(cfg.hrtf, fs)
+    track = render_track(AcousticScene(spec.plan, cfg), srcs, poses, hop, cfg, hrtf=hrtf)[: int(HEARD_SECONDS * fs)].astype(np.float64)
+    track += NoiseFloor(fs, cfg.noise_floor_dba, spec.plan.seed, hrtf).render(0, len(track))
+    return to_full_scale(track, cfg.full_scale_db_spl, what="preview")
 
 
 def draw_spectrogram(x2: np.ndarray, fs: int, out: Path, title: str) -> None:
@@ -65,12 +71,17 @@ def draw_spectrogram(x2: np.ndarray, fs: int, out: Path, title: str) -> None:
 
 
 def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float = 0.25) -> None:
-    """Level (dB re the strongest cell) of the first event's source over the plan at ear height."""
+    """Steady sound pressure level (dB SPL, at its drawn source level) of the first event's
+    source over the plan at ear height, with the soft furnishings that shape it: rugs (dashed),
+    curtains (green), upholstered sofas and beds (hatched)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
 
+    from echo_data.acoustics.levels import source_level_db
+    from echo_data.acoustics.materials import per_floor_area
     from echo_data.acoustics.room import AcousticScene, omni_rir
 
     cfg = recipe.acoustics
@@ -78,26 +89,38 @@ def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float 
     b = spec.plan.bounds
     xs = np.arange(b.xmin + step / 2, b.xmax, step)
     ys = np.arange(b.ymin + step / 2, b.ymax, step)
-    src = tuple(spec.events[0].source)
+    ev = spec.events[0]
+    src = tuple(ev.source)
+    l1m = source_level_db(ev.category, spec.plan.seed, 0)
     level = np.full((len(ys), len(xs)), np.nan)
     for j, y in enumerate(ys):
         for i, x in enumerate(xs):
             if spec.plan.room_at(x, y) < 0:
                 continue
-            h = omni_rir(scene.response(src, (x, y, cfg.ear_height)))
-            level[j, i] = 10 * np.log10(np.sum(h.astype(np.float64) ** 2) + 1e-20)
-    level -= np.nanmax(level)
+            h = omni_rir(scene.response(src, (x, y, cfg.ear_height)))  # direct sound at 1 m = 0 dB
+            level[j, i] = l1m + 10 * np.log10(np.sum(h.astype(np.float64) ** 2) + 1e-20)
     fig, ax = plt.subplots(figsize=(7, 7 * (b.ymax - b.ymin) / max(b.xmax - b.xmin, 1e-6) + 0.5))
-    im = ax.imshow(level, origin="lower", extent=[b.xmin, b.xmax, b.ymin, b.ymax], cmap="inferno", vmin=-50, vmax=0)
+    top = float(np.ceil(np.nanmax(level) / 5) * 5)
+    im = ax.imshow(level, origin="lower", extent=[b.xmin, b.xmax, b.ymin, b.ymax], cmap="inferno", vmin=top - 45, vmax=top)
+    for f in spec.plan.furniture:
+        fp = f.footprint
+        soft = per_floor_area(f.material)
+        ax.add_patch(Rectangle((fp.xmin, fp.ymin), fp.xmax - fp.xmin, fp.ymax - fp.ymin, fill=False, ec="lightgrey", lw=1, hatch="///" if soft else None))
+    for fu in spec.plan.furnishings:
+        fp = fu.footprint
+        if fu.kind == "rug":
+            ax.add_patch(Rectangle((fp.xmin, fp.ymin), fp.xmax - fp.xmin, fp.ymax - fp.ymin, fill=False, ec="deepskyblue", lw=1, ls="--"))
+        else:
+            ax.add_patch(Rectangle((fp.xmin, fp.ymin), fp.xmax - fp.xmin, fp.ymax - fp.ymin, fill=True, fc="lime", ec="lime", lw=2.5))
     for w in spec.plan.walls:
         ax.plot([w.a[0], w.b[0]], [w.a[1], w.b[1]], color="white", lw=2.5)
     for d in spec.plan.doors:
         e = d.free_edge()
         ax.plot([d.hinge[0], e[0]], [d.hinge[1], e[1]], color="cyan", lw=2)
     ax.plot(src[0], src[1], marker="*", color="lime", ms=16, mec="black")
-    ax.set_title(f"{spec.events[0].category} ({spec.events[0].sound_id}): level at ear height, dB")
+    ax.set_title(f"{ev.category} at {l1m:.0f} dB SPL @ 1 m: level at ear height\n(rugs dashed, curtains green, upholstery hatched)")
     ax.set_aspect("equal")
-    fig.colorbar(im, ax=ax, shrink=0.8, label="dB re max")
+    fig.colorbar(im, ax=ax, shrink=0.8, label="dB SPL")
     fig.savefig(out, dpi=110, bbox_inches="tight")
     plt.close(fig)
 

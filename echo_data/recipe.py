@@ -190,10 +190,13 @@ class AcousticsConfig(_Strict):
     air_absorption: bool = True
     hrtf: Literal["kemar", "sphere"] = "kemar"
     grid: float = Field(0.5, gt=0.05, le=2.0)  # receiver cache grid (m)
-    yaws: int = Field(8, ge=1, le=72)  # head yaws cached per grid point
+    yaws: int = Field(72, ge=1, le=360)  # head-yaw bins per grid point (RIRs interpolated between two)
     closed_door_loss_db: float = Field(25.0, ge=0.0, le=80.0)
     ear_height: float = Field(1.2, gt=0.2, le=2.0)
     mel_bands: int = Field(64, ge=8, le=256)
+    # calibration: a WAV sample of 1.0 is this sound pressure level (see acoustics.levels)
+    full_scale_db_spl: float = Field(120.0, ge=90.0, le=160.0)
+    noise_floor_dba: float = Field(30.0, ge=0.0, le=70.0)  # room noise bed in dB(A); 0 = none
 
 
 class OutputsConfig(_Strict):

@@ -7,7 +7,9 @@ import numpy as np
 from echo_data.acoustics.hrtf import Hrtf
 from echo_data.acoustics.room import AcousticScene
 from echo_data.acoustics.stream import SourceTrack, render_track
-from echo_data.envs.audio import OnlineTrack, pre_roll_steps, step_samples
+from echo_data.acoustics.levels import to_full_scale
+from echo_data.acoustics.noise import NoiseFloor
+from echo_data.envs.audio import OnlineTrack, event_waveform, pre_roll_steps, step_samples
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
 from echo_data.recipe import Recipe
 from echo_data.scene.generate import generate_floorplan
@@ -26,7 +28,8 @@ def _spec(recipe: Recipe, lib: SoundLibrary) -> EpisodeSpec:
 
 
 def test_online_blocks_equal_the_offline_render() -> None:
-    """Same samples, bit for bit: a walking, turning head, one source stopping mid-way, the tail."""
+    """Same samples, bit for bit: a walking, turning head, one source stopping mid-way, the tail,
+    calibrated to full scale with the noise bed added, as the offline render plus the noise would be."""
     recipe = Recipe(name="t")
     lib = SoundLibrary.builtin()
     spec = _spec(recipe, lib)
@@ -47,10 +50,13 @@ def test_online_blocks_equal_the_offline_render() -> None:
 
     seconds = len(poses) * hop / cfg.sample_rate + cfg.rir_seconds
     sources = [
-        SourceTrack(ev.source, lib.waveform(ev.sound_id, cfg.sample_rate, seconds), (stop_frame + pre) * hop if e == 0 else None)
+        SourceTrack(ev.source, event_waveform(spec, e, lib, cfg.sample_rate, seconds), (stop_frame + pre) * hop if e == 0 else None)
         for e, ev in enumerate(spec.events)
     ]
-    offline = render_track(AcousticScene(spec.plan, cfg), sources, poses, hop, cfg, hrtf=Hrtf.load(cfg.hrtf, cfg.sample_rate))
+    hrtf = Hrtf.load(cfg.hrtf, cfg.sample_rate)
+    offline = render_track(AcousticScene(spec.plan, cfg), sources, poses, hop, cfg, hrtf=hrtf)
+    noise = NoiseFloor(cfg.sample_rate, cfg.noise_floor_dba, spec.plan.seed, hrtf).render(0, len(offline))
+    offline = to_full_scale(offline.astype(np.float64) + noise, cfg.full_scale_db_spl)
     assert track.shape == offline.shape
     assert np.array_equal(track, offline)
     assert np.abs(track[: (pre + n) * hop]).max() > 1e-3  # not trivially silent

@@ -7,6 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from echo_data.acoustics.hrtf import Hrtf
+from echo_data.acoustics.levels import P_REF, ClippingError, full_scale_pa
+from echo_data.acoustics.noise import NoiseFloor
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
 from echo_data.envs.audio import epoch_window
 from echo_data.pipeline import PRE_ROLL_SECONDS, render_episode_audio, step_samples
@@ -67,16 +70,27 @@ def test_offsets_include_the_pre_roll(recipe: Recipe) -> None:
     assert np.sqrt(np.mean(track[:pre] ** 2)) > 1e-4
 
 
-def test_resolved_source_reaches_exact_silence(recipe: Recipe) -> None:
+def test_after_the_source_stops_only_the_noise_floor_remains(recipe: Recipe) -> None:
+    """No digital silence: once the source and its reverberation have died away the track is
+    exactly the room's noise bed (at the stated calibration), and at its stated level."""
     spec, ro, lib = _spec_and_rollout(recipe, 30, 10, None)
     track, offsets = render_episode_audio(spec, ro, recipe, lib)
+    cfg = recipe.acoustics
     stop = offsets[10]
-    silent_from = stop + int(0.02 * recipe.acoustics.sample_rate) + int(1.5 * recipe.acoustics.rir_seconds * recipe.acoustics.sample_rate) + 200
+    quiet_from = stop + int(0.02 * cfg.sample_rate) + int(1.5 * cfg.rir_seconds * cfg.sample_rate) + 200
     assert np.abs(track[stop - 1600 : stop]).max() > 0
-    assert np.all(track[silent_from:] == 0.0)
+    bed = NoiseFloor(cfg.sample_rate, cfg.noise_floor_dba, spec.plan.seed, Hrtf.load(cfg.hrtf, cfg.sample_rate))
+    expect = bed.render(0, len(track))[quiet_from:] / full_scale_pa(cfg.full_scale_db_spl)
+    np.testing.assert_allclose(track[quiet_from:], expect, rtol=0, atol=1e-9)
+    assert np.all(np.abs(track[quiet_from:]).max(axis=0) > 0)
+    # and a source at its calibrated level is far above the bed
+    level = 20 * np.log10(np.sqrt(np.mean(track[: offsets[0]].astype(np.float64) ** 2)) * full_scale_pa(cfg.full_scale_db_spl) / P_REF)
+    assert level > 45.0, level
 
 
 def test_opening_the_door_lets_the_sound_through(recipe: Recipe) -> None:
+    # without the room's noise bed (its low-frequency rumble would mask the closed-door level)
+    recipe = recipe.model_copy(update={"acoustics": recipe.acoustics.model_copy(update={"noise_floor_dba": 0.0})})
     n, change = 40, 20
     spec, closed, lib = _spec_and_rollout(recipe, n, None, None)
     _, opened, _ = _spec_and_rollout(recipe, n, None, change)
@@ -88,3 +102,19 @@ def test_opening_the_door_lets_the_sound_through(recipe: Recipe) -> None:
     assert np.array_equal(a[before], b[before])  # same geometry until the door opens
     gain_db = 10 * np.log10(np.mean(b[after] ** 2) / np.mean(a[after] ** 2))
     assert gain_db > 6.0, gain_db
+
+
+def test_a_track_that_would_clip_is_refused_not_clipped(recipe: Recipe) -> None:
+    """Calibration: the same episode at a full scale 1 dB below its peak raises ClippingError
+    (the build records the attempt as failed with that one-line reason); 1 dB above it gives the
+    same samples scaled by the calibration ratio."""
+    spec, ro, lib = _spec_and_rollout(recipe, 12, None, None)
+    track, _ = render_episode_audio(spec, ro, recipe, lib)
+    peak_db = 20 * np.log10(np.abs(track.astype(np.float64)).max()) + recipe.acoustics.full_scale_db_spl
+    low = recipe.model_copy(update={"acoustics": recipe.acoustics.model_copy(update={"full_scale_db_spl": peak_db - 1.0})})
+    with pytest.raises(ClippingError, match="would clip"):
+        render_episode_audio(spec, ro, low, lib)
+    high = recipe.model_copy(update={"acoustics": recipe.acoustics.model_copy(update={"full_scale_db_spl": peak_db + 1.0})})
+    louder, _ = render_episode_audio(spec, ro, high, lib)
+    scale = 10 ** ((recipe.acoustics.full_scale_db_spl - peak_db - 1.0) / 20)
+    np.testing.assert_allclose(louder, track * scale, rtol=1e-4, atol=1e-7)

@@ -6,9 +6,12 @@ basis filters (one per `BAND_CENTERS` entry, triangles in log-frequency that sum
 so the per-arrival work is a 7-term weighted sum of precomputed per-direction kernels rather
 than a convolution. Delays are resolved to 1/4 sample (fractional-delay basis filters), and
 the HRIRs' own head-centre latency is removed so that an arrival at `delay_s` is centred on
-`delay_s` at the head centre (ITD splits around it). The diffuse tail goes to both ears
-through the HRTF's pair of unit-energy decorrelation filters (energy preserved, interaural
-coherence that of a diffuse field); it does not depend on head yaw.
+`delay_s` at the head centre (ITD splits around it). The receiver room's diffuse tail goes
+to both ears through a diffuse-field realisation of the HRTF drawn per receiver position and
+rendered at the head's yaw (`Hrtf.diffuse_field`: level preserved, interaural coherence that
+of a diffuse field, interaural differences that change with place and head orientation).
+Late energy of a neighbouring room seen through an opening (`ApertureTail`) comes from the
+opening's directions.
 """
 
 from __future__ import annotations
@@ -18,10 +21,9 @@ from typing import Sequence
 
 import numpy as np
 import scipy.fft as sfft
-from scipy.signal import fftconvolve
 
 from echo_data.acoustics.hrtf import Hrtf
-from echo_data.acoustics.types import BAND_CENTERS, AcousticResponse
+from echo_data.acoustics.types import BAND_CENTERS, AcousticResponse, ApertureTail
 
 BAND_TAPS = 63  # length of the zero-phase band basis filters (centre tap 31)
 SUBSAMPLE = 4  # arrival delays are rendered to 1/SUBSAMPLE of a sample
@@ -109,7 +111,7 @@ def head_relative(directions: np.ndarray, head_yaw: float) -> np.ndarray:
 
 def binaural_length(response: AcousticResponse, hrtf: Hrtf) -> int:
     """Samples of the binaural IR of `response`: its length plus the longest rendering kernel."""
-    return int(response.length) + max(_bank(hrtf).taps, hrtf.diffuse_filters().shape[0]) - 1
+    return int(response.length) + max(_bank(hrtf).taps, hrtf.diffuse_taps) - 1
 
 
 def binaural_irs(response: AcousticResponse, head_yaws: Sequence[float], hrtf: Hrtf) -> np.ndarray:
@@ -150,9 +152,28 @@ def binaural_irs(response: AcousticResponse, head_yaws: Sequence[float], hrtf: H
                 out[:, lo:hi] += contrib[:, i, lo - start[i] : hi - start[i]]
     tail = np.asarray(response.tail, dtype=np.float64)
     if tail.size and np.any(tail):
-        dec = hrtf.diffuse_filters().astype(np.float64)
-        rendered = fftconvolve(tail[:, None], dec, axes=0)[:length]
-        out[:, : len(rendered)] += rendered[None].astype(np.float32)
+        dec = hrtf.diffuse_field(response.field_seed, yaws).astype(np.float64)  # (n_y, taps, 2)
+        n = min(len(tail) + dec.shape[1] - 1, length)
+        n_fft = sfft.next_fast_len(len(tail) + dec.shape[1] - 1, real=True)
+        spec = sfft.rfft(tail, n_fft)[None, :, None] * sfft.rfft(dec, n_fft, axis=1)
+        out[:, :n] += sfft.irfft(spec, n_fft, axis=1)[:, :n].astype(np.float32)
+    for ap in response.apertures:
+        out += _aperture(ap, yaws, hrtf, length)
+    return out
+
+
+def _aperture(ap: ApertureTail, yaws: np.ndarray, hrtf: Hrtf, length: int) -> np.ndarray:
+    """(n_y, length, 2) late energy through an opening: each of its points' noise through the
+    HRIR of that point's direction relative to the head."""
+    sig = np.asarray(ap.signals, dtype=np.float64)
+    n_fft = sfft.next_fast_len(sig.shape[1] + hrtf.taps - 1, real=True)
+    S = sfft.rfft(sig, n_fft, axis=1)  # (k, F)
+    out = np.zeros((len(yaws), length, 2), dtype=np.float32)
+    n = min(sig.shape[1] + hrtf.taps - 1, length)
+    for i, yaw in enumerate(yaws):
+        idx = hrtf.nearest(head_relative(ap.directions, float(yaw)))
+        H = sfft.rfft(hrtf.table[idx].astype(np.float64), n_fft, axis=1)  # (k, F, 2)
+        out[i, :n] = sfft.irfft(np.einsum("kf,kfc->fc", S, H), n_fft, axis=0)[:n]
     return out
 
 

@@ -8,15 +8,16 @@ binaural renderer can precompute per-direction kernels; `hrir()` returns the nea
 sphere: a 5 deg grid over the whole sphere).
 
 Both tables are diffuse-field power normalised (mean energy over directions and ears = 1), so
-the early (HRIR-filtered) and late (decorrelated) parts of a binaural response, and the two
-kinds, have comparable levels.
+the early (HRIR-filtered) and late (diffuse-field) parts of a binaural response, and the two
+kinds, have comparable levels; the KEMAR set is also diffuse-field equalised (flat average
+over directions, see `_diffuse_equalise`), so calibrated levels hold across frequency.
 """
 
 from __future__ import annotations
 
 import functools
 from pathlib import Path
-from typing import Literal
+from typing import Literal, Sequence
 
 import numpy as np
 from scipy.signal import resample_poly
@@ -32,7 +33,8 @@ _SPHERE_THETA_MIN = np.deg2rad(150.0)  # ... at this angle from the ear axis
 _SPHERE_LEAD = 8  # samples of lead before the earliest ear delay (room for fractional-delay ringing)
 _SPHERE_TAPS = 64
 _DIFFUSE_SPREAD_S = 0.010  # decorrelation filters spread the directions' HRIRs over 10 ms
-_DIFFUSE_SEED = 0x5EED  # fixed: the decorrelation filters are part of the product, not random per run
+_DIFFUSE_WAVES = 128  # plane waves per diffuse-field realisation
+_EQ_EXTRA_TAPS = 96  # the diffuse-field equaliser lengthens KEMAR HRIRs by this much
 
 
 def direction_vectors(azimuth_rad: np.ndarray, elevation_rad: np.ndarray) -> np.ndarray:
@@ -51,7 +53,7 @@ class Hrtf:
         self.table = np.ascontiguousarray(table, dtype=np.float32)  # (n_dirs, taps, 2)
         self.directions = np.ascontiguousarray(directions, dtype=np.float64)  # (n_dirs, 3) unit
         self.delay_s = float(delay_s)  # head-centre latency inside every HRIR: the frontal response's onset
-        self._diffuse: np.ndarray | None = None
+        self._spec: tuple[np.ndarray, int] | None = None
         self._tree = cKDTree(self.directions)  # Euclidean nearest on the unit sphere = largest dot product
         self.table.setflags(write=False)
         self.directions.setflags(write=False)
@@ -76,27 +78,59 @@ class Hrtf:
         k = int(self.nearest(direction_vectors(np.array(azimuth_rad), np.array(elevation_rad))))
         return self.table[k].copy()
 
-    def diffuse_filters(self) -> np.ndarray:
-        """(n, 2) float32 pair of unit-energy filters that turn a mono diffuse tail into two ears.
+    @property
+    def diffuse_taps(self) -> int:
+        """Length of the decorrelation filters of `diffuse_field`."""
+        return int(round(_DIFFUSE_SPREAD_S * self.fs)) + self.taps
 
-        Each ear's filter is the sum over all tabulated directions of that ear's HRIR with a
-        random sign and a random delay (0-10 ms), the same signs and delays for both ears: a
-        model of a diffuse field made of plane waves from everywhere. The interaural coherence
-        that results is the HRTF set's own (high at low frequencies, low above ~1 kHz).
+    def diffuse_field(self, seed: int, head_yaws: Sequence[float]) -> np.ndarray:
+        """(len(head_yaws), diffuse_taps, 2) float32 filter pairs: a mono diffuse tail -> two ears.
+
+        A diffuse field at one place is a sum of plane waves from all directions with random
+        phases. Here `_DIFFUSE_WAVES` world-frame directions (uniform on the sphere), signs and
+        delays (0-10 ms) are drawn from `seed` (one seed per receiver position), and each wave
+        reaches each ear through the HRIR of its direction relative to a head at that world
+        yaw. So the interaural differences at one frequency change from place to place and
+        as the head turns, averaging to zero, while their statistics (the interaural
+        coherence: high at low frequencies, low above ~1 kHz) are those of the HRTF set's
+        diffuse field. One gain for both ears sets the mean ear energy to 1 (the level of the
+        tail is preserved; a realisation keeps its own small broadband left/right imbalance).
         """
-        if self._diffuse is None:
-            rng = np.random.default_rng(_DIFFUSE_SEED)
-            n_dirs = self.table.shape[0]
-            spread = int(round(_DIFFUSE_SPREAD_S * self.fs))
-            signs = rng.choice(np.array([-1.0, 1.0]), size=n_dirs)
-            delays = rng.integers(0, spread, size=n_dirs)
-            out = np.zeros((spread + self.taps, 2))
-            for k in range(n_dirs):
-                out[delays[k] : delays[k] + self.taps] += signs[k] * self.table[k]
-            out /= np.sqrt((out**2).sum(axis=0, keepdims=True))
-            self._diffuse = out.astype(np.float32)
-            self._diffuse.setflags(write=False)
-        return self._diffuse
+        rng = np.random.default_rng(np.random.SeedSequence([int(seed) % (1 << 63), 0xD1FF]))
+        z = rng.uniform(-1.0, 1.0, _DIFFUSE_WAVES)
+        phi = rng.uniform(0.0, 2 * np.pi, _DIFFUSE_WAVES)
+        signs = rng.choice(np.array([-1.0, 1.0]), size=_DIFFUSE_WAVES)
+        spread = int(round(_DIFFUSE_SPREAD_S * self.fs))
+        delays = rng.integers(0, spread, size=_DIFFUSE_WAVES)
+        spec_table, n_fft = self._spectra()
+        f = np.arange(spec_table.shape[1])
+        phase = signs[:, None] * np.exp(-2j * np.pi * f[None, :] * delays[:, None] / n_fft)  # (K, F)
+        rho = np.sqrt(1.0 - z * z)
+        out = np.empty((len(head_yaws), self.diffuse_taps, 2), dtype=np.float32)
+        for i, yaw in enumerate(head_yaws):
+            rel = phi - float(yaw)  # world azimuth -> head azimuth
+            idx = self.nearest(np.stack([rho * np.cos(rel), rho * np.sin(rel), z], axis=-1))
+            spec = np.einsum("kf,kfc->fc", phase, spec_table[idx])
+            ir = np.fft.irfft(spec, n_fft, axis=0)[: self.diffuse_taps]
+            out[i] = ir / np.sqrt((ir**2).sum(axis=0).mean())
+        return out
+
+    def diffuse_coherence(self, freqs: np.ndarray) -> np.ndarray:
+        """Real interaural coherence of a diffuse field at `freqs` (Hz): the cross-spectrum of the
+        two ears summed over all tabulated directions, over the geometric mean of their powers
+        (near 1 at low frequencies, falling to about 0 above ~1.5 kHz)."""
+        spec, n_fft = self._spectra()
+        cross = (spec[..., 0] * np.conj(spec[..., 1])).sum(axis=0).real
+        power = np.sqrt((np.abs(spec[..., 0]) ** 2).sum(axis=0) * (np.abs(spec[..., 1]) ** 2).sum(axis=0))
+        grid = np.fft.rfftfreq(n_fft, 1.0 / self.fs)
+        return np.interp(np.asarray(freqs, dtype=np.float64), grid, cross / np.maximum(power, 1e-30))
+
+    def _spectra(self) -> tuple[np.ndarray, int]:
+        """rfft of every tabulated HRIR, zero-padded for the diffuse filters (cached)."""
+        if self._spec is None:
+            n_fft = 1 << int(np.ceil(np.log2(self.diffuse_taps)))
+            self._spec = (np.fft.rfft(self.table.astype(np.float64), n_fft, axis=1), n_fft)
+        return self._spec
 
 
 @functools.lru_cache(maxsize=8)
@@ -124,9 +158,42 @@ def _kemar(fs: int) -> Hrtf:
     if fs != fs_data:
         g = int(np.gcd(fs, fs_data))
         table = resample_poly(table, fs // g, fs_data // g, axis=1)
-    table = _diffuse_normalise(table)
+    table = _diffuse_normalise(_diffuse_equalise(table, fs))
     front = int(np.argmin(np.abs(np.angle(np.exp(1j * az))) + np.abs(el)))
     return Hrtf("kemar", fs, table, direction_vectors(az, el), _onset_s(table[front], fs))
+
+
+def _diffuse_equalise(table: np.ndarray, fs: int) -> np.ndarray:
+    """Divide every HRIR by the set's diffuse-field magnitude response (minimum phase).
+
+    The MIT KEMAR "full" responses include the measuring loudspeaker's response: averaged over
+    all directions and both ears they are 14-20 dB down at 100-500 Hz and +3 dB at 2-3 kHz.
+    A head barely changes sound pressure at low frequencies, so the diffuse-field average
+    of a head's HRTFs is close to flat there; equalising it (the processing of MIT's own
+    "diffuse" set) makes calibrated levels hold across frequency. The correction is the
+    1/3-octave-smoothed inverse average, limited to ±20 dB and held below 100 Hz, realised
+    as a minimum-phase filter (no pre-ringing, onsets kept), `_EQ_EXTRA_TAPS` longer.
+    """
+    n_fft = 4096
+    taps = table.shape[1]
+    spec = np.fft.rfft(table, n_fft, axis=1)
+    power = (np.abs(spec) ** 2).mean(axis=(0, 2))
+    f = np.fft.rfftfreq(n_fft, 1.0 / fs)
+    fc = np.maximum(f, 100.0)
+    c = np.concatenate([[0.0], np.cumsum(power)])
+    lo = np.searchsorted(f, fc * 2 ** (-1 / 6))
+    hi = np.maximum(np.searchsorted(f, fc * 2 ** (1 / 6), side="right"), lo + 1)
+    smooth = (c[hi] - c[lo]) / (hi - lo)
+    gain_db = np.clip(-10.0 * np.log10(smooth / smooth.max()), 0.0, 40.0)
+    gain_db = np.minimum(gain_db, gain_db.min() + 20.0)
+    cep = np.fft.irfft(np.log(10.0 ** (gain_db / 20.0)), n_fft)
+    cep[1 : n_fft // 2] *= 2.0
+    cep[n_fft // 2 + 1 :] = 0.0
+    eq = np.exp(np.fft.rfft(cep, n_fft))  # minimum phase with that magnitude
+    out = np.fft.irfft(spec * eq[None, :, None], n_fft, axis=1)[:, : taps + _EQ_EXTRA_TAPS]
+    fade = np.cos(0.5 * np.pi * np.arange(1, 33) / 32) ** 2
+    out[:, -32:] *= fade[None, :, None]
+    return out
 
 
 def _onset_s(ir2: np.ndarray, fs: int) -> float:

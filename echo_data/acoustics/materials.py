@@ -35,6 +35,19 @@ def _absorption_cached(name: str) -> tuple[float, ...]:
     return tuple(float(v) for v in np.clip(a, 0.0, 0.99))
 
 
+@lru_cache(maxsize=1)
+def _per_floor_area_names() -> frozenset[str]:
+    cats = pra.materials_data["absorption"]
+    return frozenset(n for c, entries in cats.items() if c.startswith(("Seating", "Audience")) for n in entries)
+
+
+def per_floor_area(name: str) -> bool:
+    """Whether the database gives `name`'s absorption per m^2 of floor it covers (seating and
+    audience entries: the coefficient already includes the seats' backs and sides), rather
+    than per m^2 of its own surface."""
+    return name in _per_floor_area_names()
+
+
 def absorption(name: str) -> np.ndarray:
     """Energy absorption coefficient per band of a named pyroomacoustics material."""
     return np.asarray(_absorption_cached(name))

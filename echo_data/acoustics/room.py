@@ -35,6 +35,7 @@ Wall, floor and ceiling materials are the room's (`Room.*_material`); doors use
 
 from __future__ import annotations
 
+import hashlib
 import heapq
 import math
 from dataclasses import dataclass
@@ -53,13 +54,14 @@ from echo_data.acoustics.geometry import (
 from echo_data.acoustics.ism import BoxLattice, ImagePaths, segment_losses
 from echo_data.acoustics.materials import BANDS, absorption, air_absorption, reflection_amplitude
 from echo_data.acoustics.tail import NoiseBank, RoomAcoustics, band_masks, scattered_share
-from echo_data.acoustics.types import SPEED_OF_SOUND, AcousticResponse, Arrival
+from echo_data.acoustics.types import SPEED_OF_SOUND, AcousticResponse, ApertureTail, Arrival
 from echo_data.recipe import AcousticsConfig
 from echo_data.scene.floorplan import FloorPlan
 
 Vec3 = tuple[float, float, float]
 _FACE_INSET = 0.01  # secondary sources sit 1 cm inside the room faces of a doorway
 _EDGE_MARGIN = 0.05  # and at least 5 cm from the jambs and the lintel
+_APERTURE_POINTS = (1 / 6, 1 / 2, 5 / 6)  # across an opening's width: its late energy's directions
 
 
 @dataclass
@@ -195,22 +197,30 @@ class AcousticScene:
         qs = [int(round(v * 1000.0)) for v in S0]
         for i in range(n):
             x = rooms[i]
-            if mix[i]:
-                amp = np.sqrt(sum(h * base[y] ** 2 for y, h in mix[i].items()))
-            else:
-                amp = base[x]
-            if np.isfinite(onset[i]) and amp.any():
-                key = (self.plan.seed, *qs, *(int(round(v * 1000.0)) for v in rcv0[i]))
-                tail = self._tail(amp, float(onset[i]), self.noise.segment(key))
-            else:
-                tail = np.zeros(self.length, dtype=np.float32)
-            out.append(AcousticResponse(self.fs, per_row[i], tail, self.length))
+            key = (self.plan.seed, *qs, *(int(round(v * 1000.0)) for v in rcv0[i]))
+            own = 1.0 - sum(h for _, h, _ in mix[i])
+            tail = np.zeros(self.length, dtype=np.float32)
+            apertures: list[ApertureTail] = []
+            if np.isfinite(onset[i]):
+                if base[x].any():
+                    tail = self._tail(base[x] * math.sqrt(own), float(onset[i]), self.noise.segment(key))
+                for j, (y, h, pts) in enumerate(mix[i]):
+                    if not base[y].any():
+                        continue
+                    amp = base[y] * math.sqrt(h / len(pts))
+                    sig = [self._tail(amp, float(onset[i]), self.noise.segment((*key, j + 1, m + 1))) for m in range(len(pts))]
+                    dirs = pts - rcv[i]
+                    dirs /= np.maximum(np.linalg.norm(dirs, axis=1, keepdims=True), 1e-9)
+                    apertures.append(ApertureTail(dirs, np.stack(sig)))
+            seed = int.from_bytes(hashlib.blake2b(np.asarray(key, dtype=np.int64).tobytes(), digest_size=8).digest(), "little")
+            out.append(AcousticResponse(self.fs, per_row[i], tail, self.length, field_seed=seed, apertures=apertures))
         return out
 
-    def _aperture_mix(self, rcv: np.ndarray, rooms: np.ndarray) -> list[dict[int, float]]:
-        """Per receiver, weights of the rooms whose diffuse field it hears (see
-        `echo_data.acoustics.tail`); empty where only its own room counts (h < 1e-3)."""
-        out: list[dict[int, float]] = [{} for _ in range(len(rcv))]
+    def _aperture_mix(self, rcv: np.ndarray, rooms: np.ndarray) -> list[list[tuple[int, float, np.ndarray]]]:
+        """Per receiver, the openings through which it hears a neighbouring room's diffuse
+        field (see `echo_data.acoustics.tail`): (neighbour room, weight h, (k, 3) points spread
+        over the opening, the extended source's directions); openings with h < 1e-3 are left out."""
+        out: list[list[tuple[int, float, np.ndarray]]] = [[] for _ in range(len(rcv))]
         for x, box in enumerate(self.boxes):
             sel = np.nonzero(rooms == x)[0]
             if len(sel) == 0:
@@ -225,16 +235,17 @@ class AcousticScene:
                 plane = 0.5 * (face_x + face_y)
                 h = opening_solid_angle(rcv[sel], op, plane) / (4.0 * math.pi)
                 h *= self.acoustics.transfer_share[(x, op.doorway)]
+                pts = np.zeros((len(_APERTURE_POINTS), 3))
+                pts[:, a] = plane
+                pts[:, 1 - a] = op.u0 + np.asarray(_APERTURE_POINTS) * (op.u1 - op.u0)
+                pts[:, 2] = 0.5 * op.height
                 for i, hv in zip(sel.tolist(), h.tolist()):
                     if hv > 1e-3:
-                        d = out[i]
-                        d[op.other_room] = d.get(op.other_room, 0.0) + hv
-        for i, d in enumerate(out):
-            if d:
-                total = sum(d.values())
-                if total > 0.5:  # openings on several sides: never more than half-space
-                    d.update({k: v * 0.5 / total for k, v in d.items()})
-                d[int(rooms[i])] = 1.0 - sum(d.values())
+                        out[i].append((int(op.other_room), float(hv), pts))
+        for parts in out:
+            total = sum(h for _, h, _ in parts)
+            if total > 0.5:  # openings on several sides: never more than half-space
+                parts[:] = [(y, h * 0.5 / total, p) for y, h, p in parts]
         return out
 
     def _tail_amplitudes(self, a_room: int) -> np.ndarray:
@@ -481,7 +492,7 @@ def omni_rir(response: AcousticResponse) -> np.ndarray:
 
     Each arrival is a fractional-delay impulse shaped by its band gains through
     amplitude-complementary octave masks (unit band gains give an exact band-limited
-    impulse), rendered in the frequency domain; the tail is added as is.
+    impulse), rendered in the frequency domain; the tails (own room, openings) are added as is.
     """
     L = response.length
     fs = response.fs
@@ -499,4 +510,7 @@ def omni_rir(response: AcousticResponse) -> np.ndarray:
     h = np.fft.irfft(spec, n=n_fft)[:L]
     tail = np.asarray(response.tail, dtype=np.float64)[:L]
     h[: len(tail)] += tail
+    for ap in response.apertures:  # an omni receiver sums the opening's late energy too
+        late = np.asarray(ap.signals, dtype=np.float64).sum(axis=0)[:L]
+        h[: len(late)] += late
     return h.astype(np.float32)

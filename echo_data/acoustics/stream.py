@@ -1,11 +1,13 @@
 """Streaming binaural rendering of an episode: sources x moving head -> one (n, 2) track.
 
-The head pose of each control step picks a cached binaural RIR per source (`RirCache`: the
-receiver snapped to a `cfg.grid` lattice, the yaw to one of `cfg.yaws` bins, i.e. 360/yaws
-degrees, 45 by default). Each output block of one step is the exact convolution of the dry
-input with the RIR of that step (overlap-save over the last RIR-length of input); when the
-RIR changes, the block is a raised-cosine crossfade over the whole step from the old RIR's
-output to the new one's. Everything is linear in the inputs, so sources superpose exactly.
+The head pose of each control step picks cached binaural RIRs per source (`RirCache`: the
+receiver snapped to a `cfg.grid` lattice; the head yaw between two of `cfg.yaws` bins, i.e.
+360/yaws degrees, 5 by default, the RIR linearly interpolated between the two neighbours, so
+the cues follow the actual yaw continuously). Each output block of one step is the exact
+convolution of the dry input with the RIR of that step (overlap-save over the last
+RIR-length of input); when the RIR changes, the block is a raised-cosine crossfade over the
+whole step from the old RIR's output to the new one's. Everything is linear in the inputs,
+so sources superpose exactly.
 
 A source stops at `stop_sample` with a 20 ms raised-cosine fade of its dry signal; its
 reverberation keeps ringing through the RIR, so the track is exactly zero from
@@ -76,6 +78,20 @@ class RirCache:
         iz = round((z - self.cfg.ear_height) / self.grid)
         yb = round(yaw / self.yaw_step) % int(self.cfg.yaws)
         return (source, room, ix, iy, iz, yb)
+
+    def keys(self, source: int, pose: Sequence[float]) -> list[tuple[CacheKey, float]]:
+        """The two yaw bins around the head's yaw with linear-interpolation weights (one key
+        with weight 1 when the yaw sits on a bin): the RIR at the actual yaw is their weighted sum."""
+        k = self.key(source, (*pose[:3], 0.0))
+        pos = float(pose[3]) / self.yaw_step
+        lo = math.floor(pos)
+        w = pos - lo
+        n = int(self.cfg.yaws)
+        if w < 1e-9:
+            return [((*k[:5], lo % n), 1.0)]
+        if w > 1.0 - 1e-9:
+            return [((*k[:5], (lo + 1) % n), 1.0)]
+        return [((*k[:5], lo % n), 1.0 - w), ((*k[:5], (lo + 1) % n), w)]
 
     def receiver(self, key: CacheKey) -> tuple[tuple[float, float, float], float]:
         """(receiver position, head yaw) that the RIR of `key` is computed for."""
@@ -232,10 +248,10 @@ def render_track(
     n_blocks = -(-total // S)
     padded = [np.concatenate([np.zeros(L - 1), x, np.zeros(n_blocks * S - len(x))]) for x in dry]
     ramp = 0.5 * (1 - np.cos(np.pi * (np.arange(S) + 0.5) / S))[:, None]
-    prev: list[CacheKey] | None = None
+    prev: list[list[tuple[CacheKey, float]]] | None = None
     for j in range(n_blocks):
         pose = poses[min(j, n_steps - 1)]
-        keys = [cache.key(i, pose) for i in range(len(sources))]
+        keys = [cache.keys(i, pose) for i in range(len(sources))]
         spectra = []
         for i, x in enumerate(padded):
             seg = x[j * S : j * S + S + L - 1]
@@ -253,15 +269,22 @@ def render_track(
 
 
 def _block(
-    cache: RirCache, keys: list[CacheKey], spectra: list[np.ndarray | None], n_fft: int, L: int, S: int
+    cache: RirCache,
+    keys: list[list[tuple[CacheKey, float]]],
+    spectra: list[np.ndarray | None],
+    n_fft: int,
+    L: int,
+    S: int,
 ) -> np.ndarray:
-    """One output block (S, 2): the sum over sources of input x RIR(key), overlap-save."""
+    """One output block (S, 2): the sum over sources of input x RIR (the weighted sum of the
+    RIRs of its keys), overlap-save."""
     acc = None
-    for key, X in zip(keys, spectra):
+    for kw, X in zip(keys, spectra):
         if X is None:
             continue
-        term = X[:, None] * cache.spectrum(key, n_fft)
-        acc = term if acc is None else acc + term
+        for key, w in kw:
+            term = (w * X)[:, None] * cache.spectrum(key, n_fft)
+            acc = term if acc is None else acc + term
     if acc is None:
         return np.zeros((S, 2))
     return sfft.irfft(acc, n_fft, axis=0)[L - 1 : L - 1 + S]

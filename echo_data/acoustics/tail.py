@@ -2,9 +2,12 @@
 
 Model (stated so it can be checked):
 - Each room i has Eyring's equivalent absorption area per band,
-  A_i = -S ln(1 - ā) + 4 m V, from its wall/floor/ceiling materials, furniture surfaces,
-  door panels and open doorways (an opening absorbs everything that hits it) and air
-  absorption m; alone it decays with T = 24 ln10 V / (c A) (Eyring).
+  A_i = -S ln(1 - ā) + 4 m V, from its wall/floor/ceiling materials, furniture surfaces
+  (upholstered sofas and beds by the floor area they cover, as seating is tabulated), soft
+  furnishings (rugs replace floor, curtains wall absorption over their area), door panels
+  and open doorways (an opening absorbs everything that hits it) and air absorption m;
+  alone it decays with T = 24 ln10 V / (c A) (Eyring). The furnishings enter the late
+  field only: the image sources keep the room's surface materials.
 - Rooms exchange diffuse energy through their doorways (area S_ij times transmission τ_ij:
   1 open; closed leaf 10^(-closed_door_loss_db/10); partly open by the open share of the
   aperture). The diffuse energy per room follows the coupled-room balance
@@ -16,7 +19,9 @@ Model (stated so it can be checked):
 - Near a doorway a receiver sees the neighbouring room's diffuse field through the opening:
   its diffuse energy is (1 - Σ h) E_room + Σ h E_neighbour, h = Ω / 4π × transmission, Ω the
   solid angle of the opening. On the doorway plane h = 1/2 from both sides, so the level is
-  continuous from room to room; a metre away it is a small correction.
+  continuous from room to room. The neighbour's share is not isotropic: it is rendered from
+  points spread over the opening (`types.ApertureTail`), so late sound that comes through a
+  doorway is heard from the doorway.
 - The tail of a response is band-split noise whose per-sample energy follows that E(t) from
   emission (so the late level falls with distance, as in Barron's revised theory), gated
   on at the first arrival in the receiver's room and weighted by the share of energy already
@@ -37,7 +42,7 @@ from functools import lru_cache
 import numpy as np
 
 from echo_data.acoustics.geometry import RoomBox
-from echo_data.acoustics.materials import BANDS, absorption, air_absorption
+from echo_data.acoustics.materials import BANDS, absorption, air_absorption, per_floor_area
 from echo_data.acoustics.types import SPEED_OF_SOUND
 from echo_data.scene.floorplan import FloorPlan
 
@@ -108,8 +113,17 @@ class RoomAcoustics:
                     continue
                 fx, fy, fz = f.size
                 exposed = fx * fy + 2.0 * (fx + fy) * fz
-                a = a + exposed * absorption(f.material)
+                # upholstery (seating coefficients) absorbs per m^2 of floor it covers
+                a = a + (fx * fy if per_floor_area(f.material) else exposed) * absorption(f.material)
                 surf += exposed
+            floor_alpha = absorption(room.floor_material)
+            wall_alpha = absorption(room.wall_material)
+            for fu in plan.furnishings:
+                if fu.room != room.index:
+                    continue
+                # a rug covers floor, a curtain hangs in front of wall: it replaces their absorption
+                under = floor_alpha if fu.kind == "rug" else wall_alpha
+                a = a + fu.area * (absorption(fu.material) - under)
             self.surface[i] = surf
             self.alpha_sum[i] = a
         self.mean_alpha = np.clip(self.alpha_sum / self.surface[:, None], 1e-6, 0.99)

@@ -7,7 +7,7 @@ turns a response plus a head yaw into a two-ear impulse response with the HRTF.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -27,11 +27,27 @@ class Arrival:
     order: int  # 0 = direct path, n = n reflections; -1 = leak path through a closed door
 
 
+@dataclass(frozen=True)
+class ApertureTail:
+    """Late energy of a neighbouring room heard through an opening: an extended source.
+
+    `signals[k]` (independent noises under the neighbour's decay envelope) arrives from world
+    direction `directions[k]` (points spread over the opening as seen from the receiver).
+    """
+
+    directions: np.ndarray  # (k, 3) unit vectors, world frame, receiver -> point in the opening
+    signals: np.ndarray  # (k, n) float32, aligned to t = 0
+
+
 @dataclass
 class AcousticResponse:
     """The response from one source to one receiver position, independent of head orientation."""
 
     fs: int
     arrivals: list[Arrival]  # early, directional part
-    tail: np.ndarray  # (n,) float32 diffuse late part, aligned to t = 0 (zeros before it starts)
+    tail: np.ndarray  # (n,) float32 diffuse late part of the receiver's own room, aligned to t = 0
     length: int  # samples of the full response (RIR length)
+    # seed of this receiver position's diffuse-field realisation (plane-wave directions,
+    # signs, delays): a diffuse field differs from place to place, see `hrtf.Hrtf.diffuse_field`
+    field_seed: int = 0
+    apertures: list[ApertureTail] = field(default_factory=list)  # directional late parts through openings

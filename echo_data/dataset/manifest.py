@@ -16,6 +16,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from echo_data.acoustics.levels import calibration_record
 from echo_data.dataset.schema import FORMAT_VERSION, StepLayout, shard_name
 from echo_data.dataset.writer import atomic_write_json
 from echo_data.episode import SPLIT_KEYS
@@ -89,7 +90,13 @@ def new_manifest(recipe: Recipe, limit: int | None, layout: StepLayout, workers:
         "split_keys": {k: v for k, v in SPLIT_KEYS.items() if k in recipe.splits},
         "versions": versions(),
         "layout": layout.to_dict(),
-        "audio": {"sample_rate": layout.sample_rate, "channels": 2, "subtype": "PCM_16", "channel_0": "left"},
+        "audio": {
+            "sample_rate": layout.sample_rate,
+            "channels": 2,
+            "subtype": "PCM_16",
+            "channel_0": "left",
+            **calibration_record(recipe.acoustics.full_scale_db_spl, recipe.acoustics.noise_floor_dba),
+        },
         "splits": {
             s: {
                 "requested": recipe.splits[s],

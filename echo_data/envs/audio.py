@@ -12,6 +12,9 @@ Episode-level rules live here too:
   robot takes its first observation, so the first spectrogram already holds a second of sound;
 - a source stops (its dry signal fades over 20 ms; its reverberation rings on) from the control
   step after its event is resolved;
+- levels are calibrated: each source plays at its drawn level in dB SPL at 1 m
+  (`echo_data.acoustics.levels`), a seeded room-noise bed is added, and samples are pressure
+  over the full-scale pressure (`ClippingError` rather than a clipped sample);
 - an opened door changes the acoustic geometry: each door state is its own `AcousticScene`
   (epoch), joined to the previous one by a raised-cosine crossfade one control step long,
   centred on the step boundary at which the door was found open.
@@ -26,6 +29,8 @@ import numpy as np
 import scipy.fft as sfft
 
 from echo_data.acoustics.hrtf import Hrtf
+from echo_data.acoustics.levels import pascal_gain, source_level_db, to_full_scale
+from echo_data.acoustics.noise import NoiseFloor
 from echo_data.acoustics.room import AcousticScene
 from echo_data.acoustics.stream import FADE_S, CacheKey, RirCache, _block
 from echo_data.episode import EpisodeSpec
@@ -59,6 +64,18 @@ def epoch_window(t: np.ndarray, start: int | None, end: int | None, ramp: int) -
     return w
 
 
+def event_gain(spec: EpisodeSpec, e: int, library: Any, fs: int) -> float:
+    """Factor from event `e`'s library loop to pascals at 1 m at its drawn source level."""
+    ev = spec.events[e]
+    return pascal_gain(library.waveform(ev.sound_id, fs), fs, source_level_db(ev.category, spec.plan.seed, e))
+
+
+def event_waveform(spec: EpisodeSpec, e: int, library: Any, fs: int, seconds: float) -> np.ndarray:
+    """Event `e`'s dry signal in pascals at 1 m, `seconds` long (float32), at its calibrated level."""
+    gain = event_gain(spec, e, library, fs)
+    return library.waveform(spec.events[e].sound_id, fs, seconds) * np.float32(gain)
+
+
 @dataclass
 class _Epoch:
     start: int  # first sample of this door state (boundary of the crossfade)
@@ -79,6 +96,9 @@ class OnlineTrack:
         self.library = library
         self.sound_ids = [ev.sound_id for ev in spec.events]
         self.positions = [tuple(float(v) for v in ev.source) for ev in spec.events]
+        self.gains = [np.float32(event_gain(spec, e, library, self.fs)) for e in range(len(spec.events))]
+        self.noise = NoiseFloor(self.fs, cfg.noise_floor_dba, spec.plan.seed, self.hrtf)
+        self.episode_id = spec.episode_id
         self.epochs: list[_Epoch] = []
         self._new_epoch(0, None)
         self.length = self.epochs[0].cache.expected_length()  # binaural RIR length L
@@ -90,7 +110,7 @@ class OnlineTrack:
         self.stops: list[int | None] = [None] * len(self.sound_ids)
         self._support_end: list[int | None] = [None] * len(self.sound_ids)
         self.blocks: list[np.ndarray] = []
-        self._prev: list[CacheKey] | None = None
+        self._prev: list[list[tuple[CacheKey, float]]] | None = None
         self._last_pose: np.ndarray | None = None
 
     # ------------------------------------------------------------------ episode events
@@ -135,11 +155,12 @@ class OnlineTrack:
         return block
 
     def _wave(self, i: int, n: int) -> np.ndarray:
-        """The first `n` samples of source i's looped waveform (float64; the loop is prefix-stable)."""
+        """The first `n` samples of source i's calibrated looped waveform in pascals (float64; the
+        loop is prefix-stable, so this equals `event_waveform` sample for sample)."""
         w = self._waves[i]
         if len(w) < n:
             want = max(n, 2 * len(w), 60 * self.fs)
-            w = np.asarray(self.library.waveform(self.sound_ids[i], self.fs, want / self.fs), dtype=np.float64)
+            w = np.asarray(self.library.waveform(self.sound_ids[i], self.fs, want / self.fs) * self.gains[i], dtype=np.float64)
             self._waves[i] = w
         return w[:n]
 
@@ -160,7 +181,7 @@ class OnlineTrack:
     def _render(self, j: int, pose: np.ndarray) -> np.ndarray:
         S, L = self.hop, self.length
         lo = j * S
-        keys = [self.epochs[0].cache.key(i, pose) for i in range(len(self.positions))]
+        keys = [self.epochs[0].cache.keys(i, pose) for i in range(len(self.positions))]
         spectra = []
         for i in range(len(self.positions)):
             seg = self._dry(i, lo - (L - 1), lo + S)
@@ -182,10 +203,12 @@ class OnlineTrack:
             acc = out.astype(np.float64) + part.astype(np.float64) * w[:, None]
             out = acc.astype(np.float32)
         self._prev = keys
-        return out
+        pressure = out.astype(np.float64) + self.noise.render(lo, S)
+        return to_full_scale(pressure, self.cfg.full_scale_db_spl, what=f"episode {self.episode_id}")
 
     def _zero_from(self) -> int | None:
-        """Sample from which the track is exactly zero: every source stopped and its tail rung out."""
+        """Sample from which the sources' part is exactly zero: every source stopped and its tail
+        rung out (the noise bed goes on)."""
         if not self.positions or any(s is None for s in self._support_end):
             return None
         return max(s for s in self._support_end if s is not None) + self.length - 1

@@ -1,4 +1,5 @@
-"""SAPIEN construction of a floor plan: floor, walls with lintels, furniture, objects, doors, faucets.
+"""SAPIEN construction of a floor plan: floor, walls with lintels, furniture, rugs and curtains
+(visual only), objects, doors, faucets.
 
 Static geometry is plain boxes (exactly the plan's footprints, so navigation, acoustics and
 physics agree); colours depend on the material / kind so the head camera sees informative
@@ -47,6 +48,16 @@ FURNITURE_COLOURS: dict[str, tuple[float, float, float]] = {
     "sofa": (0.3, 0.42, 0.62),
     "bed": (0.8, 0.66, 0.74),
     "sink_cabinet": (0.92, 0.92, 0.95),
+}
+FURNISHING_COLOURS: dict[str, tuple[float, float, float]] = {
+    "carpet_tufted_9m": (0.55, 0.2, 0.22),
+    "carpet_1.35_kg_m2": (0.3, 0.35, 0.5),
+    "carpet_hairy": (0.85, 0.8, 0.68),
+    "carpet_6mm_open_cell_foam": (0.4, 0.5, 0.38),
+    "curtains_cotton_0.5": (0.9, 0.86, 0.74),
+    "curtains_densely_woven": (0.42, 0.5, 0.6),
+    "curtains_fabric": (0.7, 0.58, 0.44),
+    "curtains_velvet": (0.5, 0.15, 0.2),
 }
 BASIN_COLOUR = (0.75, 0.85, 0.92)
 LINTEL_COLOUR_SCALE = 0.95
@@ -141,6 +152,14 @@ def build_statics(scene: sapien.Scene, plan: FloorPlan, with_walls: bool = True)
                     _colour(r.floor_material, MATERIAL_COLOURS),
                 )
                 for r in plan.rooms
+            ]
+            + [  # rugs and curtains: seen, heard (they absorb), never in the way
+                (
+                    (fu.footprint.center[0] - (fb.xmin + fb.xmax) / 2.0, fu.footprint.center[1] - (fb.ymin + fb.ymax) / 2.0, (fu.z[0] + fu.z[1]) / 2.0 + FLOOR_THICKNESS / 2.0),
+                    (fu.footprint.size[0] / 2.0, fu.footprint.size[1] / 2.0, (fu.z[1] - fu.z[0]) / 2.0),
+                    _colour(fu.material, FURNISHING_COLOURS),
+                )
+                for fu in plan.furnishings
             ],
         )
     )

@@ -173,6 +173,31 @@ class Furniture:
 
 
 @dataclass(frozen=True)
+class Furnishing:
+    """A soft furnishing: a rug on the floor or a curtain hanging in front of a wall.
+
+    It absorbs sound (`material`, a pyroomacoustics name) and is seen by the cameras, but it
+    is no obstacle: the robot drives over a rug, and a curtain hangs against a wall where the
+    navigation grid is blocked anyway. Its absorbing area is the footprint (rug) or the face
+    towards the room (curtain).
+    """
+
+    index: int
+    kind: str  # rug | curtain
+    room: int
+    footprint: Rect
+    z: tuple[float, float]  # bottom, top (m)
+    material: str
+
+    @property
+    def area(self) -> float:
+        """Absorbing area (m^2): the rug's top, or the curtain's face."""
+        if self.kind == "rug":
+            return self.footprint.area
+        return max(self.footprint.size) * (self.z[1] - self.z[0])
+
+
+@dataclass(frozen=True)
 class Faucet:
     """A faucet lever on a sink cabinet: revolute joint, 0 = closed, `open_angle` = running.
 
@@ -217,6 +242,7 @@ class FloorPlan:
     objects: tuple[PlacedObject, ...]
     wall_height: float = 2.5
     extra: dict[str, Any] = field(default_factory=dict)
+    furnishings: tuple[Furnishing, ...] = ()
 
     @property
     def bounds(self) -> Rect:
@@ -275,4 +301,7 @@ class FloorPlan:
             objects=objects,
             wall_height=d.get("wall_height", 2.5),
             extra=dict(d.get("extra", {})),
+            furnishings=tuple(
+                Furnishing(**{**f, "footprint": rect(f["footprint"]), "z": tup(f["z"])}) for f in d.get("furnishings", ())
+            ),
         )

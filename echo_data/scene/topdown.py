@@ -70,6 +70,13 @@ def draw_topdown(
         cx, cy = r.rect.center
         ax.text(cx, cy, f"{r.kind} {r.index}", ha="center", va="center", fontsize=10, color="#555555", alpha=0.8, zorder=1, style="italic")
 
+    for fu in plan.furnishings:  # rugs on the floor, curtains in front of walls (visual, absorbing)
+        fp = fu.footprint
+        if fu.kind == "rug":
+            ax.add_patch(patches.Rectangle((fp.xmin, fp.ymin), *fp.size, facecolor="#d9c7a3", edgecolor="#a08a60", lw=0.6, ls="--", alpha=0.7, zorder=2))
+        else:
+            ax.add_patch(patches.Rectangle((fp.xmin, fp.ymin), *fp.size, facecolor="#3c8d3c", edgecolor="#3c8d3c", lw=2.0, zorder=6))
+
     for wseg in plan.walls:
         fp = wseg.footprint
         ax.add_patch(patches.Rectangle((fp.xmin, fp.ymin), *fp.size, color="#222222" if wseg.exterior else "#444444", zorder=5))
