@@ -102,6 +102,7 @@ def run_chain(
                 ear_yaw=float(ear_yaw),
                 sounding=tuple(r is None for r in resolved),
                 skill_success=tuple(flags),
+                camera_poses=robot.camera_poses(),
             )
             world.step(action)  # type: ignore[attr-defined]
             steps.append(rec)

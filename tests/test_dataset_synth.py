@@ -48,6 +48,15 @@ def _plan(seed: int) -> FloorPlan:
     return FloorPlan(seed, (room,), (), (), (), (table, counter), (), (phone,))
 
 
+def _pose(rng: np.random.Generator) -> np.ndarray:
+    """A random rigid camera-to-world transform."""
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    t = np.eye(4)
+    t[:3, :3] = q * np.sign(np.linalg.det(q))
+    t[:3, 3] = rng.uniform(-3, 3, 3)
+    return t
+
+
 def synth_generate(
     recipe: Recipe, split: str, index: int, library: object, recipe_dir: Path, attempt: int = 0, delay: float = 0.0
 ) -> EpisodeResult:
@@ -90,6 +99,7 @@ def synth_generate(
                 sounding=(t < n - 1,),
                 skill_success=tuple(j < k for j in range(len(chain))),
                 done=t == n - 1,
+                camera_poses={"head": _pose(rng), "wrist": _pose(rng)},
             )
         )
     samples = (n + 1) * sr // hz

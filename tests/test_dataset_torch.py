@@ -83,3 +83,29 @@ def test_sequence_windows_pad_at_episode_edges(ds: Path) -> None:
     loader = torch.utils.data.DataLoader(s, batch_size=3, num_workers=2)
     batch = next(iter(loader))
     assert batch["observation.images.head_rgb"].shape == (3, 3, 3, 16, 24) and batch["action_is_pad"].shape == (3, 4)
+
+
+def test_default_collate_batches_every_column(ds: Path) -> None:
+    d = StepDataset(ds, "train")
+    assert set(d.columns) == {f.name for f in pq.read_schema(next((ds / "data").glob("train-*.parquet")))}
+    batch = next(iter(torch.utils.data.DataLoader(d, batch_size=3)))  # torch's default collate
+    assert batch["skill_success"].shape == (3, 5) and batch["skill_success"].dtype == torch.bool
+    assert batch["camera_pose.head"].shape == (3, 16) and batch["audio_sample_rate"].tolist() == [16000] * 3
+    assert batch["audio_path"][0] == "audio/train/train-000000.wav"
+
+
+def test_binaural_window_is_what_the_step_heard(ds: Path) -> None:
+    import soundfile as sf
+
+    from echo_data.acoustics.features import last_second
+    from echo_data.dataset.audio import binaural_window
+
+    d = StepDataset(ds, "train", columns=["audio_path", "audio_sample_rate", "audio_offset", "observation.audio.spectrogram"])
+    row = d[3]
+    track, sr = sf.read(ds / row["audio_path"], dtype="float32", always_2d=True)
+    np.testing.assert_array_equal(binaural_window(ds, row, 1.0), last_second(track, int(row["audio_offset"]), sr))
+    np.testing.assert_array_equal(binaural_window(ds, row, 0.25), last_second(track, int(row["audio_offset"]), sr)[-sr // 4 :])
+    long = binaural_window(ds, row, 30.0)  # longer than the episode: zeros before its start
+    assert long.shape == (30 * sr, 2) and not long[: 30 * sr - int(row["audio_offset"])].any()
+    arrow_row = pq.read_table(sorted((ds / "data").glob("train-*.parquet"))[0]).slice(0, 1).to_pylist()[0]
+    assert binaural_window(ds, arrow_row, 0.1).shape == (sr // 10, 2)

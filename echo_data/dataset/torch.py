@@ -20,7 +20,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.schema import ACTION, STATE, StepLayout, column_to_numpy
+from echo_data.dataset.schema import ACTION, CHAIN_SLOTS, POSE_DIM, STATE, StepLayout, column_to_numpy
 from echo_data.records import ACTION_DIM, STATE_DIM
 
 _INDEX_COLUMNS = ["episode_index", "frame_index", "setting", "skill"]
@@ -31,10 +31,11 @@ _SCALARS = {
     "task_index": "int64",
     "skill_index": "int64",
     "audio_offset": "int64",
+    "audio_sample_rate": "int64",
     "timestamp": "float32",
     "done": "bool",
 }
-_STRINGS = ("setting", "skill")
+_STRINGS = ("setting", "skill", "audio_path")
 _CACHED_ROW_GROUPS = 4
 
 
@@ -131,7 +132,9 @@ class _Shards:
             elif col in _STRINGS:
                 out[col] = arr.to_pylist()
             elif col == "skill_success":
-                out[col] = [torch.tensor(v, dtype=torch.bool) for v in arr.to_pylist()]
+                out[col] = torch.from_numpy(column_to_numpy(arr, (CHAIN_SLOTS,)).astype(bool))
+            elif col in self.layout.pose_columns:
+                out[col] = torch.from_numpy(column_to_numpy(arr, (POSE_DIM,)).astype(np.float32))
             else:
                 raise KeyError(f"unknown column {col!r}")
         return out
@@ -149,7 +152,7 @@ class StepDataset:
     """One item per control step: {column: tensor} (strings stay strings).
 
     `setting` / `skill` filter rows (e.g. skill="Pick"); `columns` defaults to every column
-    but `skill_success` (its length varies with the chain, which the default collate refuses).
+    (all fixed-shape, so the default DataLoader collate batches them).
     """
 
     def __init__(
@@ -161,7 +164,7 @@ class StepDataset:
         columns: Sequence[str] | None = None,
     ) -> None:
         self.shards = _Shards(Path(root), split)
-        self.columns = _check_columns(self.shards, columns, [c for c in self.shards.all_columns if c != "skill_success"])
+        self.columns = _check_columns(self.shards, columns, self.shards.all_columns)
         shard_ids, local = [], []
         for i, cols in enumerate(self.shards.index_columns()):
             keep = np.ones(len(cols["episode_index"]), dtype=bool)
