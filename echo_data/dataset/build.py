@@ -398,7 +398,24 @@ class _Writer:
             "stats_split": "train" if "train" in self.plans else "all",
             "names": {"action": list(ACTION_NAMES), "observation.state": list(STATE_NAMES)},
             "features": self.layout.hf_features(),
+            "cameras": camera_infos(self.recipe, self.layout),
         }
+
+
+def camera_infos(recipe: Recipe, layout: StepLayout) -> dict[str, Any]:
+    """Intrinsics and depth units of each stored camera, and where its pose and images are."""
+    from echo_data.camera import camera_info
+    from echo_data.dataset.schema import CAMERA_POSES, IMAGE_COLUMNS
+
+    cfg = {"head": recipe.robot.head_camera, "wrist": recipe.robot.wrist_camera}
+    return {
+        cam: {
+            **camera_info(cfg[cam]),
+            "pose_column": CAMERA_POSES[cam],
+            "image_columns": [col for key, col in IMAGE_COLUMNS.items() if key.startswith(cam) and col in layout.images],
+        }
+        for cam in layout.cameras
+    }
 
 
 def _write_parquet_atomic(path: Path, table: pa.Table) -> None:

@@ -78,8 +78,27 @@ def info_cmd(
     typer.echo(json.dumps(d, indent=1, sort_keys=True) if as_json else format_info(d))
 
 
+def export_cmd(
+    path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder of the exported dataset.")],
+    fmt: Annotated[str, typer.Option("--format", help="Target format: lerobot (LeRobot codebase v3.0).")] = "lerobot",
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing export.")] = False,
+) -> None:
+    """Write the dataset in another library's format (LeRobot v3.0), next to the original."""
+    from echo_data.dataset.lerobot import ExportError, export_lerobot
+
+    if fmt != "lerobot":
+        raise _fail(f"--format {fmt}: unknown format (use lerobot)", 2)
+    try:
+        info = export_lerobot(path, out, overwrite=overwrite)
+    except ExportError as e:
+        raise _fail(str(e), 2) from None
+    typer.echo(f"{out}: LeRobot {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
+
+
 def register(app: typer.Typer) -> None:
-    """Add `build`, `validate` and `info` to an app."""
+    """Add `build`, `validate`, `info` and `export` to an app."""
     app.command("build")(build_cmd)
     app.command("validate")(validate_cmd)
     app.command("info")(info_cmd)
+    app.command("export")(export_cmd)
