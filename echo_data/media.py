@@ -1,0 +1,127 @@
+"""MP4 files with picture and binaural sound, for people to watch what happened in an episode.
+
+One encoder for the whole project (`echo-data view`, `echo-data evaluate --video`). PyAV is used
+because its wheels carry FFmpeg: no system codec and nothing downloaded. Video is H.264 in yuv420p
+(what every standard player opens), sound is stereo AAC with channel 0 = left, as in the dataset's
+WAVs. The file appears under its name only once it is complete (written to a temporary name in the
+same folder, then renamed), so a killed run never leaves a truncated video behind.
+"""
+
+from __future__ import annotations
+
+import os
+from fractions import Fraction
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+AUDIO_BITRATE = 128_000
+"""AAC bit rate for the two channels (transparent enough for listening to cues)."""
+
+
+def _even(n: int) -> int:
+    """H.264 in yuv420p needs even frame sides; frames are padded by one pixel where odd."""
+    return n + (n % 2)
+
+
+def _as_float_stereo(audio: np.ndarray) -> np.ndarray:
+    """(n, 2) float32 in [-1, 1] from float or int16 samples; refuses anything that is not stereo."""
+    a = np.asarray(audio)
+    if a.ndim != 2 or a.shape[1] != 2:
+        raise ValueError(f"audio must have shape (n, 2), got {a.shape}")
+    if a.dtype == np.int16:
+        return (a.astype(np.float32) / 32768.0).astype(np.float32)
+    a = a.astype(np.float32)
+    if not np.all(np.isfinite(a)):
+        raise ValueError("audio contains NaN or inf samples")
+    return np.clip(a, -1.0, 1.0)  # AAC input range; callers keep headroom, this guards the encoder
+
+
+def write_mp4(
+    path: Path,
+    frames: Iterable[np.ndarray],
+    fps: float,
+    audio: np.ndarray | None = None,
+    sample_rate: int = 16_000,
+) -> None:
+    """Encode RGB frames ((H, W, 3) uint8, all the same size) and optional stereo audio to `path`.
+
+    The audio is placed from time 0 alongside the first frame; a track longer or shorter than the
+    video is kept as it is (players end at the longer stream).
+    """
+    import av  # imported here: the core pipeline does not need FFmpeg loaded
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.mp4")
+    rate = Fraction(fps).limit_denominator(1000)
+    try:
+        with av.open(str(tmp), mode="w", format="mp4") as container:
+            vstream = None
+            astream = None
+            if audio is not None:
+                astream = container.add_stream("aac", rate=int(sample_rate))
+                astream.layout = "stereo"
+                astream.bit_rate = AUDIO_BITRATE
+            n_frames = 0
+            for frame in frames:
+                img = np.asarray(frame)
+                if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+                    raise ValueError(f"frames must be (H, W, 3) uint8, got {img.shape} {img.dtype}")
+                if vstream is None:
+                    vstream = container.add_stream("libx264", rate=rate)
+                    vstream.width, vstream.height = _even(img.shape[1]), _even(img.shape[0])
+                    vstream.pix_fmt = "yuv420p"
+                    vstream.options = {"crf": "20", "preset": "veryfast"}
+                if img.shape[0] != vstream.height or img.shape[1] != vstream.width:
+                    pad = np.zeros((vstream.height, vstream.width, 3), np.uint8)
+                    h, w = min(img.shape[0], vstream.height), min(img.shape[1], vstream.width)
+                    pad[:h, :w] = img[:h, :w]
+                    img = pad
+                vf = av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="rgb24")
+                vf.pts = n_frames
+                for packet in vstream.encode(vf):
+                    container.mux(packet)
+                n_frames += 1
+            if vstream is None:
+                raise ValueError("no frames to write")
+            for packet in vstream.encode():
+                container.mux(packet)
+            if astream is not None and audio is not None:
+                samples = _as_float_stereo(audio)
+                chunk = 1024  # AAC frame size
+                for start in range(0, len(samples), chunk):
+                    block = np.ascontiguousarray(samples[start : start + chunk].T)  # planar (2, n)
+                    af = av.AudioFrame.from_ndarray(block, format="fltp", layout="stereo")
+                    af.sample_rate = int(sample_rate)
+                    af.pts = start
+                    for packet in astream.encode(af):
+                        container.mux(packet)
+                for packet in astream.encode():
+                    container.mux(packet)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def probe_mp4(path: Path) -> dict:
+    """What a player sees in `path`: frame count, size, rate, duration and the audio's layout."""
+    import av
+
+    with av.open(str(path)) as container:
+        info: dict = {"video_frames": 0, "audio_channels": 0, "audio_rate": 0}
+        video = next((s for s in container.streams if s.type == "video"), None)
+        audio = next((s for s in container.streams if s.type == "audio"), None)
+        if video is not None:
+            info["width"], info["height"] = video.codec_context.width, video.codec_context.height
+            info["fps"] = float(video.average_rate) if video.average_rate else 0.0
+        if audio is not None:
+            info["audio_channels"] = audio.codec_context.channels
+            info["audio_rate"] = audio.codec_context.sample_rate
+        info["duration_s"] = float(container.duration) / 1e6 if container.duration else 0.0
+        info["streams"] = [s.type for s in container.streams]
+        if video is not None:
+            info["video_frames"] = sum(1 for _ in container.decode(video=0))
+        return info
