@@ -358,6 +358,7 @@ class _Writer:
     # -- the end
     def finalize(self) -> None:
         """meta/episodes.parquet, meta/stats.json, meta/info.json, planner export, manifest complete."""
+        from echo_data.dataset.card import write_card
         from echo_data.dataset.planner import write_planner_export
 
         metas = [read_shard_meta(self.out / e["file"]) for e in self.manifest["shards"]]
@@ -369,6 +370,7 @@ class _Writer:
         atomic_write_json(self.out / "meta" / "info.json", self.info_json())
         if self.recipe.outputs.planner_export:
             write_planner_export(self.out, self.recipe, rows)
+        write_card(self.out)
         self.manifest["complete"] = True
         write_manifest(self.out, self.manifest)
         shutil.rmtree(self.out / WORK, ignore_errors=True)

@@ -67,7 +67,8 @@ def info_cmd(
     path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
-    """Episodes, steps, settings, skills, rejections and size of a dataset."""
+    """Episodes, steps, settings, skills, rejections and size of a dataset (refreshes its README.md card)."""
+    from echo_data.dataset.card import write_card
     from echo_data.dataset.info import format_info, info
     from echo_data.dataset.manifest import ManifestError
 
@@ -75,6 +76,11 @@ def info_cmd(
         d = info(path)
     except ManifestError as e:
         raise _fail(str(e), 2) from None
+    if d["complete"]:
+        try:
+            write_card(path)
+        except OSError as e:  # a read-only copy still gets its summary
+            typer.echo(f"warning: {path}/README.md not refreshed ({e.strerror or e})", err=True)
     typer.echo(json.dumps(d, indent=1, sort_keys=True) if as_json else format_info(d))
 
 
