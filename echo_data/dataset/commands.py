@@ -102,9 +102,31 @@ def export_cmd(
     typer.echo(f"{out}: LeRobot {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
 
 
+def view_cmd(
+    path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
+    episode: Annotated[int, typer.Option("--episode", "-e", help="Episode index within the split.")] = 0,
+    split: Annotated[str, typer.Option("--split", help="Split of the episode.")] = "train",
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="MP4 to write (default: <split>-<episode>.mp4 here).")] = None,
+) -> None:
+    """Write an MP4 of one episode: head RGB, depth, top-down map, scrolling binaural spectrogram,
+    the active skill as a caption, and the episode's binaural sound."""
+    from echo_data.dataset.manifest import ManifestError
+    from echo_data.view import ViewError, render_episode_video
+
+    target = out if out is not None else Path(f"{split}-{episode:06d}.mp4")
+    if target.exists() and target.is_dir():
+        raise _fail(f"--out {target}: is a folder", 2)
+    try:
+        summary = render_episode_video(path, episode, target, split=split)
+    except (ManifestError, ViewError) as e:
+        raise _fail(str(e), 2) from None
+    typer.echo(f"wrote {summary['path']}: {summary['frames']} frames, {summary['seconds']:.1f} s with binaural sound")
+
+
 def register(app: typer.Typer) -> None:
     """Add `build`, `validate`, `info` and `export` to an app."""
     app.command("build")(build_cmd)
     app.command("validate")(validate_cmd)
     app.command("info")(info_cmd)
     app.command("export")(export_cmd)
+    app.command("view")(view_cmd)
