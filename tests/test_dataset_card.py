@@ -9,16 +9,13 @@ import yaml
 from typer.testing import CliRunner
 
 from echo_data.cli import app
-from echo_data.dataset.build import build
 from echo_data.dataset.manifest import load_manifest
-from test_dataset_synth import null_library, synth_generate, synth_recipe
+from test_dataset_synth import build_synth
 
 
 @pytest.fixture(scope="module")
 def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("card") / "synth"
-    build(synth_recipe(splits={"train": 4, "test": 2}), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
-    return out
+    return build_synth(tmp_path_factory.mktemp("card") / "synth", {"train": 4, "test": 2})
 
 
 def _front(text: str) -> dict:

@@ -130,3 +130,11 @@ def test_synthetic_episode_is_deterministic_and_well_shaped() -> None:
     assert a.spectrogram.shape[1:] == (65, 26, 2) and a.mel.shape[1:] == (64, 101, 2)
     assert np.array_equal(a.audio, b.audio) and np.array_equal(a.steps[-1].head_rgb, b.steps[-1].head_rgb)
     assert not synth_generate(r, "train", 1, None, Path("."), attempt=0).success
+
+
+def build_synth(out: Path, splits: dict[str, int]) -> Path:
+    """A built synthetic dataset at `out` (for loader, card, export and view tests)."""
+    from echo_data.dataset.build import build
+
+    build(synth_recipe(splits=splits), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
+    return out

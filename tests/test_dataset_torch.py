@@ -10,16 +10,13 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from echo_data.dataset.build import build  # noqa: E402
 from echo_data.dataset.torch import SequenceDataset, StepDataset  # noqa: E402
-from test_dataset_synth import null_library, synth_generate, synth_recipe  # noqa: E402
+from test_dataset_synth import build_synth, synth_generate, synth_recipe  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("torch") / "synth"
-    build(synth_recipe(splits={"train": 4, "test": 1}), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
-    return out
+    return build_synth(tmp_path_factory.mktemp("torch") / "synth", {"train": 4, "test": 1})
 
 
 def _all_rows(ds: Path, split: str) -> dict:

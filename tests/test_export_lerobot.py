@@ -23,8 +23,7 @@ from PIL import Image
 from typer.testing import CliRunner
 
 from echo_data.cli import app
-from echo_data.dataset.build import build
-from test_dataset_synth import null_library, synth_generate, synth_recipe
+from test_dataset_synth import build_synth
 
 HERE = Path(__file__).parent
 VENV_PYTHON = Path(os.environ.get("ECHO_LEROBOT_PYTHON", HERE.parent / ".venv-lerobot" / "bin" / "python"))
@@ -32,9 +31,7 @@ VENV_PYTHON = Path(os.environ.get("ECHO_LEROBOT_PYTHON", HERE.parent / ".venv-le
 
 @pytest.fixture(scope="module")
 def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("lerobot") / "synth"
-    build(synth_recipe(splits={"train": 4, "test": 2}), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
-    return out
+    return build_synth(tmp_path_factory.mktemp("lerobot") / "synth", {"train": 4, "test": 2})
 
 
 def _echo_rows(ds: Path) -> list[dict]:

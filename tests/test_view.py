@@ -9,16 +9,13 @@ import pytest
 from typer.testing import CliRunner
 
 from echo_data.cli import app
-from echo_data.dataset.build import build
 from echo_data.media import probe_mp4
-from test_dataset_synth import null_library, synth_generate, synth_recipe
+from test_dataset_synth import build_synth
 
 
 @pytest.fixture(scope="module")
 def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("view") / "synth"
-    build(synth_recipe(splits={"train": 2, "test": 1}), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
-    return out
+    return build_synth(tmp_path_factory.mktemp("view") / "synth", {"train": 2, "test": 1})
 
 
 def test_view_writes_video_with_binaural_sound(ds: Path, tmp_path: Path) -> None:
