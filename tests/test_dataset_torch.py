@@ -106,3 +106,37 @@ def test_binaural_window_is_what_the_step_heard(ds: Path) -> None:
     assert long.shape == (30 * sr, 2) and not long[: 30 * sr - int(row["audio_offset"])].any()
     arrow_row = pq.read_table(sorted((ds / "data").glob("train-*.parquet"))[0]).slice(0, 1).to_pylist()[0]
     assert binaural_window(ds, arrow_row, 0.1).shape == (sr // 10, 2)
+
+
+def test_shuffled_epochs_cover_every_step_once_per_epoch(ds: Path) -> None:
+    d = StepDataset(ds, "train", columns=["index", "action"])
+    s = d.shuffled(seed=3, buffer_groups=1)  # one row group per shard here: windows of one group
+    loader = torch.utils.data.DataLoader(s, batch_size=4, num_workers=2, persistent_workers=True)
+    epochs = [torch.cat([b["index"] for b in loader]).tolist() for _ in range(2)]
+    assert sorted(epochs[0]) == sorted(epochs[1]) == list(range(len(d)))
+    assert epochs[0] != list(range(len(d))) and epochs[0] != epochs[1]
+    one = [int(x["index"]) for x in d.shuffled(seed=3)]
+    assert sorted(one) == list(range(len(d)))
+    with pytest.raises(ValueError, match="buffer_groups"):
+        d.shuffled(buffer_groups=99)
+
+
+def test_normalize_uses_meta_stats(ds: Path) -> None:
+    import json
+
+    from echo_data.dataset.torch import Normalize
+
+    stats = json.loads((ds / "meta" / "stats.json").read_text())
+    d = StepDataset(ds, "train")
+    batch = next(iter(torch.utils.data.DataLoader(d, batch_size=len(d))))
+    norm = Normalize(ds)
+    out = norm(batch)
+    a = out["action"].numpy()
+    np.testing.assert_allclose(a.mean(axis=0), 0, atol=1e-5)  # train stats over the train rows
+    np.testing.assert_allclose(a.std(axis=0), 1, atol=1e-4)
+    rgb = out["observation.images.head_rgb"]
+    want = (batch["observation.images.head_rgb"][:, 1] - stats["observation.images.head_rgb"]["mean"][1]) / stats["observation.images.head_rgb"]["std"][1]
+    np.testing.assert_allclose(rgb[:, 1].numpy(), want.numpy(), rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(norm.inverse("action", out["action"]).numpy(), batch["action"].numpy(), rtol=1e-5, atol=1e-5)
+    mm = Normalize(ds, mode="min_max", columns=["observation.state"])(batch)["observation.state"].numpy()
+    assert mm.min() >= -1 - 1e-5 and mm.max() <= 1 + 1e-5 and set(Normalize(ds, columns=["action"]).params) == {"action"}

@@ -37,6 +37,11 @@ _SCALARS = {
 }
 _STRINGS = ("setting", "skill", "audio_path")
 _CACHED_ROW_GROUPS = 4
+# Decoded row groups a StepDataset keeps per worker process: at least the shuffle sampler's
+# buffer, so a shuffled epoch decodes each row group once per worker (about 10 MB a group of
+# 64 steps at 128x128 with mel features).
+DECODED_GROUPS = 16
+SHUFFLE_BUFFER_GROUPS = 8
 
 
 def _torch() -> Any:
@@ -61,10 +66,12 @@ class _Shards:
         self._pid: int | None = None
         self._open: dict[int, tuple[pq.ParquetFile, np.ndarray]] = {}
         self._cache: OrderedDict[tuple[int, int], pa.Table] = OrderedDict()
+        self._decoded: OrderedDict[tuple[int, int, tuple[str, ...]], dict[str, Any]] = OrderedDict()
+        self.decoded_groups = DECODED_GROUPS
 
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
-        state.update(_pid=None, _open={}, _cache=OrderedDict())
+        state.update(_pid=None, _open={}, _cache=OrderedDict(), _decoded=OrderedDict())
         return state
 
     def index_columns(self) -> list[dict[str, np.ndarray]]:
@@ -77,12 +84,57 @@ class _Shards:
 
     def _file(self, shard: int) -> tuple[pq.ParquetFile, np.ndarray]:
         if self._pid != os.getpid():  # a new DataLoader worker: never reuse the parent's handles
-            self._pid, self._open, self._cache = os.getpid(), {}, OrderedDict()
+            self._pid, self._open, self._cache, self._decoded = os.getpid(), {}, OrderedDict(), OrderedDict()
         if shard not in self._open:
             pf = pq.ParquetFile(self.files[shard])
             sizes = [pf.metadata.row_group(i).num_rows for i in range(pf.num_row_groups)]
             self._open[shard] = (pf, np.concatenate([[0], np.cumsum(sizes)]))
         return self._open[shard]
+
+    def group_starts(self, shard: int) -> np.ndarray:
+        """First shard-local row of each row group, plus the row count at the end."""
+        return self._file(shard)[1]
+
+    def decoded_group(self, shard: int, group: int, columns: Sequence[str]) -> dict[str, Any]:
+        """One row group decoded to numpy (images as uint8 RGB / uint16 depth), cached per process."""
+        self._file(shard)  # resets the caches in a new worker process
+        key = (shard, group, tuple(columns))
+        hit = self._decoded.get(key)
+        if hit is not None:
+            self._decoded.move_to_end(key)
+            return hit
+        from PIL import Image
+
+        table = self._open[shard][0].read_row_group(group, columns=list(columns))
+        out: dict[str, Any] = {}
+        for col in columns:
+            arr = table.column(col)
+            if col in self.layout.images:
+                out[col] = np.stack([np.asarray(Image.open(io.BytesIO(c["bytes"]))) for c in arr.to_pylist()])
+            elif col in _STRINGS:
+                out[col] = arr.to_pylist()
+            elif col in _SCALARS:
+                out[col] = arr.to_numpy(zero_copy_only=False).astype(_SCALARS[col])
+            else:
+                out[col] = column_to_numpy(arr, self.shape(col))
+        self._decoded[key] = out
+        while len(self._decoded) > self.decoded_groups:
+            self._decoded.popitem(last=False)
+        return out
+
+    def shape(self, col: str) -> tuple[int, ...]:
+        """Per-row shape of a fixed-shape list column."""
+        if col == ACTION:
+            return (ACTION_DIM,)
+        if col == STATE:
+            return (STATE_DIM,)
+        if col == "skill_success":
+            return (CHAIN_SLOTS,)
+        if col in self.layout.pose_columns:
+            return (POSE_DIM,)
+        if col in self.layout.arrays:
+            return self.layout.arrays[col]
+        raise KeyError(f"unknown column {col!r}")
 
     def rows(self, shard: int, rows: np.ndarray, columns: Sequence[str]) -> pa.Table:
         """Rows (shard-local, within a few consecutive row groups) of the given columns."""
@@ -177,18 +229,82 @@ class StepDataset:
             local.append(rows)
         self._shard = np.concatenate(shard_ids) if shard_ids else np.zeros(0, np.int32)
         self._row = np.concatenate(local) if local else np.zeros(0, np.int64)
+        self._group = np.zeros(len(self._row), dtype=np.int64)  # row group of each item
+        for i in range(len(self.shards.files)):
+            mine = self._shard == i
+            self._group[mine] = np.searchsorted(self.shards.group_starts(i), self._row[mine], side="right") - 1
 
     def __len__(self) -> int:
         return len(self._row)
 
     def __getitem__(self, i: int) -> dict[str, Any]:
+        torch = _torch()
         if i < 0:
             i += len(self)
         if not 0 <= i < len(self):
             raise IndexError(i)
-        table = self.shards.rows(int(self._shard[i]), self._row[i : i + 1], self.columns)
-        item = self.shards.decode(table, self.columns)
-        return {k: v[0] for k, v in item.items()}
+        shard, group = int(self._shard[i]), int(self._group[i])
+        decoded = self.shards.decoded_group(shard, group, self.columns)
+        r = int(self._row[i] - self.shards.group_starts(shard)[group])
+        layout = self.shards.layout
+        item: dict[str, Any] = {}
+        for col in self.columns:
+            v = decoded[col][r]
+            if col in layout.images:
+                if layout.images[col][0] == "rgb":
+                    item[col] = torch.from_numpy(v.transpose(2, 0, 1).astype(np.float32) / 255.0)
+                else:
+                    item[col] = torch.from_numpy(v.astype(np.float32)[None] / 1000.0)
+            elif col in _STRINGS:
+                item[col] = v
+            elif col in _SCALARS:
+                item[col] = torch.tensor(v)
+            else:
+                item[col] = torch.from_numpy(np.array(v, dtype=bool if col == "skill_success" else np.float32))
+        return item
+
+    def shuffled(self, seed: int = 0, buffer_groups: int = SHUFFLE_BUFFER_GROUPS) -> "ShuffledSteps":
+        """This dataset in shuffled order for fast training epochs (see `ShuffledSteps`)."""
+        return ShuffledSteps(self, seed, buffer_groups)
+
+
+try:  # the iterable form needs torch's base class (torch stays an optional extra)
+    from torch.utils.data import IterableDataset as _IterableBase
+except ImportError:  # pragma: no cover - without torch nothing here can be iterated anyway
+    _IterableBase = object  # type: ignore[assignment,misc]
+
+
+class ShuffledSteps(_IterableBase):  # type: ignore[misc,valid-type]
+    """A `StepDataset` shuffled by row groups with a buffer, for DataLoader epochs.
+
+    Row groups come in a random order (seed, epoch) and are dealt to DataLoader workers in turn,
+    so each worker decodes only its own groups, once per epoch; a worker takes `buffer_groups`
+    of them at a time and yields their steps in random order. Uniform shuffling instead decodes
+    a whole row group for nearly every item once the data outgrows the workers' caches. Each
+    `iter()` is a new epoch with a new order; every step comes exactly once per epoch."""
+
+    def __init__(self, dataset: StepDataset, seed: int = 0, buffer_groups: int = SHUFFLE_BUFFER_GROUPS) -> None:
+        if not 1 <= buffer_groups <= dataset.shards.decoded_groups:
+            raise ValueError(f"buffer_groups must be 1..{dataset.shards.decoded_groups} (the decoded groups a worker keeps), got {buffer_groups}")
+        self.dataset, self.seed, self.buffer, self.epoch = dataset, seed, buffer_groups, 0
+        key = dataset._shard.astype(np.int64) * (1 << 32) + dataset._group
+        self._groups = [np.flatnonzero(key == k) for k in np.unique(key)]
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __iter__(self):  # type: ignore[no-untyped-def]
+        torch = _torch()
+        info = torch.utils.data.get_worker_info()
+        worker, workers = (info.id, info.num_workers) if info is not None else (0, 1)
+        order = np.random.default_rng([self.seed, self.epoch]).permutation(len(self._groups))
+        rng = np.random.default_rng([self.seed, self.epoch, worker])
+        self.epoch += 1
+        mine = order[worker::workers]
+        for w in range(0, len(mine), self.buffer):
+            window = np.concatenate([self._groups[g] for g in mine[w : w + self.buffer]])
+            for i in rng.permutation(window):
+                yield self.dataset[int(i)]
 
 
 class SequenceDataset:
@@ -255,3 +371,46 @@ class SequenceDataset:
         item["observation_is_pad"] = torch.from_numpy(obs_pad)
         item["action_is_pad"] = torch.from_numpy(act_pad)
         return item
+
+
+class Normalize:
+    """Normalisation from meta/stats.json (train split) as a transform on items or batches.
+
+    mode "mean_std": (x - mean) / std; "min_max": to [-1, 1] (LeRobot's conventions). Statistics
+    are in the loaders' units (RGB in [0, 1], depth in metres) and shaped to broadcast: images
+    per channel (C, 1, 1) as the loaders return (C, H, W); spectrograms per ear (last axis);
+    vectors per element. Columns without statistics pass through; `inverse` undoes it (e.g. to
+    turn a predicted action back into robot units)."""
+
+    def __init__(self, root: str | Path, mode: str = "mean_std", columns: Sequence[str] | None = None, eps: float = 1e-8) -> None:
+        import json
+
+        if mode not in ("mean_std", "min_max"):
+            raise ValueError(f"mode must be mean_std or min_max, got {mode!r}")
+        torch = _torch()
+        stats = json.loads((Path(root) / "meta" / "stats.json").read_text())
+        layout = StepLayout.from_dict(load_manifest(Path(root))["layout"])
+        self.mode = mode
+        self.params: dict[str, tuple[Any, Any]] = {}
+        for col, st in stats.items():
+            if columns is not None and col not in columns:
+                continue
+            a, b = (st["mean"], st["std"]) if mode == "mean_std" else (st["min"], st["max"])
+            a, b = torch.tensor(a, dtype=torch.float32), torch.tensor(b, dtype=torch.float32)
+            scale = b.clamp_min(eps) if mode == "mean_std" else ((b - a) / 2).clamp_min(eps)
+            shift = a if mode == "mean_std" else (a + b) / 2
+            if col in layout.images:
+                shift, scale = shift.reshape(-1, 1, 1), scale.reshape(-1, 1, 1)
+            self.params[col] = (shift, scale)
+
+    def __call__(self, item: dict[str, Any]) -> dict[str, Any]:
+        out = dict(item)
+        for col, (shift, scale) in self.params.items():
+            if col in out:
+                out[col] = (out[col] - shift) / scale
+        return out
+
+    def inverse(self, column: str, x: Any) -> Any:
+        """Undo the normalisation of one column."""
+        shift, scale = self.params[column]
+        return x * scale + shift
