@@ -3,10 +3,12 @@ on the same Parquet files, both through a torch DataLoader with the same workers
 
 Both decode every step column to tensors (images from PNG, arrays, vectors). The HF baseline is
 `load_dataset("parquet", ...)` with `with_format("torch")` and a plain shuffled DataLoader; the
-echo-data loader is `StepDataset.shuffled()` (row groups dealt to workers, shuffle buffer). Printed:
-samples/s of each (best of --repeat epochs after one warm-up epoch) and their ratio.
+echo-data loader is `StepDataset.shuffled(batch_size=...)` (row groups dealt to workers, a
+shuffle buffer, batches gathered column by column). Printed:
+samples/s of each (best of --repeat epochs), CPU milliseconds per sample (main process plus
+workers, which says what the loader costs when other work shares the cores) and the ratios.
 
-Usage:  python benchmarks/bench_loader.py DATASET [--workers 2] [--batch 32] [--repeat 3]
+Usage:  python benchmarks/bench_loader.py DATASET [--workers 2] [--batch 32] [--repeat 3] [--uniform]
         (e.g. after `echo-data build recipes/quickstart.yaml --out out/quickstart`)
 """
 
@@ -14,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import time
 from pathlib import Path
 
@@ -22,17 +25,24 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import torch  # noqa: E402
 
 
-def _rate(loader: torch.utils.data.DataLoader, repeat: int) -> float:
-    """Samples per second over whole epochs (best of `repeat`, after one warm-up epoch)."""
-    best = 0.0
-    for k in range(repeat + 1):
-        t0, n = time.perf_counter(), 0
+def _cpu() -> float:
+    """CPU seconds of this process and its finished children (the epoch's workers)."""
+    me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def _rate(loader: torch.utils.data.DataLoader, repeat: int) -> tuple[float, float]:
+    """(samples/s, CPU ms per sample) over whole epochs: the best wall rate of `repeat` epochs
+    and the mean CPU cost (main process + workers), which a busy shared machine disturbs less."""
+    best, cpu, n_all = 0.0, 0.0, 0
+    for _ in range(repeat):
+        t0, c0, n = time.perf_counter(), _cpu(), 0
         for batch in loader:
             n += len(batch["index"])
-        rate = n / (time.perf_counter() - t0)
-        if k:
-            best = max(best, rate)
-    return best
+        best = max(best, n / (time.perf_counter() - t0))
+        cpu += _cpu() - c0
+        n_all += n
+    return best, 1000.0 * cpu / n_all
 
 
 def main() -> None:
@@ -42,6 +52,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--batch", type=int, default=32)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--uniform", action="store_true", help="also time uniform shuffling (slow on data larger than the cache)")
     a = ap.parse_args()
 
     import datasets
@@ -51,18 +62,20 @@ def main() -> None:
     torch.set_num_threads(1)
     files = sorted(str(p) for p in (a.dataset / "data").glob(f"{a.split}-*.parquet"))
     ours = StepDataset(a.dataset, a.split)
-    kw = dict(batch_size=a.batch, num_workers=a.workers, persistent_workers=a.workers > 0)
-    echo_loader = torch.utils.data.DataLoader(ours.shuffled(seed=0), **kw)
+    kw = dict(batch_size=a.batch, num_workers=a.workers)  # workers end each epoch: their CPU is counted
+    echo_loader = torch.utils.data.DataLoader(ours.shuffled(seed=0, batch_size=a.batch), batch_size=None, num_workers=a.workers)
     hf = datasets.load_dataset("parquet", data_files=files, split="train").with_format("torch")
     hf_loader = torch.utils.data.DataLoader(hf, shuffle=True, **kw)
     plain_loader = torch.utils.data.DataLoader(ours, shuffle=True, **kw)
-    r_hf = _rate(hf_loader, a.repeat)
-    r_ours = _rate(echo_loader, a.repeat)
-    r_plain = _rate(plain_loader, a.repeat)
-    print(f"{len(ours)} steps of {a.dataset}, {a.workers} workers, batch {a.batch}, every column")
-    print(f"HF datasets, shuffled DataLoader:         {r_hf:8.0f} samples/s (baseline)")
-    print(f"StepDataset.shuffled (row-group buffer):  {r_ours:8.0f} samples/s = {r_ours / r_hf:.2f}x baseline")
-    print(f"StepDataset, uniform shuffle=True:        {r_plain:8.0f} samples/s = {r_plain / r_hf:.2f}x baseline")
+    print(f"{len(ours)} steps of {a.dataset}, {a.workers} workers, batch {a.batch}, every column; "
+          f"best epoch of {a.repeat}, CPU = main process + workers")
+    (r_hf, c_hf) = _rate(hf_loader, a.repeat)
+    print(f"HF datasets, shuffle=True:               {r_hf:7.0f} samples/s  {c_hf:5.2f} CPU ms/sample (baseline)")
+    r, c = _rate(echo_loader, a.repeat)
+    print(f"StepDataset.shuffled() (row-group buffer): {r:7.0f} samples/s  {c:5.2f} CPU ms/sample = {r / r_hf:.2f}x baseline rate, {c_hf / c:.2f}x less CPU")
+    if a.uniform:
+        r, c = _rate(plain_loader, 1)
+        print(f"StepDataset, shuffle=True (uniform):       {r:7.0f} samples/s  {c:5.2f} CPU ms/sample = {r / r_hf:.2f}x baseline rate")
 
 
 if __name__ == "__main__":

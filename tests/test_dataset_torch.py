@@ -82,6 +82,19 @@ def test_sequence_windows_pad_at_episode_edges(ds: Path) -> None:
     assert batch["observation.images.head_rgb"].shape == (3, 3, 3, 16, 24) and batch["action_is_pad"].shape == (3, 4)
 
 
+def test_take_equals_collated_items(ds: Path) -> None:
+    d = StepDataset(ds, "train")
+    idx = [7, 0, 15, 3, 7]  # across shards, out of order, repeated
+    got = d.take(idx)
+    want = torch.utils.data.default_collate([d[i] for i in idx])
+    assert set(got) == set(want)
+    for k, v in want.items():
+        if isinstance(v, torch.Tensor):
+            assert got[k].dtype == v.dtype and torch.equal(got[k], v), k
+        else:
+            assert got[k] == v, k
+
+
 def test_default_collate_batches_every_column(ds: Path) -> None:
     d = StepDataset(ds, "train")
     assert set(d.columns) == {f.name for f in pq.read_schema(next((ds / "data").glob("train-*.parquet")))}
@@ -117,6 +130,8 @@ def test_shuffled_epochs_cover_every_step_once_per_epoch(ds: Path) -> None:
     assert epochs[0] != list(range(len(d))) and epochs[0] != epochs[1]
     one = [int(x["index"]) for x in d.shuffled(seed=3)]
     assert sorted(one) == list(range(len(d)))
+    batched = torch.utils.data.DataLoader(d.shuffled(seed=3, batch_size=5), batch_size=None, num_workers=2)
+    assert sorted(torch.cat([b["index"] for b in batched]).tolist()) == list(range(len(d)))
     with pytest.raises(ValueError, match="buffer_groups"):
         d.shuffled(buffer_groups=99)
 

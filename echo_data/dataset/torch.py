@@ -96,7 +96,8 @@ class _Shards:
         return self._file(shard)[1]
 
     def decoded_group(self, shard: int, group: int, columns: Sequence[str]) -> dict[str, Any]:
-        """One row group decoded to numpy (images as uint8 RGB / uint16 depth), cached per process."""
+        """One row group decoded, cached per process: RGB as a uint8 tensor (n, H, W, 3), depth as
+        float32 metres (n, 1, H, W), other columns as numpy in their item dtype, strings as lists."""
         self._file(shard)  # resets the caches in a new worker process
         key = (shard, group, tuple(columns))
         hit = self._decoded.get(key)
@@ -105,18 +106,23 @@ class _Shards:
             return hit
         from PIL import Image
 
+        torch = _torch()
         table = self._open[shard][0].read_row_group(group, columns=list(columns))
         out: dict[str, Any] = {}
         for col in columns:
             arr = table.column(col)
             if col in self.layout.images:
-                out[col] = np.stack([np.asarray(Image.open(io.BytesIO(c["bytes"]))) for c in arr.to_pylist()])
+                stack = np.stack([np.asarray(Image.open(io.BytesIO(c["bytes"]))) for c in arr.to_pylist()])
+                if self.layout.images[col][0] == "rgb":
+                    out[col] = torch.from_numpy(stack)
+                else:
+                    out[col] = torch.from_numpy(stack.astype(np.float32)[:, None] / 1000.0)
             elif col in _STRINGS:
                 out[col] = arr.to_pylist()
             elif col in _SCALARS:
                 out[col] = arr.to_numpy(zero_copy_only=False).astype(_SCALARS[col])
             else:
-                out[col] = column_to_numpy(arr, self.shape(col))
+                out[col] = column_to_numpy(arr, self.shape(col)).astype(bool if col == "skill_success" else np.float32)
         self._decoded[key] = out
         while len(self._decoded) > self.decoded_groups:
             self._decoded.popitem(last=False)
@@ -238,34 +244,44 @@ class StepDataset:
         return len(self._row)
 
     def __getitem__(self, i: int) -> dict[str, Any]:
-        torch = _torch()
         if i < 0:
             i += len(self)
         if not 0 <= i < len(self):
             raise IndexError(i)
-        shard, group = int(self._shard[i]), int(self._group[i])
-        decoded = self.shards.decoded_group(shard, group, self.columns)
-        r = int(self._row[i] - self.shards.group_starts(shard)[group])
-        layout = self.shards.layout
-        item: dict[str, Any] = {}
-        for col in self.columns:
-            v = decoded[col][r]
-            if col in layout.images:
-                if layout.images[col][0] == "rgb":
-                    item[col] = torch.from_numpy(v.transpose(2, 0, 1).astype(np.float32) / 255.0)
-                else:
-                    item[col] = torch.from_numpy(v.astype(np.float32)[None] / 1000.0)
-            elif col in _STRINGS:
-                item[col] = v
-            elif col in _SCALARS:
-                item[col] = torch.tensor(v)
-            else:
-                item[col] = torch.from_numpy(np.array(v, dtype=bool if col == "skill_success" else np.float32))
-        return item
+        return {k: v[0] for k, v in self.take([i]).items()}
 
-    def shuffled(self, seed: int = 0, buffer_groups: int = SHUFFLE_BUFFER_GROUPS) -> "ShuffledSteps":
+    def take(self, indices: Sequence[int]) -> dict[str, Any]:
+        """A batch of items at once (what `default_collate` would make of `[self[i] for i in
+        indices]`), gathered from the cached row groups with one indexing per column."""
+        torch = _torch()
+        idx = np.asarray(indices, dtype=np.int64)
+        key = self._shard[idx].astype(np.int64) * (1 << 32) + self._group[idx]
+        order = np.argsort(key, kind="stable")
+        parts: dict[str, list[Any]] = {c: [] for c in self.columns}
+        for k in np.unique(key):
+            shard, group = int(k >> 32), int(k & 0xFFFFFFFF)
+            local = self._row[idx[order[key[order] == k]]] - self.shards.group_starts(shard)[group]
+            decoded = self.shards.decoded_group(shard, group, self.columns)
+            for c in self.columns:
+                v = decoded[c]
+                parts[c].append([v[j] for j in local] if c in _STRINGS else v[torch.from_numpy(local)] if isinstance(v, torch.Tensor) else v[local])
+        back = np.argsort(order)  # rows were gathered group by group: restore the asked order
+        images = self.shards.layout.images
+        out: dict[str, Any] = {}
+        for c, ps in parts.items():
+            if c in _STRINGS:
+                flat = [x for p in ps for x in p]
+                out[c] = [flat[j] for j in back]
+            elif c in images:
+                t = torch.cat(ps)[torch.from_numpy(back)]
+                out[c] = t.permute(0, 3, 1, 2).float().div(255.0) if images[c][0] == "rgb" else t
+            else:
+                out[c] = torch.from_numpy(np.concatenate(ps)[back])
+        return out
+
+    def shuffled(self, seed: int = 0, buffer_groups: int = SHUFFLE_BUFFER_GROUPS, batch_size: int | None = None) -> "ShuffledSteps":
         """This dataset in shuffled order for fast training epochs (see `ShuffledSteps`)."""
-        return ShuffledSteps(self, seed, buffer_groups)
+        return ShuffledSteps(self, seed, buffer_groups, batch_size)
 
 
 try:  # the iterable form needs torch's base class (torch stays an optional extra)
@@ -281,16 +297,23 @@ class ShuffledSteps(_IterableBase):  # type: ignore[misc,valid-type]
     so each worker decodes only its own groups, once per epoch; a worker takes `buffer_groups`
     of them at a time and yields their steps in random order. Uniform shuffling instead decodes
     a whole row group for nearly every item once the data outgrows the workers' caches. Each
-    `iter()` is a new epoch with a new order; every step comes exactly once per epoch."""
+    `iter()` is a new epoch with a new order; every step comes exactly once per epoch.
 
-    def __init__(self, dataset: StepDataset, seed: int = 0, buffer_groups: int = SHUFFLE_BUFFER_GROUPS) -> None:
+    With `batch_size`, whole batches are yielded (gathered column by column, much cheaper than
+    collating items): use `DataLoader(..., batch_size=None)`. A worker's last batch of an epoch
+    may be smaller."""
+
+    def __init__(self, dataset: StepDataset, seed: int = 0, buffer_groups: int = SHUFFLE_BUFFER_GROUPS, batch_size: int | None = None) -> None:
         if not 1 <= buffer_groups <= dataset.shards.decoded_groups:
             raise ValueError(f"buffer_groups must be 1..{dataset.shards.decoded_groups} (the decoded groups a worker keeps), got {buffer_groups}")
-        self.dataset, self.seed, self.buffer, self.epoch = dataset, seed, buffer_groups, 0
+        if batch_size is not None and batch_size < 1:
+            raise ValueError(f"batch_size must be >= 1, got {batch_size}")
+        self.dataset, self.seed, self.buffer, self.epoch, self.batch_size = dataset, seed, buffer_groups, 0, batch_size
         key = dataset._shard.astype(np.int64) * (1 << 32) + dataset._group
         self._groups = [np.flatnonzero(key == k) for k in np.unique(key)]
 
     def __len__(self) -> int:
+        """Items per epoch (batches are counted as their items)."""
         return len(self.dataset)
 
     def __iter__(self):  # type: ignore[no-untyped-def]
@@ -302,9 +325,12 @@ class ShuffledSteps(_IterableBase):  # type: ignore[misc,valid-type]
         self.epoch += 1
         mine = order[worker::workers]
         for w in range(0, len(mine), self.buffer):
-            window = np.concatenate([self._groups[g] for g in mine[w : w + self.buffer]])
-            for i in rng.permutation(window):
-                yield self.dataset[int(i)]
+            window = rng.permutation(np.concatenate([self._groups[g] for g in mine[w : w + self.buffer]]))
+            if self.batch_size is None:
+                yield from (self.dataset[int(i)] for i in window)
+            else:
+                for b in range(0, len(window), self.batch_size):
+                    yield self.dataset.take(window[b : b + self.batch_size])
 
 
 class SequenceDataset:
