@@ -64,13 +64,16 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
     assert CliRunner().invoke(app, ["export", str(ds), "--format", "rlds", "--out", str(tmp_path / "y")]).exit_code == 2
 
 
-def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path) -> None:
+def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     if not VENV_PYTHON.is_file():
         if os.environ.get("CI"):
             pytest.fail(f"{VENV_PYTHON} missing: scripts/setup_lerobot.sh makes it")
         pytest.skip(f"no LeRobot environment at {VENV_PYTHON} (bash scripts/setup_lerobot.sh)")
     out = tmp_path / "le"
+    monkeypatch.setattr("echo_data.dataset.lerobot.DATA_FILES_SIZE_IN_MB", 0.05)  # several data files
     assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out)]).exit_code == 0
+    n_files = len(list((out / "data" / "chunk-000").glob("file-*.parquet")))
+    assert 1 < n_files <= 6
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
     env.update(PYTHONPATH=str(HERE / "lerobot_shim"), HF_HUB_OFFLINE="1", HF_DATASETS_OFFLINE="1", HF_HOME=str(tmp_path / "hf"))
     npz = tmp_path / "frames.npz"
@@ -83,6 +86,8 @@ def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path) -> None:
     assert got["splits"] == {"train": "0:4", "test": "4:6"}
     assert frames["index"].tolist() == list(range(len(rows)))
     ids = [e["episode_id"] for e in got["episodes"]]
+    eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
+    assert sorted({e["data/file_index"] for e in eps}) == list(range(n_files))
     assert ids == [f"train-{i:06d}" for i in range(4)] + [f"test-{i:06d}" for i in range(2)]
     for i, row in enumerate(rows):
         ep = got["episodes"][int(frames["episode_index"][i])]

@@ -123,10 +123,11 @@ def _check_source(src: Path) -> dict[str, Any]:
     return manifest
 
 
-def _data_files(src: Path, manifest: dict[str, Any], layout: StepLayout) -> tuple[list[pa.Table], list[dict[str, Any]], dict[str, str]]:
-    """Step rows regrouped into LeRobot data files, one record per episode, and the splits."""
+def _data_files(src: Path, dst: Path, manifest: dict[str, Any], layout: StepLayout) -> tuple[list[dict[str, Any]], dict[str, str]]:
+    """Step rows regrouped into LeRobot data files under `dst` (each written as soon as it is
+    full, so memory holds one file's rows), one record per episode, and the splits."""
     schema = layout.schema()
-    files: list[pa.Table] = []
+    n_files = 0
     pending: list[pa.Table] = []
     pending_bytes = 0
     episodes: list[dict[str, Any]] = []
@@ -135,10 +136,11 @@ def _data_files(src: Path, manifest: dict[str, Any], layout: StepLayout) -> tupl
     n_ep = n_rows = 0
 
     def close() -> None:
-        nonlocal pending, pending_bytes
+        nonlocal pending, pending_bytes, n_files
         if pending:
-            files.append(pa.concat_tables(pending))
-            pending, pending_bytes = [], 0
+            path = dst / DATA_PATH.format(chunk_index=n_files // CHUNKS_SIZE, file_index=n_files % CHUNKS_SIZE)
+            _write_parquet(path, pa.concat_tables(pending), ROW_GROUP_ROWS)
+            pending, pending_bytes, n_files = [], 0, n_files + 1
 
     for split in sorted(manifest["splits"], key=SPLIT_KEYS.__getitem__):
         first_ep = n_ep
@@ -157,7 +159,7 @@ def _data_files(src: Path, manifest: dict[str, Any], layout: StepLayout) -> tupl
                     close()
                 pending.append(conform(rows, schema))
                 pending_bytes += rows.nbytes
-                k = len(files)
+                k = n_files
                 episodes.append(
                     {
                         "episode_index": n_ep,
@@ -184,7 +186,7 @@ def _data_files(src: Path, manifest: dict[str, Any], layout: StepLayout) -> tupl
                 n_rows += length
         splits[split] = f"{first_ep}:{n_ep}"
     close()
-    return files, episodes, splits
+    return episodes, splits
 
 
 def _write_parquet(path: Path, table: pa.Table, row_group: int) -> None:
@@ -192,7 +194,7 @@ def _write_parquet(path: Path, table: pa.Table, row_group: int) -> None:
     pq.write_table(table, path, compression=PARQUET_COMPRESSION, row_group_size=row_group, store_schema=True)
 
 
-def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False, repo_id: str | None = None) -> dict[str, Any]:
+def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False) -> dict[str, Any]:
     """Write the LeRobot v3.0 dataset of the echo-data dataset `src` to `out`; return meta/info.json.
 
     Everything is written to a temporary sibling folder first and renamed into place, so `out`
@@ -212,9 +214,7 @@ def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False, re
     tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
     shutil.rmtree(tmp, ignore_errors=True)
     try:
-        files, episodes, splits = _data_files(src, manifest, layout)
-        for k, table in enumerate(files):
-            _write_parquet(tmp / DATA_PATH.format(chunk_index=k // CHUNKS_SIZE, file_index=k % CHUNKS_SIZE), table, ROW_GROUP_ROWS)
+        episodes, splits = _data_files(src, tmp, manifest, layout)
         _write_parquet(tmp / EPISODES_PATH.format(chunk_index=0, file_index=0), pa.Table.from_pylist(episodes), 4096)
         tasks = pd.DataFrame({"task_index": np.arange(len(SETTINGS), dtype=np.int64)}, index=pd.Index([TASKS[s] for s in SETTINGS], name="task"))
         (tmp / "meta").mkdir(parents=True, exist_ok=True)
@@ -252,8 +252,6 @@ def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False, re
                 "cameras_as": "image features (PNG), not videos: 16-bit depth does not survive 8-bit video",
             },
         }
-        if repo_id:
-            info["echo_data"]["repo_id"] = repo_id
         atomic_write_json(tmp / "meta" / "info.json", info)
         for e in episodes:
             dst = tmp / e["audio_path"]
