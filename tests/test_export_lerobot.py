@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+import yaml
 from PIL import Image
 from typer.testing import CliRunner
 
@@ -56,6 +57,8 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
     assert [e["episode_index"] for e in eps] == list(range(6))
     assert eps[1]["dataset_from_index"] == eps[0]["dataset_to_index"] and eps[-1]["dataset_to_index"] == info["total_frames"]
     assert all((out / e["audio_path"]).is_file() for e in eps)
+    card = (out / "README.md").read_text()
+    assert yaml.safe_load(card.split("---\n")[1])["configs"][0]["data_files"] == "data/*/*.parquet" and "## Features" in card
     again = CliRunner().invoke(app, ["export", str(ds), "--out", str(out)])
     assert again.exit_code == 2 and "already exists" in again.output
     assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out), "--overwrite"]).exit_code == 0

@@ -189,6 +189,28 @@ def _data_files(src: Path, dst: Path, manifest: dict[str, Any], layout: StepLayo
     return episodes, splits
 
 
+def _card(info: dict[str, Any], src_card: Path) -> str:
+    """README.md of the export: LeRobot-style front matter, then the source dataset's card body."""
+    import yaml
+
+    from echo_data.dataset.card import LICENSE, size_category
+
+    front = {
+        "license": LICENSE,
+        "task_categories": ["robotics"],
+        "tags": ["LeRobot", "echo-data", "binaural-audio"],
+        "size_categories": [size_category(info["total_frames"])],
+        "configs": [{"config_name": "default", "data_files": "data/*/*.parquet"}],
+    }
+    body = src_card.read_text().split("---\n", 2)[-1] if src_card.is_file() else ""
+    return (
+        "---\n" + yaml.safe_dump(front, sort_keys=False) + "---\n\n"
+        f"LeRobot {info['codebase_version']} export of an echo-data dataset: {info['total_episodes']} episodes, "
+        f"{info['total_frames']} frames, splits {info['splits']} (episode ranges). Cameras are image features; "
+        "the episode WAVs are under audio/ (see `echo_data` in meta/info.json). The original card follows.\n" + body
+    )
+
+
 def _write_parquet(path: Path, table: pa.Table, row_group: int) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     pq.write_table(table, path, compression=PARQUET_COMPRESSION, row_group_size=row_group, store_schema=True)
@@ -253,6 +275,7 @@ def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False) ->
             },
         }
         atomic_write_json(tmp / "meta" / "info.json", info)
+        (tmp / "README.md").write_text(_card(info, src / "README.md"))
         for e in episodes:
             dst = tmp / e["audio_path"]
             dst.parent.mkdir(parents=True, exist_ok=True)
