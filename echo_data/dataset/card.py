@@ -96,6 +96,7 @@ def card_text(out: Path) -> str:
             sounds.setdefault(row["split"], set()).add(e["sound_id"])
             categories[e["category"]] = categories.get(e["category"], 0) + 1
     rate = counts["episode_success_rate"]
+    path = f"out/{m['name']}"
     lines = [
         "---",
         yaml.safe_dump(front, sort_keys=False).rstrip(),
@@ -166,16 +167,19 @@ def card_text(out: Path) -> str:
         "",
         "## Loading",
         "",
+        f"With the dataset where `echo-data build` puts it by default, `{path}` (the card never depends",
+        "on where a copy was written, so copies stay byte-identical):",
+        "",
         "```python",
         "import datasets",
-        f'ds = datasets.load_dataset("parquet", data_files={{"train": "{out.name}/data/train-*.parquet"}}, split="train")',
+        f'ds = datasets.load_dataset("{path}", split="train")',
         "from echo_data.dataset.torch import StepDataset",
-        f'steps = StepDataset("{out.name}", split="train")',
+        f'steps = StepDataset("{path}", split="train")',
         "```",
         "",
-        f"LeRobot (v3.0): `echo-data export {out.name} --format lerobot --out {out.name}-lerobot`, then "
-        f'`LeRobotDataset("echo-data/{m["name"]}", root="{out.name}-lerobot")`. '
-        f"LLaMA-Factory: `dataset_dir={out.name}/planner` (sharegpt with `<audio><image>`).",
+        f"LeRobot (v3.0): `echo-data export {path} --format lerobot --out {path}-lerobot`, then "
+        f'`LeRobotDataset("echo-data/{m["name"]}", root="{path}-lerobot")`. '
+        f"LLaMA-Factory: `dataset_dir={path}/planner` (sharegpt with `<audio><image>`).",
         "",
     ]
     return "\n".join(lines)
