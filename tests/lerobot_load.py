@@ -25,6 +25,13 @@ for batch in loader:
         else:
             strings.setdefault(k, []).extend(v)
 arrays = {k: np.concatenate(v) for k, v in columns.items()}
+# behaviour-cloning windows as LeRobot policies ask for them: frame 1 of episode 0 with the
+# previous frame's image and an action chunk of 3 (frame 0 has no predecessor: padded)
+windows = LeRobotDataset("echo-data/export", root=root, delta_timestamps={"observation.state": [-0.1, 0.0], "action": [0.0, 0.1, 0.2]})
+w = windows[1]
+arrays["window.observation.state"] = w["observation.state"].numpy()[None]
+arrays["window.action"] = w["action"].numpy()[None]
+arrays["window.pad"] = np.concatenate([w["observation.state_is_pad"].numpy(), w["action_is_pad"].numpy()])[None]
 np.savez(out, **arrays)
 episodes = meta.episodes.to_list()
 print(

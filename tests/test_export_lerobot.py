@@ -92,6 +92,9 @@ def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path, monkeypatch:
     eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
     assert sorted({e["data/file_index"] for e in eps}) == list(range(n_files))
     assert ids == [f"train-{i:06d}" for i in range(4)] + [f"test-{i:06d}" for i in range(2)]
+    np.testing.assert_array_equal(frames["window.observation.state"][0], [rows[0]["observation.state"], rows[1]["observation.state"]])
+    np.testing.assert_array_equal(frames["window.action"][0], [rows[k]["action"] for k in (1, 2, 3)])
+    assert not frames["window.pad"][0].any()
     for i, row in enumerate(rows):
         ep = got["episodes"][int(frames["episode_index"][i])]
         assert (ep["split"], ep["episode_id"]) == (row["split"], f"{row['split']}-{row['episode_index']:06d}")
