@@ -1,10 +1,12 @@
 """PyTorch datasets over an echo-data dataset: single steps and windowed sequences for BC.
 
-torch is an optional extra, imported only when an item is built. Both datasets are map-style
-and DataLoader-worker-safe: the constructor reads only the small index columns; each worker
-process opens the shards it touches lazily (file handles are never shared across processes)
-and keeps a few decoded row groups cached. Images come back as float tensors (RGB (3, H, W) in
-[0, 1], depth (1, H, W) in metres), spectrograms as float32 (F, T, 2), vectors as float32.
+torch is an optional extra (this module imports it only if installed). Both datasets are
+map-style and DataLoader-worker-safe: the constructor reads only the small index columns; each
+worker process opens the shards it touches lazily (file handles are never shared across
+processes) and keeps its decoded row groups cached, so items and batches (`take`) are gathered
+from decoded arrays; `StepDataset.shuffled()` is the fast shuffled epoch. Images come back as
+float tensors (RGB (3, H, W) in [0, 1], depth (1, H, W) in metres), spectrograms as float32
+(F, T, 2), vectors as float32; `Normalize` applies meta/stats.json.
 """
 
 from __future__ import annotations
@@ -16,7 +18,6 @@ from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
-import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset.manifest import load_manifest
@@ -36,7 +37,6 @@ _SCALARS = {
     "done": "bool",
 }
 _STRINGS = ("setting", "skill", "audio_path")
-_CACHED_ROW_GROUPS = 4
 # Decoded row groups a StepDataset keeps per worker process: at least the shuffle sampler's
 # buffer, so a shuffled epoch decodes each row group once per worker (about 10 MB a group of
 # 64 steps at 128x128 with mel features).
@@ -65,13 +65,12 @@ class _Shards:
         self.all_columns = [f.name for f in self.layout.schema()]
         self._pid: int | None = None
         self._open: dict[int, tuple[pq.ParquetFile, np.ndarray]] = {}
-        self._cache: OrderedDict[tuple[int, int], pa.Table] = OrderedDict()
         self._decoded: OrderedDict[tuple[int, int, tuple[str, ...]], dict[str, Any]] = OrderedDict()
         self.decoded_groups = DECODED_GROUPS
 
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
-        state.update(_pid=None, _open={}, _cache=OrderedDict(), _decoded=OrderedDict())
+        state.update(_pid=None, _open={}, _decoded=OrderedDict())
         return state
 
     def index_columns(self) -> list[dict[str, np.ndarray]]:
@@ -84,7 +83,7 @@ class _Shards:
 
     def _file(self, shard: int) -> tuple[pq.ParquetFile, np.ndarray]:
         if self._pid != os.getpid():  # a new DataLoader worker: never reuse the parent's handles
-            self._pid, self._open, self._cache, self._decoded = os.getpid(), {}, OrderedDict(), OrderedDict()
+            self._pid, self._open, self._decoded = os.getpid(), {}, OrderedDict()
         if shard not in self._open:
             pf = pq.ParquetFile(self.files[shard])
             sizes = [pf.metadata.row_group(i).num_rows for i in range(pf.num_row_groups)]
@@ -141,61 +140,6 @@ class _Shards:
         if col in self.layout.arrays:
             return self.layout.arrays[col]
         raise KeyError(f"unknown column {col!r}")
-
-    def rows(self, shard: int, rows: np.ndarray, columns: Sequence[str]) -> pa.Table:
-        """Rows (shard-local, within a few consecutive row groups) of the given columns."""
-        pf, starts = self._file(shard)
-        groups = np.searchsorted(starts, rows, side="right") - 1
-        lo, hi = int(groups.min()), int(groups.max())
-        parts = []
-        for g in range(lo, hi + 1):
-            key = (shard, g)
-            table = self._cache.get(key)
-            if table is None or not set(columns) <= set(table.column_names):
-                table = pf.read_row_group(g, columns=list(columns))
-                self._cache[key] = table
-                while len(self._cache) > _CACHED_ROW_GROUPS:
-                    self._cache.popitem(last=False)
-            self._cache.move_to_end(key)
-            parts.append(table.select(list(columns)))
-        table = pa.concat_tables(parts) if len(parts) > 1 else parts[0]
-        return table.take(pa.array(rows - starts[lo]))
-
-    def decode(self, table: pa.Table, columns: Sequence[str]) -> dict[str, Any]:
-        """Arrow rows -> tensors (leading dimension = rows)."""
-        from PIL import Image
-
-        torch = _torch()
-        out: dict[str, Any] = {}
-        for col in columns:
-            arr = table.column(col)
-            if col == ACTION:
-                out[col] = torch.from_numpy(column_to_numpy(arr, (ACTION_DIM,)).astype(np.float32))
-            elif col == STATE:
-                out[col] = torch.from_numpy(column_to_numpy(arr, (STATE_DIM,)).astype(np.float32))
-            elif col in self.layout.images:
-                kind = self.layout.images[col][0]
-                frames = []
-                for cell in arr.to_pylist():
-                    img = np.asarray(Image.open(io.BytesIO(cell["bytes"])))
-                    if kind == "rgb":
-                        frames.append(img.transpose(2, 0, 1).astype(np.float32) / 255.0)
-                    else:
-                        frames.append(img.astype(np.float32)[None] / 1000.0)
-                out[col] = torch.from_numpy(np.stack(frames))
-            elif col in self.layout.arrays:
-                out[col] = torch.from_numpy(column_to_numpy(arr, self.layout.arrays[col]).astype(np.float32))
-            elif col in _SCALARS:
-                out[col] = torch.from_numpy(arr.to_numpy(zero_copy_only=False).astype(_SCALARS[col]))
-            elif col in _STRINGS:
-                out[col] = arr.to_pylist()
-            elif col == "skill_success":
-                out[col] = torch.from_numpy(column_to_numpy(arr, (CHAIN_SLOTS,)).astype(bool))
-            elif col in self.layout.pose_columns:
-                out[col] = torch.from_numpy(column_to_numpy(arr, (POSE_DIM,)).astype(np.float32))
-            else:
-                raise KeyError(f"unknown column {col!r}")
-        return out
 
 
 def _check_columns(shards: _Shards, columns: Sequence[str] | None, default: Sequence[str]) -> list[str]:
@@ -354,6 +298,9 @@ class SequenceDataset:
         self.shards = _Shards(Path(root), split)
         default_obs = [STATE] + list(self.shards.layout.images) + list(self.shards.layout.arrays)
         self.observations = _check_columns(self.shards, observations, default_obs)
+        # every step of the split, in shard order: windows are gathered from it
+        self._steps = StepDataset(root, split, columns=list(dict.fromkeys(self.observations + [ACTION, "episode_index", "frame_index", "index"])))
+        self._offset = np.concatenate([[0], np.cumsum([len(c["episode_index"]) for c in self.shards.index_columns()])])
         self._shard, self._row, self._first, self._last = [], [], [], []
         for i, cols in enumerate(self.shards.index_columns()):
             ep = cols["episode_index"]
@@ -387,13 +334,11 @@ class SequenceDataset:
         act_rows = np.arange(t, t + self.action_chunk)
         obs_pad = obs_rows < first
         act_pad = act_rows > last
-        obs_rows, act_rows = obs_rows.clip(first, last), act_rows.clip(first, last)
-        lo, hi = int(obs_rows.min()), int(act_rows.max())
-        span = self.shards.rows(shard, np.arange(lo, hi + 1), self.observations + [ACTION, "episode_index", "frame_index", "index"])
-        item = self.shards.decode(span.take(pa.array(obs_rows - lo)), self.observations)
-        item[ACTION] = self.shards.decode(span.take(pa.array(act_rows - lo)), [ACTION])[ACTION]
-        now = self.shards.decode(span.take(pa.array([t - lo])), ["episode_index", "frame_index", "index"])
-        item.update({k: v[0] for k, v in now.items()})
+        base = int(self._offset[shard])
+        obs = self._steps.take(base + obs_rows.clip(first, last))  # its last row is step t
+        item = {c: obs[c] for c in self.observations}
+        item[ACTION] = self._steps.take(base + act_rows.clip(first, last))[ACTION]
+        item.update({k: obs[k][-1] for k in ("episode_index", "frame_index", "index")})
         item["observation_is_pad"] = torch.from_numpy(obs_pad)
         item["action_is_pad"] = torch.from_numpy(act_pad)
         return item
