@@ -63,40 +63,38 @@ class ExportError(ValueError):
     """Bad input for an export (not a complete dataset, output exists): exit 2, nothing written."""
 
 
+def _names(layout: StepLayout) -> dict[str, list[str]]:
+    """Element names of the vector features (LeRobot's `names`)."""
+    names: dict[str, list[str]] = {ACTION: list(ACTION_NAMES), STATE: list(STATE_NAMES)}
+    names.update({col: [f"T{r}{c}" for r in range(4) for c in range(4)] for col in CAMERA_POSES.values()})
+    names["skill_success"] = [f"chain_{k}" for k in range(CHAIN_SLOTS)]
+    names.update({col: ["frequency", "time", "ear"] for col in layout.arrays})
+    return names
+
+
 def lerobot_features(layout: StepLayout) -> dict[str, dict[str, Any]]:
-    """meta/info.json `features`: every step column with dtype, shape and names, in row order."""
-    scalar = lambda dtype: {"dtype": dtype, "shape": [1], "names": None}  # noqa: E731
+    """meta/info.json `features`: every step column with dtype, shape and names, in row order,
+    derived from the step schema's Hugging Face features (so new columns export too)."""
+    names = _names(layout)
     feats: dict[str, dict[str, Any]] = {}
-    for f in layout.schema():
-        col = f.name
-        if col in ("episode_index", "frame_index", "index", "task_index", "skill_index", "audio_offset", "audio_sample_rate"):
-            feats[col] = scalar("int64")
-        elif col == "timestamp":
-            feats[col] = scalar("float32")
-        elif col in ("setting", "skill", "audio_path"):
-            feats[col] = scalar("string")
-        elif col == "done":
-            feats[col] = scalar("bool")
-        elif col == ACTION:
-            feats[col] = {"dtype": "float32", "shape": [len(ACTION_NAMES)], "names": list(ACTION_NAMES)}
-        elif col == STATE:
-            feats[col] = {"dtype": "float32", "shape": [len(STATE_NAMES)], "names": list(STATE_NAMES)}
-        elif col in layout.images:
-            kind, h, w = layout.images[col]
+    for col, f in layout.hf_features().items():
+        kind = f["_type"]
+        if kind == "Value":
+            feats[col] = {"dtype": f["dtype"], "shape": [1], "names": None}
+        elif kind == "List" and "length" in f:
+            feats[col] = {"dtype": f["feature"]["dtype"], "shape": [f["length"]], "names": names.get(col)}
+        elif kind == "Array3D":
+            feats[col] = {"dtype": f["dtype"], "shape": list(f["shape"]), "names": names.get(col)}
+        elif kind == "Image":
+            img_kind, h, w = layout.images[col]
             feats[col] = {
                 "dtype": "image",
-                "shape": [h, w, 3 if kind == "rgb" else 1],
+                "shape": [h, w, 3 if img_kind == "rgb" else 1],
                 "names": ["height", "width", "channels"],
-                "info": {"format": "PNG", "unit": "8-bit RGB" if kind == "rgb" else "16-bit depth, millimetres along the optical axis, 0 = nothing hit"},
+                "info": {"format": "PNG", "unit": "8-bit RGB" if img_kind == "rgb" else "16-bit depth, millimetres along the optical axis, 0 = nothing hit"},
             }
-        elif col in layout.arrays:
-            feats[col] = {"dtype": "float32", "shape": list(layout.arrays[col]), "names": ["frequency", "time", "ear"]}
-        elif col in CAMERA_POSES.values():
-            feats[col] = {"dtype": "float32", "shape": [16], "names": [f"T{r}{c}" for r in range(4) for c in range(4)]}
-        elif col == "skill_success":
-            feats[col] = {"dtype": "bool", "shape": [CHAIN_SLOTS], "names": [f"chain_{k}" for k in range(CHAIN_SLOTS)]}
-        else:  # a new echo-data column must be described here before it can be exported
-            raise ExportError(f"no LeRobot feature for column {col!r}")
+        else:  # LeRobot features have fixed shapes
+            raise ExportError(f"column {col!r} ({kind} without a fixed length) has no LeRobot feature")
     return feats
 
 
