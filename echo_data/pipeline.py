@@ -81,6 +81,7 @@ class _Recorder:
             ear_yaw=yaw,
             sounding=tuple(env.sounding),  # type: ignore[attr-defined]
             skill_success=flags,
+            camera_poses=env.world.robot.camera_poses(),  # type: ignore[attr-defined]
         ))
         if SPECTROGRAM in obs:
             self.spectrogram.append(obs[SPECTROGRAM])

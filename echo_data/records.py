@@ -51,6 +51,8 @@ class StepRecord:
     sounding: tuple[bool, ...]  # per event: still playing at this step
     skill_success: tuple[bool, ...] = field(default_factory=tuple)  # per chain entry, so far
     done: bool = False
+    # camera name ("head", "wrist") -> 4x4 camera-to-world, OpenCV axes (echo_data.camera)
+    camera_poses: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 @dataclass

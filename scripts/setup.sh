@@ -5,3 +5,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then bash scripts/setup_system.sh; fi
 python3 -m pip install -q --disable-pip-version-check -e '.[test]'
+# LeRobot's dataset library in its own environment (its pins clash with ours); used by tests.
+bash scripts/setup_lerobot.sh

@@ -48,6 +48,15 @@ def _plan(seed: int) -> FloorPlan:
     return FloorPlan(seed, (room,), (), (), (), (table, counter), (), (phone,))
 
 
+def _pose(rng: np.random.Generator) -> np.ndarray:
+    """A random rigid camera-to-world transform."""
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    t = np.eye(4)
+    t[:3, :3] = q * np.sign(np.linalg.det(q))
+    t[:3, 3] = rng.uniform(-3, 3, 3)
+    return t
+
+
 def synth_generate(
     recipe: Recipe, split: str, index: int, library: object, recipe_dir: Path, attempt: int = 0, delay: float = 0.0
 ) -> EpisodeResult:
@@ -90,6 +99,7 @@ def synth_generate(
                 sounding=(t < n - 1,),
                 skill_success=tuple(j < k for j in range(len(chain))),
                 done=t == n - 1,
+                camera_poses={"head": _pose(rng), "wrist": _pose(rng)},
             )
         )
     samples = (n + 1) * sr // hz
@@ -120,3 +130,11 @@ def test_synthetic_episode_is_deterministic_and_well_shaped() -> None:
     assert a.spectrogram.shape[1:] == (65, 26, 2) and a.mel.shape[1:] == (64, 101, 2)
     assert np.array_equal(a.audio, b.audio) and np.array_equal(a.steps[-1].head_rgb, b.steps[-1].head_rgb)
     assert not synth_generate(r, "train", 1, None, Path("."), attempt=0).success
+
+
+def build_synth(out: Path, splits: dict[str, int]) -> Path:
+    """A built synthetic dataset at `out` (for loader, card, export and view tests)."""
+    from echo_data.dataset.build import build
+
+    build(synth_recipe(splits=splits), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
+    return out

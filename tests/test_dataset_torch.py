@@ -10,16 +10,13 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from echo_data.dataset.build import build  # noqa: E402
 from echo_data.dataset.torch import SequenceDataset, StepDataset  # noqa: E402
-from test_dataset_synth import null_library, synth_generate, synth_recipe  # noqa: E402
+from test_dataset_synth import build_synth, synth_generate, synth_recipe  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("torch") / "synth"
-    build(synth_recipe(splits={"train": 4, "test": 1}), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
-    return out
+    return build_synth(tmp_path_factory.mktemp("torch") / "synth", {"train": 4, "test": 1})
 
 
 def _all_rows(ds: Path, split: str) -> dict:
@@ -83,3 +80,78 @@ def test_sequence_windows_pad_at_episode_edges(ds: Path) -> None:
     loader = torch.utils.data.DataLoader(s, batch_size=3, num_workers=2)
     batch = next(iter(loader))
     assert batch["observation.images.head_rgb"].shape == (3, 3, 3, 16, 24) and batch["action_is_pad"].shape == (3, 4)
+
+
+def test_take_equals_collated_items(ds: Path) -> None:
+    d = StepDataset(ds, "train")
+    idx = [7, 0, 15, 3, 7]  # across shards, out of order, repeated
+    got = d.take(idx)
+    want = torch.utils.data.default_collate([d[i] for i in idx])
+    assert set(got) == set(want)
+    for k, v in want.items():
+        if isinstance(v, torch.Tensor):
+            assert got[k].dtype == v.dtype and torch.equal(got[k], v), k
+        else:
+            assert got[k] == v, k
+
+
+def test_default_collate_batches_every_column(ds: Path) -> None:
+    d = StepDataset(ds, "train")
+    assert set(d.columns) == {f.name for f in pq.read_schema(next((ds / "data").glob("train-*.parquet")))}
+    batch = next(iter(torch.utils.data.DataLoader(d, batch_size=3)))  # torch's default collate
+    assert batch["skill_success"].shape == (3, 5) and batch["skill_success"].dtype == torch.bool
+    assert batch["camera_pose.head"].shape == (3, 16) and batch["audio_sample_rate"].tolist() == [16000] * 3
+    assert batch["audio_path"][0] == "audio/train/train-000000.wav"
+
+
+def test_binaural_window_is_what_the_step_heard(ds: Path) -> None:
+    import soundfile as sf
+
+    from echo_data.acoustics.features import last_second
+    from echo_data.dataset.audio import binaural_window
+
+    d = StepDataset(ds, "train", columns=["audio_path", "audio_sample_rate", "audio_offset", "observation.audio.spectrogram"])
+    row = d[3]
+    track, sr = sf.read(ds / row["audio_path"], dtype="float32", always_2d=True)
+    np.testing.assert_array_equal(binaural_window(ds, row, 1.0), last_second(track, int(row["audio_offset"]), sr))
+    np.testing.assert_array_equal(binaural_window(ds, row, 0.25), last_second(track, int(row["audio_offset"]), sr)[-sr // 4 :])
+    long = binaural_window(ds, row, 30.0)  # longer than the episode: zeros before its start
+    assert long.shape == (30 * sr, 2) and not long[: 30 * sr - int(row["audio_offset"])].any()
+    arrow_row = pq.read_table(sorted((ds / "data").glob("train-*.parquet"))[0]).slice(0, 1).to_pylist()[0]
+    assert binaural_window(ds, arrow_row, 0.1).shape == (sr // 10, 2)
+
+
+def test_shuffled_epochs_cover_every_step_once_per_epoch(ds: Path) -> None:
+    d = StepDataset(ds, "train", columns=["index", "action"])
+    s = d.shuffled(seed=3, buffer_groups=1)  # one row group per shard here: windows of one group
+    loader = torch.utils.data.DataLoader(s, batch_size=4, num_workers=2, persistent_workers=True)
+    epochs = [torch.cat([b["index"] for b in loader]).tolist() for _ in range(2)]
+    assert sorted(epochs[0]) == sorted(epochs[1]) == list(range(len(d)))
+    assert epochs[0] != list(range(len(d))) and epochs[0] != epochs[1]
+    one = [int(x["index"]) for x in d.shuffled(seed=3)]
+    assert sorted(one) == list(range(len(d)))
+    batched = torch.utils.data.DataLoader(d.shuffled(seed=3, batch_size=5), batch_size=None, num_workers=2)
+    assert sorted(torch.cat([b["index"] for b in batched]).tolist()) == list(range(len(d)))
+    with pytest.raises(ValueError, match="buffer_groups"):
+        d.shuffled(buffer_groups=99)
+
+
+def test_normalize_uses_meta_stats(ds: Path) -> None:
+    import json
+
+    from echo_data.dataset.torch import Normalize
+
+    stats = json.loads((ds / "meta" / "stats.json").read_text())
+    d = StepDataset(ds, "train")
+    batch = next(iter(torch.utils.data.DataLoader(d, batch_size=len(d))))
+    norm = Normalize(ds)
+    out = norm(batch)
+    a = out["action"].numpy()
+    np.testing.assert_allclose(a.mean(axis=0), 0, atol=1e-5)  # train stats over the train rows
+    np.testing.assert_allclose(a.std(axis=0), 1, atol=1e-4)
+    rgb = out["observation.images.head_rgb"]
+    want = (batch["observation.images.head_rgb"][:, 1] - stats["observation.images.head_rgb"]["mean"][1]) / stats["observation.images.head_rgb"]["std"][1]
+    np.testing.assert_allclose(rgb[:, 1].numpy(), want.numpy(), rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(norm.inverse("action", out["action"]).numpy(), batch["action"].numpy(), rtol=1e-5, atol=1e-5)
+    mm = Normalize(ds, mode="min_max", columns=["observation.state"])(batch)["observation.state"].numpy()
+    assert mm.min() >= -1 - 1e-5 and mm.max() <= 1 + 1e-5 and set(Normalize(ds, columns=["action"]).params) == {"action"}

@@ -358,6 +358,7 @@ class _Writer:
     # -- the end
     def finalize(self) -> None:
         """meta/episodes.parquet, meta/stats.json, meta/info.json, planner export, manifest complete."""
+        from echo_data.dataset.card import write_card
         from echo_data.dataset.planner import write_planner_export
 
         metas = [read_shard_meta(self.out / e["file"]) for e in self.manifest["shards"]]
@@ -369,6 +370,7 @@ class _Writer:
         atomic_write_json(self.out / "meta" / "info.json", self.info_json())
         if self.recipe.outputs.planner_export:
             write_planner_export(self.out, self.recipe, rows)
+        write_card(self.out)
         self.manifest["complete"] = True
         write_manifest(self.out, self.manifest)
         shutil.rmtree(self.out / WORK, ignore_errors=True)
@@ -398,7 +400,24 @@ class _Writer:
             "stats_split": "train" if "train" in self.plans else "all",
             "names": {"action": list(ACTION_NAMES), "observation.state": list(STATE_NAMES)},
             "features": self.layout.hf_features(),
+            "cameras": camera_infos(self.recipe, self.layout),
         }
+
+
+def camera_infos(recipe: Recipe, layout: StepLayout) -> dict[str, Any]:
+    """Intrinsics and depth units of each stored camera, and where its pose and images are."""
+    from echo_data.camera import camera_info
+    from echo_data.dataset.schema import CAMERA_POSES, IMAGE_COLUMNS
+
+    cfg = {"head": recipe.robot.head_camera, "wrist": recipe.robot.wrist_camera}
+    return {
+        cam: {
+            **camera_info(cfg[cam]),
+            "pose_column": CAMERA_POSES[cam],
+            "image_columns": [col for key, col in IMAGE_COLUMNS.items() if key.startswith(cam) and col in layout.images],
+        }
+        for cam in layout.cameras
+    }
 
 
 def _write_parquet_atomic(path: Path, table: pa.Table) -> None:

@@ -67,7 +67,8 @@ def info_cmd(
     path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
-    """Episodes, steps, settings, skills, rejections and size of a dataset."""
+    """Episodes, steps, settings, skills, rejections and size of a dataset (refreshes its README.md card)."""
+    from echo_data.dataset.card import write_card
     from echo_data.dataset.info import format_info, info
     from echo_data.dataset.manifest import ManifestError
 
@@ -75,11 +76,57 @@ def info_cmd(
         d = info(path)
     except ManifestError as e:
         raise _fail(str(e), 2) from None
+    if d["complete"]:
+        try:
+            write_card(path)
+        except OSError as e:  # a read-only copy still gets its summary
+            typer.echo(f"warning: {path}/README.md not refreshed ({e.strerror or e})", err=True)
     typer.echo(json.dumps(d, indent=1, sort_keys=True) if as_json else format_info(d))
 
 
+def export_cmd(
+    path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder of the exported dataset.")],
+    fmt: Annotated[str, typer.Option("--format", help="Target format: lerobot (LeRobot codebase v3.0).")] = "lerobot",
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing export.")] = False,
+) -> None:
+    """Write the dataset in another library's format (LeRobot v3.0), next to the original."""
+    from echo_data.dataset.lerobot import ExportError, export_lerobot
+
+    if fmt != "lerobot":
+        raise _fail(f"--format {fmt}: unknown format (use lerobot)", 2)
+    try:
+        info = export_lerobot(path, out, overwrite=overwrite)
+    except ExportError as e:
+        raise _fail(str(e), 2) from None
+    typer.echo(f"{out}: LeRobot {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
+
+
+def view_cmd(
+    path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
+    episode: Annotated[int, typer.Option("--episode", "-e", help="Episode index within the split.")] = 0,
+    split: Annotated[str, typer.Option("--split", help="Split of the episode.")] = "train",
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="MP4 to write (default: <split>-<episode>.mp4 here).")] = None,
+) -> None:
+    """Write an MP4 of one episode: head RGB, depth, top-down map, scrolling binaural spectrogram,
+    the active skill as a caption, and the episode's binaural sound."""
+    from echo_data.dataset.manifest import ManifestError
+    from echo_data.view import ViewError, render_episode_video
+
+    target = out if out is not None else Path(f"{split}-{episode:06d}.mp4")
+    if target.exists() and target.is_dir():
+        raise _fail(f"--out {target}: is a folder", 2)
+    try:
+        summary = render_episode_video(path, episode, target, split=split)
+    except (ManifestError, ViewError) as e:
+        raise _fail(str(e), 2) from None
+    typer.echo(f"wrote {summary['path']}: {summary['frames']} frames, {summary['seconds']:.1f} s with binaural sound")
+
+
 def register(app: typer.Typer) -> None:
-    """Add `build`, `validate` and `info` to an app."""
+    """Add `build`, `validate`, `info` and `export` to an app."""
     app.command("build")(build_cmd)
     app.command("validate")(validate_cmd)
     app.command("info")(info_cmd)
+    app.command("export")(export_cmd)
+    app.command("view")(view_cmd)

@@ -169,5 +169,8 @@ def load_manifest(out: Path) -> dict[str, Any]:
     except (OSError, json.JSONDecodeError) as e:
         raise ManifestError(f"{path}: unreadable manifest ({e.__class__.__name__}: {e})") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT_VERSION:
+        fmt = data.get("format") if isinstance(data, dict) else None
+        if isinstance(fmt, str) and fmt.startswith("echo-data/"):
+            raise ManifestError(f"{path}: dataset format {fmt}; this echo-data reads {FORMAT_VERSION} (rebuild with --overwrite)")
         raise ManifestError(f"{path}: not an {FORMAT_VERSION} manifest")
     return data

@@ -19,7 +19,9 @@ import pyarrow as pa
 from echo_data.recipe import SETTINGS, Recipe
 from echo_data.records import ACTION_DIM, STATE_DIM
 
-FORMAT_VERSION = "echo-data/1"
+# echo-data/2: fixed-length `skill_success`, per-step `audio_path` / `audio_sample_rate`, per-step
+# camera poses (`camera_pose.head` / `camera_pose.wrist`).
+FORMAT_VERSION = "echo-data/2"
 # Rows per Parquet row group: fixed so shard bytes never depend on how a build ran; small
 # enough that random access from a DataLoader decodes little more than it needs.
 ROW_GROUP_ROWS = 64
@@ -38,6 +40,14 @@ SPECTROGRAM = "observation.audio.spectrogram"
 MEL = "observation.audio.mel"
 ACTION = "action"
 STATE = "observation.state"
+# Per-step world pose of each camera: row-major 4x4 camera-to-world matrix, OpenCV axes
+# (x right, y down, z forward = the depth axis), flattened to 16 float32.
+CAMERA_POSES = {"head": "camera_pose.head", "wrist": "camera_pose.wrist"}
+POSE_DIM = 16
+# Chain slots of `skill_success`: the sampler chains at most one relocation event (Navigate,
+# Pick, Place) and one state event (Navigate, OpenDoor|CloseSink). Fixed so the default
+# PyTorch collate stacks the column; unused slots are False.
+CHAIN_SLOTS = 5
 IMAGE_TYPE = pa.struct([("bytes", pa.binary()), ("path", pa.string())])
 _HF_ARRAY3D_NAME = "datasets.features.features.Array3DExtensionType"
 
@@ -73,6 +83,7 @@ class StepLayout:
     images: dict[str, tuple[str, int, int]] = field(default_factory=dict)  # column -> (kind, H, W)
     spectrogram_shape: tuple[int, int, int] | None = None
     mel_shape: tuple[int, int, int] | None = None
+    cameras: tuple[str, ...] = ()  # cameras whose pose is stored ("head", "wrist")
 
     @staticmethod
     def from_recipe(recipe: Recipe) -> "StepLayout":
@@ -90,7 +101,13 @@ class StepLayout:
         frames = 1 + sr // 160
         spec = (math.ceil(257 / 4), math.ceil(frames / 4), 2) if "spectrogram" in obs else None
         mel = (recipe.acoustics.mel_bands, frames, 2) if "mel" in obs else None
-        return StepLayout(recipe.robot.control_hz, sr, images, spec, mel)
+        cams = tuple(c for c, col in (("head", "head_rgb"), ("head", "head_depth"), ("wrist", "wrist_depth")) if IMAGE_COLUMNS[col] in images)
+        return StepLayout(recipe.robot.control_hz, sr, images, spec, mel, tuple(dict.fromkeys(cams)))
+
+    @property
+    def pose_columns(self) -> list[str]:
+        """Camera pose columns (one per stored camera)."""
+        return [CAMERA_POSES[c] for c in self.cameras]
 
     @property
     def arrays(self) -> dict[str, tuple[int, int, int]]:
@@ -121,9 +138,13 @@ class StepLayout:
             feats[col] = {"_type": "Image"}
         for col, shape in self.arrays.items():
             feats[col] = {"shape": list(shape), "dtype": "float32", "_type": "Array3D"}
+        for col in self.pose_columns:
+            feats[col] = {"feature": v("float32"), "length": POSE_DIM, "_type": "List"}
+        feats["audio_path"] = v("string")
+        feats["audio_sample_rate"] = v("int64")
         feats["audio_offset"] = v("int64")
         feats["done"] = v("bool")
-        feats["skill_success"] = {"feature": v("bool"), "_type": "List"}
+        feats["skill_success"] = {"feature": v("bool"), "length": CHAIN_SLOTS, "_type": "List"}
         return feats
 
     def schema(self) -> pa.Schema:
@@ -142,10 +163,13 @@ class StepLayout:
         ]
         fields += [pa.field(col, IMAGE_TYPE) for col in self.images]
         fields += [pa.field(col, HfArray3D(shape)) for col, shape in self.arrays.items()]
+        fields += [pa.field(col, pa.list_(pa.float32(), POSE_DIM)) for col in self.pose_columns]
         fields += [
+            pa.field("audio_path", pa.string()),
+            pa.field("audio_sample_rate", pa.int64()),
             pa.field("audio_offset", pa.int64()),
             pa.field("done", pa.bool_()),
-            pa.field("skill_success", pa.list_(pa.bool_())),
+            pa.field("skill_success", pa.list_(pa.bool_(), CHAIN_SLOTS)),
         ]
         meta = {"huggingface": json.dumps({"info": {"features": self.hf_features()}}, sort_keys=False)}
         return pa.schema(fields, metadata=meta)
@@ -164,6 +188,7 @@ class StepLayout:
             images={k: (v[0], int(v[1]), int(v[2])) for k, v in d["images"].items()},
             spectrogram_shape=tuple(d["spectrogram_shape"]) if d.get("spectrogram_shape") else None,  # type: ignore[arg-type]
             mel_shape=tuple(d["mel_shape"]) if d.get("mel_shape") else None,  # type: ignore[arg-type]
+            cameras=tuple(d.get("cameras", ())),
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -173,12 +198,18 @@ class StepLayout:
             "images": {k: list(v) for k, v in self.images.items()},
             "spectrogram_shape": list(self.spectrogram_shape) if self.spectrogram_shape else None,
             "mel_shape": list(self.mel_shape) if self.mel_shape else None,
+            "cameras": list(self.cameras),
         }
 
 
 def task_index(setting: str) -> int:
     """Stable integer id of a setting (LeRobot's `task_index`)."""
     return SETTINGS.index(setting)
+
+
+def audio_relpath(split: str, episode_id: str) -> str:
+    """Where an episode's binaural WAV lives, relative to the dataset root."""
+    return f"audio/{split}/{episode_id}.wav"
 
 
 def shard_name(split: str, i: int, n: int) -> str:

@@ -24,7 +24,10 @@ import pyarrow.parquet as pq
 from echo_data.dataset import stats as stats_mod
 from echo_data.dataset.schema import (
     ACTION,
+    CAMERA_POSES,
+    CHAIN_SLOTS,
     IMAGE_TYPE,
+    POSE_DIM,
     MEL,
     PARQUET_COMPRESSION,
     PARQUET_COMPRESSION_LEVEL,
@@ -34,6 +37,7 @@ from echo_data.dataset.schema import (
     STATE,
     StepLayout,
     array3d_column,
+    audio_relpath,
     task_index,
 )
 from echo_data.records import ACTION_DIM, STATE_DIM, EpisodeResult
@@ -247,6 +251,8 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
         raise ValueError(f"{spec.episode_id}: action/state shapes {action.shape}/{state.shape}")
 
     chain_len = len(spec.chain)
+    if chain_len > CHAIN_SLOTS:
+        raise ValueError(f"{spec.episode_id}: chain of {chain_len} skills exceeds the {CHAIN_SLOTS} skill_success slots")
     cols: dict[str, pa.Array] = {
         "episode_index": pa.array(np.full(n, spec.index, dtype=np.int64)),
         "frame_index": pa.array(np.array([s.frame_index for s in steps], dtype=np.int64)),
@@ -282,12 +288,18 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
         array_stacks[col] = stack
         cols[col] = array3d_column(stack)
 
+    for cam in layout.cameras:
+        if any(cam not in s.camera_poses for s in steps):
+            raise ValueError(f"{spec.episode_id}: a step has no {cam} camera pose but the recipe stores the camera")
+        poses = np.stack([np.asarray(s.camera_poses[cam], dtype=np.float32).reshape(POSE_DIM) for s in steps])
+        cols[CAMERA_POSES[cam]] = pa.FixedSizeListArray.from_arrays(pa.array(poses.reshape(-1)), POSE_DIM)
+    audio_path = audio_relpath(spec.split, spec.episode_id)
+    cols["audio_path"] = pa.array([audio_path] * n, pa.string())
+    cols["audio_sample_rate"] = pa.array(np.full(n, layout.sample_rate, dtype=np.int64))
     cols["audio_offset"] = pa.array(offsets)
     cols["done"] = pa.array(np.array([bool(s.done) for s in steps]))
-    cols["skill_success"] = pa.array(
-        [[bool(v) for v in (tuple(s.skill_success) + (False,) * chain_len)[:chain_len]] for s in steps],
-        pa.list_(pa.bool_()),
-    )
+    flags = [bool(v) for s in steps for v in (tuple(s.skill_success)[:chain_len] + (False,) * CHAIN_SLOTS)[:CHAIN_SLOTS]]
+    cols["skill_success"] = pa.FixedSizeListArray.from_arrays(pa.array(flags, pa.bool_()), CHAIN_SLOTS)
     schema = layout.episode_schema()
     table = pa.Table.from_arrays([cols[f.name] for f in schema], schema=schema)
     sink = io.BytesIO()
@@ -304,7 +316,7 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
             ],
             "success": bool(result.success),
             "n_steps": n,
-            "audio_path": f"audio/{spec.split}/{spec.episode_id}.wav",
+            "audio_path": audio_path,
             "audio_samples": int(len(audio)),
             "audio_sha256": hashlib.sha256(wav).hexdigest(),
         }
@@ -390,7 +402,7 @@ def write_shard(
         # Dictionaries only where values repeat: on float features they made real shards 1/3
         # larger and slower to read; byte-stream split shaves a little more off the floats.
         use_byte_stream_split=floats,
-        use_dictionary=["setting", "skill", "task_index", "skill_index", "episode_index"],
+        use_dictionary=["setting", "skill", "task_index", "skill_index", "episode_index", "audio_path", "audio_sample_rate"],
         write_statistics=True,
         store_schema=True,
     ) as w:

@@ -143,6 +143,17 @@ class Robot:
         comp.local_pose = sapien.Pose()
         self.cameras[name] = (comp, cam)
 
+    def camera_poses(self) -> dict[str, np.ndarray]:
+        """World pose of each configured camera: 4x4 camera-to-world in OpenCV axes (x right,
+        y down, z forward), from its link (cameras sit at their link origin; no render needed)."""
+        from echo_data.camera import cv_pose
+
+        out: dict[str, np.ndarray] = {}
+        for name, link, cam in (("head", U.HEAD_CAMERA_LINK, self.cfg.head_camera), ("wrist", U.WRIST_CAMERA_LINK, self.cfg.wrist_camera)):
+            if cam.rgb or cam.depth:
+                out[name] = cv_pose(self.links[link].entity_pose.to_transformation_matrix())
+        return out
+
     def observe(self) -> dict[str, np.ndarray]:
         """Images of the enabled cameras: `head_rgb` uint8 (H,W,3), `head_depth`, `wrist_depth` uint16 mm.
 

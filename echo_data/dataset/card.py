@@ -1,0 +1,192 @@
+"""The dataset card: README.md in every dataset folder, for people and for the Hugging Face Hub.
+
+The YAML front matter is what the Hub reads (configs with split file patterns, task categories,
+licence, size category, per-split example counts); the body says what the data is, how it was
+made and how to load it. Everything is derived from manifest.json, meta/info.json and
+meta/episodes.parquet, so `build` writes it and `info` rewrites it without a recipe.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pyarrow.parquet as pq
+import yaml
+
+from echo_data.dataset.manifest import load_manifest
+from echo_data.dataset.schema import StepLayout
+from echo_data.dataset.writer import atomic_write_bytes
+from echo_data.episode import SPLIT_KEYS
+
+CARD = "README.md"
+# The licence of the generated data (the project's own; built-in sounds are synthesised by
+# echo_data.sounds.synth, user sound folders keep their own terms: see the card's Sounds).
+LICENSE = "mit"
+_SIZE_BOUNDS = [(1_000, "n<1K"), (10_000, "1K<n<10K"), (100_000, "10K<n<100K"), (1_000_000, "100K<n<1M"), (10_000_000, "1M<n<10M")]
+
+# What each step column holds (units), for the features table.
+COLUMN_NOTES = {
+    "episode_index": "episode number within its split",
+    "frame_index": "step number within the episode",
+    "index": "row number within the split",
+    "timestamp": "seconds since the episode's first step (frame_index / fps)",
+    "task_index": "setting id (0 object_relocation, 1 state_transition, 2 multi_event)",
+    "setting": "object_relocation, state_transition or multi_event",
+    "skill": "the active skill (Navigate, Pick, Place, OpenDoor, CloseSink)",
+    "skill_index": "position of the active skill in the episode's chain",
+    "action": "base vx, vy (m/s, robot frame), wz (rad/s), torso (m), 7 arm joint targets (rad), gripper opening (m)",
+    "observation.state": "base x, y, yaw (world), torso, 7 arm joints, gripper, their velocities, holding (0/1)",
+    "observation.images.head_rgb": "head camera colour, PNG",
+    "observation.images.head_depth": "head camera depth along the optical axis, 16-bit PNG, millimetres (0 = nothing hit)",
+    "observation.images.wrist_depth": "wrist camera depth, 16-bit PNG, millimetres",
+    "observation.audio.spectrogram": "SoundSpaces-style log1p magnitude STFT of the last 1 s, per ear (0 = left)",
+    "observation.audio.mel": "log-mel spectrogram of the last 1 s, per ear",
+    "camera_pose.head": "head camera-to-world 4x4 (row-major, OpenCV axes: x right, y down, z forward)",
+    "camera_pose.wrist": "wrist camera-to-world 4x4 (row-major, OpenCV axes)",
+    "audio_path": "the episode's binaural WAV, relative to the dataset folder",
+    "audio_sample_rate": "sample rate of that WAV (Hz)",
+    "audio_offset": "sample of the WAV at which this step's observation was taken",
+    "done": "last step of the episode",
+    "skill_success": "per chain slot (5): skill finished successfully so far (unused slots False)",
+}
+
+
+def size_category(n: int) -> str:
+    """Hugging Face's size category for n examples."""
+    return next((name for bound, name in _SIZE_BOUNDS if n < bound), "10M<n<100M")
+
+
+def _shape(feature: dict[str, Any]) -> str:
+    t = feature.get("_type")
+    if t == "Value":
+        return f"{feature['dtype']}"
+    if t == "List":
+        return f"{feature['feature']['dtype']}[{feature.get('length', '?')}]"
+    if t == "Array3D":
+        return f"{feature['dtype']}{tuple(feature['shape'])}"
+    return t or "?"
+
+
+def card_text(out: Path) -> str:
+    """The card of the complete dataset at `out` (front matter + Markdown body)."""
+    m = load_manifest(out)
+    info = json.loads((out / "meta" / "info.json").read_text())
+    episodes = pq.read_table(out / "meta" / "episodes.parquet", columns=["split", "events"]).to_pylist()
+    counts = m["counts"]
+    splits = sorted(info["splits"], key=SPLIT_KEYS.__getitem__)
+    features = StepLayout.from_dict(m["layout"]).hf_features()  # in column order
+    steps = {s: counts["steps"].get(s, 0) for s in splits}
+    eps = {s: counts["episodes"].get(s, 0) for s in splits}
+    recipe = m["recipe"]
+    front = {
+        "license": LICENSE,
+        "task_categories": ["robotics"],
+        "tags": ["echo-data", "mobile-manipulation", "binaural-audio", "sound-triggered", "simulation", "sapien"],
+        "size_categories": [size_category(sum(steps.values()))],
+        "pretty_name": f"echo-data {m['name']}",
+        "configs": [{"config_name": "default", "data_files": [{"split": s, "path": f"data/{s}-*.parquet"} for s in splits]}],
+        "dataset_info": {"splits": [{"name": s, "num_examples": steps[s]} for s in splits]},
+    }
+    sounds: dict[str, set[str]] = {}
+    categories: dict[str, int] = {}
+    for row in episodes:
+        for e in row["events"]:
+            sounds.setdefault(row["split"], set()).add(e["sound_id"])
+            categories[e["category"]] = categories.get(e["category"], 0) + 1
+    rate = counts["episode_success_rate"]
+    path = f"out/{m['name']}"
+    lines = [
+        "---",
+        yaml.safe_dump(front, sort_keys=False).rstrip(),
+        "---",
+        "",
+        f"# echo-data {m['name']}",
+        "",
+        "Simulated episodes of a Fetch-like mobile manipulator in generated apartments that hears a sound "
+        "event (ringing phone, alarm clock, furby, doorbell, running sink) binaurally and resolves it with "
+        "scripted expert skills: physics and rendering by SAPIEN (CPU), room acoustics by image sources "
+        "with occlusion and a statistical tail, HRTF rendering. One row per control step.",
+        "",
+        "## Counts",
+        "",
+        "| split | episodes | steps |",
+        "| --- | --- | --- |",
+        *[f"| {s} | {eps[s]} | {steps[s]} |" for s in splits],
+        "",
+        f"Control rate {info['fps']} Hz; audio {info['audio_sample_rate']} Hz, 2 channels (0 = left). "
+        "Settings: " + "; ".join(f"{s}: " + ", ".join(f"{k} {v}" for k, v in c.items()) for s, c in counts["settings"].items()) + ".",
+        "",
+        "## Features",
+        "",
+        "| column | type | meaning |",
+        "| --- | --- | --- |",
+        *[f"| `{c}` | {_shape(f)} | {COLUMN_NOTES.get(c, '')} |" for c, f in features.items()],
+        "",
+        "## Cameras",
+        "",
+        "| camera | width x height | K (fx, fy, cx, cy) | depth unit | pose column |",
+        "| --- | --- | --- | --- | --- |",
+        *[
+            f"| {cam} | {c['width']} x {c['height']} | {c['K'][0][0]:.3f}, {c['K'][1][1]:.3f}, {c['K'][0][2]:g}, {c['K'][1][2]:g} "
+            f"| {c['depth_unit_m']} m | `{c['pose_column']}` |"
+            for cam, c in info.get("cameras", {}).items()
+        ],
+        "",
+        "Pixel (u, v) has its centre at (u + 0.5, v + 0.5); `echo_data.camera.depth_to_world(depth, K, pose)` "
+        "lifts a depth image into world points.",
+        "",
+        "## Sounds",
+        "",
+        ("Built-in sounds, synthesised by `echo_data.sounds.synth` (no recordings). " if recipe["sounds"]["builtin"] else "")
+        + ("User folders: " + ", ".join(f"{k}: {v}" for k, v in recipe["sounds"]["folders"].items()) + " (their own licences apply). " if recipe["sounds"]["folders"] else "")
+        + "Instances heard: " + ", ".join(f"{s} {len(v)}" for s, v in sorted(sounds.items()))
+        + "; test instances are never heard in train. Events: " + ", ".join(f"{k} {v}" for k, v in sorted(categories.items())) + ".",
+        "",
+        "## How it was made",
+        "",
+        f"`echo-data build` from recipe `{m['name']}` (content hash `{m['recipe_hash']}`, seed {m['seed']}"
+        + (f", --limit {m['limit']}" if m["limit"] is not None else "")
+        + f"); format {m['format']}. Seeds: {m['seed_rule']}. Versions: "
+        + ", ".join(f"{k} {v}" for k, v in m["versions"].items() if v)
+        + ". The resolved recipe is in manifest.json.",
+        "",
+        "## Success rates",
+        "",
+        f"Episode success {rate:.1%} of attempts ({counts['episode_attempts']} attempts; failed attempts are retried "
+        "with the next seed and not stored)." if rate is not None else "No attempts yet.",
+        "",
+        *[f"- {k}: {v['successes']}/{v['attempts']}" for k, v in m["skills"].items()],
+        "",
+        "## Known limits",
+        "",
+        "- Simulation: CPU rendering at low resolution, primitive furniture and objects, scripted experts (no human demonstrations).",
+        "- Acoustics: no diffraction beyond doorway frames, doors leak sound with a fixed loss, a statistical late tail.",
+        "- Stored episodes are the successful attempts only; failures are listed in manifest.json.",
+        "",
+        "## Loading",
+        "",
+        f"With the dataset where `echo-data build` puts it by default, `{path}` (the card never depends",
+        "on where a copy was written, so copies stay byte-identical):",
+        "",
+        "```python",
+        "import datasets",
+        f'ds = datasets.load_dataset("{path}", split="train")',
+        "from echo_data.dataset.torch import StepDataset",
+        f'steps = StepDataset("{path}", split="train")',
+        "```",
+        "",
+        f"LeRobot (v3.0): `echo-data export {path} --format lerobot --out {path}-lerobot`, then "
+        f'`LeRobotDataset("echo-data/{m["name"]}", root="{path}-lerobot")`. '
+        f"LLaMA-Factory: `dataset_dir={path}/planner` (sharegpt with `<audio><image>`).",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_card(out: Path) -> Path:
+    """Write (or refresh) README.md of the complete dataset at `out`, atomically."""
+    path = Path(out) / CARD
+    atomic_write_bytes(path, card_text(Path(out)).encode())
+    return path

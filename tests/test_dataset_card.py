@@ -1,0 +1,51 @@
+"""The dataset card: README.md with Hugging Face front matter that matches the manifest."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from echo_data.cli import app
+from echo_data.dataset.manifest import load_manifest
+from test_dataset_synth import build_synth
+
+
+@pytest.fixture(scope="module")
+def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return build_synth(tmp_path_factory.mktemp("card") / "synth", {"train": 4, "test": 2})
+
+
+def _front(text: str) -> dict:
+    assert text.startswith("---\n")
+    return yaml.safe_load(text.split("---\n")[1])
+
+
+def test_card_front_matter_matches_the_manifest(ds: Path) -> None:
+    text = (ds / "README.md").read_text()
+    front = _front(text)
+    m = load_manifest(ds)
+    assert front["license"] == "mit" and front["task_categories"] == ["robotics"] and front["size_categories"] == ["n<1K"]
+    files = {d["split"]: d["path"] for d in front["configs"][0]["data_files"]}
+    assert set(files) == {"train", "test"}
+    for split, pattern in files.items():
+        assert sorted(p.relative_to(ds).as_posix() for p in ds.glob(pattern)) == [e["file"] for e in m["shards"] if e["split"] == split]
+    assert {s["name"]: s["num_examples"] for s in front["dataset_info"]["splits"]} == m["counts"]["steps"]
+    for split, n in m["counts"]["episodes"].items():
+        assert f"| {split} | {n} | {m['counts']['steps'][split]} |" in text
+    assert m["recipe_hash"] in text and "`camera_pose.head`" in text and "| `skill_success` | bool[5] |" in text
+
+
+def test_hf_datasets_reads_the_card_configs(ds: Path) -> None:
+    datasets = pytest.importorskip("datasets")
+    d = datasets.load_dataset(str(ds))
+    m = load_manifest(ds)
+    assert {k: len(v) for k, v in d.items()} == m["counts"]["steps"]
+
+
+def test_info_refreshes_the_card(ds: Path) -> None:
+    (ds / "README.md").unlink()
+    assert CliRunner().invoke(app, ["info", str(ds)]).exit_code == 0
+    assert _front((ds / "README.md").read_text())["pretty_name"] == "echo-data synth"

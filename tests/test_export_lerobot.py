@@ -1,0 +1,113 @@
+"""`echo-data export --format lerobot`: LeRobot's own loader reads the export, frame for frame.
+
+The loading side runs in a separate virtual environment with the `lerobot-dataset` package
+(LeRobot's standalone dataset library, import `ledataset`), made by scripts/setup_lerobot.sh
+(CI runs it from scripts/setup.sh): its pins (datasets<4.2, huggingface-hub<0.36, numpy 2,
+pyarrow 26) clash with ours. That environment gets `torchvision.transforms.ToTensor` from
+tests/lerobot_shim (the registry's torchvision wheels are CUDA builds that do not import beside
+the CPU torch wheel); nothing else of torchvision is reached for image features.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+import yaml
+from PIL import Image
+from typer.testing import CliRunner
+
+from echo_data.cli import app
+from test_dataset_synth import build_synth
+
+HERE = Path(__file__).parent
+VENV_PYTHON = Path(os.environ.get("ECHO_LEROBOT_PYTHON", HERE.parent / ".venv-lerobot" / "bin" / "python"))
+
+
+@pytest.fixture(scope="module")
+def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return build_synth(tmp_path_factory.mktemp("lerobot") / "synth", {"train": 4, "test": 2})
+
+
+def _echo_rows(ds: Path) -> list[dict]:
+    """echo-data's own rows in LeRobot's episode order (train, then test)."""
+    rows = []
+    for split in ("train", "test"):
+        for f in sorted((ds / "data").glob(f"{split}-*.parquet")):
+            rows += [dict(r, split=split) for r in pq.read_table(f).to_pylist()]
+    return rows
+
+
+def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
+    out = tmp_path / "le"
+    r = CliRunner().invoke(app, ["export", str(ds), "--format", "lerobot", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    info = json.loads((out / "meta" / "info.json").read_text())
+    assert info["codebase_version"] == "v3.0" and info["splits"] == {"train": "0:4", "test": "4:6"}
+    assert (out / "data" / "chunk-000" / "file-000.parquet").is_file() and info["video_path"] is None
+    assert info["features"]["observation.images.head_depth"]["shape"] == [16, 24, 1]
+    assert info["echo_data"]["cameras"]["head"]["K"][0][2] == 12.0
+    eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
+    assert [e["episode_index"] for e in eps] == list(range(6))
+    assert eps[1]["dataset_from_index"] == eps[0]["dataset_to_index"] and eps[-1]["dataset_to_index"] == info["total_frames"]
+    assert all((out / e["audio_path"]).is_file() for e in eps)
+    card = (out / "README.md").read_text()
+    assert yaml.safe_load(card.split("---\n")[1])["configs"][0]["data_files"] == "data/*/*.parquet" and "## Features" in card
+    again = CliRunner().invoke(app, ["export", str(ds), "--out", str(out)])
+    assert again.exit_code == 2 and "already exists" in again.output
+    assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out), "--overwrite"]).exit_code == 0
+    bad = CliRunner().invoke(app, ["export", str(tmp_path / "nothing"), "--out", str(tmp_path / "x")])
+    assert bad.exit_code == 2 and "manifest.json" in bad.output and not (tmp_path / "x").exists()
+    assert CliRunner().invoke(app, ["export", str(ds), "--format", "rlds", "--out", str(tmp_path / "y")]).exit_code == 2
+
+
+def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    if not VENV_PYTHON.is_file():
+        if os.environ.get("CI"):
+            pytest.fail(f"{VENV_PYTHON} missing: scripts/setup_lerobot.sh makes it")
+        pytest.skip(f"no LeRobot environment at {VENV_PYTHON} (bash scripts/setup_lerobot.sh)")
+    out = tmp_path / "le"
+    monkeypatch.setattr("echo_data.dataset.lerobot.DATA_FILES_SIZE_IN_MB", 0.05)  # several data files
+    assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out)]).exit_code == 0
+    n_files = len(list((out / "data" / "chunk-000").glob("file-*.parquet")))
+    assert 1 < n_files <= 6
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    env.update(PYTHONPATH=str(HERE / "lerobot_shim"), HF_HUB_OFFLINE="1", HF_DATASETS_OFFLINE="1", HF_HOME=str(tmp_path / "hf"))
+    npz = tmp_path / "frames.npz"
+    p = subprocess.run([str(VENV_PYTHON), str(HERE / "lerobot_load.py"), str(out), str(npz)], capture_output=True, text=True, env=env, timeout=300)
+    assert p.returncode == 0, p.stderr[-3000:]
+    got = json.loads(p.stdout.strip().splitlines()[-1])
+    frames = np.load(npz)
+    rows = _echo_rows(ds)
+    assert got["len"] == len(rows) and got["num_episodes"] == 6 and got["video_keys"] == []
+    assert got["splits"] == {"train": "0:4", "test": "4:6"}
+    assert frames["index"].tolist() == list(range(len(rows)))
+    ids = [e["episode_id"] for e in got["episodes"]]
+    eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
+    assert sorted({e["data/file_index"] for e in eps}) == list(range(n_files))
+    assert ids == [f"train-{i:06d}" for i in range(4)] + [f"test-{i:06d}" for i in range(2)]
+    np.testing.assert_array_equal(frames["window.observation.state"][0], [rows[0]["observation.state"], rows[1]["observation.state"]])
+    np.testing.assert_array_equal(frames["window.action"][0], [rows[k]["action"] for k in (1, 2, 3)])
+    assert not frames["window.pad"][0].any()
+    for i, row in enumerate(rows):
+        ep = got["episodes"][int(frames["episode_index"][i])]
+        assert (ep["split"], ep["episode_id"]) == (row["split"], f"{row['split']}-{row['episode_index']:06d}")
+        assert int(frames["frame_index"][i]) == row["frame_index"] and int(frames["task_index"][i]) == row["task_index"]
+        assert frames["timestamp"][i] == np.float32(row["timestamp"])
+        for col in ("action", "observation.state", "camera_pose.head", "camera_pose.wrist"):
+            np.testing.assert_array_equal(frames[col][i], np.array(row[col], np.float32))
+        for col in ("observation.audio.spectrogram", "observation.audio.mel"):
+            np.testing.assert_array_equal(frames[col][i], np.array(row[col], np.float32))
+        assert frames["skill_success"][i].tolist() == row["skill_success"] and bool(frames["done"][i]) == row["done"]
+        assert int(frames["audio_offset"][i]) == row["audio_offset"] and got["strings"]["audio_path"][i] == row["audio_path"]
+        assert got["strings"]["skill"][i] == row["skill"] and got["strings"]["task"][i] == got["tasks"][row["task_index"]]
+        rgb = np.asarray(Image.open(io.BytesIO(row["observation.images.head_rgb"]["bytes"])))
+        np.testing.assert_allclose(frames["observation.images.head_rgb"][i], rgb.transpose(2, 0, 1) / 255.0, rtol=1e-6)
+        depth = np.asarray(Image.open(io.BytesIO(row["observation.images.head_depth"]["bytes"])))
+        np.testing.assert_array_equal(frames["observation.images.head_depth"][i][0], depth)  # millimetres
