@@ -10,6 +10,7 @@ verifies shards by sha256, reuses stored episodes and redoes the rest, producing
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import tempfile
@@ -23,10 +24,12 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset import stats as stats_mod
+from echo_data.dataset.lock import LOCK_NAME, BuildLock, BuildLockedError
 from echo_data.dataset.manifest import (
     MANIFEST,
     ManifestError,
     ShardPlan,
+    ShardPlans,
     load_manifest,
     new_manifest,
     plan_shards,
@@ -55,6 +58,10 @@ WORK = ".work"
 
 class OutputError(ValueError):
     """Bad input for a build (output path, mode, recipe mismatch): exit 2, nothing written."""
+
+
+class OutputWriteError(OutputError):
+    """The output cannot be written (disk full, read-only): exit 2; finished episodes are kept."""
 
 
 class BuildError(RuntimeError):
@@ -195,14 +202,17 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
 def check_output_path(out: Path) -> None:
     """Refuse an output that is a file or lies somewhere not writable (nothing is left behind)."""
     p = Path(out).absolute()
-    if p.exists() and not p.is_dir():
-        raise OutputError(f"{out}: exists and is not a directory")
-    anc = p
-    while not anc.exists():
-        anc = anc.parent
-    if not anc.is_dir():
-        raise OutputError(f"{out}: {anc} is a file, not a directory")
     try:
+        too_long = [part for part in p.parts if len(os.fsencode(part)) > 255]
+        if too_long or len(os.fsencode(str(p))) >= 4096:
+            raise OutputError(f"{out}: path too long (at most 255 bytes per folder name, 4095 in all)")
+        if p.exists() and not p.is_dir():
+            raise OutputError(f"{out}: exists and is not a directory")
+        anc = p
+        while not anc.exists():
+            anc = anc.parent
+        if not anc.is_dir():
+            raise OutputError(f"{out}: {anc} is a file, not a directory")
         os.rmdir(tempfile.mkdtemp(prefix=".echo-data-probe-", dir=anc))
     except OSError as e:
         raise OutputError(f"{out}: not writable ({e.strerror or e})") from None
@@ -210,7 +220,7 @@ def check_output_path(out: Path) -> None:
 
 def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, mode: str, workers: int, executor: str) -> dict[str, Any]:
     """Create, refuse, replace or reopen the output according to `mode`; return its manifest."""
-    has_content = out.is_dir() and any(out.iterdir())
+    has_content = out.is_dir() and any(p.name != LOCK_NAME for p in out.iterdir())
     if has_content and mode == "new":
         raise OutputError(f"{out} already exists; use --resume to continue it or --overwrite to replace it")
     if has_content and mode == "resume":
@@ -231,7 +241,9 @@ def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, m
     if has_content and mode == "overwrite":
         if not (out / MANIFEST).is_file():
             raise OutputError(f"{out} is not empty and holds no {MANIFEST}; refusing to overwrite what is not an echo-data dataset")
-        shutil.rmtree(out)
+        for child in out.iterdir():  # all but the lock this build holds
+            if child.name != LOCK_NAME:
+                shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
     out.mkdir(parents=True, exist_ok=True)
     manifest = new_manifest(recipe, limit, layout, workers, executor)
     write_manifest(out, manifest)
@@ -244,9 +256,12 @@ def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, m
 class _Writer:
     """Owns the output directory during a build: intermediates, shards, manifest, meta."""
 
-    def __init__(self, out: Path, recipe: Recipe, layout: StepLayout, manifest: dict[str, Any], plans: dict[str, list[ShardPlan]]):
+    def __init__(self, out: Path, recipe: Recipe, layout: StepLayout, manifest: dict[str, Any], plans: dict[str, ShardPlans]):
         self.out, self.recipe, self.layout, self.manifest, self.plans = out, recipe, layout, manifest, plans
         self.done: dict[str, dict[str, Any]] = {}
+        # per split: (next shard to write, rows written before it), so a flush costs O(1) shards
+        self.cursor: dict[str, tuple[int, int]] = {s: (0, 0) for s in plans}
+        self.split_order = {s: n for n, s in enumerate(plans)}
 
     # -- state on disk
     def work(self, split: str, index: int, ext: str) -> Path:
@@ -257,11 +272,11 @@ class _Writer:
 
     def verify_shards(self) -> int:
         """Keep manifest shards whose file matches its sha256; drop the rest (they are redone)."""
-        planned = {p.file for ps in self.plans.values() for p in ps}
         kept = []
         for entry in self.manifest["shards"]:
             path = self.out / entry["file"]
-            if entry["file"] in planned and path.is_file() and sha256_file(path) == entry["sha256"]:
+            ps = self.plans.get(entry.get("split", ""))
+            if ps is not None and ps.of_file(entry["file"]) and path.is_file() and sha256_file(path) == entry["sha256"]:
                 kept.append(entry)
                 self.done[entry["file"]] = entry
         if len(kept) != len(self.manifest["shards"]):
@@ -293,16 +308,20 @@ class _Writer:
         numbering starts after the rows of the shards before it)."""
         import json
 
-        offset = 0
-        for plan in self.plans[split]:
+        k, offset = self.cursor[split]
+        plans = self.plans[split]
+        while k < len(plans):
+            plan = plans[k]
             entry = self.done.get(plan.file)
             if entry is None:
                 if not all(self.stored(split, i) for i in plan.indices):
-                    return
+                    break
                 metas = [json.loads(self.work(split, i, "json").read_text()) for i in plan.indices]
                 tables = [pa.ipc.open_stream(pa.memory_map(str(self.work(split, i, "arrow")))).read_all() for i in plan.indices]
                 entry = self._write(plan, metas, tables, offset)
             offset += entry["rows"]
+            k += 1
+        self.cursor[split] = (k, offset)
 
     def _write(self, plan: ShardPlan, metas: list[dict[str, Any]], tables: list[pa.Table], offset: int) -> dict[str, Any]:
         episodes, failures = [], []
@@ -347,8 +366,7 @@ class _Writer:
             "failures": failures,
         }
         self.done[plan.file] = entry
-        order = {p.file: n for n, p in enumerate(p for ps in self.plans.values() for p in ps)}
-        self.manifest["shards"] = sorted(self.done.values(), key=lambda e: order[e["file"]])
+        self.manifest["shards"] = sorted(self.done.values(), key=lambda e: (self.split_order[e["split"]], e["shard"]))
         write_manifest(self.out, self.manifest)
         for i in plan.indices:  # only after the manifest names the shard
             self.work(plan.split, i, "arrow").unlink(missing_ok=True)
@@ -441,8 +459,8 @@ def build(
     out = Path(out)
     if mode not in ("new", "resume", "overwrite"):
         raise OutputError(f"unknown build mode {mode!r}")
-    if limit is not None and limit < 0:
-        raise OutputError(f"--limit must be >= 0, got {limit}")
+    if limit is not None and limit < 1:
+        raise OutputError(f"--limit must be >= 1, got {limit}")
     if workers < 1:
         raise OutputError(f"--workers must be >= 1, got {workers}")
     check_output_path(out)
@@ -464,6 +482,48 @@ def build(
         if type(e).__name__ != "SoundLibraryError":
             raise
         raise OutputError(str(e).splitlines()[0]) from None
+    lock = BuildLock(out)
+    try:
+        lock.acquire()
+    except BuildLockedError as e:
+        raise OutputError(str(e)) from None
+    except OSError as e:
+        raise OutputError(f"{out}: cannot create the build lock ({e.strerror or e})") from None
+    try:
+        return _build_locked(recipe, recipe_path, out, workers, limit, mode, executor, gen, progress, make_library, layout, plans, t0)
+    except OSError as e:
+        if e.errno not in _OUTPUT_ERRNOS:
+            raise
+        where = e.filename or out
+        raise OutputWriteError(
+            f"{where}: {e.strerror or e}; every finished episode is kept: "
+            f"{'free space' if e.errno in (errno.ENOSPC, errno.EDQUOT) else 'make the folder writable'} and rerun with --resume"
+        ) from None
+    finally:
+        lock.release()
+
+
+# Errors of the output device, not of the program: a full disk or quota, a read-only or
+# vanished folder. They end a build with one line (exit 2); finished episodes stay on disk.
+_OUTPUT_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EIO, errno.EFBIG})
+
+
+def _build_locked(
+    recipe: Recipe,
+    recipe_path: Path,
+    out: Path,
+    workers: int,
+    limit: int | None,
+    mode: BuildMode,
+    executor: str,
+    gen: Generate,
+    progress: bool,
+    make_library: Callable[[Recipe, Path], Any] | None,
+    layout: StepLayout,
+    plans: dict[str, ShardPlans],
+    t0: float,
+) -> BuildSummary:
+    """The build proper, run while this process holds the folder's build lock."""
     manifest = _prepare(out, recipe, limit, layout, mode, workers, executor)
 
     writer = _Writer(out, recipe, layout, manifest, plans)
@@ -471,16 +531,16 @@ def build(
     writer.remove_leftovers()
     for split in plans:
         writer.flush(split)
-    todo = [
+    total = sum(ps.episodes for ps in plans.values())
+    reused = sum(len(p.indices) if p.file in writer.done else sum(writer.stored(s, i) for i in p.indices) for s, ps in plans.items() for p in ps)
+    todo = (  # streamed: the plan never holds one item per episode
         (split, i)
         for split, ps in plans.items()
         for p in ps
         if p.file not in writer.done
         for i in p.indices
         if not writer.stored(split, i)
-    ]
-    total = sum(len(p.indices) for ps in plans.values() for p in ps)
-    reused = total - len(todo)
+    )
     job = _Job(recipe, Path(recipe_path).resolve().parent, layout, gen, make_library)
     from tqdm.auto import tqdm
 
@@ -524,7 +584,7 @@ def build(
         out=out,
         episodes=dict(m["counts"]["episodes"]),
         steps=dict(m["counts"]["steps"]),
-        generated=len(todo),
+        generated=total - reused,
         reused=reused,
         failed_attempts=len(m["failed_episodes"]),
         rejected=sum(m["rejected"].values()),
