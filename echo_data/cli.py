@@ -103,10 +103,14 @@ def preview(
     """Write one episode's spec, top-down plan, first head frame, heard audio and acoustic map."""
     from echo_data.preview import write_preview
 
+    from echo_data.dataset.build import OutputError, check_output_path
+
     recipe = _load(recipe_path)
-    if out.exists() and not out.is_dir():
-        typer.echo(f"error: --out {out}: exists and is not a folder", err=True)
-        raise typer.Exit(2)
+    try:  # before minutes of simulation: a file, a read-only or too long path is refused now
+        check_output_path(out)
+    except OutputError as e:
+        typer.echo(f"error: --out {e}", err=True)
+        raise typer.Exit(2) from None
     try:
         summary = write_preview(recipe, recipe_path.resolve().parent, seed, out)
     except OSError as e:

@@ -70,9 +70,13 @@ def export_sounds(
 
     lib = _library(recipe)
     items = _select(lib, category, split)
-    if out_dir.exists() and not out_dir.is_dir():
-        typer.echo(f"error: {out_dir}: exists and is not a folder", err=True)
-        raise typer.Exit(2)
+    from echo_data.dataset.build import OutputError, check_output_path
+
+    try:
+        check_output_path(out_dir)
+    except OutputError as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(2) from None
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         for s in items:
