@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from echo_data.episode import EpisodeSpec
+from echo_data.pcm import as_written
 from echo_data.recipe import Recipe
 from echo_data.records import EpisodeResult
 from echo_data.rollout import Rollout, run_chain
@@ -119,6 +120,9 @@ def generate_episode(
     if not result.success or not rollout.steps:
         return result
     track, offsets = render_episode_audio(spec, rollout, recipe, library)
+    # The features are computed from exactly the samples the WAV will hold (ClippingError if
+    # the track would clip: never a spectrogram of a signal that is not in the file).
+    track = as_written(track, f"{spec.episode_id} audio")
     spec_feats, mel = step_features(track, offsets, recipe.acoustics.sample_rate, recipe.acoustics.mel_bands)
     result.audio = track
     result.audio_offsets = offsets

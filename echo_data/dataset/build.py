@@ -48,6 +48,7 @@ from echo_data.dataset.writer import (
 )
 from echo_data.episode import episode_seed
 from echo_data.executors import ExecutorError, make_executor
+from echo_data.pcm import ClippingError
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_NAMES, STATE_NAMES, EpisodeResult
 
@@ -168,6 +169,8 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
         record = {"split": split, "index": index, "attempt": attempt, "seed": seed}
         try:
             result = job.generate(job.recipe, split, index, _LIBRARY, job.recipe_dir, attempt=attempt)
+        except ClippingError as e:  # the track is too loud to store: a calibration problem, never retried away
+            return FailedEpisode(split, index, failures, f"cannot be stored: {_one_line(str(e))}")
         except Exception as e:  # an attempt that crashed is recorded and retried, never half-written
             counts = getattr(e, "counts", None) or getattr(e, "rejected", None) or {}  # SamplingError.counts
             rejected.update({str(k): int(v) for k, v in counts.items()})
@@ -381,9 +384,7 @@ class _Writer:
         metas = [read_shard_meta(self.out / e["file"]) for e in self.manifest["shards"]]
         rows = [row for m in metas for row in m["episodes"]]
         _write_parquet_atomic(self.out / "meta" / "episodes.parquet", pa.Table.from_pylist(rows, schema=EPISODE_FIELDS))
-        train = [m["stats"] for m in metas if m["split"] == "train"] or [m["stats"] for m in metas]
-        merged = stats_mod.merge_features(train)
-        atomic_write_json(self.out / "meta" / "stats.json", {k: stats_mod.finalize(v) for k, v in merged.items()})
+        atomic_write_json(self.out / "meta" / "stats.json", stats_mod.dataset_stats(metas))
         atomic_write_json(self.out / "meta" / "info.json", self.info_json())
         if self.recipe.outputs.planner_export:
             write_planner_export(self.out, self.recipe, rows)
