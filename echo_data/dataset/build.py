@@ -46,7 +46,7 @@ from echo_data.dataset.writer import (
     tmp_path,
     write_shard,
 )
-from echo_data.episode import episode_seed
+from echo_data.episode import attempt_draws
 from echo_data.executors import ExecutorError, make_executor
 from echo_data.pcm import ClippingError
 from echo_data.recipe import Recipe
@@ -164,9 +164,12 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
     failures: list[dict[str, Any]] = []
     rejected: Counter[str] = Counter()
     skills: dict[str, list[int]] = {}
-    for attempt in range(job.recipe.max_attempts_per_episode):
-        seed = episode_seed(job.recipe.seed, split, index, attempt)
-        record = {"split": split, "index": index, "attempt": attempt, "seed": seed}
+    budget = job.recipe.max_attempts_per_episode
+    for attempt in range(budget):
+        draws = attempt_draws(job.recipe.seed, split, index, attempt, budget)
+        # Until a spec names the draw it used, the attempt is known by its draws (a sampling
+        # failure used them all); `attempt` alone redoes it: generate(..., attempt=attempt).
+        record: dict[str, Any] = {"split": split, "index": index, "attempt": attempt, "draws": [draws[0][0], draws[-1][0] + 1], "seed": draws[0][1]}
         try:
             result = job.generate(job.recipe, split, index, _LIBRARY, job.recipe_dir, attempt=attempt)
         except ClippingError as e:  # the track is too loud to store: a calibration problem, never retried away
@@ -180,6 +183,7 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
         spec = result.spec
         if (spec.split, int(spec.index)) != (split, index):
             return FailedEpisode(split, index, failures, f"generator returned episode {spec.split}/{spec.index}")
+        record.update(draw=int(spec.attempt), seed=int(spec.seed))  # what was simulated
         rejected.update({str(k): int(v) for k, v in result.rejected.items()})
         for o in result.outcomes:
             s = skills.setdefault(o.skill, [0, 0])

@@ -113,7 +113,11 @@ def new_manifest(recipe: Recipe, limit: int | None, layout: StepLayout, workers:
         "recipe": recipe.model_dump(mode="json"),
         "limit": limit,
         "seed": recipe.seed,
-        "seed_rule": "numpy.random.SeedSequence([recipe.seed, split_key, index, attempt]) (echo_data.episode.episode_seed)",
+        "seed_rule": (
+            "build attempt a of an episode lets the sampler try draws a*max_attempts_per_episode .. "
+            "(a+1)*max_attempts_per_episode-1; draw k is seeded numpy.random.SeedSequence([recipe.seed, split_key, index, k]) "
+            "(echo_data.episode.attempt_draws); each attempt record names its draw and seed once a spec was sampled"
+        ),
         "split_keys": {k: v for k, v in SPLIT_KEYS.items() if k in recipe.splits},
         "versions": versions(),
         "layout": layout.to_dict(),
