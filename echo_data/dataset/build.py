@@ -453,12 +453,14 @@ def build(
     generate: Generate | None = None,
     progress: bool = True,
     make_library: Callable[[Recipe, Path], Any] | None = None,
+    address: str | None = None,
 ) -> BuildSummary:
     """Build (or resume) the dataset of `recipe` in the directory `out`.
 
     `generate(recipe, split, index, library, recipe_dir, attempt=0) -> EpisodeResult` defaults
     to `echo_data.pipeline.generate_episode`; `make_library(recipe, recipe_dir)` defaults to the
-    recipe's `SoundLibrary`. Raises `OutputError` (bad input, nothing written) or `BuildError`.
+    recipe's `SoundLibrary`; `address` is a Ray cluster's (with executor "ray"). Raises
+    `OutputError` (bad input, nothing written) or `BuildError`.
     """
     t0 = time.monotonic()
     out = Path(out)
@@ -476,6 +478,8 @@ def build(
             raise OutputError("--executor ray needs Ray: pip install 'echo-data[ray]' (or use --executor local)") from None
     elif executor != "local":
         raise OutputError(f"unknown executor {executor!r} (use local or ray)")
+    if address and executor != "ray":
+        raise OutputError("--address names a Ray cluster: use it with --executor ray")
     layout = StepLayout.from_recipe(recipe)
     plans = plan_shards(recipe, limit)
     gen = generate or _default_generate()
@@ -495,7 +499,7 @@ def build(
     except OSError as e:
         raise OutputError(f"{out}: cannot create the build lock ({e.strerror or e})") from None
     try:
-        return _build_locked(recipe, recipe_path, out, workers, limit, mode, executor, gen, progress, make_library, layout, plans, t0)
+        return _build_locked(recipe, recipe_path, out, workers, limit, mode, executor, gen, progress, make_library, layout, plans, t0, address)
     except OSError as e:
         if e.errno not in _OUTPUT_ERRNOS:
             raise
@@ -527,36 +531,36 @@ def _build_locked(
     layout: StepLayout,
     plans: dict[str, ShardPlans],
     t0: float,
+    address: str | None,
 ) -> BuildSummary:
     """The build proper, run while this process holds the folder's build lock."""
-    manifest = _prepare(out, recipe, limit, layout, mode, workers, executor)
-
-    writer = _Writer(out, recipe, layout, manifest, plans)
-    writer.verify_shards()
-    writer.remove_leftovers()
-    for split in plans:
-        writer.flush(split)
-    total = sum(ps.episodes for ps in plans.values())
-    reused = sum(len(p.indices) if p.file in writer.done else sum(writer.stored(s, i) for i in p.indices) for s, ps in plans.items() for p in ps)
-    todo = (  # streamed: the plan never holds one item per episode
-        (split, i)
-        for split, ps in plans.items()
-        for p in ps
-        if p.file not in writer.done
-        for i in p.indices
-        if not writer.stored(split, i)
-    )
     job = _Job(recipe, Path(recipe_path).resolve().parent, layout, gen, make_library)
+    try:  # before anything is written: a cluster that cannot be joined is bad input
+        ex = make_executor(executor, workers, _init_job, (job,), address)
+    except ExecutorError as e:
+        raise OutputError(str(e)) from None
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=total, initial=reused, unit="ep", desc=f"build {recipe.name}", disable=not progress, dynamic_ncols=True)
-    attempts = successes = 0
+    bar = None
     try:
-        ex = make_executor(executor, workers, _init_job, (job,))
-    except ExecutorError as e:
-        bar.close()
-        raise OutputError(str(e)) from None
-    try:
+        manifest = _prepare(out, recipe, limit, layout, mode, workers, executor)
+        writer = _Writer(out, recipe, layout, manifest, plans)
+        writer.verify_shards()
+        writer.remove_leftovers()
+        for split in plans:
+            writer.flush(split)
+        total = sum(ps.episodes for ps in plans.values())
+        reused = sum(len(p.indices) if p.file in writer.done else sum(writer.stored(s, i) for i in p.indices) for s, ps in plans.items() for p in ps)
+        todo = (  # streamed: the plan never holds one item per episode
+            (split, i)
+            for split, ps in plans.items()
+            for p in ps
+            if p.file not in writer.done
+            for i in p.indices
+            if not writer.stored(split, i)
+        )
+        bar = tqdm(total=total, initial=reused, unit="ep", desc=f"build {recipe.name}", disable=not progress, dynamic_ncols=True)
+        attempts = successes = 0
         for res in ex.imap_unordered(_run_episode, todo):
             if isinstance(res, FailedEpisode) and res.error:
                 raise BuildError(f"{res.split} episode {res.index}: {res.error}")
@@ -575,12 +579,13 @@ def _build_locked(
     except BuildError:
         raise
     except Exception as e:
-        if type(e).__name__ == "BrokenProcessPool":
-            raise BuildError(f"a worker process died ({e}); finished episodes are kept: rerun with --resume") from e
+        if type(e).__name__ == "BrokenProcessPool" or type(e).__module__.startswith("ray."):
+            raise BuildError(f"a worker process or node died ({_one_line(str(e))[:300]}); finished episodes are kept: rerun with --resume") from e
         raise
     finally:
         ex.close()
-        bar.close()
+        if bar is not None:
+            bar.close()
     for split in plans:
         writer.flush(split)
     writer.finalize()
