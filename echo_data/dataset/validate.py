@@ -196,6 +196,8 @@ def validate(out: Path) -> list[str]:
             all_rows += rows
     for file in listed:
         problems.append(f"{file}: listed in the manifest but not part of the planned layout")
+    if not all_rows and not problems:
+        problems.append("the dataset holds no episodes")
     problems += _manifest_problems(manifest, recipe)
     problems += _meta_problems(out, recipe, all_rows)
     problems += _derived_problems(out, recipe, layout, manifest, all_rows)
