@@ -7,6 +7,7 @@ Slow (a minute or so: Ray notices a dead node by missed health checks), still ru
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -20,11 +21,10 @@ from pathlib import Path
 
 import pytest
 
-import echo_data.dataset.build as build_mod
 from echo_data.dataset.build import build
 from echo_data.dataset.validate import validate
 from test_dataset_kill import _digests
-from test_dataset_synth import null_library, slow_generate, synth_generate, synth_recipe
+from test_dataset_synth import null_library, synth_generate, synth_recipe
 
 ray = pytest.importorskip("ray")
 pytestmark = pytest.mark.slow
@@ -119,37 +119,59 @@ def cluster():  # noqa: ANN201
         c.stop()
 
 
-def test_raylet_killed_mid_build_gives_the_local_bytes(cluster: Cluster, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+DRIVER = """
+import json, sys
+sys.path.insert(0, {tests!r})
+from pathlib import Path
+import ray
+import echo_data.dataset.build as build_mod
+from echo_data.dataset.build import build
+from test_dataset_synth import null_library, slow_generate, synth_recipe
+
+log = open(sys.argv[2], "a")
+real_store = build_mod._Writer.store
+
+def store(self, enc):
+    real_store(self, enc)
+    log.write(f"{{enc.split}} {{enc.index}}\\n")
+    log.flush()
+    if sum(1 for _ in open(sys.argv[2])) == 2:
+        # Mid-build, name a worker node to kill: on one machine the driver attaches to one of the
+        # raylets, and losing the driver's own node is the build host dying (that is --resume).
+        mine = ray.get_runtime_context().get_node_id()
+        node = next(n for n in ("node_b", "node_a") if not any(x["NodeID"] == mine and n in x["Resources"] for x in ray.nodes()))
+        Path(sys.argv[3]).write_text(node)
+
+build_mod._Writer.store = store
+if __name__ == "__main__":
+    s = build(synth_recipe(), Path({tests!r}), Path(sys.argv[1]), workers=2, executor="ray", address=sys.argv[4],
+              generate=slow_generate, make_library=null_library, progress=False)
+    print("EPISODES", json.dumps(s.episodes))
+"""
+
+
+def test_raylet_killed_mid_build_gives_the_local_bytes(cluster: Cluster, tmp_path: Path) -> None:
+    """The build runs as its own driver process (as `echo-data build --executor ray --address`)."""
     local = tmp_path / "local"
     build(synth_recipe(), TESTS, local, generate=synth_generate, make_library=null_library, progress=False)
-
-    stored: Counter[tuple[str, int]] = Counter()
-    real_store = build_mod._Writer.store
-    killed: list[int] = []
-
-    def store(self, enc):  # noqa: ANN001, ANN202
-        stored[(enc.split, enc.index)] += 1
-        real_store(self, enc)
-        if sum(stored.values()) == 2 and not killed:  # mid-build: the other node is busy with an episode
-            pid = cluster.raylet("node_b")
-            os.kill(pid, signal.SIGKILL)
-            killed.append(pid)
-
-    monkeypatch.setattr(build_mod._Writer, "store", store)
-    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")
-    out = tmp_path / "ray"
+    script, log, victim, out = tmp_path / "driver.py", tmp_path / "stored.txt", tmp_path / "victim.txt", tmp_path / "ray"
+    script.write_text(DRIVER.format(tests=str(TESTS)))
     t0 = time.monotonic()
-    try:
-        summary = build(
-            synth_recipe(), TESTS, out, workers=2, executor="ray", address=cluster.address,
-            generate=slow_generate, make_library=null_library, progress=False,
-        )
-    finally:
-        ray.shutdown()
+    proc = subprocess.Popen([sys.executable, str(script), str(out), str(log), str(victim), cluster.address], env=cluster.env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    killed = None
+    while proc.poll() is None and killed is None and time.monotonic() - t0 < 300:
+        if victim.is_file():
+            killed = cluster.raylet(victim.read_text())
+            os.kill(killed, signal.SIGKILL)
+        time.sleep(0.05)
+    stdout, stderr = proc.communicate(timeout=300)
     print(f"ray build with a node killed: {time.monotonic() - t0:.1f} s")
-    assert killed, "the raylet was never killed"
-    assert summary.episodes == {"train": 5, "test": 3}
-    assert set(stored.values()) == {1} and len(stored) == 8  # no episode written twice
+    assert proc.returncode == 0, stderr[-3000:]
+    assert killed is not None, "the build ended before a raylet could be killed"
+    episodes = [ln.split(" ", 1)[1] for ln in stdout.splitlines() if ln.startswith("EPISODES ")]
+    assert episodes and json.loads(episodes[-1]) == {"train": 5, "test": 3}, stdout[-2000:]
+    stored = Counter(log.read_text().split("\n")[:-1])
+    assert len(stored) == 8 and set(stored.values()) == {1}  # no episode written twice
     assert _digests(out) == _digests(local)
     assert validate(out) == []
 

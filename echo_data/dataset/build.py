@@ -169,7 +169,9 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
         draws = attempt_draws(job.recipe.seed, split, index, attempt, budget)
         # Until a spec names the draw it used, the attempt is known by its draws (a sampling
         # failure used them all); `attempt` alone redoes it: generate(..., attempt=attempt).
-        record: dict[str, Any] = {"split": split, "index": index, "attempt": attempt, "draws": [draws[0][0], draws[-1][0] + 1], "seed": draws[0][1]}
+        record: dict[str, Any] = {
+            "split": split, "index": index, "attempt": attempt, "draws": [draws[0][0], draws[-1][0] + 1], "seed": draws[0][1],
+        }
         try:
             result = job.generate(job.recipe, split, index, _LIBRARY, job.recipe_dir, attempt=attempt)
         except ClippingError as e:  # the track is too loud to store: a calibration problem, never retried away
@@ -249,8 +251,12 @@ def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, m
         if not (out / MANIFEST).is_file():
             raise OutputError(f"{out} is not empty and holds no {MANIFEST}; refusing to overwrite what is not an echo-data dataset")
         for child in out.iterdir():  # all but the lock this build holds
-            if child.name != LOCK_NAME:
-                shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
+            if child.name == LOCK_NAME:
+                continue
+            if child.is_dir() and not child.is_symlink():
+                shutil.rmtree(child)
+            else:
+                child.unlink()
     out.mkdir(parents=True, exist_ok=True)
     manifest = new_manifest(recipe, limit, layout, workers, executor)
     write_manifest(out, manifest)
