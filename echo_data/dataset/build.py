@@ -497,6 +497,7 @@ def build(
         if type(e).__name__ != "SoundLibraryError":
             raise
         raise OutputError(str(e).splitlines()[0]) from None
+    missing = [d for d in (out, *out.absolute().parents) if not d.exists()]  # folders the lock creates
     lock = BuildLock(out)
     try:
         lock.acquire()
@@ -514,6 +515,12 @@ def build(
             f"{where}: {e.strerror or e}; every finished episode is kept: "
             f"{'free space' if e.errno in (errno.ENOSPC, errno.EDQUOT) else 'make the folder writable'} and rerun with --resume"
         ) from None
+    except OutputError:
+        if missing and [p.name for p in out.iterdir()] == [LOCK_NAME]:  # refused before writing: leave no trace
+            (out / LOCK_NAME).unlink()
+            for d in missing:
+                d.rmdir()
+        raise
     finally:
         lock.release()
 
