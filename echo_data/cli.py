@@ -61,7 +61,7 @@ def _load(recipe_path: Path) -> "Recipe":
 def trial(
     recipe_path: Path = typer.Argument(..., metavar="RECIPE", help="Recipe YAML."),
     n: int = typer.Option(10, "-n", min=1, help="Episodes to run (train split indices 0..n-1)."),
-    seed: Optional[int] = typer.Option(None, "--seed", help="Replace the recipe's seed."),
+    seed: Optional[int] = typer.Option(None, "--seed", min=0, help="Replace the recipe's seed."),
     workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
@@ -97,17 +97,27 @@ def trial(
 @app.command()
 def preview(
     recipe_path: Path = typer.Argument(..., metavar="RECIPE", help="Recipe YAML."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the previewed episode (replaces the recipe's)."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of the previewed episode (replaces the recipe's)."),
     out: Path = typer.Option(Path("preview"), "--out", help="Folder for the pictures and sound."),
 ) -> None:
     """Write one episode's spec, top-down plan, first head frame, heard audio and acoustic map."""
     from echo_data.preview import write_preview
 
+    from echo_data.dataset.build import OutputError, check_output_path
+
     recipe = _load(recipe_path)
-    if out.exists() and not out.is_dir():
-        typer.echo(f"error: --out {out}: exists and is not a folder", err=True)
-        raise typer.Exit(2)
-    summary = write_preview(recipe, recipe_path.resolve().parent, seed, out)
+    try:  # before minutes of simulation: a file, a read-only or too long path is refused now
+        check_output_path(out)
+    except OutputError as e:
+        typer.echo(f"error: --out {e}", err=True)
+        raise typer.Exit(2) from None
+    try:
+        summary = write_preview(recipe, recipe_path.resolve().parent, seed, out)
+    except OSError as e:
+        if e.filename is None:
+            raise
+        typer.echo(f"error: --out {out}: cannot write {e.filename} ({e.strerror or e})", err=True)
+        raise typer.Exit(2) from None
     typer.echo(json.dumps(summary, indent=2))
     typer.echo(f"wrote {', '.join(sorted(p.name for p in out.iterdir()))} to {out}")
 
@@ -136,5 +146,35 @@ from echo_data.dataset.commands import register as _register_dataset_commands  #
 _register_dataset_commands(app)
 
 
+def _is(e: BaseException, name: str) -> bool:
+    """Match click's exceptions by class name: typer vendors its own copy of click."""
+    return any(c.__name__ == name for c in type(e).__mro__)
+
+
+def main() -> None:
+    """The `echo-data` entry point: the app, with usage errors as the README promises them:
+    one line naming the command and the argument, exit 2 (not click's multi-line usage box)."""
+    import sys
+
+    try:
+        code = app(standalone_mode=False)
+    except Exception as e:
+        if _is(e, "NoArgsIsHelpError"):  # `echo-data build` alone: show its help
+            ctx = getattr(e, "ctx", None)
+            typer.echo(ctx.get_help() if ctx is not None else str(e))
+            code = 0
+        elif _is(e, "UsageError"):
+            ctx = getattr(e, "ctx", None)
+            where = ctx.command_path if ctx is not None else "echo-data"
+            typer.echo(f"error: {where}: {' '.join(e.format_message().split())}", err=True)  # type: ignore[attr-defined]
+            code = 2
+        elif _is(e, "Abort"):
+            typer.echo("aborted", err=True)
+            code = 130
+        else:
+            raise
+    sys.exit(code if isinstance(code, int) else 0)
+
+
 if __name__ == "__main__":
-    app()
+    main()

@@ -29,6 +29,18 @@ def episode_seed(recipe_seed: int, split: str, index: int, attempt: int = 0) -> 
     return int(ss.generate_state(1, dtype=np.uint64)[0]) & 0x7FFF_FFFF_FFFF_FFFF
 
 
+def attempt_draws(recipe_seed: int, split: str, index: int, attempt: int, budget: int) -> list[tuple[int, int]]:
+    """The sampler draws of build attempt `attempt` of an episode, as (draw, seed) pairs.
+
+    The one owner of the seed story: build attempt a (a retry after an expert failure) lets
+    the sampler try draws a*budget .. (a+1)*budget - 1, draw k seeded with `episode_seed(...,
+    k)`, so no two attempts share a draw. The spec that is simulated records its draw
+    (`EpisodeSpec.attempt`) and seed; the build's manifest records them for every attempt,
+    failed or not, and `sample_episode(recipe, split, index, library, attempt=a)` redoes it.
+    """
+    return [(k, episode_seed(recipe_seed, split, index, k)) for k in range(attempt * budget, (attempt + 1) * budget)]
+
+
 @dataclass(frozen=True)
 class SoundEvent:
     """One sounding event: what sounds, where, and what resolves it."""
@@ -54,8 +66,8 @@ class EpisodeSpec:
     episode_id: str  # e.g. "train-000042"
     split: str
     index: int
-    attempt: int
-    seed: int
+    attempt: int  # the sampler draw that produced this spec (see attempt_draws)
+    seed: int  # episode_seed(recipe seed, split, index, draw)
     setting: str  # object_relocation | state_transition | multi_event
     plan: FloorPlan
     start: tuple[float, float, float]  # base x, y, yaw

@@ -85,6 +85,7 @@ class LocalExecutor:
 
 _END = object()
 _RAY_STATE: dict[str, Any] = {}
+RAY_TASK_RETRIES = 5  # reruns of a task whose worker process or node died (not of episode errors)
 
 
 def _ray_call(fn: Callable[[Any], Any], initializer: Callable[..., None], initargs: tuple[Any, ...], key: str, task: Any) -> Any:
@@ -96,21 +97,41 @@ def _ray_call(fn: Callable[[Any], Any], initializer: Callable[..., None], initar
     return fn(task)
 
 
-class RayExecutor:
-    """Tasks on a Ray cluster (`ray.init(address="auto")` when one is running, else local)."""
+def _check_reachable(address: str) -> None:
+    """Fail fast when nothing listens at host:port (Ray itself retries for minutes)."""
+    import socket
 
-    def __init__(self, workers: int, initializer: Callable[..., None], initargs: tuple[Any, ...]) -> None:
+    host, sep, port = address.removeprefix("ray://").rpartition(":")
+    if address == "local" or not sep or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host, int(port)), timeout=10).close()
+    except OSError as e:
+        raise ExecutorError(f"--address {address}: cannot join the Ray cluster (nothing answers there: {e.strerror or e})") from None
+
+
+class RayExecutor:
+    """Tasks on a Ray cluster: the one at `address` (`ray start --head` prints it), else the one
+    RAY_ADDRESS names, else a local instance started for this build. Ray retries a task whose worker or node
+    died (`max_retries`), so a lost node costs time, not episodes; each task's result reaches
+    the writer once, however often it ran."""
+
+    def __init__(self, workers: int, initializer: Callable[..., None], initargs: tuple[Any, ...], address: str | None = None) -> None:
         try:
             import ray
         except ImportError:
             raise ExecutorError("--executor ray needs Ray: pip install 'echo-data[ray]' (or use --executor local)") from None
         self.ray = ray
+        # The cluster at --address, else RAY_ADDRESS, else a private local instance: never one
+        # that merely happens to run on this machine (`address="auto"` would join any of them).
+        target = address or os.environ.get("RAY_ADDRESS") or "local"
         if not ray.is_initialized():
+            _check_reachable(target)
             try:
-                ray.init(address="auto", ignore_reinit_error=True, log_to_driver=False)
-            except (ConnectionError, RuntimeError):
-                ray.init(ignore_reinit_error=True, log_to_driver=False)
-        self.remote = ray.remote(num_cpus=1)(_ray_call)
+                ray.init(address=target, log_to_driver=False)
+            except Exception as e:  # ConnectionError, RuntimeError, ValueError, ... by Ray version
+                raise ExecutorError(f"--address {target}: cannot join the Ray cluster ({' '.join(str(e).split())[:200]})") from None
+        self.remote = ray.remote(num_cpus=1, max_retries=RAY_TASK_RETRIES, retry_exceptions=False)(_ray_call)
         self.initializer = initializer
         self.initargs_ref = ray.put(initargs)
         self.key = f"{os.getpid()}-{id(self)}"
@@ -142,9 +163,11 @@ class RayExecutor:
 
 
 def make_executor(
-    name: str, workers: int, initializer: Callable[..., None], initargs: tuple[Any, ...]
+    name: str, workers: int, initializer: Callable[..., None], initargs: tuple[Any, ...], address: str | None = None
 ) -> InlineExecutor | LocalExecutor | RayExecutor:
-    """The executor for `--executor name --workers N` (workers=1 locally runs in-process)."""
+    """The executor for `--executor name --workers N [--address A]` (workers=1 locally runs in-process)."""
+    if address and name != "ray":
+        raise ExecutorError("--address names a Ray cluster: use it with --executor ray")
     if workers < 1:
         raise ExecutorError(f"--workers must be >= 1, got {workers}")
     if name == "local":
@@ -152,5 +175,5 @@ def make_executor(
             return InlineExecutor(initializer, initargs)
         return LocalExecutor(workers, initializer, initargs)
     if name == "ray":
-        return RayExecutor(workers, initializer, initargs)
+        return RayExecutor(workers, initializer, initargs, address)
     raise ExecutorError(f"unknown executor {name!r} (use local or ray)")

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
+import stat
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -28,8 +30,34 @@ class RecipeError(ValueError):
     """A recipe problem; `str()` is one line naming the file and the key."""
 
 
+# Largest split a recipe may ask for: episode ids have six digits, and a plan this size builds
+# for months on a workstation (a typo of a few zeros should not start such a build).
+MAX_SPLIT_EPISODES = 1_000_000
+MAX_NAME_LENGTH = 100  # the name becomes a folder and file names (at most 255 bytes each)
+
+
+def _has_bool(v: Any) -> bool:
+    if isinstance(v, bool):
+        return True
+    if isinstance(v, dict):
+        return any(_has_bool(x) for x in v.values())
+    if isinstance(v, (list, tuple)):
+        return any(_has_bool(x) for x in v)
+    return False
+
+
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_numbers(cls, v: Any, info: Any) -> Any:
+        """YAML's true/false are not numbers: `seed: true` must not become seed 1."""
+        field = cls.model_fields.get(info.field_name)
+        sub = isinstance(field.annotation, type) and issubclass(field.annotation, BaseModel) if field else False
+        if field is not None and not sub and "bool" not in str(field.annotation) and _has_bool(v):
+            raise ValueError("expected a number or text, got true/false")
+        return v
 
 
 def _known_materials() -> set[str]:
@@ -141,6 +169,8 @@ class EventsConfig(_Strict):
     @field_validator("categories")
     @classmethod
     def _weights(cls, v: dict[str, float]) -> dict[str, float]:
+        if not all(math.isfinite(w) for w in v.values()):
+            raise ValueError("category weights must be finite numbers")
         if any(w < 0 for w in v.values()) or sum(v.values()) <= 0:
             raise ValueError("category weights must be >= 0 with a positive sum")
         return v
@@ -171,6 +201,14 @@ class RobotConfig(_Strict):
     max_steps: dict[Literal["Navigate", "Pick", "Place", "OpenDoor", "CloseSink"], int] = Field(
         default_factory=lambda: {"Navigate": 600, "Pick": 250, "Place": 250, "OpenDoor": 300, "CloseSink": 200}
     )
+
+    @field_validator("max_steps")
+    @classmethod
+    def _max_steps(cls, v: dict[str, int]) -> dict[str, int]:
+        for k, n in v.items():
+            if not 1 <= n <= 100_000:
+                raise ValueError(f"max_steps.{k} must lie within [1, 100000], got {n}")
+        return v
 
     @model_validator(mode="after")
     def _rates(self) -> "RobotConfig":
@@ -216,7 +254,7 @@ class OutputsConfig(_Strict):
 class Recipe(_Strict):
     """A whole, validated recipe."""
 
-    name: str = Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+    name: str = Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$", max_length=MAX_NAME_LENGTH)
     seed: int = Field(0, ge=0)
     splits: dict[str, int] = Field(default_factory=lambda: {"train": 8, "test": 4})
     setting: Literal["object_relocation", "state_transition", "multi_event"] | dict[
@@ -244,13 +282,28 @@ class Recipe(_Strict):
         for k, n in v.items():
             if k not in ("train", "test", "val"):
                 raise ValueError(f"unknown split {k!r} (use train, val, test)")
-            if not isinstance(n, int) or n < 0:
-                raise ValueError(f"split {k!r} must be a non-negative integer")
+            if not isinstance(n, int) or n < 0 or n > MAX_SPLIT_EPISODES:
+                raise ValueError(f"split {k!r} must be an integer within [0, {MAX_SPLIT_EPISODES}], got {n}")
+        if sum(v.values()) == 0:
+            raise ValueError("every split has 0 episodes: nothing to build")
+        return v
+
+    @field_validator("composition")
+    @classmethod
+    def _composition(cls, v: dict[str, dict[str, int]] | None) -> dict[str, dict[str, int]] | None:
+        for setting, per_split in (v or {}).items():
+            for k, n in per_split.items():
+                if k not in ("train", "test", "val"):
+                    raise ValueError(f"{setting}: unknown split {k!r} (use train, val, test)")
+                if n < 0 or n > MAX_SPLIT_EPISODES:
+                    raise ValueError(f"{setting}.{k} must be an integer within [0, {MAX_SPLIT_EPISODES}], got {n}")
         return v
 
     @field_validator("setting")
     @classmethod
     def _setting(cls, v: Any) -> Any:
+        if isinstance(v, dict) and not all(math.isfinite(w) for w in v.values()):
+            raise ValueError("setting weights must be finite numbers")
         if isinstance(v, dict) and (any(w < 0 for w in v.values()) or sum(v.values()) <= 0):
             raise ValueError("setting weights must be >= 0 with a positive sum")
         return v
@@ -263,8 +316,10 @@ class Recipe(_Strict):
             for per_split in data["composition"].values():
                 if isinstance(per_split, dict):
                     for split, n in per_split.items():
-                        if isinstance(n, int):
+                        if isinstance(n, int) and not isinstance(n, bool) and 0 <= n <= MAX_SPLIT_EPISODES:
                             totals[split] = totals.get(split, 0) + n
+                        else:  # let the composition validator name the bad count
+                            return data
             if "splits" in data and data["splits"] != totals:
                 raise ValueError(f"splits {data['splits']} disagree with composition totals {totals}; give one of them")
             data = {**data, "splits": totals}
@@ -314,19 +369,40 @@ def _deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """SafeLoader that refuses a key given twice in one mapping (plain YAML keeps the last)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        first_line: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)  # type: ignore[no-untyped-call]
+            try:
+                if key in first_line:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"duplicate key {key!r} (first given at line {first_line[key]})", key_node.start_mark
+                    )
+                first_line[key] = key_node.start_mark.line + 1
+            except TypeError:  # an unhashable key: SafeLoader reports it below
+                continue
+        return super().construct_mapping(node, deep=deep)
+
+
 def _read_yaml(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     """Read a recipe file and resolve its `extends:` chain into one mapping."""
     path = path.resolve()
     if path in chain:
         raise RecipeError(f"{path}: extends: circular chain {' -> '.join(str(p) for p in chain + (path,))}")
     try:
+        mode = path.stat().st_mode
+        if not stat.S_ISREG(mode) and not stat.S_ISDIR(mode):  # a FIFO or device would block or stream forever
+            raise RecipeError(f"{path}: not a regular file")
         text = path.read_text()
     except FileNotFoundError:
         raise RecipeError(f"{path}: file not found") from None
-    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as e:
-        raise RecipeError(f"{path}: cannot read recipe ({e.__class__.__name__})") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise RecipeError(f"{path}: cannot read recipe ({e.__class__.__name__}: {getattr(e, 'strerror', None) or e})") from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -356,9 +432,11 @@ def recipe_from_mapping(data: dict[str, Any], source: str = "<recipe>") -> Recip
     try:
         recipe = Recipe.model_validate(data)
     except ValidationError as e:
-        err = e.errors()[0]
+        errors = e.errors()
+        # Of a union's branch errors (e.g. `setting` as a name or as weights) the deepest says most.
+        err = max((x for x in errors if x["loc"][:1] == errors[0]["loc"][:1]), key=lambda x: len(x["loc"]))
         key = _loc(tuple(err["loc"]))
-        msg = err["msg"]
+        msg = err["msg"].removeprefix("Value error, ")
         if err["type"] == "extra_forbidden":
             msg = "unknown key"
         elif err["type"] == "missing":

@@ -12,7 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from echo_data.acoustics.features import step_features
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, episode_seed
+from echo_data.pcm import as_written
 from echo_data.recipe import CameraConfig, OutputsConfig, Recipe, RobotConfig
 from echo_data.records import ACTION_DIM, STATE_DIM, EpisodeResult, SkillOutcome, StepRecord
 from echo_data.scene.floorplan import FloorPlan, Furniture, PlacedObject, Rect, Room
@@ -103,10 +105,11 @@ def synth_generate(
             )
         )
     samples = (n + 1) * sr // hz
-    audio = (0.3 * rng.standard_normal((samples, 2))).astype(np.float32)
+    # Noise well below full scale, and features of exactly the samples the WAV will hold, as
+    # the real pipeline does (validate recomputes them from the WAV).
+    audio = as_written(0.3 * np.tanh(rng.standard_normal((samples, 2))))
     offsets = np.array([(t + 1) * sr // hz for t in range(n)], dtype=np.int64)
-    spectrogram = rng.random((n, 65, 26, 2), dtype=np.float32)
-    mel = rng.standard_normal((n, recipe.acoustics.mel_bands, 101, 2), dtype=np.float32)
+    spectrogram, mel = step_features(audio, offsets, sr, recipe.acoustics.mel_bands)
     outcomes = [SkillOutcome(c.skill, c.target, True, "", n // len(chain)) for c in chain]
     if fails:
         outcomes = outcomes[:1] + [SkillOutcome("Pick", "phone_0", False, "no IK solution", 2)]

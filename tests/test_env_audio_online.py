@@ -9,6 +9,7 @@ from echo_data.acoustics.room import AcousticScene
 from echo_data.acoustics.stream import SourceTrack, render_track
 from echo_data.acoustics.levels import to_full_scale
 from echo_data.acoustics.noise import NoiseFloor
+from echo_data.pcm import as_written
 from echo_data.envs.audio import OnlineTrack, event_waveform, pre_roll_steps, step_samples
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
 from echo_data.recipe import Recipe
@@ -56,7 +57,7 @@ def test_online_blocks_equal_the_offline_render() -> None:
     hrtf = Hrtf.load(cfg.hrtf, cfg.sample_rate)
     offline = render_track(AcousticScene(spec.plan, cfg), sources, poses, hop, cfg, hrtf=hrtf)
     noise = NoiseFloor(cfg.sample_rate, cfg.noise_floor_dba, spec.plan.seed, hrtf).render(0, len(offline))
-    offline = to_full_scale(offline.astype(np.float64) + noise, cfg.full_scale_db_spl)
+    offline = as_written(to_full_scale(offline.astype(np.float64) + noise, cfg.full_scale_db_spl))
     assert track.shape == offline.shape
     assert np.array_equal(track, offline)
     assert np.abs(track[: (pre + n) * hop]).max() > 1e-3  # not trivially silent

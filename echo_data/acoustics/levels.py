@@ -27,6 +27,8 @@ import math
 
 import numpy as np
 
+from echo_data.pcm import ClippingError  # one error for "would clip", owned by pcm
+
 P_REF = 20e-6  # Pa, 0 dB SPL
 LEVEL_WINDOW_S = 0.125  # F time weighting
 
@@ -37,10 +39,6 @@ SOURCE_LEVELS_DB: dict[str, tuple[float, float]] = {
     "doorbell": (70.0, 85.0),
     "sink": (50.0, 65.0),
 }
-
-
-class ClippingError(RuntimeError):
-    """A rendered track exceeds the WAV full scale."""
 
 
 def source_level_db(category: str, seed: int, event: int) -> float:

@@ -10,6 +10,7 @@ verifies shards by sha256, reuses stored episodes and redoes the rest, producing
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import tempfile
@@ -23,10 +24,12 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset import stats as stats_mod
+from echo_data.dataset.lock import LOCK_NAME, BuildLock, BuildLockedError
 from echo_data.dataset.manifest import (
     MANIFEST,
     ManifestError,
     ShardPlan,
+    ShardPlans,
     load_manifest,
     new_manifest,
     plan_shards,
@@ -43,8 +46,9 @@ from echo_data.dataset.writer import (
     tmp_path,
     write_shard,
 )
-from echo_data.episode import episode_seed
+from echo_data.episode import attempt_draws
 from echo_data.executors import ExecutorError, make_executor
+from echo_data.pcm import ClippingError
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_NAMES, STATE_NAMES, EpisodeResult
 
@@ -55,6 +59,10 @@ WORK = ".work"
 
 class OutputError(ValueError):
     """Bad input for a build (output path, mode, recipe mismatch): exit 2, nothing written."""
+
+
+class OutputWriteError(OutputError):
+    """The output cannot be written (disk full, read-only): exit 2; finished episodes are kept."""
 
 
 class BuildError(RuntimeError):
@@ -156,11 +164,18 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
     failures: list[dict[str, Any]] = []
     rejected: Counter[str] = Counter()
     skills: dict[str, list[int]] = {}
-    for attempt in range(job.recipe.max_attempts_per_episode):
-        seed = episode_seed(job.recipe.seed, split, index, attempt)
-        record = {"split": split, "index": index, "attempt": attempt, "seed": seed}
+    budget = job.recipe.max_attempts_per_episode
+    for attempt in range(budget):
+        draws = attempt_draws(job.recipe.seed, split, index, attempt, budget)
+        # Until a spec names the draw it used, the attempt is known by its draws (a sampling
+        # failure used them all); `attempt` alone redoes it: generate(..., attempt=attempt).
+        record: dict[str, Any] = {
+            "split": split, "index": index, "attempt": attempt, "draws": [draws[0][0], draws[-1][0] + 1], "seed": draws[0][1],
+        }
         try:
             result = job.generate(job.recipe, split, index, _LIBRARY, job.recipe_dir, attempt=attempt)
+        except ClippingError as e:  # the track is too loud to store: a calibration problem, never retried away
+            return FailedEpisode(split, index, failures, f"cannot be stored: {_one_line(str(e))}")
         except Exception as e:  # an attempt that crashed is recorded and retried, never half-written
             counts = getattr(e, "counts", None) or getattr(e, "rejected", None) or {}  # SamplingError.counts
             rejected.update({str(k): int(v) for k, v in counts.items()})
@@ -170,6 +185,7 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
         spec = result.spec
         if (spec.split, int(spec.index)) != (split, index):
             return FailedEpisode(split, index, failures, f"generator returned episode {spec.split}/{spec.index}")
+        record.update(draw=int(spec.attempt), seed=int(spec.seed))  # what was simulated
         rejected.update({str(k): int(v) for k, v in result.rejected.items()})
         for o in result.outcomes:
             s = skills.setdefault(o.skill, [0, 0])
@@ -195,14 +211,17 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
 def check_output_path(out: Path) -> None:
     """Refuse an output that is a file or lies somewhere not writable (nothing is left behind)."""
     p = Path(out).absolute()
-    if p.exists() and not p.is_dir():
-        raise OutputError(f"{out}: exists and is not a directory")
-    anc = p
-    while not anc.exists():
-        anc = anc.parent
-    if not anc.is_dir():
-        raise OutputError(f"{out}: {anc} is a file, not a directory")
     try:
+        too_long = [part for part in p.parts if len(os.fsencode(part)) > 255]
+        if too_long or len(os.fsencode(str(p))) >= 4096:
+            raise OutputError(f"{out}: path too long (at most 255 bytes per folder name, 4095 in all)")
+        if p.exists() and not p.is_dir():
+            raise OutputError(f"{out}: exists and is not a directory")
+        anc = p
+        while not anc.exists():
+            anc = anc.parent
+        if not anc.is_dir():
+            raise OutputError(f"{out}: {anc} is a file, not a directory")
         os.rmdir(tempfile.mkdtemp(prefix=".echo-data-probe-", dir=anc))
     except OSError as e:
         raise OutputError(f"{out}: not writable ({e.strerror or e})") from None
@@ -210,7 +229,7 @@ def check_output_path(out: Path) -> None:
 
 def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, mode: str, workers: int, executor: str) -> dict[str, Any]:
     """Create, refuse, replace or reopen the output according to `mode`; return its manifest."""
-    has_content = out.is_dir() and any(out.iterdir())
+    has_content = out.is_dir() and any(p.name != LOCK_NAME for p in out.iterdir())
     if has_content and mode == "new":
         raise OutputError(f"{out} already exists; use --resume to continue it or --overwrite to replace it")
     if has_content and mode == "resume":
@@ -231,7 +250,13 @@ def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, m
     if has_content and mode == "overwrite":
         if not (out / MANIFEST).is_file():
             raise OutputError(f"{out} is not empty and holds no {MANIFEST}; refusing to overwrite what is not an echo-data dataset")
-        shutil.rmtree(out)
+        for child in out.iterdir():  # all but the lock this build holds
+            if child.name == LOCK_NAME:
+                continue
+            if child.is_dir() and not child.is_symlink():
+                shutil.rmtree(child)
+            else:
+                child.unlink()
     out.mkdir(parents=True, exist_ok=True)
     manifest = new_manifest(recipe, limit, layout, workers, executor)
     write_manifest(out, manifest)
@@ -244,9 +269,12 @@ def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, m
 class _Writer:
     """Owns the output directory during a build: intermediates, shards, manifest, meta."""
 
-    def __init__(self, out: Path, recipe: Recipe, layout: StepLayout, manifest: dict[str, Any], plans: dict[str, list[ShardPlan]]):
+    def __init__(self, out: Path, recipe: Recipe, layout: StepLayout, manifest: dict[str, Any], plans: dict[str, ShardPlans]):
         self.out, self.recipe, self.layout, self.manifest, self.plans = out, recipe, layout, manifest, plans
         self.done: dict[str, dict[str, Any]] = {}
+        # per split: (next shard to write, rows written before it), so a flush costs O(1) shards
+        self.cursor: dict[str, tuple[int, int]] = {s: (0, 0) for s in plans}
+        self.split_order = {s: n for n, s in enumerate(plans)}
 
     # -- state on disk
     def work(self, split: str, index: int, ext: str) -> Path:
@@ -257,11 +285,11 @@ class _Writer:
 
     def verify_shards(self) -> int:
         """Keep manifest shards whose file matches its sha256; drop the rest (they are redone)."""
-        planned = {p.file for ps in self.plans.values() for p in ps}
         kept = []
         for entry in self.manifest["shards"]:
             path = self.out / entry["file"]
-            if entry["file"] in planned and path.is_file() and sha256_file(path) == entry["sha256"]:
+            ps = self.plans.get(entry.get("split", ""))
+            if ps is not None and ps.of_file(entry["file"]) and path.is_file() and sha256_file(path) == entry["sha256"]:
                 kept.append(entry)
                 self.done[entry["file"]] = entry
         if len(kept) != len(self.manifest["shards"]):
@@ -293,16 +321,20 @@ class _Writer:
         numbering starts after the rows of the shards before it)."""
         import json
 
-        offset = 0
-        for plan in self.plans[split]:
+        k, offset = self.cursor[split]
+        plans = self.plans[split]
+        while k < len(plans):
+            plan = plans[k]
             entry = self.done.get(plan.file)
             if entry is None:
                 if not all(self.stored(split, i) for i in plan.indices):
-                    return
+                    break
                 metas = [json.loads(self.work(split, i, "json").read_text()) for i in plan.indices]
                 tables = [pa.ipc.open_stream(pa.memory_map(str(self.work(split, i, "arrow")))).read_all() for i in plan.indices]
                 entry = self._write(plan, metas, tables, offset)
             offset += entry["rows"]
+            k += 1
+        self.cursor[split] = (k, offset)
 
     def _write(self, plan: ShardPlan, metas: list[dict[str, Any]], tables: list[pa.Table], offset: int) -> dict[str, Any]:
         episodes, failures = [], []
@@ -347,8 +379,7 @@ class _Writer:
             "failures": failures,
         }
         self.done[plan.file] = entry
-        order = {p.file: n for n, p in enumerate(p for ps in self.plans.values() for p in ps)}
-        self.manifest["shards"] = sorted(self.done.values(), key=lambda e: order[e["file"]])
+        self.manifest["shards"] = sorted(self.done.values(), key=lambda e: (self.split_order[e["split"]], e["shard"]))
         write_manifest(self.out, self.manifest)
         for i in plan.indices:  # only after the manifest names the shard
             self.work(plan.split, i, "arrow").unlink(missing_ok=True)
@@ -364,9 +395,7 @@ class _Writer:
         metas = [read_shard_meta(self.out / e["file"]) for e in self.manifest["shards"]]
         rows = [row for m in metas for row in m["episodes"]]
         _write_parquet_atomic(self.out / "meta" / "episodes.parquet", pa.Table.from_pylist(rows, schema=EPISODE_FIELDS))
-        train = [m["stats"] for m in metas if m["split"] == "train"] or [m["stats"] for m in metas]
-        merged = stats_mod.merge_features(train)
-        atomic_write_json(self.out / "meta" / "stats.json", {k: stats_mod.finalize(v) for k, v in merged.items()})
+        atomic_write_json(self.out / "meta" / "stats.json", stats_mod.dataset_stats(metas))
         atomic_write_json(self.out / "meta" / "info.json", self.info_json())
         if self.recipe.outputs.planner_export:
             write_planner_export(self.out, self.recipe, rows)
@@ -449,19 +478,21 @@ def build(
     generate: Generate | None = None,
     progress: bool = True,
     make_library: Callable[[Recipe, Path], Any] | None = None,
+    address: str | None = None,
 ) -> BuildSummary:
     """Build (or resume) the dataset of `recipe` in the directory `out`.
 
     `generate(recipe, split, index, library, recipe_dir, attempt=0) -> EpisodeResult` defaults
     to `echo_data.pipeline.generate_episode`; `make_library(recipe, recipe_dir)` defaults to the
-    recipe's `SoundLibrary`. Raises `OutputError` (bad input, nothing written) or `BuildError`.
+    recipe's `SoundLibrary`; `address` is a Ray cluster's (with executor "ray"). Raises
+    `OutputError` (bad input, nothing written) or `BuildError`.
     """
     t0 = time.monotonic()
     out = Path(out)
     if mode not in ("new", "resume", "overwrite"):
         raise OutputError(f"unknown build mode {mode!r}")
-    if limit is not None and limit < 0:
-        raise OutputError(f"--limit must be >= 0, got {limit}")
+    if limit is not None and limit < 1:
+        raise OutputError(f"--limit must be >= 1, got {limit}")
     if workers < 1:
         raise OutputError(f"--workers must be >= 1, got {workers}")
     check_output_path(out)
@@ -472,6 +503,8 @@ def build(
             raise OutputError("--executor ray needs Ray: pip install 'echo-data[ray]' (or use --executor local)") from None
     elif executor != "local":
         raise OutputError(f"unknown executor {executor!r} (use local or ray)")
+    if address and executor != "ray":
+        raise OutputError("--address names a Ray cluster: use it with --executor ray")
     layout = StepLayout.from_recipe(recipe)
     plans = plan_shards(recipe, limit)
     gen = generate or _default_generate()
@@ -483,34 +516,83 @@ def build(
         if type(e).__name__ != "SoundLibraryError":
             raise
         raise OutputError(str(e).splitlines()[0]) from None
-    manifest = _prepare(out, recipe, limit, layout, mode, workers, executor)
+    missing = [d for d in (out, *out.absolute().parents) if not d.exists()]  # folders the lock creates
+    lock = BuildLock(out)
+    try:
+        lock.acquire()
+    except BuildLockedError as e:
+        raise OutputError(str(e)) from None
+    except OSError as e:
+        raise OutputError(f"{out}: cannot create the build lock ({e.strerror or e})") from None
+    try:
+        return _build_locked(recipe, recipe_path, out, workers, limit, mode, executor, gen, progress, make_library, layout, plans, t0, address)
+    except OSError as e:
+        if e.errno not in _OUTPUT_ERRNOS:
+            raise
+        where = e.filename or out
+        raise OutputWriteError(
+            f"{where}: {e.strerror or e}; every finished episode is kept: "
+            f"{'free space' if e.errno in (errno.ENOSPC, errno.EDQUOT) else 'make the folder writable'} and rerun with --resume"
+        ) from None
+    except OutputError:
+        if missing and [p.name for p in out.iterdir()] == [LOCK_NAME]:  # refused before writing: leave no trace
+            (out / LOCK_NAME).unlink()
+            for d in missing:
+                d.rmdir()
+        raise
+    finally:
+        lock.release()
 
-    writer = _Writer(out, recipe, layout, manifest, plans)
-    writer.verify_shards()
-    writer.remove_leftovers()
-    for split in plans:
-        writer.flush(split)
-    todo = [
-        (split, i)
-        for split, ps in plans.items()
-        for p in ps
-        if p.file not in writer.done
-        for i in p.indices
-        if not writer.stored(split, i)
-    ]
-    total = sum(len(p.indices) for ps in plans.values() for p in ps)
-    reused = total - len(todo)
+
+# Errors of the output device, not of the program: a full disk or quota, a read-only or
+# vanished folder. They end a build with one line (exit 2); finished episodes stay on disk.
+_OUTPUT_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EIO, errno.EFBIG})
+
+
+def _build_locked(
+    recipe: Recipe,
+    recipe_path: Path,
+    out: Path,
+    workers: int,
+    limit: int | None,
+    mode: BuildMode,
+    executor: str,
+    gen: Generate,
+    progress: bool,
+    make_library: Callable[[Recipe, Path], Any] | None,
+    layout: StepLayout,
+    plans: dict[str, ShardPlans],
+    t0: float,
+    address: str | None,
+) -> BuildSummary:
+    """The build proper, run while this process holds the folder's build lock."""
     job = _Job(recipe, Path(recipe_path).resolve().parent, layout, gen, make_library)
+    try:  # before anything is written: a cluster that cannot be joined is bad input
+        ex = make_executor(executor, workers, _init_job, (job,), address)
+    except ExecutorError as e:
+        raise OutputError(str(e)) from None
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=total, initial=reused, unit="ep", desc=f"build {recipe.name}", disable=not progress, dynamic_ncols=True)
-    attempts = successes = 0
+    bar = None
     try:
-        ex = make_executor(executor, workers, _init_job, (job,))
-    except ExecutorError as e:
-        bar.close()
-        raise OutputError(str(e)) from None
-    try:
+        manifest = _prepare(out, recipe, limit, layout, mode, workers, executor)
+        writer = _Writer(out, recipe, layout, manifest, plans)
+        writer.verify_shards()
+        writer.remove_leftovers()
+        for split in plans:
+            writer.flush(split)
+        total = sum(ps.episodes for ps in plans.values())
+        reused = sum(len(p.indices) if p.file in writer.done else sum(writer.stored(s, i) for i in p.indices) for s, ps in plans.items() for p in ps)
+        todo = (  # streamed: the plan never holds one item per episode
+            (split, i)
+            for split, ps in plans.items()
+            for p in ps
+            if p.file not in writer.done
+            for i in p.indices
+            if not writer.stored(split, i)
+        )
+        bar = tqdm(total=total, initial=reused, unit="ep", desc=f"build {recipe.name}", disable=not progress, dynamic_ncols=True)
+        attempts = successes = 0
         for res in ex.imap_unordered(_run_episode, todo):
             if isinstance(res, FailedEpisode) and res.error:
                 raise BuildError(f"{res.split} episode {res.index}: {res.error}")
@@ -529,12 +611,13 @@ def build(
     except BuildError:
         raise
     except Exception as e:
-        if type(e).__name__ == "BrokenProcessPool":
-            raise BuildError(f"a worker process died ({e}); finished episodes are kept: rerun with --resume") from e
+        if type(e).__name__ == "BrokenProcessPool" or type(e).__module__.startswith("ray."):
+            raise BuildError(f"a worker process or node died ({_one_line(str(e))[:300]}); finished episodes are kept: rerun with --resume") from e
         raise
     finally:
         ex.close()
-        bar.close()
+        if bar is not None:
+            bar.close()
     for split in plans:
         writer.flush(split)
     writer.finalize()
@@ -543,7 +626,7 @@ def build(
         out=out,
         episodes=dict(m["counts"]["episodes"]),
         steps=dict(m["counts"]["steps"]),
-        generated=len(todo),
+        generated=total - reused,
         reused=reused,
         failed_attempts=len(m["failed_episodes"]),
         rejected=sum(m["rejected"].values()),

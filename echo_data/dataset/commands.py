@@ -27,6 +27,7 @@ def build_cmd(
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted build.")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing dataset.")] = False,
     executor: Annotated[str, typer.Option("--executor", help="local (process pool) or ray.")] = "local",
+    address: Annotated[Optional[str], typer.Option("--address", help="Ray cluster address (host:port, as `ray start --head` prints); with --executor ray.")] = None,
     progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Show a progress bar.")] = True,
 ) -> None:
     """Build the dataset of a recipe: Parquet + WAV shards, manifest, stats, planner export."""
@@ -41,7 +42,7 @@ def build_cmd(
         raise _fail(str(e), 2) from None
     mode = "resume" if resume else "overwrite" if overwrite else "new"
     try:
-        summary = build(r, recipe, out if out is not None else Path("out") / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress)  # type: ignore[arg-type]
+        summary = build(r, recipe, out if out is not None else Path("out") / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress, address=address)  # type: ignore[arg-type]
     except OutputError as e:
         raise _fail(str(e), 2) from None
     except BuildError as e:

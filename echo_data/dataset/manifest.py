@@ -14,7 +14,8 @@ import time
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
+from collections.abc import Sequence
 
 from echo_data.acoustics.levels import calibration_record
 from echo_data.dataset.schema import FORMAT_VERSION, StepLayout, shard_name
@@ -66,14 +67,41 @@ def split_sizes(recipe: Recipe, limit: int | None) -> dict[str, int]:
     return {s: (recipe.splits[s] if limit is None else min(recipe.splits[s], limit)) for s in names}
 
 
-def plan_shards(recipe: Recipe, limit: int | None) -> dict[str, list[ShardPlan]]:
+class ShardPlans(Sequence[ShardPlan]):
+    """The shards of one split, computed on demand: memory does not grow with the episode count."""
+
+    def __init__(self, split: str, episodes: int, per_shard: int) -> None:
+        self.split, self.episodes, self.per_shard = split, episodes, per_shard
+        self.count = math.ceil(episodes / per_shard)
+
+    def __len__(self) -> int:
+        return self.count
+
+    @overload
+    def __getitem__(self, i: int) -> ShardPlan: ...
+    @overload
+    def __getitem__(self, i: slice) -> list[ShardPlan]: ...
+    def __getitem__(self, i: int | slice) -> ShardPlan | list[ShardPlan]:
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(self.count))]
+        if i < 0:
+            i += self.count
+        if not 0 <= i < self.count:
+            raise IndexError(i)
+        return ShardPlan(self.split, i, self.count, i * self.per_shard, min((i + 1) * self.per_shard, self.episodes))
+
+    def of_file(self, file: str) -> ShardPlan | None:
+        """The planned shard stored as `file`, or None when `file` is not one of this split's."""
+        for i in (int(part) for part in file.rsplit("-", 3)[1:2] if part.isdigit()):
+            if i < self.count and self[i].file == file:
+                return self[i]
+        return None
+
+
+def plan_shards(recipe: Recipe, limit: int | None) -> dict[str, ShardPlans]:
     """Episodes -> shards by (split, index): `episodes_per_shard` consecutive episodes each."""
     eps = recipe.outputs.episodes_per_shard
-    plans: dict[str, list[ShardPlan]] = {}
-    for split, n in split_sizes(recipe, limit).items():
-        m = math.ceil(n / eps)
-        plans[split] = [ShardPlan(split, i, m, i * eps, min((i + 1) * eps, n)) for i in range(m)]
-    return plans
+    return {split: ShardPlans(split, n, eps) for split, n in split_sizes(recipe, limit).items()}
 
 
 def new_manifest(recipe: Recipe, limit: int | None, layout: StepLayout, workers: int, executor: str) -> dict[str, Any]:
@@ -86,7 +114,11 @@ def new_manifest(recipe: Recipe, limit: int | None, layout: StepLayout, workers:
         "recipe": recipe.model_dump(mode="json"),
         "limit": limit,
         "seed": recipe.seed,
-        "seed_rule": "numpy.random.SeedSequence([recipe.seed, split_key, index, attempt]) (echo_data.episode.episode_seed)",
+        "seed_rule": (
+            "build attempt a of an episode lets the sampler try draws a*max_attempts_per_episode .. "
+            "(a+1)*max_attempts_per_episode-1; draw k is seeded numpy.random.SeedSequence([recipe.seed, split_key, index, k]) "
+            "(echo_data.episode.attempt_draws); each attempt record names its draw and seed once a spec was sampled"
+        ),
         "split_keys": {k: v for k, v in SPLIT_KEYS.items() if k in recipe.splits},
         "versions": versions(),
         "layout": layout.to_dict(),

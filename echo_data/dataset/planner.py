@@ -76,14 +76,23 @@ def dataset_info(name: str, splits: list[str], has_image: bool) -> dict[str, Any
     }
 
 
-def write_planner_export(out: Path, recipe: Recipe, rows: list[dict[str, Any]]) -> None:
-    """planner/{split}.json and planner/dataset_info.json (atomic, deterministic)."""
+def planner_files(out: Path, recipe: Recipe, rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The planner export's JSON files (path under out/ -> content); an episode has an image
+    record when its PNG is on disk. Validate rebuilds them to compare."""
     any_image = False
+    files: dict[str, Any] = {}
     for split in recipe.splits:
         records = []
         for row in (r for r in rows if r["split"] == split):
             has_image = (out / "planner" / "images" / split / f"{row['episode_id']}.png").is_file()
             any_image |= has_image
             records.append(planner_record(row, has_image))
-        atomic_write_json(out / "planner" / f"{split}.json", records)
-    atomic_write_json(out / "planner" / "dataset_info.json", dataset_info(recipe.name, list(recipe.splits), any_image))
+        files[f"planner/{split}.json"] = records
+    files["planner/dataset_info.json"] = dataset_info(recipe.name, list(recipe.splits), any_image)
+    return files
+
+
+def write_planner_export(out: Path, recipe: Recipe, rows: list[dict[str, Any]]) -> None:
+    """planner/{split}.json and planner/dataset_info.json (atomic, deterministic)."""
+    for rel, content in planner_files(out, recipe, rows).items():
+        atomic_write_json(out / rel, content)

@@ -113,6 +113,14 @@ def finalize(summary: dict[str, Any]) -> dict[str, list[float]]:
     return out
 
 
+def dataset_stats(shard_metas: list[dict[str, Any]]) -> dict[str, dict[str, list[float]]]:
+    """meta/stats.json from the shards' metadata: the train split's shards (all when there is
+    no train split), merged and finalised. Validate recomputes it the same way."""
+    train = [m["stats"] for m in shard_metas if m["split"] == "train"] or [m["stats"] for m in shard_metas]
+    merged = merge_features(train)
+    return {k: finalize(v) for k, v in merged.items()}
+
+
 def episode_feature_values(
     action: np.ndarray,
     state: np.ndarray,

@@ -1,12 +1,19 @@
 """`echo-data validate`: check a dataset on disk against its manifest, byte by byte.
 
 Reads every shard in full and every WAV; returns human-readable problems (empty = sound).
+Everything derived is rebuilt and compared with what is on disk: the manifest's totals from
+its shard entries, meta/stats.json and meta/info.json from the shards, the planner JSON from
+the episode records, each planner WAV from its episode WAV, and each step's spectrogram and
+log-mel from the WAV samples (they must describe exactly the audio in the file). Files that
+no record names (a stray shard or WAV) are reported, as are clipped samples. The schema comes
+from the recipe in the manifest, so columns added to the layout need no change here.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -14,12 +21,13 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from echo_data.dataset.manifest import ManifestError, load_manifest, plan_shards
-from echo_data.dataset.schema import SHARD_META_KEY, StepLayout
-from echo_data.dataset.writer import sha256_file
+from echo_data.dataset import stats as stats_mod
+from echo_data.dataset.manifest import ManifestError, load_manifest, plan_shards, totals
+from echo_data.dataset.schema import MEL, SHARD_META_KEY, SPECTROGRAM, StepLayout, column_to_numpy
+from echo_data.dataset.writer import canonical_json, planner_wav_bytes, read_shard_meta, sha256_file
+from echo_data.pcm import clipped_samples, dequantise
 from echo_data.recipe import Recipe
 
-STATS_KEYS = ("min", "max", "mean", "std", "count")
 
 
 def _plain(t: pa.DataType) -> pa.DataType:
@@ -50,7 +58,35 @@ def _schema_problems(name: str, got: pa.Schema, want: pa.Schema) -> list[str]:
     return out
 
 
-def _audio_problems(out: Path, row: dict[str, Any], offsets: np.ndarray, sample_rate: int) -> list[str]:
+# Recomputed features may differ from stored ones by float rounding on another CPU or library
+# build; a spectrogram of different audio (e.g. before clipping) differs by far more.
+FEATURE_ATOL = 1e-3
+
+
+def _feature_problems(eid: str, audio: np.ndarray, offsets: np.ndarray, stored: dict[str, np.ndarray], sample_rate: int) -> list[str]:
+    """Stored per-step spectrogram / log-mel against those of the WAV's own samples."""
+    from echo_data.acoustics.features import step_features
+
+    if not stored or not len(offsets):
+        return []
+    mel_bands = stored[MEL].shape[1] if MEL in stored else 64
+    spec, mel = step_features(dequantise(audio), offsets, sample_rate, mel_bands)
+    problems = []
+    for col, want in ((SPECTROGRAM, spec), (MEL, mel)):
+        got = stored.get(col)
+        if got is None:
+            continue
+        if got.shape != want.shape:
+            problems.append(f"{eid}: {col} has shape {got.shape[1:]}, the WAV gives {want.shape[1:]}")
+            continue
+        diff = np.abs(got.astype(np.float64) - want)
+        if not np.all(diff <= FEATURE_ATOL):
+            step = int(np.unravel_index(np.argmax(diff), diff.shape)[0])
+            problems.append(f"{eid}: {col} does not match the WAV's samples (max difference {diff.max():.3g} at step {step})")
+    return problems
+
+
+def _audio_problems(out: Path, row: dict[str, Any], offsets: np.ndarray, sample_rate: int, stored: dict[str, np.ndarray] | None = None) -> list[str]:
     import soundfile as sf
 
     path = out / row["audio_path"]
@@ -73,6 +109,12 @@ def _audio_problems(out: Path, row: dict[str, Any], offsets: np.ndarray, sample_
         problems.append(f"{eid}: {row['audio_path']} has {len(audio)} samples, expected {row['audio_samples']}")
     if len(offsets) and (offsets.min() < 0 or offsets.max() > len(audio)):
         problems.append(f"{eid}: audio_offset outside the WAV (max {offsets.max()}, WAV has {len(audio)} samples)")
+        return problems
+    clipped = clipped_samples(audio)
+    if clipped:
+        problems.append(f"{eid}: {row['audio_path']} has {clipped} clipped samples (at 16-bit full scale)")
+    if audio.shape[1] == 2:
+        problems += _feature_problems(eid, audio, offsets, stored or {}, sample_rate)
     return problems
 
 
@@ -129,12 +171,20 @@ def validate(out: Path) -> list[str]:
             rows = shard_meta.get("episodes", [])
             if [r["episode_index"] for r in rows] != list(plan.indices):
                 problems.append(f"{plan.file}: holds episodes {[r['episode_index'] for r in rows]}, expected {list(plan.indices)}")
+            try:
+                features = {c: column_to_numpy(table.column(c), layout.arrays[c]) for c in (SPECTROGRAM, MEL) if c in layout.arrays}
+            except Exception as e:
+                problems.append(f"{plan.file}: audio feature columns unreadable ({type(e).__name__}: {e})")
+                features = {}
+            if entry is not None:
+                problems += _entry_problems(plan.file, entry, rows, path.stat().st_size, next_index - n, (plan.first, plan.last))
             pos = 0
             for r in rows:
                 k = r["n_steps"]
                 if not (np.all(ep[pos : pos + k] == r["episode_index"]) and np.array_equal(fr[pos : pos + k], np.arange(k))):
                     problems.append(f"{plan.file}: episode {r['episode_id']} rows are not frames 0..{k - 1} in order")
-                problems += _audio_problems(out, r, off[pos : pos + k], layout.sample_rate)
+                mine = {c: a[pos : pos + k] for c, a in features.items() if len(a) >= pos + k}
+                problems += _audio_problems(out, r, off[pos : pos + k], layout.sample_rate, mine)
                 pos += k
             if pos != n:
                 problems.append(f"{plan.file}: episode records cover {pos} rows of {n}")
@@ -146,7 +196,12 @@ def validate(out: Path) -> list[str]:
             all_rows += rows
     for file in listed:
         problems.append(f"{file}: listed in the manifest but not part of the planned layout")
+    if not all_rows and not problems:
+        problems.append("the dataset holds no episodes")
+    problems += _manifest_problems(manifest, recipe)
     problems += _meta_problems(out, recipe, all_rows)
+    problems += _derived_problems(out, recipe, layout, manifest, all_rows)
+    problems += _stray_problems(out, recipe, manifest, all_rows)
     for path in sorted(out.rglob(".*.tmp-*")):
         problems.append(f"{path.relative_to(out)}: leftover temporary file")
     return problems
@@ -160,26 +215,120 @@ def _meta_problems(out: Path, recipe: Recipe, rows: list[dict[str, Any]]) -> lis
             problems.append("meta/episodes.parquet: differs from the episode records in the shards")
     except Exception as e:
         problems.append(f"meta/episodes.parquet: unreadable ({type(e).__name__})")
+    return problems
+
+
+def _entry_problems(file: str, entry: dict[str, Any], rows: list[dict[str, Any]], size: int, index_from: int, episodes: tuple[int, int]) -> list[str]:
+    """A manifest shard entry against its shard: what the file holds, not what someone typed."""
+    problems = []
+    if entry.get("bytes") != size:
+        problems.append(f"manifest.json: {file} is {size} bytes, the manifest says {entry.get('bytes')}")
+    if list(entry.get("episodes", [])) != list(episodes):
+        problems.append(f"manifest.json: {file} holds episodes {list(episodes)}, the manifest says {entry.get('episodes')}")
+    if entry.get("index_from") != index_from:
+        problems.append(f"manifest.json: {file} starts at index {index_from}, the manifest says {entry.get('index_from')}")
+    settings = dict(sorted(Counter(r["setting"] for r in rows).items()))
+    if entry.get("settings") != settings:
+        problems.append(f"manifest.json: {file} settings {entry.get('settings')} differ from its episodes' {settings}")
+    return problems
+
+
+def _manifest_problems(manifest: dict[str, Any], recipe: Recipe) -> list[str]:
+    """Totals (counts, success rate, skills, rejections, failed attempts) are a function of the
+    shard entries: an edited total no longer matches them."""
+    problems = []
     try:
-        stats = json.loads((out / "meta" / "stats.json").read_text())
-        for feat in ("action", "observation.state") + tuple(StepLayout.from_recipe(recipe).arrays):
-            if rows and not all(k in stats.get(feat, {}) for k in STATS_KEYS):
-                problems.append(f"meta/stats.json: no {'/'.join(STATS_KEYS)} for {feat}")
+        want = totals(manifest.get("shards", []))
     except Exception as e:
-        problems.append(f"meta/stats.json: unreadable ({type(e).__name__})")
+        return [f"manifest.json: shard entries are malformed ({type(e).__name__}: {e})"]
+    for key, value in want.items():
+        got = manifest.get(key)
+        if key == "counts" and isinstance(got, dict):
+            for sub, v in value.items():
+                if got.get(sub) != v:
+                    problems.append(f"manifest.json: counts.{sub} is {got.get(sub)!r}, its shard entries give {v!r}")
+        elif got != value:
+            problems.append(f"manifest.json: {key} differs from what its shard entries give")
+    if manifest.get("seed") != recipe.seed:
+        problems.append(f"manifest.json: seed {manifest.get('seed')!r} differs from the recipe's {recipe.seed}")
+    return problems
+
+
+def _json_file_problem(out: Path, rel: str, want: Any) -> str | None:
+    path = out / rel
+    if not path.is_file():
+        return f"{rel}: missing"
+    try:
+        got = path.read_bytes()
+    except OSError as e:
+        return f"{rel}: unreadable ({e.strerror or e})"
+    if got != canonical_json(want):
+        return f"{rel}: differs from what the shards give (edited or stale)"
+    return None
+
+
+def _derived_problems(out: Path, recipe: Recipe, layout: StepLayout, manifest: dict[str, Any], rows: list[dict[str, Any]]) -> list[str]:
+    """meta/stats.json, meta/info.json and the planner export, rebuilt and compared byte by byte."""
+    from echo_data.dataset.build import _Writer
+    from echo_data.dataset.planner import planner_files
+
+    problems = []
+    metas = []
+    for e in manifest.get("shards", []):
+        try:
+            metas.append(read_shard_meta(out / e["file"]))
+        except Exception:
+            return problems  # an unreadable shard is reported already; nothing to rebuild from
+    expected: dict[str, Any] = {}
+    try:
+        expected["meta/stats.json"] = stats_mod.dataset_stats(metas)
+    except Exception as e:
+        problems.append(f"meta/stats.json: cannot be rebuilt from the shards ({type(e).__name__}: {e})")
+    plans = plan_shards(recipe, manifest.get("limit"))
+    expected["meta/info.json"] = _Writer(out, recipe, layout, manifest, plans).info_json()
     if recipe.outputs.planner_export:
-        for split in recipe.splits:
-            try:
-                records = json.loads((out / "planner" / f"{split}.json").read_text())
-            except Exception as e:
-                problems.append(f"planner/{split}.json: unreadable ({type(e).__name__})")
-                continue
-            if len(records) != sum(1 for r in rows if r["split"] == split):
-                problems.append(f"planner/{split}.json: {len(records)} records for a split of different size")
-            for rec in records:
-                for media in rec.get("audios", []) + rec.get("images", []):
-                    if not (out / "planner" / media).is_file():
-                        problems.append(f"planner/{split}.json: missing {media}")
-        if not (out / "planner" / "dataset_info.json").is_file():
-            problems.append("planner/dataset_info.json: missing")
+        expected.update(planner_files(out, recipe, rows))
+    for rel, want in expected.items():
+        p = _json_file_problem(out, rel, want)
+        if p:
+            problems.append(p)
+    if recipe.outputs.planner_export:
+        problems += _planner_media_problems(out, layout, rows)
+    return problems
+
+
+def _planner_media_problems(out: Path, layout: StepLayout, rows: list[dict[str, Any]]) -> list[str]:
+    """Each planner WAV must be the clip its episode WAV gives (catches truncation and edits)."""
+    import soundfile as sf
+
+    problems = []
+    for r in rows:
+        rel = f"planner/audio/{r['split']}/{r['episode_id']}.wav"
+        path = out / rel
+        if not path.is_file():
+            problems.append(f"{rel}: missing")
+            continue
+        try:
+            audio, _ = sf.read(str(out / r["audio_path"]), dtype="int16", always_2d=True)
+            want = planner_wav_bytes(dequantise(audio), layout.sample_rate)
+        except Exception:
+            continue  # the episode WAV's own problem is reported already
+        if path.read_bytes() != want:
+            problems.append(f"{rel}: differs from the clip of {r['audio_path']} (truncated or modified)")
+    return problems
+
+
+def _stray_problems(out: Path, recipe: Recipe, manifest: dict[str, Any], rows: list[dict[str, Any]]) -> list[str]:
+    """Media and shard files that no record names: a reader globbing the folders would use them."""
+    expected = {e["file"] for e in manifest.get("shards", [])}
+    expected |= {r["audio_path"] for r in rows}
+    if recipe.outputs.planner_export:
+        expected |= {f"planner/audio/{r['split']}/{r['episode_id']}.wav" for r in rows}
+        expected |= {f"planner/images/{r['split']}/{r['episode_id']}.png" for r in rows}
+    problems = []
+    for folder in ("data", "audio", "planner/audio", "planner/images"):
+        for path in sorted((out / folder).rglob("*")) if (out / folder).is_dir() else []:
+            rel = path.relative_to(out).as_posix()
+            if path.is_file() and rel not in expected and not path.name.startswith("."):
+                problems.append(f"{rel}: stray file (no record names it)")
     return problems

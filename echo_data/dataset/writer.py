@@ -40,6 +40,7 @@ from echo_data.dataset.schema import (
     audio_relpath,
     task_index,
 )
+from echo_data.pcm import as_written, quantise
 from echo_data.records import ACTION_DIM, STATE_DIM, EpisodeResult
 
 PNG_COMPRESS_LEVEL = 1  # the build is CPU-bound; zlib 1 is several times faster than 6
@@ -122,12 +123,12 @@ def encode_png(image: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def encode_wav(audio: np.ndarray, sample_rate: int) -> bytes:
-    """float (n, channels) in [-1, 1] -> 16-bit PCM WAV bytes (clipped)."""
+def encode_wav(audio: np.ndarray, sample_rate: int, what: str = "audio") -> bytes:
+    """float (n, channels) -> 16-bit PCM WAV bytes; ClippingError if it would clip (see pcm)."""
     import soundfile as sf
 
     buf = io.BytesIO()
-    sf.write(buf, np.clip(np.asarray(audio, dtype=np.float32), -1.0, 1.0), sample_rate, subtype=WAV_SUBTYPE, format="WAV")
+    sf.write(buf, quantise(audio, what), sample_rate, subtype=WAV_SUBTYPE, format="WAV")
     return buf.getvalue()
 
 
@@ -143,6 +144,11 @@ def planner_audio(audio: np.ndarray, sample_rate: int) -> np.ndarray:
         g = gcd(PLANNER_SAMPLE_RATE, sample_rate)
         mono = resample_poly(mono, PLANNER_SAMPLE_RATE // g, sample_rate // g)
     return mono.astype(np.float32)
+
+
+def planner_wav_bytes(audio: np.ndarray, sample_rate: int) -> bytes:
+    """The planner export's clip of an episode track (as written: validate recomputes it from the WAV)."""
+    return encode_wav(planner_audio(audio, sample_rate)[:, None], PLANNER_SAMPLE_RATE, "planner audio")
 
 
 # ---------------------------------------------------------------- episodes
@@ -306,7 +312,8 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
     with pa.ipc.new_stream(sink, schema) as w:
         w.write_table(table)
 
-    wav = encode_wav(audio, layout.sample_rate)
+    audio = as_written(audio, f"{spec.episode_id} audio")  # what the WAV holds (and the planner clip is cut from)
+    wav = encode_wav(audio, layout.sample_rate, f"{spec.episode_id} audio")
     row = _spec_row(spec)
     row.update(
         {
@@ -327,7 +334,7 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
     planner_png = None
     if steps[0].head_rgb is not None:
         planner_png = encode_png(np.asarray(steps[0].head_rgb, dtype=np.uint8))
-    planner_wav = encode_wav(planner_audio(audio, layout.sample_rate)[:, None], PLANNER_SAMPLE_RATE)
+    planner_wav = planner_wav_bytes(audio, layout.sample_rate)
     return EncodedEpisode(
         split=spec.split,
         index=int(spec.index),

@@ -34,6 +34,7 @@ from echo_data.acoustics.noise import NoiseFloor
 from echo_data.acoustics.room import AcousticScene
 from echo_data.acoustics.stream import FADE_S, CacheKey, RirCache, _block
 from echo_data.episode import EpisodeSpec
+from echo_data.pcm import as_written
 from echo_data.recipe import Recipe
 
 # The event has been sounding for this long when the robot's first observation is taken.
@@ -204,7 +205,10 @@ class OnlineTrack:
             out = acc.astype(np.float32)
         self._prev = keys
         pressure = out.astype(np.float64) + self.noise.render(lo, S)
-        return to_full_scale(pressure, self.cfg.full_scale_db_spl, what=f"episode {self.episode_id}")
+        # What the robot hears is what the WAV holds: 16-bit samples (the features of every step
+        # are computed from them, so stored spectrograms match the file and the env the dataset).
+        what = f"episode {self.episode_id}"
+        return as_written(to_full_scale(pressure, self.cfg.full_scale_db_spl, what=what), what)
 
     def _zero_from(self) -> int | None:
         """Sample from which the sources' part is exactly zero: every source stopped and its tail

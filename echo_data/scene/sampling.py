@@ -1,6 +1,6 @@
 """Episode sampling with solvability checks: (recipe, split, index) -> EpisodeSpec.
 
-Each attempt draws everything from `episode_seed(recipe.seed, split, index, attempt)`: the
+Each draw (see `echo_data.episode.attempt_draws`) takes everything from its own seed: the
 setting, the apartment, the sound events (targets, sound instances, sources), the skill
 chain and the robot's start pose. An attempt is accepted only when the episode can be
 solved: a base path from the start through every interaction pose in chain order, a free
@@ -17,7 +17,7 @@ from typing import Protocol
 import numpy as np
 from scipy import ndimage
 
-from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, episode_seed
+from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, attempt_draws
 from echo_data.recipe import RELOCATION_CATEGORIES, STATE_CATEGORIES, Recipe
 from echo_data.scene.floorplan import FloorPlan, Rect, Vec3
 from echo_data.scene.generate import GenerationError, door_swing_zone, front_zone, generate_floorplan, place_object
@@ -170,8 +170,7 @@ def sample_episode(
     """
     budget = recipe.max_attempts_per_episode
     counts: dict[str, int] = {}
-    for k in range(attempt * budget, (attempt + 1) * budget):
-        seed = episode_seed(recipe.seed, split, index, k)
+    for k, seed in attempt_draws(recipe.seed, split, index, attempt, budget):
         try:
             return _attempt(recipe, split, index, k, seed, library), counts
         except _Reject as r:

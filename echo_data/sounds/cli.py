@@ -70,10 +70,24 @@ def export_sounds(
 
     lib = _library(recipe)
     items = _select(lib, category, split)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    for s in items:
-        x = lib.waveform(s.id, sample_rate=sample_rate, seconds=seconds)
-        tmp = out_dir / f".{s.id}.wav.tmp"
-        sf.write(str(tmp), x, sample_rate, subtype="PCM_16", format="WAV")
-        tmp.replace(out_dir / f"{s.id}.wav")
+    from echo_data.dataset.build import OutputError, check_output_path
+
+    try:
+        check_output_path(out_dir)
+    except OutputError as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(2) from None
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for s in items:
+            x = lib.waveform(s.id, sample_rate=sample_rate, seconds=seconds)
+            tmp = out_dir / f".{s.id}.wav.tmp"
+            try:
+                sf.write(str(tmp), x, sample_rate, subtype="PCM_16", format="WAV")
+                tmp.replace(out_dir / f"{s.id}.wav")
+            finally:
+                tmp.unlink(missing_ok=True)
+    except (OSError, RuntimeError) as e:  # soundfile reports a failed open as a RuntimeError (LibsndfileError)
+        typer.echo(f"error: {out_dir}: cannot write ({getattr(e, 'strerror', None) or ' '.join(str(e).split())})", err=True)
+        raise typer.Exit(2) from None
     typer.echo(f"wrote {len(items)} files to {out_dir}")

@@ -20,6 +20,7 @@ from echo_data.sounds.user_folders import (
     AUDIO_SUFFIXES,
     SoundLibraryError,
     audio_files,
+    check_finite,
     crossfade_loop,
     file_duration,
     read_mono,
@@ -143,7 +144,9 @@ def folder_instances(category: str, folder: Path, test_fraction: float) -> list[
         while iid in used:
             iid, i = f"{base}-{i}", i + 1
         used.add(iid)
-        out.append(SoundInstance(iid, category, splits[p], round(file_duration(p), 4), str(p)))
+        duration = file_duration(p)
+        check_finite(p)
+        out.append(SoundInstance(iid, category, splits[p], round(duration, 4), str(p)))
     return out
 
 

@@ -2,7 +2,8 @@
 
 Any sample rate and channel count is accepted: channels are averaged to mono and the signal is
 resampled to the requested rate. A file that cannot be read raises `SoundLibraryError` with a
-one-line message naming the file.
+one-line message naming the file: so does a file longer than `MAX_FILE_SECONDS` or one with
+NaN or infinite samples (float WAVs can hold them; they would poison every render).
 """
 
 from __future__ import annotations
@@ -18,6 +19,10 @@ from echo_data.sounds.dsp import resample
 
 AUDIO_SUFFIXES = (".wav", ".wave", ".flac", ".ogg")
 LOOP_CROSSFADE_S = 0.05
+# Longest user recording accepted. Events loop their sound, so a ring, an alarm or a running tap
+# needs seconds, not hours; a longer file is refused from its header, before any sample is read
+# (a 10-hour WAV would take gigabytes in every worker).
+MAX_FILE_SECONDS = 60.0
 
 
 class SoundLibraryError(ValueError):
@@ -52,7 +57,26 @@ def file_duration(path: Path) -> float:
         raise SoundLibraryError(f"{path}: unreadable audio file ({_reason(e)})") from None
     if info.frames <= 0 or info.samplerate <= 0:
         raise SoundLibraryError(f"{path}: audio file has no samples")
-    return info.frames / info.samplerate
+    seconds = info.frames / info.samplerate
+    if seconds > MAX_FILE_SECONDS:
+        raise SoundLibraryError(f"{path}: {seconds:.0f} s long; sound files may be at most {MAX_FILE_SECONDS:.0f} s (events loop their sound)")
+    return seconds
+
+
+def check_finite(path: Path) -> None:
+    """Refuse a file with NaN or infinite samples when the library is loaded, not mid-build
+    (read in blocks: memory stays small whatever the file's length)."""
+    try:
+        start = 0
+        for block in sf.blocks(str(path), blocksize=1 << 16, dtype="float64", always_2d=True):
+            bad = np.flatnonzero(~np.isfinite(block).all(axis=1))
+            if bad.size:
+                raise SoundLibraryError(f"{path}: samples are NaN or infinite (first at sample {start + int(bad[0])})")
+            start += len(block)
+    except SoundLibraryError:
+        raise
+    except Exception as e:
+        raise SoundLibraryError(f"{path}: unreadable audio file ({_reason(e)})") from None
 
 
 def slug(stem: str) -> str:
@@ -69,6 +93,9 @@ def read_mono(path: Path, sr: int) -> np.ndarray:
         raise SoundLibraryError(f"{path}: unreadable audio file ({_reason(e)})") from None
     if data.size == 0:
         raise SoundLibraryError(f"{path}: audio file has no samples")
+    bad = np.flatnonzero(~np.isfinite(data).all(axis=1))
+    if bad.size:
+        raise SoundLibraryError(f"{path}: samples are NaN or infinite (first at sample {int(bad[0])})")
     x = resample(data.mean(axis=1), int(file_sr), int(sr))
     if not np.any(np.abs(x) > 1e-6):
         raise SoundLibraryError(f"{path}: audio file is silent")
