@@ -49,3 +49,13 @@ def test_info_refreshes_the_card(ds: Path) -> None:
     (ds / "README.md").unlink()
     assert CliRunner().invoke(app, ["info", str(ds)]).exit_code == 0
     assert _front((ds / "README.md").read_text())["pretty_name"] == "echo-data synth"
+
+
+def test_card_states_the_audio_calibration(ds: Path) -> None:
+    """The card says what a WAV sample means in sound pressure, as the manifest records it."""
+    audio = load_manifest(ds)["audio"]
+    text = (ds / "README.md").read_text()
+    assert "## Audio calibration" in text
+    assert f"a sample of 1.0 is {audio['full_scale_db_spl']:g} dB SPL" in text
+    for cat, (lo, hi) in audio["source_levels_db_spl_at_1m"].items():
+        assert f"| {cat} | {lo:g}–{hi:g} |" in text

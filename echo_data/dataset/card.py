@@ -118,6 +118,7 @@ def card_text(out: Path) -> str:
         f"Control rate {info['fps']} Hz; audio {info['audio_sample_rate']} Hz, 2 channels (0 = left). "
         "Settings: " + "; ".join(f"{s}: " + ", ".join(f"{k} {v}" for k, v in c.items()) for s, c in counts["settings"].items()) + ".",
         "",
+        *_calibration_lines(m.get("audio", {})),
         "## Features",
         "",
         "| column | type | meaning |",
@@ -183,6 +184,26 @@ def card_text(out: Path) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _calibration_lines(audio: dict[str, Any]) -> list[str]:
+    """The WAVs' sound-pressure calibration and the sources' levels, from the manifest."""
+    if "full_scale_db_spl" not in audio:
+        return []
+    levels = audio.get("source_levels_db_spl_at_1m", {})
+    return [
+        "## Audio calibration",
+        "",
+        f"WAV samples are sound pressure: a sample of 1.0 is {audio['full_scale_db_spl']:g} dB SPL "
+        f"({audio.get('full_scale_pa', 0):g} Pa), {audio.get('subtype', 'PCM_16')}, never clipped. "
+        f"Every episode carries a room-noise bed of {audio.get('noise_floor_dba', 0):g} dB(A). "
+        f"Source levels ({audio.get('level_definition', '')}):",
+        "",
+        "| sound | dB SPL at 1 m |",
+        "| --- | --- |",
+        *[f"| {c} | {lo:g}–{hi:g} |" for c, (lo, hi) in sorted(levels.items())],
+        "",
+    ]
 
 
 def write_card(out: Path) -> Path:
