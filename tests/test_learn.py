@@ -192,3 +192,18 @@ def test_not_a_dataset_and_busy_out_folder(ds: Path, tmp_path: Path) -> None:
     assert res.exit_code == 2 and "not empty" in res.output and (busy / "notes.txt").read_text() == "mine"
     res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Navigate", "--out", str(tmp_path / "none"), "--resume"])
     assert res.exit_code == 2 and "nothing to resume" in res.output
+
+
+def test_wilson_interval_matches_closed_forms() -> None:
+    """0 of n: the upper bound is z^2 / (n + z^2); k of n is symmetric to n-k of n; the
+    interval holds the observed rate and stays inside [0, 1]."""
+    from echo_data.learn.metrics import rate, wilson
+
+    z2 = 1.959964**2
+    lo, hi = wilson(0, 10)
+    assert lo == 0.0 and hi == pytest.approx(z2 / (10 + z2), rel=1e-9)
+    lo8, hi8 = wilson(8, 10)
+    lo2, hi2 = wilson(2, 10)
+    assert lo8 == pytest.approx(1 - hi2) and hi8 == pytest.approx(1 - lo2) and lo8 < 0.8 < hi8
+    assert hi8 == pytest.approx(0.9433, abs=1e-4) and lo8 == pytest.approx(0.4902, abs=1e-4)
+    assert rate(0, 0)["accuracy"] is None

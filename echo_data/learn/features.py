@@ -16,7 +16,6 @@ to measure the shortcut). See docs/learners.md.
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -222,7 +221,3 @@ def single(obs: Mapping[str, Any], spec: FeatureSpec) -> dict[str, np.ndarray]:
     if missing:
         raise FeatureError(f"observation lacks {missing}; it has {sorted(obs)}")
     return {c: canonical(c, obs[c])[None] for c in spec.columns}
-
-
-def wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi

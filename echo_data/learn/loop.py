@@ -2,7 +2,9 @@
 
 Batch order of epoch e is a permutation drawn from (seed, e) alone and the checkpoint records
 the epoch and the batch reached, so a resumed run takes exactly the batches an uninterrupted one
-would have. checkpoint.pt is rewritten at each epoch's end and when `max_steps` stops the run;
+would have. checkpoint.pt (with losses.csv and curves.png) is rewritten at an epoch's end when
+`CHECKPOINT_SECONDS` have passed since the last one, after the last epoch, and when `max_steps`
+stops the run (a killed run resumes from its last checkpoint);
 best.pt keeps the weights with the lowest validation loss (the latest when there is no
 validation set).
 """
@@ -18,6 +20,8 @@ from typing import Any, Callable
 import numpy as np
 
 from echo_data.learn import runs
+
+CHECKPOINT_SECONDS = 30.0  # tiny epochs (the planner's) would otherwise spend their time on disk
 
 
 def setup_torch(seed: int, threads: int) -> Any:
@@ -68,6 +72,7 @@ def fit(
     total = per_epoch * cfg.epochs if cfg.max_steps is None else min(per_epoch * cfg.epochs, cfg.max_steps)
     bar = tqdm(total=total, initial=min(state["step"], total), desc=desc, unit="step", disable=not progress)
     t0 = time.perf_counter() - state["seconds"]
+    saved = time.perf_counter()
     model.train()
     while state["epoch"] < cfg.epochs and state["step"] < total:
         order = train_ix[np.random.default_rng([cfg.seed, state["epoch"]]).permutation(len(train_ix))]
@@ -97,11 +102,14 @@ def fit(
                 state["best_val"] = v
             runs.save_torch(out / runs.BEST, {"model": model.state_dict(), "step": state["step"], "val_loss": v})
         state.update(epoch=state["epoch"] + 1, batch=0, running=[0.0, 0])
-        checkpoint()
-        runs.write_losses(out, state["history"])
+        if time.perf_counter() - saved >= CHECKPOINT_SECONDS:
+            checkpoint()
+            runs.write_losses(out, state["history"])
+            saved = time.perf_counter()
     bar.close()
     state["seconds"] = time.perf_counter() - t0
     checkpoint()
+    runs.write_losses(out, state["history"])
     if not (out / runs.BEST).is_file():  # stopped before the first epoch ended
         runs.save_torch(out / runs.BEST, {"model": model.state_dict(), "step": state["step"], "val_loss": math.nan})
     return state

@@ -2,8 +2,8 @@
 
 Small on purpose (trainable in minutes on two CPU cores). The audio encoder follows the layout of
 SoundSpaces' AudioNav audio CNN: three convolutions 2 -> 32 -> 64 -> 64 channels with kernels
-5, 3, 3 and strides 2, 2, 1 (their choice when a side of the spectrogram is under 30 bins), then
-a linear layer. The two ears stay separate input channels, so interaural level and timing
+5, 3, 3 and strides 2, 2, 1 (their choice when a side of the spectrogram is under 30 bins, as for
+the 65 x 26 spectrogram; 4, 2, 2 otherwise), then a linear layer. The two ears stay separate input channels, so interaural level and timing
 cues reach the first convolution (swapping the ears changes the code).
 """
 
@@ -23,17 +23,24 @@ def _conv_out(net: nn.Module, shape: tuple[int, ...]) -> int:
         return int(net(torch.zeros(1, *shape)).numel())
 
 
+def audio_strides(freq: int, frames: int) -> tuple[int, int, int]:
+    """SoundSpaces' rule: strides 2, 2, 1 when a side is under 30 bins, else 4, 2, 2 (a 64 x 101
+    log-mel would otherwise leave a 10-million-weight linear layer)."""
+    return (2, 2, 1) if min(freq, frames) < 30 else (4, 2, 2)
+
+
 class AudioEncoder(nn.Module):
     """(B, 2, F, T) normalised binaural features -> (B, out)."""
 
     def __init__(self, freq: int, frames: int, out: int = 128) -> None:
         super().__init__()
+        s1, s2, s3 = audio_strides(freq, frames)
         self.cnn = nn.Sequential(
-            nn.Conv2d(2, 32, 5, stride=2),
+            nn.Conv2d(2, 32, 5, stride=s1),
             nn.ReLU(),
-            nn.Conv2d(32, 64, 3, stride=2),
+            nn.Conv2d(32, 64, 3, stride=s2),
             nn.ReLU(),
-            nn.Conv2d(64, 64, 3, stride=1),
+            nn.Conv2d(64, 64, 3, stride=s3),
             nn.ReLU(),
             nn.Flatten(),
         )

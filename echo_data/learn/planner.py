@@ -38,9 +38,9 @@ PLANNER_CLASS = "echo_data.learn.policy:PlannerModel"
 class PlannerConfig:
     dataset: str
     inputs: tuple[str, ...] = ("audio",)
-    epochs: int = 60
+    epochs: int = 200  # episodes are few (one example each): many short epochs
     seed: int = 0
-    batch_size: int = 32
+    batch_size: int = 16
     lr: float = 1e-3
     weight_decay: float = 1e-4
     val_fraction: float = 0.15
