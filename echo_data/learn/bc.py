@@ -160,7 +160,8 @@ def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = F
 
     loop = LoopConfig(cfg.epochs, cfg.batch_size, cfg.seed, cfg.max_steps)
     state = fit(model, opt, tr, loss_fn, validate, loop, out, resume, progress, desc=f"train {cfg.skill}")
-    mean_val = float(((target[va] ** 2).mean(dim=2) * valid[va]).sum() / valid[va].sum().clamp(min=1)) if len(va) else math.nan
+    # Reference: the validation loss of always answering the mean training action of this skill.
+    mean_val = float(_masked_mse(target[tr].mean(dim=0, keepdim=True).expand(len(va), -1, -1), target[va], valid[va])) if len(va) else math.nan
     return {
         "run": str(out),
         "skill": cfg.skill,
@@ -172,6 +173,6 @@ def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = F
         "epoch": state["epoch"],
         "seconds": round(state["seconds"], 1),
         "best_val_loss": state["best_val"] if state["best_val"] != math.inf else None,
-        "val_loss_of_mean_action": mean_val,
+        "val_loss_of_mean_train_action": mean_val,
         "last": state["history"][-1] if state["history"] else None,
     }
