@@ -40,7 +40,7 @@ class BCConfig:
     chunk: int = 1  # actions predicted per step
     execute: int = 1  # of those, executed before predicting again
     val_fraction: float = 0.15
-    threads: int = 2
+    threads: int = 1  # see loop.setup_torch: more threads than free cores is many times slower
     image_size: int = 64
     audio: str = "spectrogram"
     max_steps: int | None = None  # stop (and checkpoint) after this many optimiser steps

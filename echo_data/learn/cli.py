@@ -16,7 +16,7 @@ _Seed = Annotated[int, typer.Option("--seed", help="Seed of initialisation, spli
 _Resume = Annotated[bool, typer.Option("--resume", help="Continue the run in --out from its last checkpoint.")]
 _Overwrite = Annotated[bool, typer.Option("--overwrite", help="Replace the run in --out.")]
 _MaxSteps = Annotated[Optional[int], typer.Option("--max-steps", min=1, help="Stop after this many optimiser steps (checkpointed).")]
-_Threads = Annotated[int, typer.Option("--threads", min=1, help="torch CPU threads (results are reproducible for a fixed count).")]
+_Threads = Annotated[int, typer.Option("--threads", min=1, help="torch CPU threads (results are reproducible for a fixed count; 1 is fastest on a busy machine).")]
 _Progress = Annotated[bool, typer.Option("--progress/--no-progress", help="Show progress bars.")]
 
 
@@ -52,7 +52,7 @@ def bc_cmd(
     batch_size: Annotated[int, typer.Option("--batch-size", min=1)] = 64,
     lr: Annotated[float, typer.Option("--lr", min=0.0)] = 1e-3,
     max_steps: _MaxSteps = None,
-    threads: _Threads = 2,
+    threads: _Threads = 1,
     resume: _Resume = False,
     overwrite: _Overwrite = False,
     progress: _Progress = True,
@@ -79,11 +79,12 @@ def planner_cmd(
     dataset: _Dataset,
     inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, image (first head RGB frame).")] = "audio",
     audio: Annotated[str, typer.Option("--audio", help="Audio feature: mel (64 bands x 101 frames) or spectrogram (SoundSpaces 65 x 26).")] = "mel",
+    train_frames: Annotated[int, typer.Option("--train-frames", min=1, help="Frames 0..N-1 of each training episode are training examples (test: frame 0).")] = 10,
     epochs: _Epochs = None,
     seed: _Seed = 0,
     out: Annotated[Optional[Path], typer.Option("--out", help="Run folder (default runs/planner-<inputs>).")] = None,
     max_steps: _MaxSteps = None,
-    threads: _Threads = 2,
+    threads: _Threads = 1,
     resume: _Resume = False,
     overwrite: _Overwrite = False,
     progress: _Progress = True,
@@ -96,7 +97,7 @@ def planner_cmd(
     try:
         names = parse_inputs(inputs, PLANNER_INPUTS)
         folder = out or Path("runs") / f"planner-{'-'.join(names)}"
-        cfg = PlannerConfig(str(dataset), names, seed=seed, audio=audio, max_steps=max_steps, threads=threads)
+        cfg = PlannerConfig(str(dataset), names, seed=seed, audio=audio, max_steps=max_steps, threads=threads, train_frames=train_frames)
         if epochs is not None:
             cfg.epochs = epochs
         report = train_planner(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)

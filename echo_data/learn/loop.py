@@ -25,7 +25,10 @@ CHECKPOINT_SECONDS = 30.0  # tiny epochs (the planner's) would otherwise spend t
 
 
 def setup_torch(seed: int, threads: int) -> Any:
-    """Deterministic CPU training: fixed thread count, deterministic kernels, seeded init."""
+    """Deterministic CPU training: fixed thread count, deterministic kernels, seeded init.
+
+    One thread by default: with other processes on the cores, two OpenMP threads wait on each
+    other (measured here: 1.7 s per BC step with 2 threads against 0.22 s with 1)."""
     import torch
 
     torch.set_num_threads(threads)

@@ -38,16 +38,20 @@ PLANNER_CLASS = "echo_data.learn.policy:PlannerModel"
 class PlannerConfig:
     dataset: str
     inputs: tuple[str, ...] = ("audio",)
-    epochs: int = 200  # episodes are few (one example each): many short epochs
+    epochs: int = 60
     seed: int = 0
-    batch_size: int = 16
+    batch_size: int = 32
     lr: float = 1e-3
     weight_decay: float = 1e-4
     val_fraction: float = 0.15
-    threads: int = 2
+    threads: int = 1  # see loop.setup_torch: more threads than free cores is many times slower
     image_size: int = 64
     audio: str = "mel"
     max_steps: int | None = None
+    # Training also reads frames 1..train_frames-1 of each training episode (the windows of the
+    # first seconds, all events still sounding): more views of each scene for few episodes.
+    # Validation and test read frame 0 only, the planner's input.
+    train_frames: int = 10
     # Filled in by resolve():
     features: dict[str, Any] = field(default_factory=dict)
     audio_shape: list[int] | None = None
@@ -62,10 +66,11 @@ class PlannerConfig:
 
 @dataclass
 class Episodes:
-    """Frame-0 inputs and labels of every episode in a split."""
+    """Inputs of the first frames of every episode in a split, and each row's labels."""
 
     inputs: dict[str, Any]
     index: np.ndarray  # episode_index
+    frame: np.ndarray  # frame_index
     events: list[list[str]]  # categories in resolution order (priority 0 first)
     chains: list[list[dict[str, str]]]  # the export's answer: [{"skill", "target"}, ...]
     sounds: list[list[str]]  # sound instance ids
@@ -101,25 +106,30 @@ def chain_of(categories: list[str], templates: dict[str, list[list[str]]]) -> li
     return [{"skill": s, "target": t} for cat in categories for s, t in templates.get(cat, [])]
 
 
-def load_episodes(dataset: Path, split: str, spec: FeatureSpec) -> Episodes:
-    """Frame 0 of every episode of `split`, prepared with `features.prepare`."""
+def load_episodes(dataset: Path, split: str, spec: FeatureSpec, frames: int = 1) -> Episodes:
+    """Frames 0..frames-1 of every episode of `split` while its first skill runs (no event is
+    resolved before the first skill, a Navigate, ends), prepared with `features.prepare`."""
     import torch
 
     meta = {r["episode_index"]: r for r in episode_rows(dataset, split)}
     shards = _Shards(dataset, split)
     parts: dict[str, list[Any]] = {}
     index: list[int] = []
+    frame: list[int] = []
     for f in shards.files:
         pf = pq.ParquetFile(f)
-        t = pf.read(columns=["episode_index", "frame_index"])
-        keep = np.flatnonzero(t.column("frame_index").to_numpy() == 0)
+        t = pf.read(columns=["episode_index", "frame_index", "skill_index"])
+        fr = t.column("frame_index").to_numpy()
+        keep = np.flatnonzero((fr < frames) & (t.column("skill_index").to_numpy() == 0))
         index += t.column("episode_index").to_numpy()[keep].tolist()
+        frame += fr[keep].tolist()
         for k, v in prepare_rows(pf, shards, keep, spec).items():
             parts.setdefault(k, []).append(v)
     rows = [meta[i] for i in index]
     return Episodes(
         inputs={k: torch.cat(v) for k, v in parts.items()},
         index=np.asarray(index),
+        frame=np.asarray(frame),
         events=[[e["category"] for e in _ordered_events(r)] for r in rows],
         chains=[export_chain(r) for r in rows],
         sounds=[[e["sound_id"] for e in r["events"]] for r in rows],
@@ -227,11 +237,11 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     torch = setup_torch(cfg.seed, cfg.threads)
     spec = FeatureSpec.from_dict(cfg.features)
     root = Path(cfg.dataset)
-    train = load_episodes(root, "train", spec)
+    train = load_episodes(root, "train", spec, frames=cfg.train_frames)
     val_eps = split_episodes(train.index, cfg.val_fraction, cfg.seed)
     cfg.val_episodes = [int(e) for e in val_eps]
     is_val = np.isin(train.index, val_eps)
-    tr, va = np.flatnonzero(~is_val), np.flatnonzero(is_val)
+    tr, va = np.flatnonzero(~is_val), np.flatnonzero(is_val & (train.frame == 0))
     y, pairs = _targets(train, cfg.categories)
 
     torch.manual_seed(cfg.seed)
@@ -266,7 +276,8 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         "run": str(out),
         "inputs": list(cfg.inputs),
         "audio": cfg.audio,
-        "episodes": {"train": int(len(tr)), "val": int(len(va)), "test": len(test.events)},
+        "episodes": {"train": int(len(np.unique(train.index[tr]))), "val": int(len(va)), "test": len(test.events)},
+        "train_rows": int(len(tr)),
         "test_sounds_heard_in_training": sorted({s for ss in test.sounds for s in ss} & heard),
         "step": state["step"],
         "seconds": round(state["seconds"], 1),
