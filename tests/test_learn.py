@@ -207,3 +207,23 @@ def test_wilson_interval_matches_closed_forms() -> None:
     assert lo8 == pytest.approx(1 - hi2) and hi8 == pytest.approx(1 - lo2) and lo8 < 0.8 < hi8
     assert hi8 == pytest.approx(0.9433, abs=1e-4) and lo8 == pytest.approx(0.4902, abs=1e-4)
     assert rate(0, 0)["accuracy"] is None
+
+
+def test_action_chunks_and_target_input(ds: Path, tmp_path: Path) -> None:
+    """--chunk 4 --execute 2: the policy predicts once per two steps; a target policy reads its
+    goal from info["target_pose"] and refuses to act without one."""
+    from echo_data.learn.features import FeatureError
+
+    run = tmp_path / "chunk"
+    _train(ds, run, "--inputs", "state,target", "--chunk", "4", "--execute", "2", "--max-steps", "2")
+    policy = BCPolicy.from_run(run)
+    calls = []
+    forward = policy.model.forward
+    policy.model.forward = lambda x: calls.append(1) or forward(x)  # type: ignore[method-assign]
+    obs, _ = _obs(ds)
+    with pytest.raises(FeatureError, match="target_pose"):
+        policy.reset({"skill": "Navigate"})
+    policy.reset({"skill": "Navigate", "target_pose": [1.0, 2.0, 0.5]})
+    actions = [policy.act(obs) for _ in range(5)]
+    assert len(calls) == 3 and all(a.shape == (ACTION_DIM,) and np.isfinite(a).all() for a in actions)
+    assert not np.array_equal(actions[0], actions[1])  # two different steps of one chunk
