@@ -73,6 +73,9 @@ def resolve(cfg: BCConfig) -> BCConfig:
     root = Path(cfg.dataset)
     if not (root / "manifest.json").is_file():
         raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)")
+    manifest = runs.read_json(root / "manifest.json")
+    if "train" not in manifest.get("splits", {}):
+        raise runs.RunError(f"{root / 'manifest.json'}: no 'train' split to learn from")
     if cfg.chunk < 1 or not 1 <= cfg.execute <= cfg.chunk:
         raise runs.RunError(f"--chunk {cfg.chunk} / --execute {cfg.execute}: need 1 <= execute <= chunk")
     skills = skills_in(root, "train")
@@ -80,8 +83,7 @@ def resolve(cfg: BCConfig) -> BCConfig:
         raise runs.RunError(f"--skill {cfg.skill!r}: no such rows in {root} (train split has {', '.join(skills)})")
     spec = feature_spec(root, cfg.inputs, audio=cfg.audio, image_size=cfg.image_size)
     stats = json.loads((root / "meta" / "stats.json").read_text())["action"]
-    layout = json.loads((root / "manifest.json").read_text())["layout"]
-    shape = audio_shape(spec, layout)
+    shape = audio_shape(spec, manifest["layout"])
     return BCConfig(
         **{
             **asdict(cfg),

@@ -142,7 +142,7 @@ def resolve(cfg: PlannerConfig) -> PlannerConfig:
     root = Path(cfg.dataset)
     if not (root / "manifest.json").is_file():
         raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)")
-    manifest = json.loads((root / "manifest.json").read_text())
+    manifest = runs.read_json(root / "manifest.json")
     for split in ("train", "test"):
         if split not in manifest["splits"]:
             raise runs.RunError(f"{root / 'manifest.json'}: no {split!r} split (the planner trains on train and is scored on test)")
