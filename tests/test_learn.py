@@ -63,12 +63,14 @@ def test_bc_run_loads_as_a_policy_and_acts(ds: Path, tmp_path: Path) -> None:
     run = tmp_path / "nav"
     summary = _train(ds, run, "--inputs", "audio,depth,state", "--max-steps", "3")
     assert summary["step"] == 3
-    for name in (runs.CONFIG, runs.POLICY, runs.CHECKPOINT, runs.BEST):
+    for name in (runs.CONFIG, runs.POLICY, runs.AGENT, runs.CHECKPOINT, runs.BEST):
         assert (run / name).is_file()
     meta = json.loads((run / runs.POLICY).read_text())
     assert meta["kind"] == "policy" and meta["class"] == "echo_data.learn.policy:BCPolicy"
-    module, cls = meta["class"].split(":")
-    policy = getattr(__import__(module, fromlist=[cls]), cls).from_run(run)
+    agent = json.loads((run / runs.AGENT).read_text())  # evaluate's checkpoint folder: Class(checkpoint=folder)
+    assert agent == {"class": meta["class"], "kwargs": {}}
+    module, cls = agent["class"].split(":")
+    policy = getattr(__import__(module, fromlist=[cls]), cls)(checkpoint=run)
     policy.reset({"skill": "Navigate", "target": "x"})
     obs, _ = _obs(ds, "test")
     a = policy.act(obs)

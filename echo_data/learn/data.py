@@ -1,14 +1,16 @@
 """Step rows of one skill, decoded once and prepared for training, and the episode-level split.
 
-Rows are decoded with the dataset loaders' own decoder (`echo_data.dataset.torch`) and passed
-through `features.prepare`, the function a policy calls when it acts, then kept in memory:
-decoding PNGs every epoch would cost more than training these small networks on two cores.
+Rows are decoded to the arrays the world gives a policy (PNG -> uint8 RGB / uint16 millimetre
+depth) and passed through `features.canonical` and `features.prepare`, exactly what a policy
+does when it acts, then kept in memory: decoding PNGs every epoch would cost more than training
+these small networks on two cores.
 The active skill of a row is its `skill` column; a skill's segment is a run of rows with the
 same (episode_index, skill_index) (a chain may Navigate twice).
 """
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -16,9 +18,9 @@ from typing import Any, Callable
 import numpy as np
 import pyarrow.parquet as pq
 
-from echo_data.dataset.schema import ACTION, STATE, column_to_numpy
-from echo_data.dataset.torch import _Shards
-from echo_data.learn.features import FeatureSpec, prepare
+from echo_data.dataset.manifest import load_manifest
+from echo_data.dataset.schema import ACTION, STATE, StepLayout, column_to_numpy
+from echo_data.learn.features import FeatureSpec, canonical, prepare
 from echo_data.records import ACTION_DIM, STATE_DIM
 
 @dataclass
@@ -35,10 +37,43 @@ class SkillRows:
         return len(self.episodes)
 
 
+@dataclass(frozen=True)
+class Shards:
+    """A split's shard files and the step layout (from the manifest)."""
+
+    files: list[Path]
+    layout: StepLayout
+
+    @staticmethod
+    def of(dataset: Path, split: str) -> "Shards":
+        manifest = load_manifest(dataset)
+        if split not in manifest["splits"]:
+            raise ValueError(f"{dataset}: no split {split!r} (has {', '.join(manifest['splits'])})")
+        files = [dataset / e["file"] for e in manifest["shards"] if e["split"] == split]
+        return Shards(files, StepLayout.from_dict(manifest["layout"]))
+
+    def decode(self, table: Any, columns: list[str]) -> dict[str, np.ndarray]:
+        """Arrow rows -> {column: (rows, ...)} in the loaders' form, via the world's arrays."""
+        from PIL import Image
+
+        out: dict[str, np.ndarray] = {}
+        for col in columns:
+            if col in self.layout.images:
+                cells = table.column(col).to_pylist()
+                out[col] = np.stack([canonical(col, np.asarray(Image.open(io.BytesIO(c["bytes"])))) for c in cells])
+            elif col in self.layout.arrays:
+                out[col] = column_to_numpy(table.column(col), self.layout.arrays[col]).astype(np.float32)
+            elif col == STATE:
+                out[col] = column_to_numpy(table.column(col), (STATE_DIM,)).astype(np.float32)
+            else:
+                raise KeyError(f"unknown observation column {col!r}")
+        return out
+
+
 def skills_in(dataset: Path, split: str) -> list[str]:
     """Skill names present in a split's step rows."""
     names: set[str] = set()
-    for f in _Shards(dataset, split).files:
+    for f in Shards.of(dataset, split).files:
         names.update(pq.read_table(f, columns=["skill"]).column("skill").unique().to_pylist())
     return sorted(names)
 
@@ -57,7 +92,7 @@ def load_skill_rows(
     """Decode and prepare every row of `skill` in `split` (in shard order)."""
     import torch
 
-    shards = _Shards(dataset, split)
+    shards = Shards.of(dataset, split)
     parts: dict[str, list[Any]] = {}
     acts, pads, goals, eps = [], [], [], []
     for f in shards.files:
@@ -96,7 +131,7 @@ def load_skill_rows(
 
 
 def prepare_rows(
-    pf: pq.ParquetFile, shards: _Shards, keep: np.ndarray, spec: FeatureSpec, goals: np.ndarray | None = None, tick: Callable[[int], None] | None = None
+    pf: pq.ParquetFile, shards: Shards, keep: np.ndarray, spec: FeatureSpec, goals: np.ndarray | None = None, tick: Callable[[int], None] | None = None
 ) -> dict[str, Any]:
     """Decode and prepare rows `keep` (sorted, shard-local) of one shard, one row group (64
     rows) at a time so memory stays bounded; `goals` (rows of the shard, 3) feed "target"."""
@@ -119,7 +154,7 @@ def prepare_rows(
 
 def count_rows(dataset: Path, split: str, skill: str) -> int:
     """Rows of `skill` in `split` (cheap: reads one string column)."""
-    return sum(int((np.asarray(pq.read_table(f, columns=["skill"]).column("skill").to_pylist()) == skill).sum()) for f in _Shards(dataset, split).files)
+    return sum(int((np.asarray(pq.read_table(f, columns=["skill"]).column("skill").to_pylist()) == skill).sum()) for f in Shards.of(dataset, split).files)
 
 
 def split_episodes(episodes: np.ndarray, fraction: float, seed: int) -> np.ndarray:

@@ -1,9 +1,9 @@
 """Dataset observations -> normalised model inputs: the one path shared by training and acting.
 
-Training decodes step rows with the dataset loaders (`echo_data.dataset.torch`: depth in metres
-(1, H, W), RGB in [0, 1] (3, H, W), spectrograms (F, T, 2)) and calls `prepare`; a policy acting
-in the world turns its single observation into the same form with `canonical` and calls the same
-`prepare`, so the two cannot drift. Normalisation constants come from the dataset's
+Training decodes step rows to the arrays the world gives (PNG -> uint8 RGB, uint16 millimetre
+depth), and both training and a policy acting in the world turn them into the loaders' form
+(depth in metres (1, H, W), RGB in [0, 1] (3, H, W), spectrograms (F, T, 2)) with `canonical`
+and then into model inputs with `prepare`: one path, so the two cannot drift. Normalisation constants come from the dataset's
 meta/stats.json and are frozen into a `FeatureSpec` that the run folder stores.
 
 Leak: the state vector's velocities are what the last action commanded (the base is driven by

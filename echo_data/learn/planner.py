@@ -24,9 +24,8 @@ from typing import Any
 import numpy as np
 import pyarrow.parquet as pq
 
-from echo_data.dataset.torch import _Shards
 from echo_data.learn import runs
-from echo_data.learn.data import prepare_rows, split_episodes
+from echo_data.learn.data import Shards, prepare_rows, split_episodes
 from echo_data.learn.features import FeatureSpec, feature_spec
 from echo_data.learn.loop import LoopConfig, fit, setup_torch
 from echo_data.learn.metrics import rate
@@ -112,7 +111,7 @@ def load_episodes(dataset: Path, split: str, spec: FeatureSpec, frames: int = 1)
     import torch
 
     meta = {r["episode_index"]: r for r in episode_rows(dataset, split)}
-    shards = _Shards(dataset, split)
+    shards = Shards.of(dataset, split)
     parts: dict[str, list[Any]] = {}
     index: list[int] = []
     frame: list[int] = []

@@ -1,6 +1,7 @@
 """Trained run folders as the objects `echo-data evaluate` drives (see docs/learners.md).
 
-`BCPolicy.from_run(folder)`: `reset(info)`, then `act(obs) -> float32 (12,)` per control step,
+`BCPolicy.from_run(folder)` (or `BCPolicy(checkpoint=folder)`, how an `agent.json` checkpoint
+folder is constructed): `reset(info)`, then `act(obs) -> float32 (12,)` per control step,
 with `obs` holding the dataset's observation keys. Observations go through the same
 `features.prepare` as the training rows did. `PlannerModel.from_run(folder).plan(first_obs)`
 returns the skill chain in the planner export's JSON shape.
@@ -27,11 +28,12 @@ def _weights(folder: Path) -> dict[str, Any]:
 
 def goal_from_info(info: Mapping[str, Any]) -> np.ndarray:
     """The active skill's goal pose (x, y, yaw): `info["target_pose"]` when the caller gives it,
-    else the interaction pose of `info["target"]` in the episode's floor plan (`info["spec"]`),
-    which is where the expert drove in the training data."""
+    else the interaction pose of `info["target"]` in the episode's floor plan (`info["spec_object"]`
+    or `info["spec"]`, doors as `info["world"]` has them), which is where the expert drove in
+    the training data."""
     if info.get("target_pose") is not None:
         return np.asarray(info["target_pose"], dtype=np.float32)[:3]
-    spec, target = info.get("spec"), info.get("target")
+    spec, target = info.get("spec_object", info.get("spec")), info.get("target")
     if spec is None or target is None:
         raise FeatureError("this policy reads the target position: reset(info) needs info['target_pose'] or info['spec'] and info['target']")
     from echo_data.episode import EpisodeSpec
@@ -39,31 +41,33 @@ def goal_from_info(info: Mapping[str, Any]) -> np.ndarray:
 
     if isinstance(spec, dict):
         spec = EpisodeSpec.from_dict(spec)
-    return np.asarray(interaction_pose(spec.plan, str(target), door_angles=info.get("door_angles")), dtype=np.float32)
+    world = info.get("world")
+    doors = world.door_angles() if world is not None else info.get("door_angles")
+    return np.asarray(interaction_pose(spec.plan, str(target), door_angles=doors), dtype=np.float32)
 
 
 class BCPolicy:
     """A behaviour-cloned skill policy loaded from its run folder."""
 
-    def __init__(self, model: Any, spec: FeatureSpec, action_mean: np.ndarray, action_std: np.ndarray, execute: int = 1, skill: str = "") -> None:
-        self.model = model.eval()
-        self.spec = spec
-        self.mean, self.std = action_mean.astype(np.float32), action_std.astype(np.float32)
-        self.execute = execute
-        self.skill = skill
+    def __init__(self, checkpoint: Path | str) -> None:
+        from echo_data.learn.bc import BCConfig, build_model
+
+        self.checkpoint = Path(checkpoint)
+        cfg = BCConfig.from_dict(runs.read_json(self.checkpoint / runs.CONFIG))
+        self.model = build_model(cfg)
+        self.model.load_state_dict(_weights(self.checkpoint))
+        self.model.eval()
+        self.spec = FeatureSpec.from_dict(cfg.features)
+        self.mean = np.asarray(cfg.action_mean, dtype=np.float32)
+        self.std = np.asarray(cfg.action_std, dtype=np.float32)
+        self.execute = cfg.execute
+        self.skill = cfg.skill
         self._queue: deque[np.ndarray] = deque()
         self._goal: np.ndarray | None = None
 
     @classmethod
     def from_run(cls, folder: Path | str) -> "BCPolicy":
-        from echo_data.learn.bc import BCConfig, build_model
-
-        folder = Path(folder)
-        cfg = BCConfig.from_dict(runs.read_json(folder / runs.CONFIG))
-        model = build_model(cfg)
-        model.load_state_dict(_weights(folder))
-        spec = FeatureSpec.from_dict(cfg.features)
-        return cls(model, spec, np.asarray(cfg.action_mean), np.asarray(cfg.action_std), cfg.execute, cfg.skill)
+        return cls(checkpoint=folder)
 
     def reset(self, info: Mapping[str, Any] | None = None) -> None:
         """Start a new skill segment: forget queued actions, read the goal if the model needs it."""
@@ -88,21 +92,21 @@ class BCPolicy:
 class PlannerModel:
     """A planner run: `plan(first_obs)` -> [{"skill": ..., "target": ...}, ...] (export shape)."""
 
-    def __init__(self, model: Any, spec: FeatureSpec, categories: list[str], templates: dict[str, list[list[str]]]) -> None:
-        self.model = model.eval()
-        self.spec = spec
-        self.categories = categories
-        self.templates = templates
+    def __init__(self, checkpoint: Path | str) -> None:
+        from echo_data.learn.planner import PlannerConfig, build_model
+
+        self.checkpoint = Path(checkpoint)
+        cfg = PlannerConfig.from_dict(runs.read_json(self.checkpoint / runs.CONFIG))
+        self.model = build_model(cfg)
+        self.model.load_state_dict(_weights(self.checkpoint))
+        self.model.eval()
+        self.spec = FeatureSpec.from_dict(cfg.features)
+        self.categories = cfg.categories
+        self.templates = cfg.templates
 
     @classmethod
     def from_run(cls, folder: Path | str) -> "PlannerModel":
-        from echo_data.learn.planner import PlannerConfig, build_model
-
-        folder = Path(folder)
-        cfg = PlannerConfig.from_dict(runs.read_json(folder / runs.CONFIG))
-        model = build_model(cfg)
-        model.load_state_dict(_weights(folder))
-        return cls(model, FeatureSpec.from_dict(cfg.features), cfg.categories, cfg.templates)
+        return cls(checkpoint=folder)
 
     def events(self, first_obs: Mapping[str, Any]) -> list[str]:
         """Sounding event categories, most urgent first."""

@@ -1,7 +1,9 @@
 """The files of a training run folder, each written atomically (a crash leaves the old file).
 
 runs/NAME/
-  policy.json     {"kind": "policy" | "planner", "class": "module:Class", ...}: what evaluate loads
+  policy.json     {"kind": "policy" | "planner", "class": "module:Class", ...}: the run's kind
+  agent.json      {"class": "module:Class", "kwargs": {}}: an evaluate checkpoint folder, built as
+                  Class(checkpoint=folder)
   config.json     the resolved configuration, feature constants included (acting needs no dataset)
   checkpoint.pt   last state (weights, optimiser, position in the epoch): `--resume` reads it
   best.pt         weights with the lowest validation loss: what `from_run` loads
@@ -21,6 +23,7 @@ from echo_data.dataset.writer import atomic_write_bytes, atomic_write_json
 
 CONFIG = "config.json"
 POLICY = "policy.json"
+AGENT = "agent.json"
 CHECKPOINT = "checkpoint.pt"
 BEST = "best.pt"
 LOSSES = "losses.csv"
@@ -58,10 +61,11 @@ def read_json(path: Path) -> dict[str, Any]:
 
 
 def write_run_files(folder: Path, kind: str, cls: str, config: dict[str, Any], extra: dict[str, Any] | None = None) -> None:
-    """policy.json and config.json."""
+    """config.json, policy.json and agent.json."""
     folder.mkdir(parents=True, exist_ok=True)
     atomic_write_json(folder / CONFIG, config)
     atomic_write_json(folder / POLICY, {"kind": kind, "class": cls, **(extra or {})})
+    atomic_write_json(folder / AGENT, {"class": cls, "kwargs": {}})
 
 
 def write_losses(folder: Path, rows: list[dict[str, Any]]) -> None:
@@ -114,6 +118,6 @@ def check_out(folder: Path, resume: bool, overwrite: bool) -> None:
     if folder.is_dir() and any(folder.iterdir()) and not overwrite:
         raise RunError(f"--out {folder}: not empty; pass --resume to continue it or --overwrite to replace it")
     if overwrite and folder.is_dir():
-        for name in (CONFIG, POLICY, CHECKPOINT, BEST, LOSSES, CURVES, "eval.json"):
+        for name in (CONFIG, POLICY, AGENT, CHECKPOINT, BEST, LOSSES, CURVES, "eval.json"):
             if (folder / name).exists():
                 os.remove(folder / name)
