@@ -20,10 +20,13 @@ from echo_data.learn.features import FeatureError, FeatureSpec, prepare, single
 from echo_data.records import ACTION_DIM
 
 
-def _weights(folder: Path) -> dict[str, Any]:
+def _load(folder: Path, config_cls: Any, build: Any) -> tuple[Any, Any, FeatureSpec]:
+    """(config, model in eval mode with the best weights, feature spec) of a run folder."""
+    cfg = config_cls.from_dict(runs.read_json(folder / runs.CONFIG))
+    model = build(cfg)
     path = folder / runs.BEST if (folder / runs.BEST).is_file() else folder / runs.CHECKPOINT
-    ck = runs.load_torch(path)
-    return ck["model"]
+    model.load_state_dict(runs.load_torch(path)["model"])
+    return cfg, model.eval(), FeatureSpec.from_dict(cfg.features)
 
 
 def goal_from_info(info: Mapping[str, Any]) -> np.ndarray:
@@ -53,11 +56,7 @@ class BCPolicy:
         from echo_data.learn.bc import BCConfig, build_model
 
         self.checkpoint = Path(checkpoint)
-        cfg = BCConfig.from_dict(runs.read_json(self.checkpoint / runs.CONFIG))
-        self.model = build_model(cfg)
-        self.model.load_state_dict(_weights(self.checkpoint))
-        self.model.eval()
-        self.spec = FeatureSpec.from_dict(cfg.features)
+        cfg, self.model, self.spec = _load(self.checkpoint, BCConfig, build_model)
         self.mean = np.asarray(cfg.action_mean, dtype=np.float32)
         self.std = np.asarray(cfg.action_std, dtype=np.float32)
         self.execute = cfg.execute
@@ -96,11 +95,7 @@ class PlannerModel:
         from echo_data.learn.planner import PlannerConfig, build_model
 
         self.checkpoint = Path(checkpoint)
-        cfg = PlannerConfig.from_dict(runs.read_json(self.checkpoint / runs.CONFIG))
-        self.model = build_model(cfg)
-        self.model.load_state_dict(_weights(self.checkpoint))
-        self.model.eval()
-        self.spec = FeatureSpec.from_dict(cfg.features)
+        cfg, self.model, self.spec = _load(self.checkpoint, PlannerConfig, build_model)
         self.categories = cfg.categories
         self.templates = cfg.templates
 
