@@ -17,6 +17,10 @@ from echo_data.sounds.cli import sounds_app  # noqa: E402
 
 app.add_typer(sounds_app, name="sounds")
 
+from echo_data.learn.cli import train_app  # noqa: E402
+
+app.add_typer(train_app, name="train")
+
 
 @app.command()
 def version() -> None:

@@ -1,0 +1,180 @@
+"""Behaviour cloning of one skill: the training loop (model in `models`, acting in `policy`).
+
+Loss: mean squared error between predicted and expert actions, both normalised with the
+dataset's action statistics, over `chunk` future actions (padding past the segment's end masked).
+Validation: whole episodes of the train split held out (`split_episodes`); the test split is never
+read here. Deterministic for a seed on CPU: fixed thread count, deterministic kernels, weights
+initialised from the seed, and the batch order of epoch e drawn from (seed, e) alone, so a resumed
+run draws the same batches as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from echo_data.learn import runs
+from echo_data.learn.data import count_rows, load_skill_rows, skills_in, split_episodes
+from echo_data.learn.features import FeatureSpec, feature_spec
+from echo_data.learn.loop import LoopConfig, fit, setup_torch
+
+POLICY_CLASS = "echo_data.learn.policy:BCPolicy"
+
+
+@dataclass
+class BCConfig:
+    """Everything that defines a BC run (written resolved to config.json)."""
+
+    dataset: str
+    skill: str
+    inputs: tuple[str, ...]
+    epochs: int = 30
+    seed: int = 0
+    batch_size: int = 64
+    lr: float = 1e-3
+    weight_decay: float = 1e-4
+    chunk: int = 1  # actions predicted per step
+    execute: int = 1  # of those, executed before predicting again
+    val_fraction: float = 0.15
+    threads: int = 1  # see loop.setup_torch: more threads than free cores is many times slower
+    image_size: int = 64
+    audio: str = "spectrogram"
+    max_steps: int | None = None  # stop (and checkpoint) after this many optimiser steps
+    # Filled in by train_bc:
+    features: dict[str, Any] = field(default_factory=dict)
+    audio_shape: list[int] | None = None
+    action_mean: list[float] = field(default_factory=list)
+    action_std: list[float] = field(default_factory=list)
+    val_episodes: list[int] = field(default_factory=list)
+
+    @staticmethod
+    def from_dict(d: dict[str, Any]) -> "BCConfig":
+        return BCConfig(**{**d, "inputs": tuple(d["inputs"])})
+
+
+def build_model(cfg: BCConfig) -> Any:
+    from echo_data.learn.models import BCNet
+
+    spec = FeatureSpec.from_dict(cfg.features)
+    return BCNet(spec, tuple(cfg.audio_shape) if cfg.audio_shape else None, chunk=cfg.chunk)
+
+
+def resolve(cfg: BCConfig) -> BCConfig:
+    """Check the request against the dataset and freeze the constants (raises FeatureError /
+    RunError with a one-line message)."""
+    import json
+
+    from echo_data.learn.models import audio_shape
+
+    root = Path(cfg.dataset)
+    if not (root / "manifest.json").is_file():
+        raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)")
+    manifest = runs.read_json(root / "manifest.json")
+    if "train" not in manifest.get("splits", {}):
+        raise runs.RunError(f"{root / 'manifest.json'}: no 'train' split to learn from")
+    if cfg.chunk < 1 or not 1 <= cfg.execute <= cfg.chunk:
+        raise runs.RunError(f"--chunk {cfg.chunk} / --execute {cfg.execute}: need 1 <= execute <= chunk")
+    skills = skills_in(root, "train")
+    if cfg.skill not in skills:
+        raise runs.RunError(f"--skill {cfg.skill!r}: no such rows in {root} (train split has {', '.join(skills)})")
+    spec = feature_spec(root, cfg.inputs, audio=cfg.audio, image_size=cfg.image_size)
+    stats = json.loads((root / "meta" / "stats.json").read_text())["action"]
+    shape = audio_shape(spec, manifest["layout"])
+    return BCConfig(
+        **{
+            **asdict(cfg),
+            "dataset": str(root.resolve()),
+            "features": spec.to_dict(),
+            "audio_shape": list(shape) if shape else None,
+            "action_mean": list(stats["mean"]),
+            "action_std": [s if s > 1e-3 else 1.0 for s in stats["std"]],
+        }
+    )
+
+
+def _masked_mse(pred: Any, target: Any, valid: Any) -> Any:
+    err = ((pred - target) ** 2).mean(dim=2)
+    return (err * valid).sum() / valid.sum().clamp(min=1)
+
+
+def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = False, progress: bool = True) -> dict[str, Any]:
+    """Train (or continue) a BC run in `out`; returns the summary also printed by the CLI."""
+    from tqdm import tqdm
+
+    runs.check_out(out, resume, overwrite)
+    if resume:
+        saved = BCConfig.from_dict(runs.read_json(out / runs.CONFIG))
+        for key in ("dataset", "skill", "inputs", "seed", "chunk"):
+            mine, theirs = getattr(cfg, key), getattr(saved, key)
+            if key == "dataset":
+                mine = str(Path(mine).resolve())
+            if mine != theirs:
+                raise runs.RunError(f"{out / runs.CONFIG}: {key} is {theirs!r}, not {mine!r}; resume with the same arguments")
+        cfg = BCConfig.from_dict({**asdict(saved), "epochs": cfg.epochs, "max_steps": cfg.max_steps})
+    else:
+        cfg = resolve(cfg)
+    torch = setup_torch(cfg.seed, cfg.threads)
+    spec = FeatureSpec.from_dict(cfg.features)
+    root = Path(cfg.dataset)
+    total_rows = count_rows(root, "train", cfg.skill)
+    with tqdm(total=total_rows, desc=f"decode {cfg.skill}", unit="row", disable=not progress, leave=False) as bar:
+        rows = load_skill_rows(root, "train", cfg.skill, spec, chunk=cfg.chunk, tick=bar.update)
+    val_eps = split_episodes(rows.episodes, cfg.val_fraction, cfg.seed)
+    cfg.val_episodes = [int(e) for e in val_eps]
+    is_val = np.isin(rows.episodes, val_eps)
+    tr, va = np.flatnonzero(~is_val), np.flatnonzero(is_val)
+    mean, std = np.asarray(cfg.action_mean, np.float32), np.asarray(cfg.action_std, np.float32)
+    target = torch.from_numpy((rows.actions - mean) / std)
+    valid = torch.from_numpy(~rows.action_pad).float()
+
+    torch.manual_seed(cfg.seed)
+    model = build_model(cfg)
+    opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    runs.write_run_files(out, "policy", POLICY_CLASS, asdict(cfg), {"skill": cfg.skill, "inputs": list(cfg.inputs)})
+    scale = torch.from_numpy(std)
+
+    def batch(ix: np.ndarray) -> dict[str, Any]:
+        t = torch.from_numpy(ix)
+        return {k: v[t] for k, v in rows.inputs.items()}
+
+    def loss_fn(ix: np.ndarray) -> Any:
+        return _masked_mse(model(batch(ix)), target[ix], valid[ix])
+
+    def validate() -> dict[str, float]:
+        """Normalised MSE; mean absolute error of the next action in physical units, over all
+        dimensions and over the base velocities (m/s, rad/s) alone."""
+        if len(va) == 0:
+            return {"val_loss": math.nan, "val_action_mae": math.nan, "val_base_mae": math.nan}
+        se, ae, base = 0.0, 0.0, 0.0
+        with torch.no_grad():
+            for lo in range(0, len(va), 512):
+                part = va[lo : lo + 512]
+                pred = model(batch(part))
+                se += float(_masked_mse(pred, target[part], valid[part])) * len(part)
+                err = (pred[:, 0] - target[part][:, 0]).abs() * scale
+                ae += float(err.mean()) * len(part)
+                base += float(err[:, :3].mean()) * len(part)
+        return {"val_loss": se / len(va), "val_action_mae": ae / len(va), "val_base_mae": base / len(va)}
+
+    loop = LoopConfig(cfg.epochs, cfg.batch_size, cfg.seed, cfg.max_steps)
+    state = fit(model, opt, tr, loss_fn, validate, loop, out, resume, progress, desc=f"train {cfg.skill}")
+    # Reference: the validation loss of always answering the mean training action of this skill.
+    mean_val = float(_masked_mse(target[tr].mean(dim=0, keepdim=True).expand(len(va), -1, -1), target[va], valid[va])) if len(va) else math.nan
+    return {
+        "run": str(out),
+        "skill": cfg.skill,
+        "inputs": list(cfg.inputs),
+        "state_fed": list(spec.state_names),
+        "rows": {"train": int(len(tr)), "val": int(len(va))},
+        "episodes": {"train": int(len(np.unique(rows.episodes[tr]))), "val": int(len(val_eps))},
+        "step": state["step"],
+        "epoch": state["epoch"],
+        "seconds": round(state["seconds"], 1),
+        "best_val_loss": state["best_val"] if state["best_val"] != math.inf else None,
+        "val_loss_of_mean_train_action": mean_val,
+        "last": state["history"][-1] if state["history"] else None,
+    }

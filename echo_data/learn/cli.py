@@ -1,0 +1,106 @@
+"""`echo-data train`: behaviour cloning per skill and the audio planner (needs the torch extra)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+train_app = typer.Typer(add_completion=False, no_args_is_help=True, help="Train reference policies on a dataset (needs the torch extra).")
+
+_Dataset = Annotated[Path, typer.Argument(metavar="DATASET", help="Dataset folder (out/<name>).")]
+_Epochs = Annotated[Optional[int], typer.Option("--epochs", min=1, help="Passes over the training rows.")]
+_Seed = Annotated[int, typer.Option("--seed", help="Seed of initialisation, split and batch order.")]
+_Resume = Annotated[bool, typer.Option("--resume", help="Continue the run in --out from its last checkpoint.")]
+_Overwrite = Annotated[bool, typer.Option("--overwrite", help="Replace the run in --out.")]
+_MaxSteps = Annotated[Optional[int], typer.Option("--max-steps", min=1, help="Stop after this many optimiser steps (checkpointed).")]
+_Threads = Annotated[int, typer.Option("--threads", min=1, help="torch CPU threads (results are reproducible for a fixed count; 1 is fastest on a busy machine).")]
+_Progress = Annotated[bool, typer.Option("--progress/--no-progress", help="Show progress bars.")]
+
+
+def _fail(message: str) -> typer.Exit:
+    typer.echo(f"error: {message}", err=True)
+    return typer.Exit(2)
+
+
+def _errors() -> tuple[type[Exception], ...]:
+    from echo_data.learn.features import FeatureError
+    from echo_data.learn.runs import RunError
+
+    return (FeatureError, RunError)
+
+
+def _need_torch() -> None:
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise _fail("training needs PyTorch: pip install 'echo-data[torch]'") from None
+
+
+@train_app.command("bc")
+def bc_cmd(
+    dataset: _Dataset,
+    skill: Annotated[str, typer.Option("--skill", help="Skill whose step rows are cloned (Navigate, Pick, Place, OpenDoor, CloseSink).")],
+    inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, depth, state (velocities left out), state_raw (all 25), target.")] = "audio,depth,state",
+    epochs: _Epochs = None,
+    seed: _Seed = 0,
+    out: Annotated[Optional[Path], typer.Option("--out", help="Run folder (default runs/bc-<skill>-<inputs>).")] = None,
+    chunk: Annotated[int, typer.Option("--chunk", min=1, help="Actions predicted per step (action chunking).")] = 1,
+    execute: Annotated[int, typer.Option("--execute", min=1, help="Predicted actions executed before predicting again.")] = 1,
+    batch_size: Annotated[int, typer.Option("--batch-size", min=1)] = 64,
+    lr: Annotated[float, typer.Option("--lr", min=0.0)] = 1e-3,
+    max_steps: _MaxSteps = None,
+    threads: _Threads = 1,
+    resume: _Resume = False,
+    overwrite: _Overwrite = False,
+    progress: _Progress = True,
+) -> None:
+    """Behaviour-clone one skill from the dataset's step rows; the run folder loads as a policy."""
+    _need_torch()
+    from echo_data.learn.bc import BCConfig, train_bc
+    from echo_data.learn.features import BC_INPUTS, parse_inputs
+
+    try:
+        names = parse_inputs(inputs, BC_INPUTS)
+        folder = out or Path("runs") / f"bc-{skill}-{'-'.join(names)}"
+        cfg = BCConfig(str(dataset), skill, names, seed=seed, chunk=chunk, execute=execute, batch_size=batch_size, lr=lr, max_steps=max_steps, threads=threads)
+        if epochs is not None:
+            cfg.epochs = epochs
+        summary = train_bc(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)
+    except _errors() as e:
+        raise _fail(str(e)) from None
+    typer.echo(json.dumps(summary, indent=1))
+
+
+@train_app.command("planner")
+def planner_cmd(
+    dataset: _Dataset,
+    inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, image (first head RGB frame).")] = "audio",
+    audio: Annotated[str, typer.Option("--audio", help="Audio feature: mel (64 bands x 101 frames) or spectrogram (SoundSpaces 65 x 26).")] = "mel",
+    train_frames: Annotated[int, typer.Option("--train-frames", min=1, help="Frames 0..N-1 of each training episode are training examples (test: frame 0).")] = 10,
+    epochs: _Epochs = None,
+    seed: _Seed = 0,
+    out: Annotated[Optional[Path], typer.Option("--out", help="Run folder (default runs/planner-<inputs>).")] = None,
+    max_steps: _MaxSteps = None,
+    threads: _Threads = 1,
+    resume: _Resume = False,
+    overwrite: _Overwrite = False,
+    progress: _Progress = True,
+) -> None:
+    """Train the planner on the train split, score it on the test split (unheard sounds); prints and saves eval.json."""
+    _need_torch()
+    from echo_data.learn.features import PLANNER_INPUTS, parse_inputs
+    from echo_data.learn.planner import PlannerConfig, train_planner
+
+    try:
+        names = parse_inputs(inputs, PLANNER_INPUTS)
+        folder = out or Path("runs") / f"planner-{'-'.join(names)}"
+        cfg = PlannerConfig(str(dataset), names, seed=seed, audio=audio, max_steps=max_steps, threads=threads, train_frames=train_frames)
+        if epochs is not None:
+            cfg.epochs = epochs
+        report = train_planner(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)
+    except _errors() as e:
+        raise _fail(str(e)) from None
+    typer.echo(json.dumps(report, indent=1))

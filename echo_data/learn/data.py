@@ -1,0 +1,167 @@
+"""Step rows of one skill, decoded once and prepared for training, and the episode-level split.
+
+Rows are decoded to the arrays the world gives a policy (PNG -> uint8 RGB / uint16 millimetre
+depth) and passed through `features.canonical` and `features.prepare`, exactly what a policy
+does when it acts, then kept in memory: decoding PNGs every epoch would cost more than training
+these small networks on two cores.
+The active skill of a row is its `skill` column; a skill's segment is a run of rows with the
+same (episode_index, skill_index) (a chain may Navigate twice).
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import pyarrow.parquet as pq
+
+from echo_data.dataset.manifest import load_manifest
+from echo_data.dataset.schema import ACTION, STATE, StepLayout, column_to_numpy
+from echo_data.learn.features import FeatureSpec, canonical, prepare
+from echo_data.records import ACTION_DIM, STATE_DIM
+
+@dataclass
+class SkillRows:
+    """Everything training needs for the rows of one skill in one split."""
+
+    inputs: dict[str, Any]  # prepared tensors, leading dimension = rows
+    actions: np.ndarray  # (n, chunk, ACTION_DIM) raw actions t..t+chunk-1 within the segment
+    action_pad: np.ndarray  # (n, chunk) True where the chunk ran past the segment's end
+    goals: np.ndarray  # (n, 3) the segment's final base pose (x, y, yaw): where the expert went
+    episodes: np.ndarray  # (n,) episode_index
+
+    def __len__(self) -> int:
+        return len(self.episodes)
+
+
+@dataclass(frozen=True)
+class Shards:
+    """A split's shard files and the step layout (from the manifest)."""
+
+    files: list[Path]
+    layout: StepLayout
+
+    @staticmethod
+    def of(dataset: Path, split: str) -> "Shards":
+        manifest = load_manifest(dataset)
+        if split not in manifest["splits"]:
+            raise ValueError(f"{dataset}: no split {split!r} (has {', '.join(manifest['splits'])})")
+        files = [dataset / e["file"] for e in manifest["shards"] if e["split"] == split]
+        return Shards(files, StepLayout.from_dict(manifest["layout"]))
+
+    def decode(self, table: Any, columns: list[str]) -> dict[str, np.ndarray]:
+        """Arrow rows -> {column: (rows, ...)} in the loaders' form, via the world's arrays."""
+        from PIL import Image
+
+        out: dict[str, np.ndarray] = {}
+        for col in columns:
+            if col in self.layout.images:
+                cells = table.column(col).to_pylist()
+                out[col] = np.stack([canonical(col, np.asarray(Image.open(io.BytesIO(c["bytes"])))) for c in cells])
+            elif col in self.layout.arrays:
+                out[col] = column_to_numpy(table.column(col), self.layout.arrays[col]).astype(np.float32)
+            elif col == STATE:
+                out[col] = column_to_numpy(table.column(col), (STATE_DIM,)).astype(np.float32)
+            else:
+                raise KeyError(f"unknown observation column {col!r}")
+        return out
+
+
+def skills_in(dataset: Path, split: str) -> list[str]:
+    """Skill names present in a split's step rows."""
+    names: set[str] = set()
+    for f in Shards.of(dataset, split).files:
+        names.update(pq.read_table(f, columns=["skill"]).column("skill").unique().to_pylist())
+    return sorted(names)
+
+
+def _chunks(actions: np.ndarray, seg_start: np.ndarray, seg_end: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray]:
+    """Actions t..t+chunk-1 clamped to each row's segment [start, end] (inclusive), with pad mask."""
+    t = np.arange(len(actions))[:, None] + np.arange(chunk)[None, :]
+    pad = t > seg_end[:, None]
+    t = np.minimum(t, seg_end[:, None])
+    return actions[t], pad
+
+
+def load_skill_rows(
+    dataset: Path, split: str, skill: str, spec: FeatureSpec, chunk: int = 1, tick: Callable[[int], None] | None = None
+) -> SkillRows:
+    """Decode and prepare every row of `skill` in `split` (in shard order)."""
+    import torch
+
+    shards = Shards.of(dataset, split)
+    parts: dict[str, list[Any]] = {}
+    acts, pads, goals, eps = [], [], [], []
+    for f in shards.files:
+        pf = pq.ParquetFile(f)
+        idx = pf.read(columns=["episode_index", "skill", "skill_index", ACTION, STATE])
+        ep = idx.column("episode_index").to_numpy()
+        sk = np.asarray(idx.column("skill").to_pylist())
+        si = idx.column("skill_index").to_numpy()
+        action = column_to_numpy(idx.column(ACTION), (ACTION_DIM,)).astype(np.float32)
+        state = column_to_numpy(idx.column(STATE), (STATE_DIM,)).astype(np.float32)
+        # Segments: runs of equal (episode, skill_index).
+        new = np.concatenate([[True], (ep[1:] != ep[:-1]) | (si[1:] != si[:-1])])
+        seg_id = np.cumsum(new) - 1
+        starts = np.flatnonzero(new)
+        ends = np.concatenate([starts[1:], [len(ep)]]) - 1
+        row_end = ends[seg_id]
+        keep = np.flatnonzero(sk == skill)
+        if len(keep) == 0:
+            continue
+        a, p = _chunks(action, starts[seg_id], row_end, chunk)
+        acts.append(a[keep])
+        pads.append(p[keep])
+        goals.append(state[row_end[keep]][:, [0, 1, 2]])
+        eps.append(ep[keep])
+        for k, v in prepare_rows(pf, shards, keep, spec, state[row_end][:, [0, 1, 2]], tick).items():
+            parts.setdefault(k, []).append(v)
+    if not eps:
+        raise ValueError(f"{dataset}: no {skill!r} rows in split {split!r}")
+    return SkillRows(
+        inputs={k: torch.cat(v) for k, v in parts.items()},
+        actions=np.concatenate(acts),
+        action_pad=np.concatenate(pads),
+        goals=np.concatenate(goals),
+        episodes=np.concatenate(eps),
+    )
+
+
+def prepare_rows(
+    pf: pq.ParquetFile, shards: Shards, keep: np.ndarray, spec: FeatureSpec, goals: np.ndarray | None = None, tick: Callable[[int], None] | None = None
+) -> dict[str, Any]:
+    """Decode and prepare rows `keep` (sorted, shard-local) of one shard, one row group (64
+    rows) at a time so memory stays bounded; `goals` (rows of the shard, 3) feed "target"."""
+    import torch
+
+    sizes = [pf.metadata.row_group(g).num_rows for g in range(pf.num_row_groups)]
+    group_start = np.concatenate([[0], np.cumsum(sizes)])
+    group_of = np.searchsorted(group_start, keep, side="right") - 1
+    parts: dict[str, list[Any]] = {}
+    for g in np.unique(group_of):
+        rows = keep[group_of == g]
+        table = pf.read_row_group(int(g), columns=spec.columns).take(rows - group_start[g])
+        goal = None if goals is None else torch.from_numpy(goals[rows])
+        for k, v in prepare(shards.decode(table, spec.columns), spec, goal=goal).items():
+            parts.setdefault(k, []).append(v)
+        if tick is not None:
+            tick(len(rows))
+    return {k: torch.cat(v) for k, v in parts.items()}
+
+
+def count_rows(dataset: Path, split: str, skill: str) -> int:
+    """Rows of `skill` in `split` (cheap: reads one string column)."""
+    return sum(int((np.asarray(pq.read_table(f, columns=["skill"]).column("skill").to_pylist()) == skill).sum()) for f in Shards.of(dataset, split).files)
+
+
+def split_episodes(episodes: np.ndarray, fraction: float, seed: int) -> np.ndarray:
+    """Episode ids held out for validation: a seeded `fraction` of them (at least one when
+    there are two or more), so no validation frame comes from an episode seen in training."""
+    ids = np.unique(episodes)
+    if len(ids) < 2 or fraction <= 0:
+        return np.zeros(0, dtype=ids.dtype)
+    n = min(len(ids) - 1, max(1, int(round(fraction * len(ids)))))
+    return np.sort(np.random.default_rng(seed).permutation(ids)[:n])

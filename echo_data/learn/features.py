@@ -1,0 +1,223 @@
+"""Dataset observations -> normalised model inputs: the one path shared by training and acting.
+
+Training decodes step rows to the arrays the world gives (PNG -> uint8 RGB, uint16 millimetre
+depth), and both training and a policy acting in the world turn them into the loaders' form
+(depth in metres (1, H, W), RGB in [0, 1] (3, H, W), spectrograms (F, T, 2)) with `canonical`
+and then into model inputs with `prepare`: one path, so the two cannot drift. Normalisation constants come from the dataset's
+meta/stats.json and are frozen into a `FeatureSpec` that the run folder stores.
+
+Leak: the state vector's velocities are what the last action commanded (the base is driven by
+velocity with high damping, so base_vx/vy/wz at step t equal action t-1 to ~1e-6, and actions are
+smooth, so they predict action t almost perfectly); joint velocities likewise echo the last change
+of a position target. `state` therefore leaves every velocity out; `state_raw` keeps them (only
+to measure the shortcut). See docs/learners.md.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from echo_data.dataset.schema import IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE
+from echo_data.records import STATE_NAMES
+
+HEAD_DEPTH = IMAGE_COLUMNS["head_depth"]
+HEAD_RGB = IMAGE_COLUMNS["head_rgb"]
+WRIST_DEPTH = IMAGE_COLUMNS["wrist_depth"]
+AUDIO_COLUMNS = {"spectrogram": SPECTROGRAM, "mel": MEL}
+
+# State entries that echo the previous command (see module doc): never fed by `state`.
+LEAKING_STATE = tuple(n for n in STATE_NAMES if n in ("base_vx", "base_vy", "base_wz") or n.endswith("_vel"))
+BC_INPUTS = ("audio", "depth", "state", "state_raw", "target")
+PLANNER_INPUTS = ("audio", "image")
+DEPTH_MAX_M = 10.0  # farther readings (and the renderer's 0 = nothing hit) carry no more cue
+GOAL_SCALE_M = 5.0  # goal offsets are divided by this: apartments are a few rooms across
+YAW = STATE_NAMES.index("base_yaw")
+
+
+class FeatureError(ValueError):
+    """Inputs that the dataset cannot provide (one line, names the key)."""
+
+
+@dataclass(frozen=True)
+class FeatureSpec:
+    """Which inputs a model reads and the frozen constants that normalise them."""
+
+    inputs: tuple[str, ...]
+    state_names: tuple[str, ...] = ()  # state entries fed (yaw goes in as sin, cos)
+    state_mean: tuple[float, ...] = ()
+    state_std: tuple[float, ...] = ()
+    audio_key: str = SPECTROGRAM
+    audio_mean: tuple[float, ...] = (0.0, 0.0)  # per ear
+    audio_std: tuple[float, ...] = (1.0, 1.0)
+    depth_mean: float = 0.0
+    depth_std: float = 1.0
+    image_size: int = 64  # depth / RGB are area-downsampled to this side
+    rgb_mean: tuple[float, ...] = (0.0, 0.0, 0.0)
+    rgb_std: tuple[float, ...] = (1.0, 1.0, 1.0)
+    image_key: str = HEAD_RGB
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def columns(self) -> list[str]:
+        """Dataset columns `prepare` reads."""
+        cols = []
+        if "audio" in self.inputs:
+            cols.append(self.audio_key)
+        if "depth" in self.inputs:
+            cols.append(HEAD_DEPTH)
+        if "image" in self.inputs:
+            cols.append(self.image_key)
+        if any(i in self.inputs for i in ("state", "state_raw", "target")):
+            cols.append(STATE)
+        return cols
+
+    @property
+    def state_dim(self) -> int:
+        return len(self.state_names) + (1 if "base_yaw" in self.state_names else 0)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @staticmethod
+    def from_dict(d: Mapping[str, Any]) -> "FeatureSpec":
+        tup = {k: tuple(v) for k, v in d.items() if isinstance(v, list)}
+        return FeatureSpec(**{**d, **tup})
+
+
+def parse_inputs(text: str, allowed: tuple[str, ...]) -> tuple[str, ...]:
+    """"audio,depth,state" -> ("audio", "depth", "state"); unknown names raise FeatureError."""
+    names = tuple(dict.fromkeys(t.strip() for t in text.split(",") if t.strip()))
+    bad = [n for n in names if n not in allowed]
+    if not names or bad:
+        raise FeatureError(f"--inputs: unknown {bad or 'empty list'}; choose from {', '.join(allowed)}")
+    if "state" in names and "state_raw" in names:
+        raise FeatureError("--inputs: state and state_raw exclude each other")
+    return names
+
+
+def feature_spec(dataset: Path, inputs: tuple[str, ...], audio: str = "spectrogram", image_size: int = 64) -> FeatureSpec:
+    """The spec for `inputs` with constants from `dataset`/meta/stats.json (train split)."""
+    path = dataset / "meta" / "stats.json"
+    try:
+        stats = json.loads(path.read_text())
+    except (OSError, ValueError) as e:
+        raise FeatureError(f"{path}: cannot read dataset statistics ({e})") from None
+
+    def need(key: str) -> dict[str, list[float]]:
+        if key not in stats:
+            raise FeatureError(f"{path}: no statistics for {key!r}; the dataset does not store it")
+        return stats[key]
+
+    kw: dict[str, Any] = {"inputs": inputs, "image_size": image_size}
+    if "audio" in inputs:
+        if audio not in AUDIO_COLUMNS:
+            raise FeatureError(f"--audio: unknown feature {audio!r}; choose from {', '.join(AUDIO_COLUMNS)}")
+        s = need(AUDIO_COLUMNS[audio])
+        kw.update(audio_key=AUDIO_COLUMNS[audio], audio_mean=tuple(s["mean"]), audio_std=tuple(max(v, 1e-6) for v in s["std"]))
+    if "depth" in inputs:
+        s = need(HEAD_DEPTH)
+        kw.update(depth_mean=s["mean"][0], depth_std=max(s["std"][0], 1e-6))
+    if "image" in inputs:
+        s = need(HEAD_RGB)
+        kw.update(rgb_mean=tuple(s["mean"]), rgb_std=tuple(max(v, 1e-6) for v in s["std"]))
+    if "state" in inputs or "state_raw" in inputs:
+        s = need(STATE)
+        keep = [i for i, n in enumerate(STATE_NAMES) if "state_raw" in inputs or n not in LEAKING_STATE]
+        # Constant entries (std 0 in the data) are centred but not scaled up.
+        kw.update(
+            state_names=tuple(STATE_NAMES[i] for i in keep),
+            state_mean=tuple(s["mean"][i] for i in keep),
+            state_std=tuple(s["std"][i] if s["std"][i] > 1e-3 else 1.0 for i in keep),
+        )
+    elif "target" in inputs:
+        need(STATE)
+    return FeatureSpec(**kw)
+
+
+def canonical(key: str, value: Any) -> np.ndarray:
+    """One observation value (as the world or the dataset gives it) -> the loaders' form.
+
+    Depth: uint16 millimetres (H, W) or float metres (H, W) / (1, H, W) -> float32 metres
+    (1, H, W). RGB: uint8 (H, W, 3) or float (3, H, W) in [0, 1] -> float32 (3, H, W).
+    Vectors and spectrograms pass through as float32."""
+    x = value.detach().cpu().numpy() if hasattr(value, "detach") else np.asarray(value)
+    if key in (HEAD_DEPTH, WRIST_DEPTH):
+        if x.ndim == 3 and x.shape[-1] == 1:
+            x = x[..., 0]
+        metres = x.astype(np.float32) / 1000.0 if np.issubdtype(x.dtype, np.integer) else x.astype(np.float32)
+        return metres if metres.ndim == 3 else metres[None]
+    if key == HEAD_RGB:
+        if x.ndim == 3 and x.shape[-1] == 3:
+            x = x.transpose(2, 0, 1)
+        return x.astype(np.float32) / 255.0 if np.issubdtype(x.dtype, np.integer) else x.astype(np.float32)
+    return x.astype(np.float32)
+
+
+def goal_features(state: Any, goal: Any) -> Any:
+    """Goal (x, y, yaw) in the world -> (dx, dy) in the robot frame / GOAL_SCALE_M, distance,
+    sin and cos of the heading error: what a policy needs, whatever the apartment's origin."""
+    import torch
+
+    x, y, yaw = state[:, 0], state[:, 1], state[:, YAW]
+    dxw, dyw = goal[:, 0] - x, goal[:, 1] - y
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    dx, dy = (c * dxw + s * dyw) / GOAL_SCALE_M, (-s * dxw + c * dyw) / GOAL_SCALE_M
+    dyaw = goal[:, 2] - yaw
+    return torch.stack([dx, dy, torch.sqrt(dx * dx + dy * dy), torch.sin(dyaw), torch.cos(dyaw)], dim=1)
+
+
+GOAL_DIM = 5
+
+
+def _area(x: Any, size: int) -> Any:
+    import torch.nn.functional as F
+
+    return x if x.shape[-1] == size and x.shape[-2] == size else F.adaptive_avg_pool2d(x, size)
+
+
+def prepare(batch: Mapping[str, Any], spec: FeatureSpec, goal: Any | None = None) -> dict[str, Any]:
+    """Loader-form batch {column: (B, ...)} -> {"audio", "depth", "image", "state", "target"}
+    float32 tensors, normalised. `goal` (B, 3) world poses is needed when "target" is an input."""
+    import torch
+
+    t = lambda k: torch.as_tensor(batch[k], dtype=torch.float32)  # noqa: E731
+    out: dict[str, Any] = {}
+    if "audio" in spec.inputs:
+        a = t(spec.audio_key).permute(0, 3, 1, 2)  # (B, ears, F, T)
+        mean = torch.tensor(spec.audio_mean).view(1, -1, 1, 1)
+        std = torch.tensor(spec.audio_std).view(1, -1, 1, 1)
+        out["audio"] = (a - mean) / std
+    if "depth" in spec.inputs:
+        d = _area(t(HEAD_DEPTH).clamp(0.0, DEPTH_MAX_M), spec.image_size)
+        out["depth"] = (d - spec.depth_mean) / spec.depth_std
+    if "image" in spec.inputs:
+        im = _area(t(spec.image_key), spec.image_size)
+        out["image"] = (im - torch.tensor(spec.rgb_mean).view(1, 3, 1, 1)) / torch.tensor(spec.rgb_std).view(1, 3, 1, 1)
+    if spec.state_names or "target" in spec.inputs:
+        st = t(STATE)
+    if spec.state_names:
+        idx = [STATE_NAMES.index(n) for n in spec.state_names]
+        v = (st[:, idx] - torch.tensor(spec.state_mean)) / torch.tensor(spec.state_std)
+        if "base_yaw" in spec.state_names:  # an angle: give its sine and cosine, not the wrapped value
+            j = spec.state_names.index("base_yaw")
+            yaw = st[:, YAW]
+            v = torch.cat([v[:, :j], torch.sin(yaw)[:, None], torch.cos(yaw)[:, None], v[:, j + 1 :]], dim=1)
+        out["state"] = v
+    if "target" in spec.inputs:
+        if goal is None:
+            raise FeatureError("the model reads a target position but none was given (info['target_pose'] or a plan)")
+        out["target"] = goal_features(st, torch.as_tensor(goal, dtype=torch.float32))
+    return out
+
+
+def single(obs: Mapping[str, Any], spec: FeatureSpec) -> dict[str, np.ndarray]:
+    """One observation dict (dataset keys) -> a batch of one in the loaders' form."""
+    missing = [c for c in spec.columns if c not in obs]
+    if missing:
+        raise FeatureError(f"observation lacks {missing}; it has {sorted(obs)}")
+    return {c: canonical(c, obs[c])[None] for c in spec.columns}

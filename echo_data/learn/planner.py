@@ -1,0 +1,290 @@
+"""The planner baseline: first second of binaural audio (+ first head image) -> skill chain.
+
+The model answers two questions about the first observation of an episode (frame 0, whose
+audio features cover the first second the robot heard): which event categories sound (one
+logit each) and, when several do, which to resolve first (one priority score each, trained with
+a pairwise logistic loss on multi-event episodes). The chain is then the sounding categories
+sorted by score, each expanded into its skill template learned from the training chains (e.g.
+doorbell -> Navigate door, OpenDoor door). The Place target of an object (the nearest free
+receptacle) cannot be heard; the template uses its most frequent kind in training, and the
+evaluation reports chain accuracy with and without that target.
+
+Evaluated on the test split, whose sound instances are never heard in training.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import Counter
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow.parquet as pq
+
+from echo_data.learn import runs
+from echo_data.learn.data import Shards, prepare_rows, split_episodes
+from echo_data.learn.features import FeatureSpec, feature_spec
+from echo_data.learn.loop import LoopConfig, fit, setup_torch
+from echo_data.learn.metrics import rate
+
+PLANNER_CLASS = "echo_data.learn.policy:PlannerModel"
+
+
+@dataclass
+class PlannerConfig:
+    dataset: str
+    inputs: tuple[str, ...] = ("audio",)
+    epochs: int = 60
+    seed: int = 0
+    batch_size: int = 32
+    lr: float = 1e-3
+    weight_decay: float = 1e-4
+    val_fraction: float = 0.15
+    threads: int = 1  # see loop.setup_torch: more threads than free cores is many times slower
+    image_size: int = 64
+    audio: str = "mel"
+    max_steps: int | None = None
+    # Training also reads frames 1..train_frames-1 of each training episode (the windows of the
+    # first seconds, all events still sounding): more views of each scene for few episodes.
+    # Validation and test read frame 0 only, the planner's input.
+    train_frames: int = 10
+    # Filled in by resolve():
+    features: dict[str, Any] = field(default_factory=dict)
+    audio_shape: list[int] | None = None
+    categories: list[str] = field(default_factory=list)
+    templates: dict[str, list[list[str]]] = field(default_factory=dict)  # category -> [[skill, target], ...]
+    val_episodes: list[int] = field(default_factory=list)
+
+    @staticmethod
+    def from_dict(d: dict[str, Any]) -> "PlannerConfig":
+        return PlannerConfig(**{**d, "inputs": tuple(d["inputs"])})
+
+
+@dataclass
+class Episodes:
+    """Inputs of the first frames of every episode in a split, and each row's labels."""
+
+    inputs: dict[str, Any]
+    index: np.ndarray  # episode_index
+    frame: np.ndarray  # frame_index
+    events: list[list[str]]  # categories in resolution order (priority 0 first)
+    chains: list[list[dict[str, str]]]  # the export's answer: [{"skill", "target"}, ...]
+    sounds: list[list[str]]  # sound instance ids
+
+
+def episode_rows(dataset: Path, split: str) -> list[dict[str, Any]]:
+    rows = pq.read_table(dataset / "meta" / "episodes.parquet").to_pylist()
+    return sorted((r for r in rows if r["split"] == split), key=lambda r: r["episode_index"])
+
+
+def _ordered_events(row: dict[str, Any]) -> list[dict[str, Any]]:
+    return sorted(row["events"], key=lambda e: e["priority"])
+
+
+def export_chain(row: dict[str, Any]) -> list[dict[str, str]]:
+    """The planner export's answer for an episode row (echo_data.dataset.planner.answer)."""
+    from echo_data.dataset.planner import answer
+
+    return json.loads(answer(row["chain"]))
+
+
+def learn_templates(rows: list[dict[str, Any]]) -> dict[str, list[list[str]]]:
+    """Per category, the most frequent (skill, target kind) sequence of its chain entries."""
+    seen: dict[str, Counter] = {}
+    for r in rows:
+        for k, ev in enumerate(r["events"]):
+            seq = tuple((c["skill"], c["target_kind"]) for c in r["chain"] if c["event"] == k)
+            seen.setdefault(ev["category"], Counter())[seq] += 1
+    return {cat: [list(p) for p in c.most_common(1)[0][0]] for cat, c in sorted(seen.items())}
+
+
+def chain_of(categories: list[str], templates: dict[str, list[list[str]]]) -> list[dict[str, str]]:
+    return [{"skill": s, "target": t} for cat in categories for s, t in templates.get(cat, [])]
+
+
+def load_episodes(dataset: Path, split: str, spec: FeatureSpec, frames: int = 1) -> Episodes:
+    """Frames 0..frames-1 of every episode of `split` while its first skill runs (no event is
+    resolved before the first skill, a Navigate, ends), prepared with `features.prepare`."""
+    import torch
+
+    meta = {r["episode_index"]: r for r in episode_rows(dataset, split)}
+    shards = Shards.of(dataset, split)
+    parts: dict[str, list[Any]] = {}
+    index: list[int] = []
+    frame: list[int] = []
+    for f in shards.files:
+        pf = pq.ParquetFile(f)
+        t = pf.read(columns=["episode_index", "frame_index", "skill_index"])
+        fr = t.column("frame_index").to_numpy()
+        keep = np.flatnonzero((fr < frames) & (t.column("skill_index").to_numpy() == 0))
+        index += t.column("episode_index").to_numpy()[keep].tolist()
+        frame += fr[keep].tolist()
+        for k, v in prepare_rows(pf, shards, keep, spec).items():
+            parts.setdefault(k, []).append(v)
+    rows = [meta[i] for i in index]
+    return Episodes(
+        inputs={k: torch.cat(v) for k, v in parts.items()},
+        index=np.asarray(index),
+        frame=np.asarray(frame),
+        events=[[e["category"] for e in _ordered_events(r)] for r in rows],
+        chains=[export_chain(r) for r in rows],
+        sounds=[[e["sound_id"] for e in r["events"]] for r in rows],
+    )
+
+
+def resolve(cfg: PlannerConfig) -> PlannerConfig:
+    from echo_data.learn.models import audio_shape
+
+    root = Path(cfg.dataset)
+    if not (root / "manifest.json").is_file():
+        raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)")
+    manifest = runs.read_json(root / "manifest.json")
+    for split in ("train", "test"):
+        if split not in manifest["splits"]:
+            raise runs.RunError(f"{root / 'manifest.json'}: no {split!r} split (the planner trains on train and is scored on test)")
+    rows = episode_rows(root, "train")
+    spec = feature_spec(root, cfg.inputs, audio=cfg.audio, image_size=cfg.image_size)
+    shape = audio_shape(spec, manifest["layout"])
+    # Every category the recipe can sound, so a test-only category is at least representable.
+    recipe_cats = manifest.get("recipe", {}).get("events", {}).get("categories", {})
+    cats = sorted(set(recipe_cats) | {e["category"] for r in rows for e in r["events"]})
+    return PlannerConfig(
+        **{**asdict(cfg), "dataset": str(root.resolve()), "features": spec.to_dict(), "audio_shape": list(shape) if shape else None,
+           "categories": cats, "templates": learn_templates(rows)}
+    )
+
+
+def build_model(cfg: PlannerConfig) -> Any:
+    from echo_data.learn.models import PlannerNet
+
+    return PlannerNet(FeatureSpec.from_dict(cfg.features), tuple(cfg.audio_shape) if cfg.audio_shape else None, len(cfg.categories))
+
+
+def decode(logits: np.ndarray, scores: np.ndarray, categories: list[str]) -> list[str]:
+    """Sounding categories (logit > 0, at least the most likely one), most urgent first."""
+    on = [i for i in range(len(categories)) if logits[i] > 0] or [int(np.argmax(logits))]
+    return [categories[i] for i in sorted(on, key=lambda i: -scores[i])]
+
+
+def _targets(ep: Episodes, categories: list[str]) -> tuple[Any, Any]:
+    """Multi-hot labels (n, C) and, per episode, the (first, second) category indices of its
+    first two events (-1 when it has one)."""
+    import torch
+
+    y = torch.zeros(len(ep.events), len(categories))
+    pairs = torch.full((len(ep.events), 2), -1, dtype=torch.long)
+    for n, evs in enumerate(ep.events):
+        idx = [categories.index(c) for c in evs if c in categories]
+        y[n, idx] = 1.0
+        if len(idx) >= 2 and idx[0] != idx[1]:
+            pairs[n] = torch.tensor(idx[:2])
+    return y, pairs
+
+
+def planner_loss(logits: Any, scores: Any, y: Any, pairs: Any) -> Any:
+    import torch.nn.functional as F
+
+    loss = F.binary_cross_entropy_with_logits(logits, y)
+    multi = pairs[:, 0] >= 0
+    if bool(multi.any()):
+        s = scores[multi]
+        p = pairs[multi]
+        margin = s.gather(1, p[:, :1]) - s.gather(1, p[:, 1:])
+        loss = loss + F.softplus(-margin).mean()
+    return loss
+
+
+def score(predicted: list[list[str]], ep: Episodes, templates: dict[str, list[list[str]]]) -> dict[str, Any]:
+    """Accuracies with Wilson 95 % intervals, overall and for single- and multi-event episodes."""
+    place = lambda ch: [c for c in ch if c["skill"] != "Place"]  # noqa: E731
+    out: dict[str, Any] = {}
+    for name, sel in (("all", lambda e: True), ("single_event", lambda e: len(e) == 1), ("multi_event", lambda e: len(e) >= 2)):
+        ix = [n for n, e in enumerate(ep.events) if sel(e)]
+        events = sum(predicted[n] == ep.events[n] for n in ix)
+        chain = sum(chain_of(predicted[n], templates) == ep.chains[n] for n in ix)
+        chain_np = sum(place(chain_of(predicted[n], templates)) == place(ep.chains[n]) for n in ix)
+        out[name] = {
+            "events_in_order": rate(events, len(ix)),
+            "chain_without_place_target": rate(chain_np, len(ix)),
+            "chain_exact": rate(chain, len(ix)),
+        }
+        if name == "multi_event":
+            out[name]["event_set"] = rate(sum(sorted(predicted[n]) == sorted(ep.events[n]) for n in ix), len(ix))
+    return out
+
+
+def predict(model: Any, ep: Episodes, categories: list[str]) -> list[list[str]]:
+    import torch
+
+    with torch.no_grad():
+        logits, scores = model(ep.inputs)
+    return [decode(logits[n].numpy(), scores[n].numpy(), categories) for n in range(len(ep.events))]
+
+
+def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite: bool = False, progress: bool = True) -> dict[str, Any]:
+    """Train on the train split (validation: held-out train episodes), then score the test split;
+    writes eval.json in the run folder and returns it."""
+    runs.check_out(out, resume, overwrite)
+    if resume:
+        saved = PlannerConfig.from_dict(runs.read_json(out / runs.CONFIG))
+        cfg = PlannerConfig.from_dict({**asdict(saved), "epochs": cfg.epochs, "max_steps": cfg.max_steps})
+    else:
+        cfg = resolve(cfg)
+    torch = setup_torch(cfg.seed, cfg.threads)
+    spec = FeatureSpec.from_dict(cfg.features)
+    root = Path(cfg.dataset)
+    train = load_episodes(root, "train", spec, frames=cfg.train_frames)
+    val_eps = split_episodes(train.index, cfg.val_fraction, cfg.seed)
+    cfg.val_episodes = [int(e) for e in val_eps]
+    is_val = np.isin(train.index, val_eps)
+    tr, va = np.flatnonzero(~is_val), np.flatnonzero(is_val & (train.frame == 0))
+    y, pairs = _targets(train, cfg.categories)
+
+    torch.manual_seed(cfg.seed)
+    model = build_model(cfg)
+    opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    runs.write_run_files(out, "planner", PLANNER_CLASS, asdict(cfg), {"inputs": list(cfg.inputs)})
+
+    def part(ix: np.ndarray) -> dict[str, Any]:
+        t = torch.from_numpy(ix)
+        return {k: v[t] for k, v in train.inputs.items()}
+
+    def loss_fn(ix: np.ndarray) -> Any:
+        logits, scores = model(part(ix))
+        return planner_loss(logits, scores, y[ix], pairs[ix])
+
+    def validate() -> dict[str, float]:
+        if len(va) == 0:
+            return {"val_loss": math.nan, "val_events_accuracy": math.nan}
+        with torch.no_grad():
+            logits, scores = model(part(va))
+            loss = float(planner_loss(logits, scores, y[va], pairs[va]))
+        pred = [decode(logits[n].numpy(), scores[n].numpy(), cfg.categories) for n in range(len(va))]
+        acc = float(np.mean([p == train.events[i] for p, i in zip(pred, va)]))
+        return {"val_loss": loss, "val_events_accuracy": acc}
+
+    state = fit(model, opt, tr, loss_fn, validate, LoopConfig(cfg.epochs, cfg.batch_size, cfg.seed, cfg.max_steps), out, resume, progress, desc="train planner")
+    model.load_state_dict(runs.load_torch(out / runs.BEST)["model"])
+    model.eval()
+    test = load_episodes(root, "test", spec)
+    heard = {s for ss in train.sounds for s in ss}
+    report = {
+        "run": str(out),
+        "inputs": list(cfg.inputs),
+        "audio": cfg.audio,
+        "episodes": {"train": int(len(np.unique(train.index[tr]))), "val": int(len(va)), "test": len(test.events)},
+        "train_rows": int(len(tr)),
+        "test_sounds_heard_in_training": sorted({s for ss in test.sounds for s in ss} & heard),
+        "step": state["step"],
+        "seconds": round(state["seconds"], 1),
+        "best_val_loss": state["best_val"] if state["best_val"] != math.inf else None,
+        "templates": cfg.templates,
+        "test": score(predict(model, test, cfg.categories), test, cfg.templates),
+    }
+    from echo_data.dataset.writer import atomic_write_json
+
+    atomic_write_json(out / "eval.json", report)
+    return report

@@ -1,0 +1,119 @@
+"""Trained run folders as the objects `echo-data evaluate` drives (see docs/learners.md).
+
+`BCPolicy.from_run(folder)` (or `BCPolicy(checkpoint=folder)`, how an `agent.json` checkpoint
+folder is constructed): `reset(info)`, then `act(obs) -> float32 (12,)` per control step,
+with `obs` holding the dataset's observation keys. Observations go through the same
+`features.prepare` as the training rows did. `PlannerModel.from_run(folder).plan(first_obs)`
+returns the skill chain in the planner export's JSON shape.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from echo_data.learn import runs
+from echo_data.learn.features import FeatureError, FeatureSpec, prepare, single
+from echo_data.records import ACTION_DIM
+
+
+def _load(folder: Path, config_cls: Any, build: Any) -> tuple[Any, Any, FeatureSpec]:
+    """(config, model in eval mode with the best weights, feature spec) of a run folder."""
+    cfg = config_cls.from_dict(runs.read_json(folder / runs.CONFIG))
+    model = build(cfg)
+    path = folder / runs.BEST if (folder / runs.BEST).is_file() else folder / runs.CHECKPOINT
+    model.load_state_dict(runs.load_torch(path)["model"])
+    return cfg, model.eval(), FeatureSpec.from_dict(cfg.features)
+
+
+def goal_from_info(info: Mapping[str, Any]) -> np.ndarray:
+    """The active skill's goal pose (x, y, yaw): `info["target_pose"]` when the caller gives it,
+    else the interaction pose of `info["target"]` in the episode's floor plan (`info["spec_object"]`
+    or `info["spec"]`, doors as `info["world"]` has them), which is where the expert drove in
+    the training data."""
+    if info.get("target_pose") is not None:
+        return np.asarray(info["target_pose"], dtype=np.float32)[:3]
+    spec, target = info.get("spec_object", info.get("spec")), info.get("target")
+    if spec is None or target is None:
+        raise FeatureError("this policy reads the target position: reset(info) needs info['target_pose'] or info['spec'] and info['target']")
+    from echo_data.episode import EpisodeSpec
+    from echo_data.scene.nav import interaction_pose
+
+    if isinstance(spec, dict):
+        spec = EpisodeSpec.from_dict(spec)
+    world = info.get("world")
+    doors = world.door_angles() if world is not None else info.get("door_angles")
+    return np.asarray(interaction_pose(spec.plan, str(target), door_angles=doors), dtype=np.float32)
+
+
+class BCPolicy:
+    """A behaviour-cloned skill policy loaded from its run folder."""
+
+    def __init__(self, checkpoint: Path | str) -> None:
+        from echo_data.learn.bc import BCConfig, build_model
+
+        self.checkpoint = Path(checkpoint)
+        cfg, self.model, self.spec = _load(self.checkpoint, BCConfig, build_model)
+        self.mean = np.asarray(cfg.action_mean, dtype=np.float32)
+        self.std = np.asarray(cfg.action_std, dtype=np.float32)
+        self.execute = cfg.execute
+        self.skill = cfg.skill
+        self._queue: deque[np.ndarray] = deque()
+        self._goal: np.ndarray | None = None
+
+    @classmethod
+    def from_run(cls, folder: Path | str) -> "BCPolicy":
+        return cls(checkpoint=folder)
+
+    def reset(self, info: Mapping[str, Any] | None = None) -> None:
+        """Start a new skill segment: forget queued actions, read the goal if the model needs it."""
+        self._queue.clear()
+        self._goal = goal_from_info(info or {}) if "target" in self.spec.inputs else None
+
+    def act(self, obs: Mapping[str, Any]) -> np.ndarray:
+        """One observation (dataset keys) -> the next action, float32 (ACTION_DIM,)."""
+        import torch
+
+        if not self._queue:
+            goal = None if self._goal is None else torch.from_numpy(self._goal[None])
+            with torch.no_grad():
+                pred = self.model(prepare(single(obs, self.spec), self.spec, goal=goal))[0].numpy()
+            for a in pred[: self.execute]:
+                self._queue.append((a * self.std + self.mean).astype(np.float32))
+        action = self._queue.popleft()
+        assert action.shape == (ACTION_DIM,)
+        return action
+
+
+class PlannerModel:
+    """A planner run: `plan(first_obs)` -> [{"skill": ..., "target": ...}, ...] (export shape)."""
+
+    def __init__(self, checkpoint: Path | str) -> None:
+        from echo_data.learn.planner import PlannerConfig, build_model
+
+        self.checkpoint = Path(checkpoint)
+        cfg, self.model, self.spec = _load(self.checkpoint, PlannerConfig, build_model)
+        self.categories = cfg.categories
+        self.templates = cfg.templates
+
+    @classmethod
+    def from_run(cls, folder: Path | str) -> "PlannerModel":
+        return cls(checkpoint=folder)
+
+    def events(self, first_obs: Mapping[str, Any]) -> list[str]:
+        """Sounding event categories, most urgent first."""
+        import torch
+
+        from echo_data.learn.planner import decode
+
+        with torch.no_grad():
+            logits, scores = self.model(prepare(single(first_obs, self.spec), self.spec))
+        return decode(logits[0].numpy(), scores[0].numpy(), self.categories)
+
+    def plan(self, first_obs: Mapping[str, Any]) -> list[dict[str, str]]:
+        from echo_data.learn.planner import chain_of
+
+        return chain_of(self.events(first_obs), self.templates)

@@ -1,0 +1,232 @@
+"""`echo-data train`: BC per skill and the planner, on a real (tiny) quickstart build.
+
+One dataset is built per module with the real pipeline (quickstart, one episode per split).
+Training runs are a few optimiser steps: they check the contract (files, loading, resume,
+determinism, preprocessing shared with acting), not what the models learn.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from typer.testing import CliRunner
+
+torch = pytest.importorskip("torch")
+
+from echo_data.cli import app  # noqa: E402
+from echo_data.dataset.schema import ACTION, STATE, column_to_numpy  # noqa: E402
+from echo_data.dataset.torch import StepDataset  # noqa: E402
+from echo_data.learn import runs  # noqa: E402
+from echo_data.learn.features import HEAD_DEPTH, LEAKING_STATE, feature_spec, prepare, single  # noqa: E402
+from echo_data.learn.models import AudioEncoder  # noqa: E402
+from echo_data.learn.policy import BCPolicy, PlannerModel  # noqa: E402
+from echo_data.records import ACTION_DIM, STATE_DIM, STATE_NAMES  # noqa: E402
+
+RECIPES = Path(__file__).resolve().parent.parent / "recipes"
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("learn") / "qs"
+    res = runner.invoke(app, ["build", str(RECIPES / "quickstart.yaml"), "--out", str(out), "--limit", "1", "--no-progress"])
+    assert res.exit_code == 0, res.output
+    return out
+
+
+def _train(ds: Path, out: Path, *extra: str) -> dict:
+    args = ["train", "bc", str(ds), "--skill", "Navigate", "--out", str(out), "--threads", "1", "--no-progress", "--batch-size", "32", *extra]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    return json.loads(res.stdout)
+
+
+def _weights(folder: Path, name: str = runs.CHECKPOINT) -> dict:
+    return runs.load_torch(folder / name)["model"]
+
+
+def _same(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+def _obs(ds: Path, split: str = "train", i: int = 5) -> tuple[dict, np.ndarray]:
+    item = StepDataset(ds, split, skill="Navigate")[i]
+    return {k: v for k, v in item.items() if k.startswith("observation.")}, item[ACTION].numpy()
+
+
+def test_bc_run_loads_as_a_policy_and_acts(ds: Path, tmp_path: Path) -> None:
+    run = tmp_path / "nav"
+    summary = _train(ds, run, "--inputs", "audio,depth,state", "--max-steps", "3")
+    assert summary["step"] == 3
+    for name in (runs.CONFIG, runs.POLICY, runs.AGENT, runs.CHECKPOINT, runs.BEST):
+        assert (run / name).is_file()
+    meta = json.loads((run / runs.POLICY).read_text())
+    assert meta["kind"] == "policy" and meta["class"] == "echo_data.learn.policy:BCPolicy"
+    agent = json.loads((run / runs.AGENT).read_text())  # evaluate's checkpoint folder: Class(checkpoint=folder)
+    assert agent == {"class": meta["class"], "kwargs": {}}
+    module, cls = agent["class"].split(":")
+    policy = getattr(__import__(module, fromlist=[cls]), cls)(checkpoint=run)
+    policy.reset({"skill": "Navigate", "target": "x"})
+    obs, _ = _obs(ds, "test")
+    a = policy.act(obs)
+    assert a.shape == (ACTION_DIM,) and a.dtype == np.float32 and np.isfinite(a).all()
+
+
+def test_epochs_write_losses_and_curves(ds: Path, tmp_path: Path) -> None:
+    run = tmp_path / "nav"
+    summary = _train(ds, run, "--inputs", "audio,state", "--epochs", "2")
+    lines = (run / runs.LOSSES).read_text().splitlines()
+    assert lines[0].startswith("epoch,step,train_loss,val_loss") and len(lines) == 3
+    assert (run / runs.CURVES).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert summary["epoch"] == 2 and np.isfinite(summary["last"]["train_loss"])
+
+
+def test_resume_continues_from_the_saved_step(ds: Path, tmp_path: Path) -> None:
+    """A run stopped at step 2 and resumed to step 7 holds the same weights as one run
+    straight to step 7 (the batch order of an epoch depends on the seed and epoch alone)."""
+    straight, split = tmp_path / "straight", tmp_path / "split"
+    _train(ds, straight, "--inputs", "audio,state", "--max-steps", "7")
+    _train(ds, split, "--inputs", "audio,state", "--max-steps", "2")
+    assert runs.load_torch(split / runs.CHECKPOINT)["state"]["step"] == 2
+    assert not _same(_weights(split), _weights(straight))
+    summary = _train(ds, split, "--inputs", "audio,state", "--max-steps", "7", "--resume")
+    assert summary["step"] == 7
+    assert _same(_weights(split), _weights(straight))
+
+
+def test_same_seed_same_weights_other_seed_differs(ds: Path, tmp_path: Path) -> None:
+    a, b, c = (tmp_path / n for n in "abc")
+    for folder, seed in ((a, "3"), (b, "3"), (c, "4")):
+        _train(ds, folder, "--inputs", "audio,depth,state", "--max-steps", "4", "--seed", seed)
+    assert _same(_weights(a), _weights(b))
+    assert not _same(_weights(a), _weights(c))
+
+
+def test_audio_encoder_hears_left_from_right(ds: Path) -> None:
+    obs, _ = _obs(ds)
+    spec = feature_spec(ds, ("audio",))
+    x = prepare(single(obs, spec), spec)["audio"]
+    assert x.shape == (1, 2, 65, 26) and not torch.equal(x[:, 0], x[:, 1])
+    torch.manual_seed(0)
+    enc = AudioEncoder(65, 26).eval()
+    with torch.no_grad():
+        y, y_swapped = enc(x), enc(x.flip(1))
+    assert (y - y_swapped).abs().max() > 1e-4
+
+
+def test_acting_preprocesses_raw_world_observations_like_training(ds: Path) -> None:
+    """The world gives depth as uint16 millimetres (H, W); the loaders give float metres
+    (1, H, W). Both go through the same `prepare` and must give the same model input."""
+    from PIL import Image
+
+    spec = feature_spec(ds, ("audio", "depth", "state"))
+    obs, _ = _obs(ds)
+    f = sorted((ds / "data").glob("train-*.parquet"))[0]
+    t = pq.read_table(f, columns=["skill", HEAD_DEPTH])
+    row = [i for i, s in enumerate(t.column("skill").to_pylist()) if s == "Navigate"][5]
+    raw = dict(obs)
+    raw[HEAD_DEPTH] = np.asarray(Image.open(io.BytesIO(t.column(HEAD_DEPTH)[row].as_py()["bytes"])))
+    assert raw[HEAD_DEPTH].dtype == np.uint16 and raw[HEAD_DEPTH].ndim == 2
+    a, b = prepare(single(obs, spec), spec), prepare(single(raw, spec), spec)
+    for k in a:
+        torch.testing.assert_close(a[k], b[k])
+
+
+def test_state_velocities_echo_the_previous_action(ds: Path) -> None:
+    """The leak the `state` input removes: base velocities at t equal the action at t-1."""
+    f = sorted((ds / "data").glob("train-*.parquet"))[0]
+    t = pq.read_table(f, columns=["episode_index", "skill", ACTION, STATE])
+    a = column_to_numpy(t.column(ACTION), (ACTION_DIM,))
+    s = column_to_numpy(t.column(STATE), (STATE_DIM,))
+    nav = np.asarray(t.column("skill").to_pylist()) == "Navigate"
+    same_ep = t.column("episode_index").to_numpy()
+    m = nav[1:] & nav[:-1] & (same_ep[1:] == same_ep[:-1])
+    v = [STATE_NAMES.index(n) for n in ("base_vx", "base_vy", "base_wz")]
+    assert m.sum() > 50 and np.abs(s[1:][m][:, v] - a[:-1][m][:, :3]).max() < 1e-2
+    fed = feature_spec(ds, ("state",)).state_names
+    assert not set(fed) & set(LEAKING_STATE) and {"base_vx", "base_wz", "arm_0_vel"} <= set(LEAKING_STATE)
+    assert set(feature_spec(ds, ("state_raw",)).state_names) == set(STATE_NAMES)
+
+
+def test_planner_trains_scores_and_plans(ds: Path, tmp_path: Path) -> None:
+    run = tmp_path / "planner"
+    res = runner.invoke(app, ["train", "planner", str(ds), "--inputs", "audio,image", "--epochs", "2", "--out", str(run), "--threads", "1", "--no-progress"])
+    assert res.exit_code == 0, res.output
+    report = json.loads(res.stdout)
+    assert report == json.loads((run / "eval.json").read_text())
+    assert report["episodes"]["test"] == 1 and report["test_sounds_heard_in_training"] == []
+    acc = report["test"]["all"]["events_in_order"]
+    assert acc["n"] == 1 and 0.0 <= acc["ci95"][0] <= acc["ci95"][1] <= 1.0
+    assert json.loads((run / runs.POLICY).read_text())["kind"] == "planner"
+    item = StepDataset(ds, "test", columns=["frame_index", "observation.audio.mel", "observation.images.head_rgb"])[0]
+    assert int(item["frame_index"]) == 0
+    chain = PlannerModel.from_run(run).plan({k: v for k, v in item.items() if k != "frame_index"})
+    assert chain and all(set(c) == {"skill", "target"} for c in chain)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--skill", "Fly"], "--skill 'Fly': no such rows"),
+        (["--skill", "Navigate", "--inputs", "audio,smell"], "--inputs: unknown ['smell']"),
+        (["--skill", "Navigate", "--chunk", "2", "--execute", "3"], "need 1 <= execute <= chunk"),
+    ],
+)
+def test_bad_arguments_exit_2_with_one_line(ds: Path, tmp_path: Path, args: list[str], message: str) -> None:
+    out = tmp_path / "run"
+    res = runner.invoke(app, ["train", "bc", str(ds), "--out", str(out), "--no-progress", *args])
+    assert res.exit_code == 2 and message in res.output and len(res.output.strip().splitlines()) == 1, res.output
+    assert not out.exists()
+
+
+def test_not_a_dataset_and_busy_out_folder(ds: Path, tmp_path: Path) -> None:
+    res = runner.invoke(app, ["train", "bc", str(tmp_path), "--skill", "Navigate", "--out", str(tmp_path / "r")])
+    assert res.exit_code == 2 and "not an echo-data dataset (no manifest.json)" in res.output
+    busy = tmp_path / "busy"
+    busy.mkdir()
+    (busy / "notes.txt").write_text("mine")
+    res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Navigate", "--out", str(busy)])
+    assert res.exit_code == 2 and "not empty" in res.output and (busy / "notes.txt").read_text() == "mine"
+    res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Navigate", "--out", str(tmp_path / "none"), "--resume"])
+    assert res.exit_code == 2 and "nothing to resume" in res.output
+
+
+def test_wilson_interval_matches_closed_forms() -> None:
+    """0 of n: the upper bound is z^2 / (n + z^2); k of n is symmetric to n-k of n; the
+    interval holds the observed rate and stays inside [0, 1]."""
+    from echo_data.evaluation.metrics import Z95
+    from echo_data.learn.metrics import rate, wilson
+
+    z2 = Z95**2
+    lo, hi = wilson(0, 10)
+    assert lo == 0.0 and hi == pytest.approx(z2 / (10 + z2), rel=1e-9)
+    lo8, hi8 = wilson(8, 10)
+    lo2, hi2 = wilson(2, 10)
+    assert lo8 == pytest.approx(1 - hi2) and hi8 == pytest.approx(1 - lo2) and lo8 < 0.8 < hi8
+    assert hi8 == pytest.approx(0.9433, abs=1e-4) and lo8 == pytest.approx(0.4902, abs=1e-4)
+    assert rate(0, 0)["accuracy"] is None
+
+
+def test_action_chunks_and_target_input(ds: Path, tmp_path: Path) -> None:
+    """--chunk 4 --execute 2: the policy predicts once per two steps; a target policy reads its
+    goal from info["target_pose"] and refuses to act without one."""
+    from echo_data.learn.features import FeatureError
+
+    run = tmp_path / "chunk"
+    _train(ds, run, "--inputs", "state,target", "--chunk", "4", "--execute", "2", "--max-steps", "2")
+    policy = BCPolicy.from_run(run)
+    calls = []
+    forward = policy.model.forward
+    policy.model.forward = lambda x: calls.append(1) or forward(x)  # type: ignore[method-assign]
+    obs, _ = _obs(ds)
+    with pytest.raises(FeatureError, match="target_pose"):
+        policy.reset({"skill": "Navigate"})
+    policy.reset({"skill": "Navigate", "target_pose": [1.0, 2.0, 0.5]})
+    actions = [policy.act(obs) for _ in range(5)]
+    assert len(calls) == 3 and all(a.shape == (ACTION_DIM,) and np.isfinite(a).all() for a in actions)
+    assert not np.array_equal(actions[0], actions[1])  # two different steps of one chunk
