@@ -29,7 +29,7 @@ def two_room_plan(hinge_low: bool = True, door_angle: float = 0.0) -> FloorPlan:
         wall((4.0, 2.5), (4.0, 4.0), False),
     )
     doorways = (Doorway(0, (4.0, 2.0), "y", 1.0, 2.1, (0, 1)),)
-    hx = 4.0 - (T / 2 + 0.012 + 0.02)  # hinge axis outside the wall face (FINDINGS)
+    hx = 4.0 - (T / 2 + 0.012 + 0.02)  # hinge axis outside the wall face (docs/SIMULATION_NOTES.md#articulations)
     if hinge_low:
         hinge, closed_yaw, sign = (hx, 1.48), math.pi / 2, 1.0
     else:

@@ -20,13 +20,13 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+import ray  # noqa: F401  (the test extra installs it: a missing one fails, never skips)
 
 from echo_data.dataset.build import build
 from echo_data.dataset.validate import validate
 from test_dataset_kill import _digests
 from test_dataset_synth import null_library, synth_generate, synth_recipe
 
-ray = pytest.importorskip("ray")
 pytestmark = pytest.mark.slow
 
 TESTS = Path(__file__).resolve().parent

@@ -121,15 +121,15 @@ class BoxLattice:
                     j += 1
         self.ev_axis, self.ev_plane, self.ev_face, self.ev_used = ax, plane, face, used
         # material table: 0 = no reflection (padding), 1..6 faces, then door panels
-        self.mat_log_r = [np.zeros(len(BANDS))] + list(face_log_r)
+        mat_log_r = [np.zeros(len(BANDS)), *face_log_r]
         self.open_mat: list[int] = []
         for op in box.openings:
             if op.closed and op.door_material is not None:
-                self.open_mat.append(len(self.mat_log_r))
-                self.mat_log_r.append(door_log_r[op.door_material])
+                self.open_mat.append(len(mat_log_r))
+                mat_log_r.append(door_log_r[op.door_material])
             else:
                 self.open_mat.append(-1)  # no reflection: the path leaves through the opening
-        self.mat_log_r = np.asarray(self.mat_log_r)
+        self.mat_log_r = np.asarray(mat_log_r)
         self._local: tuple[int, Occluders] | None = None
 
     def local(self, occ: Occluders) -> Occluders:

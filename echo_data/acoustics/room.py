@@ -116,10 +116,10 @@ class AcousticScene:
             self.lattices.append(BoxLattice(box, cfg.ism_order, log_r, door_log_r, cells))
 
     # ------------------------------------------------------------------ public API
-    def room_of(self, p: Vec3) -> int:
+    def room_of(self, p: Vec3 | np.ndarray) -> int:
         """Index (into plan.rooms) of the room box containing p, else the nearest one."""
-        p = np.asarray(p, dtype=np.float64)
-        d = [float(np.linalg.norm(np.maximum(b.lo - p, 0.0) + np.maximum(p - b.hi, 0.0))) for b in self.boxes]
+        q = np.asarray(p, dtype=np.float64)
+        d = [float(np.linalg.norm(np.maximum(b.lo - q, 0.0) + np.maximum(q - b.hi, 0.0))) for b in self.boxes]
         return int(np.argmin(d))
 
     def _rooms_of(self, pts: np.ndarray) -> np.ndarray:
@@ -142,7 +142,8 @@ class AcousticScene:
         s, r = np.asarray(source, dtype=np.float64), np.asarray(receiver, dtype=np.float64)
         d = max(float(np.linalg.norm(s - r)), 1e-3)
         band = np.exp(-0.5 * self.air * d)
-        arr = Arrival(d / SPEED_OF_SOUND, tuple(float(v) for v in (s - r) / d), 1.0 / d, tuple(float(v) for v in band), 0)
+        u = (s - r) / d
+        arr = Arrival(d / SPEED_OF_SOUND, (float(u[0]), float(u[1]), float(u[2])), 1.0 / d, tuple(float(v) for v in band), 0)
         return AcousticResponse(self.fs, [arr], np.zeros(self.length, dtype=np.float32), self.length)
 
     def response(self, source: Vec3, receiver: Vec3) -> AcousticResponse:
@@ -358,7 +359,7 @@ class AcousticScene:
                     np.stack([hub.point, pa]), np.stack([pa, pb]), self.occ, self.cfg.closed_door_loss_db, False
                 )
                 L = hub.length + float(np.linalg.norm(pa - hub.point) + np.linalg.norm(pb - pa))
-                if x not in dist or L < dist[x]:
+                if x not in dist or dist[x] > L:
                     lg = hub.log_gain.copy()
                     if y != a_room:  # diffraction at the hub towards this doorway
                         lg -= self._diff_db(hub.prev, hub.point, pb, hub.length) * (math.log(10) / 20)
@@ -467,7 +468,7 @@ class _PathSet:
         if not self.parts:
             return out
         row, L, d, lg, door, order = (np.concatenate(x) for x in zip(*self.parts))
-        keep = L < max_len
+        keep = max_len > L
         row, L, d, lg, door, order = row[keep], L[keep], d[keep], lg[keep], door[keep], order[keep]
         L = np.maximum(L, 1e-3)
         band = np.exp(lg - 0.5 * air[None] * L[:, None])

@@ -16,9 +16,10 @@ import shutil
 import tempfile
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Literal
+from typing import Any, Literal
 
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -136,9 +137,9 @@ def _init_job(job: _Job) -> None:
 def default_library(recipe: Recipe, recipe_dir: Path) -> Any:
     """The recipe's sound library (built once per worker)."""
     try:
-        from echo_data.sounds import SoundLibrary  # type: ignore[attr-defined]
+        from echo_data.sounds import SoundLibrary
     except ImportError:
-        from echo_data.sounds.library import SoundLibrary  # type: ignore[no-redef]
+        from echo_data.sounds.library import SoundLibrary
     return SoundLibrary.from_recipe(recipe, recipe_dir)
 
 
@@ -461,7 +462,7 @@ def _write_parquet_atomic(path: Path, table: pa.Table) -> None:
 
 def _default_generate() -> Generate:
     try:
-        from echo_data.pipeline import generate_episode  # type: ignore[attr-defined]
+        from echo_data.pipeline import generate_episode
     except ImportError as e:
         raise BuildError(f"the episode pipeline is not available: {e}") from None
     return generate_episode

@@ -29,7 +29,6 @@ from echo_data.pcm import clipped_samples, dequantise
 from echo_data.recipe import Recipe
 
 
-
 def _plain(t: pa.DataType) -> pa.DataType:
     """Extension types as their storage (they read back either way, depending on imports)."""
     return t.storage_type if isinstance(t, pa.BaseExtensionType) else t
@@ -71,7 +70,7 @@ def _feature_problems(eid: str, audio: np.ndarray, offsets: np.ndarray, stored: 
         return []
     mel_bands = stored[MEL].shape[1] if MEL in stored else 64
     spec, mel = step_features(dequantise(audio), offsets, sample_rate, mel_bands)
-    problems = []
+    problems: list[str] = []
     for col, want in ((SPECTROGRAM, spec), (MEL, mel)):
         got = stored.get(col)
         if got is None:
@@ -138,7 +137,7 @@ def validate(out: Path) -> list[str]:
     want = layout.schema()
     listed = {e["file"]: e for e in manifest.get("shards", [])}
     all_rows: list[dict[str, Any]] = []
-    for split, plans in plan_shards(recipe, manifest.get("limit")).items():
+    for plans in plan_shards(recipe, manifest.get("limit")).values():
         next_index = 0
         for plan in plans:
             path = out / plan.file
@@ -188,7 +187,7 @@ def validate(out: Path) -> list[str]:
                 pos += k
             if pos != n:
                 problems.append(f"{plan.file}: episode records cover {pos} rows of {n}")
-            for col, shape in layout.arrays.items():
+            for col in layout.arrays:
                 storage = table.column(col)
                 lengths = [len(c.storage if isinstance(c.type, pa.BaseExtensionType) else c) for c in storage.chunks]
                 if sum(lengths) != n:
@@ -272,7 +271,7 @@ def _derived_problems(out: Path, recipe: Recipe, layout: StepLayout, manifest: d
     from echo_data.dataset.build import _Writer
     from echo_data.dataset.planner import planner_files
 
-    problems = []
+    problems: list[str] = []
     metas = []
     for e in manifest.get("shards", []):
         try:

@@ -12,13 +12,14 @@ Full planner configuration order (`PlanQ`): torso, head pan, head tilt, 7 arm jo
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Iterable, Sequence
 
 import numpy as np
 import sapien
 
 from echo_data.robot import urdf as U
+
 
 # A box obstacle in the world: centre, full size, yaw about z.
 @dataclass(frozen=True)
