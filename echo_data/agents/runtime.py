@@ -83,7 +83,7 @@ class EpisodeRun:
 
 def true_chain(spec: EpisodeSpec) -> list[dict[str, str]]:
     """The episode's chain as the planner export writes it (targets named as a listener would)."""
-    from echo_data.dataset.writer import target_kind
+    from echo_data.dataset.encode import target_kind
 
     return [{"skill": c.skill, "target": target_kind(c.target, spec.plan)} for c in spec.chain]
 

@@ -19,7 +19,7 @@ from typing import Any, overload
 
 from echo_data.acoustics.levels import calibration_record
 from echo_data.dataset.schema import FORMAT_VERSION, StepLayout, shard_name
-from echo_data.dataset.writer import atomic_write_json
+from echo_data.dataset.storage import atomic_write_json
 from echo_data.episode import SPLIT_KEYS
 from echo_data.recipe import Recipe
 

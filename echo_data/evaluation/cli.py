@@ -76,7 +76,7 @@ def run_evaluate(
     bar.close()
     print(format_tables(doc))
     if json_out is not None:
-        from echo_data.dataset.writer import atomic_write_json
+        from echo_data.dataset.storage import atomic_write_json
 
         atomic_write_json(json_out, doc)
         print(f"wrote {json_out}")

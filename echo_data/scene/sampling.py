@@ -240,16 +240,18 @@ def _attempt(recipe: Recipe, split: str, index: int, attempt: int, seed: int, li
         plan = nxt
         obj = plan.object_by_name(name)
         events.append((reloc_cat, name, obj.position))
-    if state_cat == "doorbell":
-        door_i = int(state_target.split(":")[1])  # type: ignore[union-attr]
-        events.append(("doorbell", state_target, plan.doors[door_i].doorbell))  # type: ignore[arg-type]
+    if state_cat == "doorbell" and state_target is not None:
+        door_i = int(state_target.split(":")[1])
+        bell = plan.doors[door_i].doorbell
+        assert bell is not None  # the door was drawn among those with a bell
+        events.append(("doorbell", state_target, bell))
     elif state_cat == "sink":
         events.append(("sink", "faucet:0", plan.faucets[0].spout))
 
     prio: list[str] = list(recipe.events.priority)
     events.sort(key=lambda e: prio.index(e[0]))
     sound_events = tuple(
-        SoundEvent(category=c, sound_id=_sound_id(library, c, split, rng), target=t, source=tuple(float(v) for v in s), priority=k)  # type: ignore[arg-type]
+        SoundEvent(category=c, sound_id=_sound_id(library, c, split, rng), target=t, source=(float(s[0]), float(s[1]), float(s[2])), priority=k)
         for k, (c, t, s) in enumerate(events)
     )
 

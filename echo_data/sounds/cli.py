@@ -8,9 +8,11 @@ from pathlib import Path
 
 import typer
 
+from echo_data.categories import CATEGORIES
+
 sounds_app = typer.Typer(add_completion=False, no_args_is_help=True, help="List and export the sound library.")
 
-_CATEGORY = typer.Option(None, "--category", "-c", help="Only this category (phone, alarm, furby, doorbell, sink).")
+_CATEGORY = typer.Option(None, "--category", "-c", help=f"Only this category ({', '.join(CATEGORIES)}).")
 _SPLIT = typer.Option(None, "--split", "-s", help="Only this split (train or test).")
 _RECIPE = typer.Option(None, "--recipe", "-r", help="Use this recipe's sounds (built-ins and/or its WAV folders).")
 
