@@ -120,7 +120,8 @@ def door_world_factory():
 def test_open_door_expert_opens_and_leaves_door_at_rest(door_world_factory, hinge_low: bool) -> None:
     import sapien
 
-    from echo_data.skills.open_door import door_open_success, open_door
+    from echo_data.skills.open_door import open_door
+    from echo_data.skills.success import door_open_success
 
     world, spec = door_world_factory(hinge_low)
     door, art = world.plan.doors[0], world.handles.doors[0]
@@ -147,7 +148,8 @@ def test_open_door_expert_reports_a_blocked_door(door_world_factory) -> None:
     import sapien
 
     from echo_data.scene.build import build_scene
-    from echo_data.skills.open_door import door_open_success, open_door
+    from echo_data.skills.open_door import open_door
+    from echo_data.skills.success import door_open_success
 
     def with_post(scene, plan, recipe):
         handles = build_scene(scene, plan, recipe)
