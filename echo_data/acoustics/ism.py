@@ -166,7 +166,9 @@ class BoxLattice:
             self._trace_chunk(src[s:e], rcv[s:e], occ, door_loss_db, walls, cell_mask, out, s)
         return out
 
-    def _trace_chunk(self, src, rcv, occ, door_loss_db, walls, cell_mask, out: ImagePaths, s0: int) -> None:
+    def _trace_chunk(
+        self, src: np.ndarray, rcv: np.ndarray, occ: Occluders, door_loss_db: float, walls: bool, cell_mask: np.ndarray | None, out: ImagePaths, s0: int
+    ) -> None:
         box = self.box
         lo, hi = box.lo, box.hi
         R, I, K = len(rcv), len(self.cells), self.ev_axis.shape[1]

@@ -314,7 +314,7 @@ class AcousticScene:
             )
         return out
 
-    def _doorway_points(self, op, frm: int, to: int, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _doorway_points(self, op: Opening, frm: int, to: int, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Points just inside the two faces of a doorway at lateral/vertical position of p."""
         a = 0 if op.face in (0, 1) else 1  # normal axis
         fa = self.boxes[frm].hi[a] if op.face in (0, 2) else self.boxes[frm].lo[a]
@@ -325,7 +325,7 @@ class AcousticScene:
         pb[..., a] = fb + sgn * _FACE_INSET
         return pa, pb
 
-    def _clamp_in_opening(self, op, p: np.ndarray) -> np.ndarray:
+    def _clamp_in_opening(self, op: Opening, p: np.ndarray) -> np.ndarray:
         u_axis = 1 if op.face in (0, 1) else 0
         q = p.copy()
         w = op.u1 - op.u0
@@ -372,7 +372,7 @@ class AcousticScene:
         return hubs, entries
 
     @staticmethod
-    def _opening_centre(op, z: float) -> np.ndarray:
+    def _opening_centre(op: Opening, z: float) -> np.ndarray:
         u = 0.5 * (op.u0 + op.u1)
         return np.array([0.0, u, z]) if op.face in (0, 1) else np.array([u, 0.0, z])
 
@@ -386,7 +386,7 @@ class AcousticScene:
         delta = a + b - math.sqrt(max(a * a + b * b + 2 * a * b * cos, 0.0))
         return diffraction_loss_db(np.asarray(delta), BANDS)
 
-    def _entry_paths(self, paths, rows, rcv, e: _Entry, hub: _Hub, direct_ok) -> np.ndarray:
+    def _entry_paths(self, paths: _PathSet, rows: np.ndarray, rcv: np.ndarray, e: _Entry, hub: _Hub, direct_ok: np.ndarray) -> np.ndarray:
         """Secondary-source paths through doorway `e` for receivers of its room; returns the
         earliest arrival time per receiver (the tail onset)."""
         op = e.opening
@@ -449,7 +449,7 @@ class _PathSet:
     def __init__(self) -> None:
         self.parts: list[tuple[np.ndarray, ...]] = []
 
-    def add(self, rows, ip, log0, len0, len_prefix, skip_direct) -> None:
+    def add(self, rows: np.ndarray, ip: ImagePaths, log0: np.ndarray, len0: float | np.ndarray, len_prefix: np.ndarray, skip_direct: np.ndarray | None) -> None:
         """Add the valid paths of `ip` (receivers `rows`), with per-(receiver, cell) log gain
         and length prefixes (diffraction, route to a doorway); `skip_direct` drops cell 0
         for receivers that already have the geometric direct path."""

@@ -14,7 +14,7 @@ from __future__ import annotations
 import io
 import os
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -261,7 +261,7 @@ class ShuffledSteps(_IterableBase):
         """Items per epoch (batches are counted as their items)."""
         return len(self.dataset)
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Any]:
         torch = _torch()
         info = torch.utils.data.get_worker_info()
         worker, workers = (info.id, info.num_workers) if info is not None else (0, 1)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import sapien
@@ -30,7 +31,7 @@ class Box:
     yaw: float = 0.0
 
 
-def _mp_pose(p: sapien.Pose):  # noqa: ANN202 - mplib type
+def _mp_pose(p: sapien.Pose) -> Any:  # an mplib.Pose (mplib has no type information)
     import mplib
 
     return mplib.Pose(np.asarray(p.p, dtype=np.float64), np.asarray(p.q, dtype=np.float64))

@@ -5,10 +5,14 @@ from __future__ import annotations
 import json
 from dataclasses import asdict
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
 from echo_data.categories import CATEGORIES
+
+if TYPE_CHECKING:
+    from echo_data.sounds.library import SoundInstance, SoundLibrary
 
 sounds_app = typer.Typer(add_completion=False, no_args_is_help=True, help="List and export the sound library.")
 
@@ -17,7 +21,7 @@ _SPLIT = typer.Option(None, "--split", "-s", help="Only this split (train or tes
 _RECIPE = typer.Option(None, "--recipe", "-r", help="Use this recipe's sounds (built-ins and/or its WAV folders).")
 
 
-def _library(recipe: Path | None):
+def _library(recipe: Path | None) -> SoundLibrary:
     from echo_data.recipe import RecipeError, load_recipe
     from echo_data.sounds import SoundLibrary, SoundLibraryError
 
@@ -30,7 +34,7 @@ def _library(recipe: Path | None):
         raise typer.Exit(2) from None
 
 
-def _select(lib, category: str | None, split: str | None):
+def _select(lib: SoundLibrary, category: str | None, split: str | None) -> list[SoundInstance]:
     try:
         return lib.instances(category=category, split=split)
     except ValueError as e:

@@ -7,6 +7,7 @@ that draws train episodes from `instances(split="train")` never plays a test sou
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -81,7 +82,7 @@ class SoundLibrary:
     def __len__(self) -> int:
         return len(self._instances)
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[SoundInstance]:
         return iter(self._instances)
 
     def __contains__(self, instance_id: object) -> bool:
