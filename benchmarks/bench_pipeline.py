@@ -54,7 +54,7 @@ def main() -> None:
     args = ap.parse_args()
 
     from echo_data.dataset.schema import StepLayout
-    from echo_data.dataset.writer import encode_episode
+    from echo_data.dataset.encode import encode_episode
     from echo_data.pipeline import generate_episode
     from echo_data.pipeline import simulate
     from echo_data.scene.sampling import sample_episode

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, Optional
+from typing import TYPE_CHECKING
 
 import typer
 
 if TYPE_CHECKING:
     from echo_data.recipe import Recipe
+    from echo_data.trial import TrialEpisode
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Training data for sound-triggered mobile manipulation.")
 
@@ -50,7 +51,7 @@ def doctor(as_json: bool = typer.Option(False, "--json", help="Print one JSON ob
     raise typer.Exit(1 if rep.problems else 0)
 
 
-def _load(recipe_path: Path) -> "Recipe":
+def _load(recipe_path: Path) -> Recipe:
     """Load a recipe or exit 2 with its one-line error."""
     from echo_data.recipe import RecipeError, load_recipe
 
@@ -65,7 +66,7 @@ def _load(recipe_path: Path) -> "Recipe":
 def trial(
     recipe_path: Path = typer.Argument(..., metavar="RECIPE", help="Recipe YAML."),
     n: int = typer.Option(10, "-n", min=1, help="Episodes to run (train split indices 0..n-1)."),
-    seed: Optional[int] = typer.Option(None, "--seed", min=0, help="Replace the recipe's seed."),
+    seed: int | None = typer.Option(None, "--seed", min=0, help="Replace the recipe's seed."),
     workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
@@ -78,9 +79,8 @@ def trial(
     if seed is not None:
         recipe = recipe.model_copy(update={"seed": seed})
 
-    def tick(ep: object) -> None:
+    def tick(e: TrialEpisode) -> None:
         if not as_json:
-            e = ep  # type: ignore[assignment]
             status = "ok" if e.success else "FAILED " + "; ".join(f"{s}: {r}" for s, ok, r in e.outcomes if not ok) + e.error
             typer.echo(f"episode {e.index:4d} {e.setting:18s} steps {e.steps:4d} {e.seconds:6.1f}s {status}", err=True)
 
@@ -92,8 +92,8 @@ def trial(
         typer.echo(f"episodes {rep.episodes}  success rate {rep.success_rate:.3f}")
         for k, v in rep.skills.items():
             typer.echo(f"  {k:10s} {v['successes']}/{v['attempts']}")
-        for k, v in rep.failures.items():
-            typer.echo(f"  failure  {k}: {v}")
+        for k, count in rep.failures.items():
+            typer.echo(f"  failure  {k}: {count}")
         typer.echo(f"  rejected {rep.rejected}")
         typer.echo(f"  {rep.seconds_per_episode:.1f} s/episode, {rep.steps_per_second:.1f} steps/s")
 
@@ -105,9 +105,8 @@ def preview(
     out: Path = typer.Option(Path("preview"), "--out", help="Folder for the pictures and sound."),
 ) -> None:
     """Write one episode's spec, top-down plan, first head frame, heard audio and acoustic map."""
-    from echo_data.preview import write_preview
-
     from echo_data.dataset.build import OutputError, check_output_path
+    from echo_data.preview import write_preview
 
     recipe = _load(recipe_path)
     try:  # before minutes of simulation: a file, a read-only or too long path is refused now
@@ -134,8 +133,8 @@ def evaluate(
     policy: str = typer.Option("oracle", "--policy", help="Skill policy: oracle | random | still | module:Class | checkpoint folder."),
     planner: str = typer.Option("oracle", "--planner", help="Planner: oracle | module:Class | checkpoint folder."),
     workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="Write the results (metrics, per-episode outcomes) here."),
-    video: Optional[Path] = typer.Option(None, "--video", help="Write one MP4 per episode (picture + binaural sound) into this folder."),
+    json_out: Path | None = typer.Option(None, "--json", help="Write the results (metrics, per-episode outcomes) here."),
+    video: Path | None = typer.Option(None, "--video", help="Write one MP4 per episode (picture + binaural sound) into this folder."),
 ) -> None:
     """Run a policy closed-loop on a split and report the paper's metrics with 95 % intervals."""
     from echo_data.evaluation.cli import run_evaluate

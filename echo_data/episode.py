@@ -78,7 +78,7 @@ class EpisodeSpec:
         return dataclasses.asdict(self)
 
     @staticmethod
-    def from_dict(d: dict[str, Any]) -> "EpisodeSpec":
+    def from_dict(d: dict[str, Any]) -> EpisodeSpec:
         return EpisodeSpec(
             episode_id=d["episode_id"],
             split=d["split"],

@@ -9,9 +9,10 @@ cores and stay reproducible.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from multiprocessing import get_context
-from typing import Any, Callable, Iterable, Iterator, Literal, Protocol
+from typing import Any, Literal, Protocol
 
 ExecutorName = Literal["local", "ray"]
 WORKER_ENV = {"LP_NUM_THREADS": "1"}

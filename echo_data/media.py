@@ -10,9 +10,10 @@ same folder, then renamed), so a killed run never leaves a truncated video behin
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from fractions import Fraction
 from pathlib import Path
-from typing import Iterable
+from typing import Any
 
 import numpy as np
 
@@ -115,11 +116,13 @@ def probe_mp4(path: Path) -> dict:
         video = next((s for s in container.streams if s.type == "video"), None)
         audio = next((s for s in container.streams if s.type == "audio"), None)
         if video is not None:
-            info["width"], info["height"] = video.codec_context.width, video.codec_context.height
+            vctx: Any = video.codec_context  # a VideoCodecContext (PyAV types the generic base)
+            info["width"], info["height"] = vctx.width, vctx.height
             info["fps"] = float(video.average_rate) if video.average_rate else 0.0
         if audio is not None:
-            info["audio_channels"] = audio.codec_context.channels
-            info["audio_rate"] = audio.codec_context.sample_rate
+            actx: Any = audio.codec_context  # an AudioCodecContext
+            info["audio_channels"] = actx.channels
+            info["audio_rate"] = actx.sample_rate
         info["duration_s"] = float(container.duration) / 1e6 if container.duration else 0.0
         info["streams"] = [s.type for s in container.streams]
         if video is not None:

@@ -9,17 +9,22 @@ evaluates policies), so a dataset episode is exactly what the environment gives 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from echo_data.envs.audio import PRE_ROLL_SECONDS, event_waveform, step_samples  # noqa: F401  (re-exported)
-from echo_data.episode import EpisodeSpec
+from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.recipe import Recipe
 from echo_data.records import EpisodeResult, StepRecord
 from echo_data.rollout import Rollout
 
+if TYPE_CHECKING:
+    from echo_data.envs.env import EchoDataEnv
+    from echo_data.sounds.library import SoundLibrary
 
-def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: object | None = None) -> Rollout:
+
+def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: SoundLibrary | None = None) -> Rollout:
     """Run `spec`'s chain with the scripted experts acting in the environment; record every step.
 
     `observe`: render the cameras. With a sound `library` the robot also hears (online audio,
@@ -62,15 +67,15 @@ class _Recorder:
         self.spectrogram: list[np.ndarray] = []
         self.mel: list[np.ndarray] = []
 
-    def __call__(self, env: object, obs: dict[str, np.ndarray], action: np.ndarray, k: int, call: object, flags: tuple[bool, ...]) -> None:
+    def __call__(self, env: EchoDataEnv, obs: dict[str, np.ndarray], action: np.ndarray, k: int, call: SkillCall, flags: tuple[bool, ...]) -> None:
         from echo_data.dataset.schema import IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE
 
-        x, y, z, yaw = env.ear_pose()  # type: ignore[attr-defined]
+        x, y, z, yaw = env.ear_pose()
         frame = len(self.steps)
         self.steps.append(StepRecord(
             frame_index=frame,
             timestamp=frame / self.control_hz,
-            skill=call.skill,  # type: ignore[attr-defined]
+            skill=call.skill,
             skill_index=k,
             action=action,
             state=obs[STATE],
@@ -79,9 +84,9 @@ class _Recorder:
             wrist_depth=obs.get(IMAGE_COLUMNS["wrist_depth"]),
             ear_position=(x, y, z),
             ear_yaw=yaw,
-            sounding=tuple(env.sounding),  # type: ignore[attr-defined]
+            sounding=tuple(env.sounding),
             skill_success=flags,
-            camera_poses=env.world.robot.camera_poses(),  # type: ignore[attr-defined]
+            camera_poses=env.world.robot.camera_poses(),
         ))
         if SPECTROGRAM in obs:
             self.spectrogram.append(obs[SPECTROGRAM])
@@ -89,7 +94,7 @@ class _Recorder:
             self.mel.append(obs[MEL])
 
 
-def render_episode_audio(spec: EpisodeSpec, rollout: Rollout, recipe: Recipe, library: object) -> tuple[np.ndarray, np.ndarray]:
+def render_episode_audio(spec: EpisodeSpec, rollout: Rollout, recipe: Recipe, library: SoundLibrary) -> tuple[np.ndarray, np.ndarray]:
     """The binaural track of a recorded rollout (its ear poses, stops and door changes) and each
     step's sample offset: the same `OnlineTrack` the environment hears with, fed after the fact."""
     from echo_data.envs.audio import OnlineTrack
@@ -115,7 +120,7 @@ def generate_episode(
     recipe: Recipe,
     split: str,
     index: int,
-    library: object,
+    library: SoundLibrary,
     recipe_dir: Path | None = None,
     attempt: int = 0,
 ) -> EpisodeResult:

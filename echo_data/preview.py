@@ -42,7 +42,7 @@ def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: object) -> np.nda
     x, y, yaw = spec.start
     poses = np.tile(np.array([[x, y, cfg.ear_height, yaw]]), (n, 1))
     srcs = [
-        SourceTrack(position=tuple(ev.source), waveform=event_waveform(spec, e, library, fs, HEARD_SECONDS + cfg.rir_seconds), stop_sample=None)
+        SourceTrack(position=ev.source, waveform=event_waveform(spec, e, library, fs, HEARD_SECONDS + cfg.rir_seconds), stop_sample=None)
         for e, ev in enumerate(spec.events)
     ]
     hrtf = Hrtf.load(cfg.hrtf, fs)
@@ -90,7 +90,7 @@ def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float 
     xs = np.arange(b.xmin + step / 2, b.xmax, step)
     ys = np.arange(b.ymin + step / 2, b.ymax, step)
     ev = spec.events[0]
-    src = tuple(ev.source)
+    src = ev.source
     l1m = source_level_db(ev.category, spec.plan.seed, 0)
     level = np.full((len(ys), len(xs)), np.nan)
     for j, y in enumerate(ys):
@@ -101,7 +101,7 @@ def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float 
             level[j, i] = l1m + 10 * np.log10(np.sum(h.astype(np.float64) ** 2) + 1e-20)
     fig, ax = plt.subplots(figsize=(7, 7 * (b.ymax - b.ymin) / max(b.xmax - b.xmin, 1e-6) + 0.5))
     top = float(np.ceil(np.nanmax(level) / 5) * 5)
-    im = ax.imshow(level, origin="lower", extent=[b.xmin, b.xmax, b.ymin, b.ymax], cmap="inferno", vmin=top - 45, vmax=top)
+    im = ax.imshow(level, origin="lower", extent=(b.xmin, b.xmax, b.ymin, b.ymax), cmap="inferno", vmin=top - 45, vmax=top)
     for f in spec.plan.furniture:
         fp = f.footprint
         soft = per_floor_area(f.material)

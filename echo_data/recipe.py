@@ -19,11 +19,12 @@ if TYPE_CHECKING:
     import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from echo_data.categories import CATEGORIES, RELOCATION_CATEGORIES, Category, RelocationCategory
+
 SETTINGS = ("object_relocation", "state_transition", "multi_event")
-RELOCATION_CATEGORIES = ("phone", "alarm", "furby")
-STATE_CATEGORIES = ("doorbell", "sink")
-CATEGORIES = RELOCATION_CATEGORIES + STATE_CATEGORIES
-SKILLS = ("Navigate", "Pick", "Place", "OpenDoor", "CloseSink")
+SkillName = Literal["Navigate", "Pick", "Place", "OpenDoor", "CloseSink"]
+SKILLS: tuple[SkillName, ...] = ("Navigate", "Pick", "Place", "OpenDoor", "CloseSink")
+_MAX_STEPS: dict[SkillName, int] = {"Navigate": 600, "Pick": 250, "Place": 250, "OpenDoor": 300, "CloseSink": 200}
 
 
 class RecipeError(ValueError):
@@ -130,7 +131,7 @@ class SceneConfig(_Strict):
 class ObjectsConfig(_Strict):
     """Sounding targets and silent clutter."""
 
-    targets: tuple[Literal["phone", "alarm", "furby"], ...] = RELOCATION_CATEGORIES
+    targets: tuple[RelocationCategory, ...] = RELOCATION_CATEGORIES
     distractors: tuple[int, int] = (1, 3)
     distractor_shapes: tuple[str, ...] = ("mug", "can", "box", "bowl", "bottle", "book")
 
@@ -147,18 +148,18 @@ class SoundsConfig(_Strict):
     """Sound library: the built-in synthesised instances and/or the user's WAV folders."""
 
     builtin: bool = True
-    folders: dict[Literal["phone", "alarm", "furby", "doorbell", "sink"], str] = Field(default_factory=dict)
+    folders: dict[Category, str] = Field(default_factory=dict)
     folder_test_fraction: float = Field(0.3, ge=0.0, lt=1.0)
 
 
 class EventsConfig(_Strict):
     """Which sound events happen, how often, and in which order they must be resolved."""
 
-    categories: dict[Literal["phone", "alarm", "furby", "doorbell", "sink"], float] = Field(
+    categories: dict[Category, float] = Field(
         default_factory=lambda: {c: 1.0 for c in CATEGORIES}
     )
     # Multi-event priority rule: the category earlier in this list is resolved first.
-    priority: tuple[Literal["phone", "alarm", "furby", "doorbell", "sink"], ...] = (
+    priority: tuple[Category, ...] = (
         "sink",
         "doorbell",
         "alarm",
@@ -198,8 +199,8 @@ class RobotConfig(_Strict):
     control_hz: int = Field(10, ge=1, le=50)
     head_camera: CameraConfig = CameraConfig()
     wrist_camera: CameraConfig = CameraConfig(rgb=False)
-    max_steps: dict[Literal["Navigate", "Pick", "Place", "OpenDoor", "CloseSink"], int] = Field(
-        default_factory=lambda: {"Navigate": 600, "Pick": 250, "Place": 250, "OpenDoor": 300, "CloseSink": 200}
+    max_steps: dict[SkillName, int] = Field(
+        default_factory=lambda: dict(_MAX_STEPS)
     )
 
     @field_validator("max_steps")
@@ -211,7 +212,7 @@ class RobotConfig(_Strict):
         return v
 
     @model_validator(mode="after")
-    def _rates(self) -> "RobotConfig":
+    def _rates(self) -> RobotConfig:
         if self.physics_hz % self.control_hz:
             raise ValueError(f"physics_hz ({self.physics_hz}) must be a multiple of control_hz ({self.control_hz})")
         return self
@@ -325,7 +326,7 @@ class Recipe(_Strict):
             data = {**data, "splits": totals}
         return data
 
-    def setting_for(self, split: str, index: int, rng: "np.random.Generator") -> str:
+    def setting_for(self, split: str, index: int, rng: np.random.Generator) -> str:
         """The setting of episode `index` of `split`.
 
         With `composition`, settings are laid out in a fixed interleaved order so that any
@@ -375,7 +376,7 @@ class _UniqueKeyLoader(yaml.SafeLoader):
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
         first_line: dict[Any, int] = {}
         for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=deep)  # type: ignore[no-untyped-call]
+            key = self.construct_object(key_node, deep=deep)
             try:
                 if key in first_line:
                     raise yaml.constructor.ConstructorError(

@@ -7,8 +7,12 @@ the stats and the loaders agree on what each element means.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from echo_data.episode import EpisodeSpec
 
 ARM_JOINTS = 7
 # action = [base vx, base vy, base wz (robot frame, m/s, rad/s), torso target (m),
@@ -70,10 +74,10 @@ class SkillOutcome:
 class EpisodeResult:
     """A finished rollout with its audio, ready for the dataset writer.
 
-    `spec` is an `echo_data.episode.EpisodeSpec`; audio arrays are aligned with `steps`.
+    Audio arrays are aligned with `steps`.
     """
 
-    spec: object
+    spec: EpisodeSpec
     steps: list[StepRecord]
     outcomes: list[SkillOutcome]
     success: bool

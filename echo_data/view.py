@@ -42,7 +42,7 @@ def _lut(name: str) -> np.ndarray:
 
 def _fit(img: np.ndarray, w: int, h: int) -> np.ndarray:
     """Nearest-neighbour resize to (h, w): pixels stay visible as pixels."""
-    return np.asarray(Image.fromarray(img).resize((w, h), Image.NEAREST))
+    return np.asarray(Image.fromarray(img).resize((w, h), Image.Resampling.NEAREST))
 
 
 def _panel(img: np.ndarray) -> np.ndarray:

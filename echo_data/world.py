@@ -14,7 +14,8 @@ episode: nothing an expert does outside its actions changes the physics.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sapien
@@ -24,11 +25,17 @@ from echo_data.recipe import Recipe
 from echo_data.robot.robot import Robot
 from echo_data.scene.floorplan import FloorPlan
 
+if TYPE_CHECKING:
+    from echo_data.robot.planner import ArmPlanner
+    from echo_data.scene.build import SceneHandles
+    from echo_data.scene.nav import NavGrid
+
 _RENDER_KEEPALIVE: list[Any] = []  # one RenderSystem per process, never freed
 # A gripper commanded to open less than this (m) is closing on what it touches.
 GRIP_CLOSED = 0.02
 
-SceneBuilder = Callable[[sapien.Scene, FloorPlan, Recipe], Any]
+# Builds the plan's SAPIEN bodies into a scene (default `echo_data.scene.build.build_scene`).
+SceneBuilder = Callable[[sapien.Scene, FloorPlan, Recipe], "SceneHandles"]
 
 
 def keep_render_alive() -> None:
@@ -37,23 +44,49 @@ def keep_render_alive() -> None:
         _RENDER_KEEPALIVE.append(sapien.render.RenderSystem())
 
 
-def _default_builder(scene: sapien.Scene, plan: FloorPlan, recipe: Recipe) -> Any:
+def _default_builder(scene: sapien.Scene, plan: FloorPlan, recipe: Recipe) -> SceneHandles:
     from echo_data.scene.build import build_scene
 
     return build_scene(scene, plan, recipe)
 
 
 class World:
-    """The SAPIEN world of one episode.
+    """The SAPIEN world of one episode: every field is declared here and read directly by the
+    experts, the environment and the success tests.
 
-    Attributes: `spec`, `recipe`, `plan`, `scene`, `robot` (Robot), `handles` (SceneHandles of
-    `echo_data.scene.build`), `nav` (NavGrid at the initial door angles, built on first use),
-    `control_hz`, `substeps`, `steps` (control steps taken), `receptacles` (object name ->
-    furniture index it rests on now; the plan's at the start, updated by Place).
-    `builder` replaces `build_scene` (tests with hand-made scenes).
+    `builder` replaces `build_scene` (tests add bodies to the default scene). After `close()`
+    the scene, robot and handles are released (reading them raises AttributeError).
     """
 
+    spec: EpisodeSpec
+    """The sampled episode: plan, start pose, chain of skill calls, sound events, seeds."""
+    recipe: Recipe
+    """The recipe the episode was sampled from (robot rates, cameras, step limits)."""
+    plan: FloorPlan
+    """`spec.plan`: rooms, walls, doors, furniture, faucets, objects at their initial poses."""
+    render: bool
+    """Whether the scene has a render system (cameras observe); physics alone otherwise."""
+    scene: sapien.Scene
+    """The SAPIEN scene holding the apartment and the robot."""
+    control_hz: int
+    """Control steps per second (one `step` applies one action)."""
+    substeps: int
+    """Physics steps per control step (physics_hz // control_hz)."""
+    handles: SceneHandles
+    """The scene's bodies by role: objects by name, door and faucet articulations by index, water, statics."""
+    robot: Robot
+    """The mobile manipulator, placed at `spec.start`."""
+    steps: int
+    """Control steps taken so far."""
+    receptacles: dict[str, int]
+    """Object name -> furniture index it rests on now: the plan's at the start, updated by Place."""
+    arm_planner: ArmPlanner | None
+    """The episode's arm motion planner, made on first use by `echo_data.skills.arm.arm_planner`."""
+    closed: bool
+    """`close()` has released the scene."""
+
     def __init__(self, spec: EpisodeSpec, recipe: Recipe, render: bool = True, builder: SceneBuilder | None = None) -> None:
+        self.closed = False
         self.spec = spec
         self.recipe = recipe
         self.plan = spec.plan
@@ -74,9 +107,9 @@ class World:
         self.handles = (builder or _default_builder)(self.scene, self.plan, recipe)
         self.robot = Robot(self.scene, cfg)
         self.robot.set_base_pose(*spec.start)
-        self._nav: Any = None
-        self._arm_planner: Any = None
-        self._door_hold: Any = None  # the drive holding a door leaf in the gripper
+        self._nav: NavGrid | None = None
+        self.arm_planner = None
+        self._door_hold: Any = None  # the drive (a PhysxDriveComponent) holding a door leaf in the gripper
         self.steps = 0
         # Where each object rests now (furniture index); Place updates it after a success.
         self.receptacles: dict[str, int] = {o.name: o.receptacle for o in self.plan.objects}
@@ -91,9 +124,7 @@ class World:
         for _ in range(self.substeps):
             self.robot.before_substep()
             self.scene.step()
-        update = getattr(self.handles, "update", None)
-        if update is not None:
-            update()
+        self.handles.update()
         if self._door_hold is None and self._gripper_closed():
             self._grasp_door()
         self.steps += 1
@@ -103,11 +134,10 @@ class World:
 
     def _grasp_door(self) -> None:
         """Hold a door leaf both fingers press on (see the module docstring)."""
-        doors = getattr(self.handles, "doors", None) or []
-        if not doors:
+        if not self.handles.doors:
             return
         left, right = self.robot.finger_contacts()
-        for art in doors:
+        for art in self.handles.doors:
             leaf = art.links[1]
             if leaf.entity in left and leaf.entity in right:
                 self._door_hold = attach(self.scene, self.robot.ee_link, leaf)
@@ -129,7 +159,7 @@ class World:
 
     # ------------------------------------------------------------------ queries
     @property
-    def nav(self) -> Any:
+    def nav(self) -> NavGrid:
         """NavGrid of the plan (doors at their initial angles), built lazily."""
         if self._nav is None:
             from echo_data.scene.nav import NavGrid
@@ -144,23 +174,21 @@ class World:
         return self.handles.objects[name].pose
 
     def door_angles(self) -> dict[int, float]:
-        doors = getattr(self.handles, "doors", None) or []
-        return {i: float(a.get_qpos()[0]) for i, a in enumerate(doors)}
+        """Current hinge angle of every door."""
+        return self.handles.door_angles()
 
     def close(self) -> None:
         """Free the scene (entities, physics); the process-wide render system stays."""
-        scene = getattr(self, "scene", None)
-        if scene is None:
+        if self.closed:
             return
-        for e in list(scene.entities):
-            scene.remove_entity(e)
-        self.handles = None
+        for e in list(self.scene.entities):
+            self.scene.remove_entity(e)
+        self.closed = True
         self._door_hold = None
-        self._arm_planner = None  # set by echo_data.skills.arm.arm_planner
-        self.robot = None  # type: ignore[assignment]
-        self.scene = None  # type: ignore[assignment]
+        self.arm_planner = None
+        del self.handles, self.robot, self.scene
 
-    def __enter__(self) -> "World":
+    def __enter__(self) -> World:
         return self
 
     def __exit__(self, *exc: object) -> None:

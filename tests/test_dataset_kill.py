@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 import echo_data.dataset.build as build_mod
+import echo_data.dataset.writer as writer_mod
 from echo_data.dataset.build import build
 from echo_data.dataset.validate import validate
 from test_dataset_synth import null_library, synth_generate, synth_recipe
@@ -107,10 +108,11 @@ def test_crash_between_shard_rename_and_manifest(reference: Path, tmp_path: Path
             raise _Crash
         real(path, manifest)
 
-    monkeypatch.setattr(build_mod, "write_manifest", crashing)
+    monkeypatch.setattr(build_mod, "write_manifest", crashing)  # the initial manifest
+    monkeypatch.setattr(writer_mod, "write_manifest", crashing)  # one per shard written
     with pytest.raises(_Crash):
         build(synth_recipe(), TESTS, out, generate=synth_generate, make_library=null_library, progress=False)
-    monkeypatch.setattr(build_mod, "write_manifest", real)
+    monkeypatch.undo()
     assert (out / "data" / "train-00001-of-00003.parquet").is_file()
     assert len(json.loads((out / "manifest.json").read_text())["shards"]) == 1
     (out / "data" / ".test-00000-of-00002.parquet.tmp-999").write_bytes(b"half a shard")  # a killed writer's leftover

@@ -8,10 +8,10 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-torch = pytest.importorskip("torch")
+import torch  # the test extra installs it: a missing one fails, never skips
 
-from echo_data.dataset.torch import SequenceDataset, StepDataset  # noqa: E402
-from test_dataset_synth import build_synth, synth_generate, synth_recipe  # noqa: E402
+from echo_data.dataset.torch import SequenceDataset, StepDataset
+from test_dataset_synth import build_synth, synth_generate, synth_recipe
 
 
 @pytest.fixture(scope="module")

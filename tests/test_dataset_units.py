@@ -30,7 +30,7 @@ def test_merged_stats_equal_direct_computation() -> None:
 
 
 def test_schema_matches_datasets_features() -> None:
-    datasets = pytest.importorskip("datasets")
+    import datasets  # the test extra installs it: a missing one fails, never skips
     layout = StepLayout.from_recipe(synth_recipe())
     theirs = datasets.Features.from_dict(layout.hf_features()).arrow_schema
     ours = layout.schema()

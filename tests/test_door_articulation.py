@@ -9,15 +9,9 @@ import numpy as np
 import pytest
 import sapien
 
-from echo_data.scene.articulated import (
-    DOOR_FLOOR_GAP,
-    DOOR_MASS,
-    HANDLE_EDGE_OFFSET,
-    build_door,
-    door_handle_world,
-)
+from echo_data.scene.articulated import DOOR_FLOOR_GAP, DOOR_MASS, build_door
+from echo_data.scene.door_handle import HANDLE_EDGE_OFFSET, door_handle_world
 from echo_data.scene.floorplan import Door
-
 
 _SCENES: list[sapien.Scene] = []  # a scene must outlive its articulations (dangling links segfault)
 

@@ -29,7 +29,7 @@ def two_room_plan(hinge_low: bool = True, door_angle: float = 0.0) -> FloorPlan:
         wall((4.0, 2.5), (4.0, 4.0), False),
     )
     doorways = (Doorway(0, (4.0, 2.0), "y", 1.0, 2.1, (0, 1)),)
-    hx = 4.0 - (T / 2 + 0.012 + 0.02)  # hinge axis outside the wall face (FINDINGS)
+    hx = 4.0 - (T / 2 + 0.012 + 0.02)  # hinge axis outside the wall face (docs/SIMULATION_NOTES.md#articulations)
     if hinge_low:
         hinge, closed_yaw, sign = (hx, 1.48), math.pi / 2, 1.0
     else:
@@ -120,7 +120,8 @@ def door_world_factory():
 def test_open_door_expert_opens_and_leaves_door_at_rest(door_world_factory, hinge_low: bool) -> None:
     import sapien
 
-    from echo_data.skills.open_door import door_open_success, open_door
+    from echo_data.skills.open_door import open_door
+    from echo_data.skills.success import door_open_success
 
     world, spec = door_world_factory(hinge_low)
     door, art = world.plan.doors[0], world.handles.doors[0]
@@ -147,7 +148,8 @@ def test_open_door_expert_reports_a_blocked_door(door_world_factory) -> None:
     import sapien
 
     from echo_data.scene.build import build_scene
-    from echo_data.skills.open_door import door_open_success, open_door
+    from echo_data.skills.open_door import open_door
+    from echo_data.skills.success import door_open_success
 
     def with_post(scene, plan, recipe):
         handles = build_scene(scene, plan, recipe)

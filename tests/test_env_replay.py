@@ -18,7 +18,7 @@ import soundfile as sf
 from PIL import Image
 
 from echo_data.dataset.schema import STATE, StepLayout, column_to_numpy
-from echo_data.dataset.writer import encode_wav
+from echo_data.dataset.encode import encode_wav
 from echo_data.envs import EchoDataEnv, observation_space
 from echo_data.envs.env import BINAURAL
 from echo_data.recipe import CameraConfig, load_recipe

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-import echo_data.dataset.build as build_mod
+import echo_data.dataset.writer as writer_mod
 from echo_data.dataset.build import OutputError, OutputWriteError, build
 from echo_data.dataset.validate import validate
 from test_dataset_kill import _digests
@@ -38,7 +38,7 @@ def _stored(out: Path) -> int:
 @pytest.mark.parametrize("err", [errno.ENOSPC, errno.EROFS])
 def test_write_error_mid_build_is_one_line_keeps_episodes_and_resumes(err: int, reference: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     out = tmp_path / "synth"
-    real = build_mod.atomic_write_bytes
+    real = writer_mod.atomic_write_bytes
     calls = {"n": 0}
 
     def failing(path: Path, data: bytes) -> None:
@@ -47,7 +47,7 @@ def test_write_error_mid_build_is_one_line_keeps_episodes_and_resumes(err: int, 
             raise OSError(err, errno.errorcode[err] == "ENOSPC" and "No space left on device" or "Read-only file system", str(path))
         real(path, data)
 
-    monkeypatch.setattr(build_mod, "atomic_write_bytes", failing)
+    monkeypatch.setattr(writer_mod, "atomic_write_bytes", failing)
     with pytest.raises(OutputWriteError) as exc:
         _build(out)
     msg = str(exc.value)
@@ -56,7 +56,7 @@ def test_write_error_mid_build_is_one_line_keeps_episodes_and_resumes(err: int, 
     assert ("No space left" in msg) == (err == errno.ENOSPC)
     kept = 2 * len(list((out / "data").glob("*.parquet"))) + _stored(out)  # 2 episodes per shard
     assert kept >= 3  # finished work stayed on disk
-    monkeypatch.setattr(build_mod, "atomic_write_bytes", real)
+    monkeypatch.setattr(writer_mod, "atomic_write_bytes", real)
     summary = _build(out, mode="resume")
     assert summary.reused >= 3  # type: ignore[attr-defined]
     assert _digests(out) == _digests(reference)

@@ -20,13 +20,13 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+import ray  # noqa: F401  (the test extra installs it: a missing one fails, never skips)
 
 from echo_data.dataset.build import build
 from echo_data.dataset.validate import validate
 from test_dataset_kill import _digests
 from test_dataset_synth import null_library, synth_generate, synth_recipe
 
-ray = pytest.importorskip("ray")
 pytestmark = pytest.mark.slow
 
 TESTS = Path(__file__).resolve().parent
@@ -124,12 +124,12 @@ import json, sys
 sys.path.insert(0, {tests!r})
 from pathlib import Path
 import ray
-import echo_data.dataset.build as build_mod
+import echo_data.dataset.writer as writer_mod
 from echo_data.dataset.build import build
 from test_dataset_synth import null_library, slow_generate, synth_recipe
 
 log = open(sys.argv[2], "a")
-real_store = build_mod._Writer.store
+real_store = writer_mod.DatasetWriter.store
 
 def store(self, enc):
     real_store(self, enc)
@@ -142,7 +142,7 @@ def store(self, enc):
         node = next(n for n in ("node_b", "node_a") if not any(x["NodeID"] == mine and n in x["Resources"] for x in ray.nodes()))
         Path(sys.argv[3]).write_text(node)
 
-build_mod._Writer.store = store
+writer_mod.DatasetWriter.store = store
 if __name__ == "__main__":
     s = build(synth_recipe(), Path({tests!r}), Path(sys.argv[1]), workers=2, executor="ray", address=sys.argv[4],
               generate=slow_generate, make_library=null_library, progress=False)

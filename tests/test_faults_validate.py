@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-import echo_data.dataset.writer as writer_mod
+import echo_data.dataset.encode as encode_mod
 from echo_data.dataset.build import BuildError, build
 from echo_data.dataset.validate import validate
 from test_dataset_synth import null_library, synth_generate, synth_recipe
@@ -121,8 +121,8 @@ def _old_encode_wav(audio: np.ndarray, sample_rate: int, what: str = "audio") ->
 
 def test_clipped_audio_and_features_of_other_audio_are_found(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A dataset written the old way (clipping silently, features of the unclipped track)."""
-    monkeypatch.setattr(writer_mod, "encode_wav", _old_encode_wav)
-    monkeypatch.setattr(writer_mod, "as_written", lambda audio, what="": np.asarray(audio, dtype=np.float32))
+    monkeypatch.setattr(encode_mod, "encode_wav", _old_encode_wav)
+    monkeypatch.setattr(encode_mod, "as_written", lambda audio, what="": np.asarray(audio, dtype=np.float32))
     out = tmp_path / "loud"
     build(synth_recipe(splits={"train": 2}), TESTS, out, generate=_loud, make_library=null_library, progress=False)
     monkeypatch.undo()

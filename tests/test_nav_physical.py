@@ -5,17 +5,13 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import pytest
-
-sapien = pytest.importorskip("sapien")
-
-from echo_data.episode import EpisodeSpec, SkillCall  # noqa: E402
-from echo_data.recipe import Recipe, RobotConfig  # noqa: E402
-from echo_data.records import ACTION_DIM  # noqa: E402
-from echo_data.scene.floorplan import FloorPlan, Furniture, Rect  # noqa: E402
-from echo_data.scene.nav import NavGrid, interaction_pose, target_point  # noqa: E402
-from echo_data.skills import navigate as nav_skill  # noqa: E402
-from test_nav_plans import two_room_plan  # noqa: E402
+from echo_data.episode import EpisodeSpec, SkillCall
+from echo_data.recipe import Recipe, RobotConfig
+from echo_data.records import ACTION_DIM
+from echo_data.scene.floorplan import FloorPlan, Furniture, Rect
+from echo_data.scene.nav import NavGrid, interaction_pose, target_point
+from echo_data.skills import navigate as nav_skill
+from test_nav_plans import two_room_plan
 
 BASE_RADIUS = 0.28  # echo_data.robot.urdf.BASE_RADIUS
 

@@ -48,4 +48,4 @@ def test_world_starts_at_the_spec_pose_and_steps(spec_and_recipe) -> None:
     assert world.steps == 10
     assert world.nav.is_free(*spec.start[:2])
     world.close()
-    assert world.scene is None
+    assert world.closed and not hasattr(world, "scene")  # the scene, robot and handles are released

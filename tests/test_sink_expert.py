@@ -71,7 +71,7 @@ def test_close_sink_expert_closes_lever_and_stops_water(sink_world_factory, layo
 
 
 def test_close_sink_expert_is_deterministic(sink_world_factory) -> None:
-    """Same episode, fresh worlds: the expert yields the same actions bit for bit (SPEC: same seeds, same bytes)."""
+    """Same episode, fresh worlds: the expert yields the same actions bit for bit (same seeds, same bytes)."""
     from echo_data.skills.close_sink import close_sink
 
     runs = []

@@ -17,7 +17,7 @@ opening's directions.
 from __future__ import annotations
 
 import weakref
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import scipy.fft as sfft
@@ -91,7 +91,7 @@ class _KernelBank:
         self.centre = (BAND_TAPS - 1) // 2 + hrtf.delay_s * hrtf.fs  # samples from kernel start to "the arrival"
 
 
-_BANKS: "weakref.WeakKeyDictionary[Hrtf, _KernelBank]" = weakref.WeakKeyDictionary()
+_BANKS: weakref.WeakKeyDictionary[Hrtf, _KernelBank] = weakref.WeakKeyDictionary()
 
 
 def _bank(hrtf: Hrtf) -> _KernelBank:

@@ -5,7 +5,7 @@ faces are the wall faces. That lets the image-source method use the closed-form 
 lattice per room (vectorised over receivers) and check the plan's non-convexity
 separately: reflection points that fall into a doorway opening are no reflection, and path
 segments are tested against the walls, lintels, door leaves and furniture. This is our own
-code rather than pyroomacoustics' polygon ISM because (FINDINGS) the latter needs
+code rather than pyroomacoustics' polygon ISM because (docs/SIMULATION_NOTES.md#acoustics) the latter needs
 workarounds for receivers that see no image source, raises for mixed visibility (#441),
 has no transmission or diffraction and does not reuse a source's images across a grid.
 """
@@ -134,7 +134,7 @@ class Occluders:
     leaf_b: np.ndarray  # (nl, 2) free edge
     leaf_h: np.ndarray  # (nl,) height
 
-    def local(self, box: "RoomBox", margin: float = 0.05) -> "Occluders":
+    def local(self, box: RoomBox, margin: float = 0.05) -> Occluders:
         """What a segment inside `box` can meet: its furniture and nearby door leaves (a
         segment between two points of a convex box cannot cross a wall or lintel)."""
         lo, hi = box.lo[:2] - margin, box.hi[:2] + margin

@@ -16,8 +16,9 @@ over directions, see `_diffuse_equalise`), so calibrated levels hold across freq
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Literal, Sequence
+from typing import Literal
 
 import numpy as np
 from scipy.signal import resample_poly
@@ -63,7 +64,7 @@ class Hrtf:
         return int(self.table.shape[1])
 
     @staticmethod
-    def load(kind: Literal["kemar", "sphere"], fs: int) -> "Hrtf":
+    def load(kind: Literal["kemar", "sphere"], fs: int) -> Hrtf:
         """The HRTF of `kind` at sample rate `fs` (memoised: one table per process)."""
         return _load(str(kind), int(fs))
 
@@ -83,7 +84,7 @@ class Hrtf:
         """Length of the decorrelation filters of `diffuse_field`."""
         return int(round(_DIFFUSE_SPREAD_S * self.fs)) + self.taps
 
-    def diffuse_field(self, seed: int, head_yaws: Sequence[float]) -> np.ndarray:
+    def diffuse_field(self, seed: int, head_yaws: Sequence[float] | np.ndarray) -> np.ndarray:
         """(len(head_yaws), diffuse_taps, 2) float32 filter pairs: a mono diffuse tail -> two ears.
 
         A diffuse field at one place is a sum of plane waves from all directions with random

@@ -121,15 +121,15 @@ class BoxLattice:
                     j += 1
         self.ev_axis, self.ev_plane, self.ev_face, self.ev_used = ax, plane, face, used
         # material table: 0 = no reflection (padding), 1..6 faces, then door panels
-        self.mat_log_r = [np.zeros(len(BANDS))] + list(face_log_r)
+        mat_log_r = [np.zeros(len(BANDS)), *face_log_r]
         self.open_mat: list[int] = []
         for op in box.openings:
             if op.closed and op.door_material is not None:
-                self.open_mat.append(len(self.mat_log_r))
-                self.mat_log_r.append(door_log_r[op.door_material])
+                self.open_mat.append(len(mat_log_r))
+                mat_log_r.append(door_log_r[op.door_material])
             else:
                 self.open_mat.append(-1)  # no reflection: the path leaves through the opening
-        self.mat_log_r = np.asarray(self.mat_log_r)
+        self.mat_log_r = np.asarray(mat_log_r)
         self._local: tuple[int, Occluders] | None = None
 
     def local(self, occ: Occluders) -> Occluders:
@@ -166,7 +166,9 @@ class BoxLattice:
             self._trace_chunk(src[s:e], rcv[s:e], occ, door_loss_db, walls, cell_mask, out, s)
         return out
 
-    def _trace_chunk(self, src, rcv, occ, door_loss_db, walls, cell_mask, out: ImagePaths, s0: int) -> None:
+    def _trace_chunk(
+        self, src: np.ndarray, rcv: np.ndarray, occ: Occluders, door_loss_db: float, walls: bool, cell_mask: np.ndarray | None, out: ImagePaths, s0: int
+    ) -> None:
         box = self.box
         lo, hi = box.lo, box.hi
         R, I, K = len(rcv), len(self.cells), self.ev_axis.shape[1]

@@ -7,7 +7,7 @@ knowing where they came from.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache, lru_cache
 
 import numpy as np
 import pyroomacoustics as pra
@@ -23,7 +23,7 @@ def _to_bands(coeffs: list[float], freqs: list[float]) -> np.ndarray:
     return np.interp(np.log2(BANDS), np.log2(np.asarray(freqs, dtype=np.float64)), np.asarray(coeffs, dtype=np.float64))
 
 
-@lru_cache(maxsize=None)
+@cache
 def _absorption_cached(name: str) -> tuple[float, ...]:
     try:
         mat = pra.Material(name)

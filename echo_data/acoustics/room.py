@@ -116,10 +116,10 @@ class AcousticScene:
             self.lattices.append(BoxLattice(box, cfg.ism_order, log_r, door_log_r, cells))
 
     # ------------------------------------------------------------------ public API
-    def room_of(self, p: Vec3) -> int:
+    def room_of(self, p: Vec3 | np.ndarray) -> int:
         """Index (into plan.rooms) of the room box containing p, else the nearest one."""
-        p = np.asarray(p, dtype=np.float64)
-        d = [float(np.linalg.norm(np.maximum(b.lo - p, 0.0) + np.maximum(p - b.hi, 0.0))) for b in self.boxes]
+        q = np.asarray(p, dtype=np.float64)
+        d = [float(np.linalg.norm(np.maximum(b.lo - q, 0.0) + np.maximum(q - b.hi, 0.0))) for b in self.boxes]
         return int(np.argmin(d))
 
     def _rooms_of(self, pts: np.ndarray) -> np.ndarray:
@@ -142,7 +142,8 @@ class AcousticScene:
         s, r = np.asarray(source, dtype=np.float64), np.asarray(receiver, dtype=np.float64)
         d = max(float(np.linalg.norm(s - r)), 1e-3)
         band = np.exp(-0.5 * self.air * d)
-        arr = Arrival(d / SPEED_OF_SOUND, tuple(float(v) for v in (s - r) / d), 1.0 / d, tuple(float(v) for v in band), 0)
+        u = (s - r) / d
+        arr = Arrival(d / SPEED_OF_SOUND, (float(u[0]), float(u[1]), float(u[2])), 1.0 / d, tuple(float(v) for v in band), 0)
         return AcousticResponse(self.fs, [arr], np.zeros(self.length, dtype=np.float32), self.length)
 
     def response(self, source: Vec3, receiver: Vec3) -> AcousticResponse:
@@ -313,7 +314,7 @@ class AcousticScene:
             )
         return out
 
-    def _doorway_points(self, op, frm: int, to: int, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _doorway_points(self, op: Opening, frm: int, to: int, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Points just inside the two faces of a doorway at lateral/vertical position of p."""
         a = 0 if op.face in (0, 1) else 1  # normal axis
         fa = self.boxes[frm].hi[a] if op.face in (0, 2) else self.boxes[frm].lo[a]
@@ -324,7 +325,7 @@ class AcousticScene:
         pb[..., a] = fb + sgn * _FACE_INSET
         return pa, pb
 
-    def _clamp_in_opening(self, op, p: np.ndarray) -> np.ndarray:
+    def _clamp_in_opening(self, op: Opening, p: np.ndarray) -> np.ndarray:
         u_axis = 1 if op.face in (0, 1) else 0
         q = p.copy()
         w = op.u1 - op.u0
@@ -358,7 +359,7 @@ class AcousticScene:
                     np.stack([hub.point, pa]), np.stack([pa, pb]), self.occ, self.cfg.closed_door_loss_db, False
                 )
                 L = hub.length + float(np.linalg.norm(pa - hub.point) + np.linalg.norm(pb - pa))
-                if x not in dist or L < dist[x]:
+                if x not in dist or dist[x] > L:
                     lg = hub.log_gain.copy()
                     if y != a_room:  # diffraction at the hub towards this doorway
                         lg -= self._diff_db(hub.prev, hub.point, pb, hub.length) * (math.log(10) / 20)
@@ -371,7 +372,7 @@ class AcousticScene:
         return hubs, entries
 
     @staticmethod
-    def _opening_centre(op, z: float) -> np.ndarray:
+    def _opening_centre(op: Opening, z: float) -> np.ndarray:
         u = 0.5 * (op.u0 + op.u1)
         return np.array([0.0, u, z]) if op.face in (0, 1) else np.array([u, 0.0, z])
 
@@ -385,7 +386,7 @@ class AcousticScene:
         delta = a + b - math.sqrt(max(a * a + b * b + 2 * a * b * cos, 0.0))
         return diffraction_loss_db(np.asarray(delta), BANDS)
 
-    def _entry_paths(self, paths, rows, rcv, e: _Entry, hub: _Hub, direct_ok) -> np.ndarray:
+    def _entry_paths(self, paths: _PathSet, rows: np.ndarray, rcv: np.ndarray, e: _Entry, hub: _Hub, direct_ok: np.ndarray) -> np.ndarray:
         """Secondary-source paths through doorway `e` for receivers of its room; returns the
         earliest arrival time per receiver (the tail onset)."""
         op = e.opening
@@ -448,7 +449,7 @@ class _PathSet:
     def __init__(self) -> None:
         self.parts: list[tuple[np.ndarray, ...]] = []
 
-    def add(self, rows, ip, log0, len0, len_prefix, skip_direct) -> None:
+    def add(self, rows: np.ndarray, ip: ImagePaths, log0: np.ndarray, len0: float | np.ndarray, len_prefix: np.ndarray, skip_direct: np.ndarray | None) -> None:
         """Add the valid paths of `ip` (receivers `rows`), with per-(receiver, cell) log gain
         and length prefixes (diffraction, route to a doorway); `skip_direct` drops cell 0
         for receivers that already have the geometric direct path."""
@@ -467,7 +468,7 @@ class _PathSet:
         if not self.parts:
             return out
         row, L, d, lg, door, order = (np.concatenate(x) for x in zip(*self.parts))
-        keep = L < max_len
+        keep = max_len > L
         row, L, d, lg, door, order = row[keep], L[keep], d[keep], lg[keep], door[keep], order[keep]
         L = np.maximum(L, 1e-3)
         band = np.exp(lg - 0.5 * air[None] * L[:, None])

@@ -18,8 +18,9 @@ the same way at the end of the episode; the track is long enough for every tail 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import scipy.fft as sfft
@@ -79,7 +80,7 @@ class RirCache:
         yb = round(yaw / self.yaw_step) % int(self.cfg.yaws)
         return (source, room, ix, iy, iz, yb)
 
-    def keys(self, source: int, pose: Sequence[float]) -> list[tuple[CacheKey, float]]:
+    def keys(self, source: int, pose: Sequence[float] | np.ndarray) -> list[tuple[CacheKey, float]]:
         """The two yaw bins around the head's yaw with linear-interpolation weights (one key
         with weight 1 when the yaw sits on a bin): the RIR at the actual yaw is their weighted sum."""
         k = self.key(source, (*pose[:3], 0.0))
@@ -188,9 +189,9 @@ class RirCache:
             if all(k in self._rirs for k in ks):
                 continue
             irs = binaural_irs(self.response((*k5, 0)), yaws, self.hrtf)
-            for k, ir in zip(ks, irs):
-                if k not in self._rirs:
-                    self._store(k, np.ascontiguousarray(ir))
+            for key, ir in zip(ks, irs):
+                if key not in self._rirs:
+                    self._store(key, np.ascontiguousarray(ir))
                     new += 1
         return new
 
@@ -253,7 +254,7 @@ def render_track(
         pose = poses[min(j, n_steps - 1)]
         keys = [cache.keys(i, pose) for i in range(len(sources))]
         spectra = []
-        for i, x in enumerate(padded):
+        for x in padded:
             seg = x[j * S : j * S + S + L - 1]
             spectra.append(sfft.rfft(seg, n_fft) if seg.any() else None)
         new = _block(cache, keys, spectra, n_fft, L, S)

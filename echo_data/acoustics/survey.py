@@ -5,7 +5,7 @@ Used by `scripts/plot_t30.py` (the picture in docs/) and the furnished-homes tes
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from scipy import signal

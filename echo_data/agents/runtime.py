@@ -18,12 +18,15 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.records import ACTION_DIM, SkillOutcome
+
+if TYPE_CHECKING:
+    from echo_data.envs.env import EchoDataEnv
 
 
 class AgentActionError(ValueError):
@@ -80,7 +83,7 @@ class EpisodeRun:
 
 def true_chain(spec: EpisodeSpec) -> list[dict[str, str]]:
     """The episode's chain as the planner export writes it (targets named as a listener would)."""
-    from echo_data.dataset.writer import target_kind
+    from echo_data.dataset.encode import target_kind
 
     return [{"skill": c.skill, "target": target_kind(c.target, spec.plan)} for c in spec.chain]
 
@@ -104,7 +107,7 @@ def normalise_plan(plan: Any) -> list[dict[str, str]] | None:
     return out
 
 
-def _expert_path_length(env: Any, call: SkillCall) -> float:
+def _expert_path_length(env: EchoDataEnv, call: SkillCall) -> float:
     """Length of the navigation expert's planned path from where the base stands to the interaction pose."""
     from echo_data.scene.nav import interaction_pose
     from echo_data.skills.navigate import START_SNAP
@@ -123,7 +126,7 @@ def _expert_path_length(env: Any, call: SkillCall) -> float:
     return float(sum(math.dist(a, b) for a, b in zip(pts, pts[1:])))
 
 
-StepHook = Callable[[Any, dict[str, np.ndarray], np.ndarray, int, SkillCall, tuple[bool, ...]], None]
+StepHook = Callable[["EchoDataEnv", dict[str, np.ndarray], np.ndarray, int, SkillCall, tuple[bool, ...]], None]
 
 
 def run_episode(env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any], planner: Any, policy: Any, on_step: StepHook | None = None) -> EpisodeRun:
@@ -134,7 +137,7 @@ def run_episode(env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any]
     """
     from echo_data.envs.env import skill_budget
 
-    env = getattr(env, "unwrapped", env)
+    env = getattr(env, "unwrapped", env)  # gymnasium wrappers around an EchoDataEnv
     spec: EpisodeSpec = env.episode
     truth = true_chain(spec)
     if callable(getattr(planner, "reset", None)):

@@ -7,8 +7,9 @@ the sound without knowing the layout; this reads only the samples asked for.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 

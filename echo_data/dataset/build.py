@@ -1,11 +1,12 @@
-"""`echo-data build`: episodes -> shards, with workers, resume and kill-safety.
+"""`echo-data build`: episodes -> shards, with workers, resume and kill-safety (the orchestration).
 
-Episodes are computed anywhere (see `echo_data.executors`); this process alone writes. Each
-finished episode is stored under out/.work/ (its rows as Arrow IPC, then a JSON commit marker)
-and its WAV under audio/, all atomically; once every episode of a shard is there and the
-shards before it in its split are written, the shard is written (tmp name, fsync, rename) and
-the manifest rewritten. A kill therefore loses at most the episodes in flight, and a resume
-verifies shards by sha256, reuses stored episodes and redoes the rest, producing the same bytes.
+Episodes are computed anywhere (see `echo_data.executors`): a worker samples, simulates and
+hears one episode (`echo_data.pipeline`) and encodes it (`echo_data.dataset.encode`); this
+process alone writes, through `echo_data.dataset.writer.DatasetWriter` (staging, shards in
+order, manifest, meta), whose files are all replaced atomically (`echo_data.dataset.storage`).
+A kill therefore loses at most the episodes in flight, and a resume verifies shards by sha256,
+reuses staged episodes and redoes the rest, producing the same bytes. The write path top-down:
+build -> writer -> shards (`echo_data.dataset.shards`) / manifest -> storage.
 """
 
 from __future__ import annotations
@@ -16,45 +17,32 @@ import shutil
 import tempfile
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Literal
+from typing import Any, Literal
 
-import pyarrow as pa
-import pyarrow.parquet as pq
-
-from echo_data.dataset import stats as stats_mod
+from echo_data.dataset.encode import EncodedEpisode
 from echo_data.dataset.lock import LOCK_NAME, BuildLock, BuildLockedError
 from echo_data.dataset.manifest import (
     MANIFEST,
     ManifestError,
-    ShardPlan,
     ShardPlans,
     load_manifest,
     new_manifest,
     plan_shards,
     write_manifest,
 )
-from echo_data.dataset.schema import EPISODE_FIELDS, FORMAT_VERSION, StepLayout
-from echo_data.dataset.writer import (
-    EncodedEpisode,
-    atomic_write_bytes,
-    atomic_write_json,
-    fsync_dir,
-    read_shard_meta,
-    sha256_file,
-    tmp_path,
-    write_shard,
-)
+from echo_data.dataset.schema import StepLayout
+from echo_data.dataset.writer import DatasetWriter
 from echo_data.episode import attempt_draws
 from echo_data.executors import ExecutorError, make_executor
 from echo_data.pcm import ClippingError
 from echo_data.recipe import Recipe
-from echo_data.records import ACTION_NAMES, STATE_NAMES, EpisodeResult
+from echo_data.records import EpisodeResult
 
 BuildMode = Literal["new", "resume", "overwrite"]
 Generate = Callable[..., EpisodeResult]
-WORK = ".work"
 
 
 class OutputError(ValueError):
@@ -136,9 +124,9 @@ def _init_job(job: _Job) -> None:
 def default_library(recipe: Recipe, recipe_dir: Path) -> Any:
     """The recipe's sound library (built once per worker)."""
     try:
-        from echo_data.sounds import SoundLibrary  # type: ignore[attr-defined]
+        from echo_data.sounds import SoundLibrary
     except ImportError:
-        from echo_data.sounds.library import SoundLibrary  # type: ignore[no-redef]
+        from echo_data.sounds.library import SoundLibrary
     return SoundLibrary.from_recipe(recipe, recipe_dir)
 
 
@@ -154,7 +142,7 @@ def _one_line(text: str) -> str:
 def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
     """Try attempts 0, 1, ... of one episode until one succeeds; encode it (runs in a worker)."""
     global _LIBRARY
-    from echo_data.dataset.writer import encode_episode
+    from echo_data.dataset.encode import encode_episode
 
     assert _JOB is not None, "worker not initialised"
     job = _JOB
@@ -266,202 +254,9 @@ def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, m
 # ---------------------------------------------------------------- parent side
 
 
-class _Writer:
-    """Owns the output directory during a build: intermediates, shards, manifest, meta."""
-
-    def __init__(self, out: Path, recipe: Recipe, layout: StepLayout, manifest: dict[str, Any], plans: dict[str, ShardPlans]):
-        self.out, self.recipe, self.layout, self.manifest, self.plans = out, recipe, layout, manifest, plans
-        self.done: dict[str, dict[str, Any]] = {}
-        # per split: (next shard to write, rows written before it), so a flush costs O(1) shards
-        self.cursor: dict[str, tuple[int, int]] = {s: (0, 0) for s in plans}
-        self.split_order = {s: n for n, s in enumerate(plans)}
-
-    # -- state on disk
-    def work(self, split: str, index: int, ext: str) -> Path:
-        return self.out / WORK / split / f"{index:06d}.{ext}"
-
-    def stored(self, split: str, index: int) -> bool:
-        return self.work(split, index, "json").is_file() and self.work(split, index, "arrow").is_file()
-
-    def verify_shards(self) -> int:
-        """Keep manifest shards whose file matches its sha256; drop the rest (they are redone)."""
-        kept = []
-        for entry in self.manifest["shards"]:
-            path = self.out / entry["file"]
-            ps = self.plans.get(entry.get("split", ""))
-            if ps is not None and ps.of_file(entry["file"]) and path.is_file() and sha256_file(path) == entry["sha256"]:
-                kept.append(entry)
-                self.done[entry["file"]] = entry
-        if len(kept) != len(self.manifest["shards"]):
-            self.manifest["shards"] = kept
-            self.manifest["complete"] = False
-            write_manifest(self.out, self.manifest)
-        return sum(e["episodes"][1] - e["episodes"][0] for e in kept)
-
-    def remove_leftovers(self) -> None:
-        """Temporary files of a killed writer are never part of the dataset."""
-        for path in self.out.rglob(".*.tmp-*"):
-            if path.is_file():
-                path.unlink()
-
-    # -- episodes
-    def store(self, enc: EncodedEpisode) -> None:
-        """Media first, rows next, the JSON commit marker last (each atomic)."""
-        atomic_write_bytes(self.out / enc.episode["audio_path"], enc.wav)
-        if self.recipe.outputs.planner_export:
-            atomic_write_bytes(self.out / "planner" / "audio" / enc.split / f"{enc.episode_id}.wav", enc.planner_wav or b"")
-            if enc.planner_png is not None:
-                atomic_write_bytes(self.out / "planner" / "images" / enc.split / f"{enc.episode_id}.png", enc.planner_png)
-        atomic_write_bytes(self.work(enc.split, enc.index, "arrow"), enc.table_ipc)
-        atomic_write_json(self.work(enc.split, enc.index, "json"), enc.meta())
-
-    # -- shards
-    def flush(self, split: str) -> None:
-        """Write every shard of `split` that is ready, in order (a shard's global `index`
-        numbering starts after the rows of the shards before it)."""
-        import json
-
-        k, offset = self.cursor[split]
-        plans = self.plans[split]
-        while k < len(plans):
-            plan = plans[k]
-            entry = self.done.get(plan.file)
-            if entry is None:
-                if not all(self.stored(split, i) for i in plan.indices):
-                    break
-                metas = [json.loads(self.work(split, i, "json").read_text()) for i in plan.indices]
-                tables = [pa.ipc.open_stream(pa.memory_map(str(self.work(split, i, "arrow")))).read_all() for i in plan.indices]
-                entry = self._write(plan, metas, tables, offset)
-            offset += entry["rows"]
-            k += 1
-        self.cursor[split] = (k, offset)
-
-    def _write(self, plan: ShardPlan, metas: list[dict[str, Any]], tables: list[pa.Table], offset: int) -> dict[str, Any]:
-        episodes, failures = [], []
-        rejected: Counter[str] = Counter()
-        skills: dict[str, list[int]] = {}
-        settings: Counter[str] = Counter()
-        start = offset
-        name = Path(plan.file).name
-        for meta, table in zip(metas, tables):
-            row = dict(meta["episode"])
-            row.update({"shard": name, "dataset_from_index": start, "dataset_to_index": start + table.num_rows})
-            start += table.num_rows
-            episodes.append(row)
-            failures += meta["failures"]
-            rejected.update(meta["rejected"])
-            settings[row["setting"]] += 1
-            for k, (a, s) in meta["skills"].items():
-                acc = skills.setdefault(k, [0, 0])
-                acc[0] += a
-                acc[1] += s
-        shard_meta = {
-            "split": plan.split,
-            "shard": plan.shard,
-            "of": plan.of,
-            "episodes": episodes,
-            "stats": stats_mod.merge_features(m["stats"] for m in metas),
-        }
-        written = write_shard(self.out / plan.file, self.layout, tables, offset, shard_meta)
-        entry = {
-            "file": plan.file,
-            "split": plan.split,
-            "shard": plan.shard,
-            "of": plan.of,
-            "episodes": [plan.first, plan.last],
-            "index_from": offset,
-            "rows": written.rows,
-            "bytes": written.bytes,
-            "sha256": written.sha256,
-            "settings": dict(sorted(settings.items())),
-            "skills": {k: skills[k] for k in sorted(skills)},
-            "rejected": dict(sorted(rejected.items())),
-            "failures": failures,
-        }
-        self.done[plan.file] = entry
-        self.manifest["shards"] = sorted(self.done.values(), key=lambda e: (self.split_order[e["split"]], e["shard"]))
-        write_manifest(self.out, self.manifest)
-        for i in plan.indices:  # only after the manifest names the shard
-            self.work(plan.split, i, "arrow").unlink(missing_ok=True)
-            self.work(plan.split, i, "json").unlink(missing_ok=True)
-        return entry
-
-    # -- the end
-    def finalize(self) -> None:
-        """meta/episodes.parquet, meta/stats.json, meta/info.json, planner export, manifest complete."""
-        from echo_data.dataset.card import write_card
-        from echo_data.dataset.planner import write_planner_export
-
-        metas = [read_shard_meta(self.out / e["file"]) for e in self.manifest["shards"]]
-        rows = [row for m in metas for row in m["episodes"]]
-        _write_parquet_atomic(self.out / "meta" / "episodes.parquet", pa.Table.from_pylist(rows, schema=EPISODE_FIELDS))
-        atomic_write_json(self.out / "meta" / "stats.json", stats_mod.dataset_stats(metas))
-        atomic_write_json(self.out / "meta" / "info.json", self.info_json())
-        if self.recipe.outputs.planner_export:
-            write_planner_export(self.out, self.recipe, rows)
-        write_card(self.out)
-        self.manifest["complete"] = True
-        write_manifest(self.out, self.manifest)
-        shutil.rmtree(self.out / WORK, ignore_errors=True)
-
-    def info_json(self) -> dict[str, Any]:
-        """LeRobot-like meta/info.json: how to read the files without echo-data."""
-        shards = self.manifest["shards"]
-        splits: dict[str, Any] = {}
-        for s in self.plans:
-            mine = [e for e in shards if e["split"] == s]
-            splits[s] = {
-                "episodes": sum(e["episodes"][1] - e["episodes"][0] for e in mine),
-                "frames": sum(e["rows"] for e in mine),
-                "files": [e["file"] for e in mine],
-            }
-        return {
-            "codebase_version": FORMAT_VERSION,
-            "name": self.recipe.name,
-            "fps": self.layout.fps,
-            "audio_sample_rate": self.layout.sample_rate,
-            "total_episodes": sum(v["episodes"] for v in splits.values()),
-            "total_frames": sum(v["frames"] for v in splits.values()),
-            "splits": splits,
-            "data_path": "data/{split}-{shard:05d}-of-{num_shards:05d}.parquet",
-            "audio_path": "audio/{split}/{episode_id}.wav",
-            "episode_index": "per split: equals the episode's index in its split; `index` counts frames per split",
-            "stats_split": "train" if "train" in self.plans else "all",
-            "names": {"action": list(ACTION_NAMES), "observation.state": list(STATE_NAMES)},
-            "features": self.layout.hf_features(),
-            "cameras": camera_infos(self.recipe, self.layout),
-        }
-
-
-def camera_infos(recipe: Recipe, layout: StepLayout) -> dict[str, Any]:
-    """Intrinsics and depth units of each stored camera, and where its pose and images are."""
-    from echo_data.camera import camera_info
-    from echo_data.dataset.schema import CAMERA_POSES, IMAGE_COLUMNS
-
-    cfg = {"head": recipe.robot.head_camera, "wrist": recipe.robot.wrist_camera}
-    return {
-        cam: {
-            **camera_info(cfg[cam]),
-            "pose_column": CAMERA_POSES[cam],
-            "image_columns": [col for key, col in IMAGE_COLUMNS.items() if key.startswith(cam) and col in layout.images],
-        }
-        for cam in layout.cameras
-    }
-
-
-def _write_parquet_atomic(path: Path, table: pa.Table) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = tmp_path(path)
-    pq.write_table(table, tmp, compression="zstd", row_group_size=4096)
-    with open(tmp, "rb+") as f:
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-    fsync_dir(path.parent)
-
-
 def _default_generate() -> Generate:
     try:
-        from echo_data.pipeline import generate_episode  # type: ignore[attr-defined]
+        from echo_data.pipeline import generate_episode
     except ImportError as e:
         raise BuildError(f"the episode pipeline is not available: {e}") from None
     return generate_episode
@@ -576,7 +371,7 @@ def _build_locked(
     bar = None
     try:
         manifest = _prepare(out, recipe, limit, layout, mode, workers, executor)
-        writer = _Writer(out, recipe, layout, manifest, plans)
+        writer = DatasetWriter(out, recipe, layout, manifest, plans)
         writer.verify_shards()
         writer.remove_leftovers()
         for split in plans:

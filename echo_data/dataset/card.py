@@ -17,7 +17,7 @@ import yaml
 
 from echo_data.dataset.manifest import load_manifest
 from echo_data.dataset.schema import StepLayout
-from echo_data.dataset.writer import atomic_write_bytes
+from echo_data.dataset.storage import atomic_write_bytes
 from echo_data.episode import SPLIT_KEYS
 
 CARD = "README.md"

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
@@ -21,13 +21,13 @@ def _fail(message: str, code: int) -> typer.Exit:
 
 def build_cmd(
     recipe: Annotated[Path, typer.Argument(help="Recipe YAML file.")],
-    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Dataset folder (default: out/<recipe name>).")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="Dataset folder (default: out/<recipe name>).")] = None,
     workers: Annotated[int, typer.Option("--workers", "-w", help="Parallel episode workers.")] = 1,
-    limit: Annotated[Optional[int], typer.Option("--limit", help="At most N episodes per split (quick runs).")] = None,
+    limit: Annotated[int | None, typer.Option("--limit", help="At most N episodes per split (quick runs).")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted build.")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing dataset.")] = False,
     executor: Annotated[str, typer.Option("--executor", help="local (process pool) or ray.")] = "local",
-    address: Annotated[Optional[str], typer.Option("--address", help="Ray cluster address (host:port, as `ray start --head` prints); with --executor ray.")] = None,
+    address: Annotated[str | None, typer.Option("--address", help="Ray cluster address (host:port, as `ray start --head` prints); with --executor ray.")] = None,
     progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Show a progress bar.")] = True,
 ) -> None:
     """Build the dataset of a recipe: Parquet + WAV shards, manifest, stats, planner export."""
@@ -107,7 +107,7 @@ def view_cmd(
     path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
     episode: Annotated[int, typer.Option("--episode", "-e", help="Episode index within the split.")] = 0,
     split: Annotated[str, typer.Option("--split", help="Split of the episode.")] = "train",
-    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="MP4 to write (default: <split>-<episode>.mp4 here).")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="MP4 to write (default: <split>-<episode>.mp4 here).")] = None,
 ) -> None:
     """Write an MP4 of one episode: head RGB, depth, top-down map, scrolling binaural spectrogram,
     the active skill as a caption, and the episode's binaural sound."""

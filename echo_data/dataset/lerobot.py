@@ -40,7 +40,8 @@ from echo_data.dataset.schema import (
     STATE,
     StepLayout,
 )
-from echo_data.dataset.writer import atomic_write_json, canonical_json, conform, fsync_dir
+from echo_data.dataset.shards import conform
+from echo_data.dataset.storage import atomic_write_json, canonical_json, fsync_dir
 from echo_data.episode import SPLIT_KEYS
 from echo_data.recipe import SETTINGS
 from echo_data.records import ACTION_NAMES, STATE_NAMES

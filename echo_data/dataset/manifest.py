@@ -11,15 +11,15 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 from typing import Any, overload
-from collections.abc import Sequence
 
 from echo_data.acoustics.levels import calibration_record
 from echo_data.dataset.schema import FORMAT_VERSION, StepLayout, shard_name
-from echo_data.dataset.writer import atomic_write_json
+from echo_data.dataset.storage import atomic_write_json
 from echo_data.episode import SPLIT_KEYS
 from echo_data.recipe import Recipe
 
@@ -72,10 +72,10 @@ class ShardPlans(Sequence[ShardPlan]):
 
     def __init__(self, split: str, episodes: int, per_shard: int) -> None:
         self.split, self.episodes, self.per_shard = split, episodes, per_shard
-        self.count = math.ceil(episodes / per_shard)
+        self.n_shards = math.ceil(episodes / per_shard)
 
     def __len__(self) -> int:
-        return self.count
+        return self.n_shards
 
     @overload
     def __getitem__(self, i: int) -> ShardPlan: ...
@@ -83,17 +83,17 @@ class ShardPlans(Sequence[ShardPlan]):
     def __getitem__(self, i: slice) -> list[ShardPlan]: ...
     def __getitem__(self, i: int | slice) -> ShardPlan | list[ShardPlan]:
         if isinstance(i, slice):
-            return [self[j] for j in range(*i.indices(self.count))]
+            return [self[j] for j in range(*i.indices(self.n_shards))]
         if i < 0:
-            i += self.count
-        if not 0 <= i < self.count:
+            i += self.n_shards
+        if not 0 <= i < self.n_shards:
             raise IndexError(i)
-        return ShardPlan(self.split, i, self.count, i * self.per_shard, min((i + 1) * self.per_shard, self.episodes))
+        return ShardPlan(self.split, i, self.n_shards, i * self.per_shard, min((i + 1) * self.per_shard, self.episodes))
 
     def of_file(self, file: str) -> ShardPlan | None:
         """The planned shard stored as `file`, or None when `file` is not one of this split's."""
         for i in (int(part) for part in file.rsplit("-", 3)[1:2] if part.isdigit()):
-            if i < self.count and self[i].file == file:
+            if i < self.n_shards and self[i].file == file:
                 return self[i]
         return None
 

@@ -14,7 +14,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from echo_data.dataset.writer import atomic_write_json
+from echo_data.dataset.storage import atomic_write_json
 from echo_data.recipe import Recipe
 
 SKILL_LIBRARY = {
@@ -42,7 +42,7 @@ def prompt(with_image: bool) -> str:
 
 
 def answer(chain: list[dict[str, Any]]) -> str:
-    """The ground-truth chain with targets named as a listener could (see writer.target_kind)."""
+    """The ground-truth chain with targets named as a listener could (see encode.target_kind)."""
     return json.dumps([{"skill": c["skill"], "target": c["target_kind"]} for c in chain])
 
 

@@ -57,7 +57,7 @@ class HfArray3D(pa.ExtensionType):
     serialisation), so `datasets` decodes the column as Array3D; pyarrow-only readers see the
     nested-list storage. Never registered here, to avoid clashing with `datasets`' own type."""
 
-    def __init__(self, shape: tuple[int, int, int], dtype: str = "float32") -> None:
+    def __init__(self, shape: tuple[int, ...], dtype: str = "float32") -> None:
         self.shape = tuple(int(s) for s in shape)
         self.value_type = dtype
         storage: pa.DataType = pa.from_numpy_dtype(np.dtype(dtype))
@@ -69,7 +69,7 @@ class HfArray3D(pa.ExtensionType):
         return json.dumps((list(self.shape), self.value_type)).encode()
 
     @classmethod
-    def __arrow_ext_deserialize__(cls, storage_type: pa.DataType, serialized: bytes) -> "HfArray3D":
+    def __arrow_ext_deserialize__(cls, storage_type: pa.DataType, serialized: bytes) -> HfArray3D:
         shape, dtype = json.loads(serialized)
         return cls(tuple(shape), dtype)
 
@@ -86,7 +86,7 @@ class StepLayout:
     cameras: tuple[str, ...] = ()  # cameras whose pose is stored ("head", "wrist")
 
     @staticmethod
-    def from_recipe(recipe: Recipe) -> "StepLayout":
+    def from_recipe(recipe: Recipe) -> StepLayout:
         obs = set(recipe.outputs.observations)
         head, wrist = recipe.robot.head_camera, recipe.robot.wrist_camera
         images: dict[str, tuple[str, int, int]] = {}
@@ -180,14 +180,14 @@ class StepLayout:
         return s.remove(s.get_field_index("index")).remove_metadata()
 
     @staticmethod
-    def from_dict(d: dict[str, Any]) -> "StepLayout":
+    def from_dict(d: dict[str, Any]) -> StepLayout:
         """The layout as the manifest stores it (readers need no recipe validation)."""
         return StepLayout(
             fps=int(d["fps"]),
             sample_rate=int(d["sample_rate"]),
             images={k: (v[0], int(v[1]), int(v[2])) for k, v in d["images"].items()},
-            spectrogram_shape=tuple(d["spectrogram_shape"]) if d.get("spectrogram_shape") else None,  # type: ignore[arg-type]
-            mel_shape=tuple(d["mel_shape"]) if d.get("mel_shape") else None,  # type: ignore[arg-type]
+            spectrogram_shape=tuple(d["spectrogram_shape"]) if d.get("spectrogram_shape") else None,
+            mel_shape=tuple(d["mel_shape"]) if d.get("mel_shape") else None,
             cameras=tuple(d.get("cameras", ())),
         )
 

@@ -9,7 +9,8 @@ Everything is merged in a fixed order, so the result is byte-identical whatever 
 
 from __future__ import annotations
 
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 

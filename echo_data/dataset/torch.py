@@ -14,8 +14,9 @@ from __future__ import annotations
 import io
 import os
 from collections import OrderedDict
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -194,7 +195,7 @@ class StepDataset:
             raise IndexError(i)
         return {k: v[0] for k, v in self.take([i]).items()}
 
-    def take(self, indices: Sequence[int]) -> dict[str, Any]:
+    def take(self, indices: Sequence[int] | np.ndarray) -> dict[str, Any]:
         """A batch of items at once (what `default_collate` would make of `[self[i] for i in
         indices]`), gathered from the cached row groups with one indexing per column."""
         torch = _torch()
@@ -223,7 +224,7 @@ class StepDataset:
                 out[c] = torch.from_numpy(np.concatenate(ps)[back])
         return out
 
-    def shuffled(self, seed: int = 0, buffer_groups: int = SHUFFLE_BUFFER_GROUPS, batch_size: int | None = None) -> "ShuffledSteps":
+    def shuffled(self, seed: int = 0, buffer_groups: int = SHUFFLE_BUFFER_GROUPS, batch_size: int | None = None) -> ShuffledSteps:
         """This dataset in shuffled order for fast training epochs (see `ShuffledSteps`)."""
         return ShuffledSteps(self, seed, buffer_groups, batch_size)
 
@@ -234,7 +235,7 @@ except ImportError:  # pragma: no cover - without torch nothing here can be iter
     _IterableBase = object  # type: ignore[assignment,misc]
 
 
-class ShuffledSteps(_IterableBase):  # type: ignore[misc,valid-type]
+class ShuffledSteps(_IterableBase):
     """A `StepDataset` shuffled by row groups with a buffer, for DataLoader epochs.
 
     Row groups come in a random order (seed, epoch) and are dealt to DataLoader workers in turn,
@@ -260,7 +261,7 @@ class ShuffledSteps(_IterableBase):  # type: ignore[misc,valid-type]
         """Items per epoch (batches are counted as their items)."""
         return len(self.dataset)
 
-    def __iter__(self):  # type: ignore[no-untyped-def]
+    def __iter__(self) -> Iterator[Any]:
         torch = _torch()
         info = torch.utils.data.get_worker_info()
         worker, workers = (info.id, info.num_workers) if info is not None else (0, 1)
@@ -301,7 +302,10 @@ class SequenceDataset:
         # every step of the split, in shard order: windows are gathered from it
         self._steps = StepDataset(root, split, columns=list(dict.fromkeys(self.observations + [ACTION, "episode_index", "frame_index", "index"])))
         self._offset = np.concatenate([[0], np.cumsum([len(c["episode_index"]) for c in self.shards.index_columns()])])
-        self._shard, self._row, self._first, self._last = [], [], [], []
+        shard_parts: list[np.ndarray] = []
+        row_parts: list[np.ndarray] = []
+        first_parts: list[np.ndarray] = []
+        last_parts: list[np.ndarray] = []
         for i, cols in enumerate(self.shards.index_columns()):
             ep = cols["episode_index"]
             bounds = np.flatnonzero(np.diff(ep)) + 1
@@ -314,13 +318,13 @@ class SequenceDataset:
                 if skill is not None:
                     keep &= cols["skill"][s:e] == skill
                 rows = s + np.flatnonzero(keep)
-                self._shard.append(np.full(len(rows), i, dtype=np.int32))
-                self._row.append(rows)
-                self._first.append(np.full(len(rows), s))
-                self._last.append(np.full(len(rows), e - 1))
+                shard_parts.append(np.full(len(rows), i, dtype=np.int32))
+                row_parts.append(rows)
+                first_parts.append(np.full(len(rows), s))
+                last_parts.append(np.full(len(rows), e - 1))
         cat = lambda parts, dt: np.concatenate(parts).astype(dt) if parts else np.zeros(0, dt)  # noqa: E731
-        self._shard = cat(self._shard, np.int32)
-        self._row, self._first, self._last = (cat(x, np.int64) for x in (self._row, self._first, self._last))
+        self._shard = cat(shard_parts, np.int32)
+        self._row, self._first, self._last = (cat(x, np.int64) for x in (row_parts, first_parts, last_parts))
 
     def __len__(self) -> int:
         return len(self._row)

@@ -22,12 +22,13 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset import stats as stats_mod
+from echo_data.dataset.encode import planner_wav_bytes
 from echo_data.dataset.manifest import ManifestError, load_manifest, plan_shards, totals
 from echo_data.dataset.schema import MEL, SHARD_META_KEY, SPECTROGRAM, StepLayout, column_to_numpy
-from echo_data.dataset.writer import canonical_json, planner_wav_bytes, read_shard_meta, sha256_file
+from echo_data.dataset.shards import read_shard_meta
+from echo_data.dataset.storage import canonical_json, sha256_file
 from echo_data.pcm import clipped_samples, dequantise
 from echo_data.recipe import Recipe
-
 
 
 def _plain(t: pa.DataType) -> pa.DataType:
@@ -71,7 +72,7 @@ def _feature_problems(eid: str, audio: np.ndarray, offsets: np.ndarray, stored: 
         return []
     mel_bands = stored[MEL].shape[1] if MEL in stored else 64
     spec, mel = step_features(dequantise(audio), offsets, sample_rate, mel_bands)
-    problems = []
+    problems: list[str] = []
     for col, want in ((SPECTROGRAM, spec), (MEL, mel)):
         got = stored.get(col)
         if got is None:
@@ -138,7 +139,7 @@ def validate(out: Path) -> list[str]:
     want = layout.schema()
     listed = {e["file"]: e for e in manifest.get("shards", [])}
     all_rows: list[dict[str, Any]] = []
-    for split, plans in plan_shards(recipe, manifest.get("limit")).items():
+    for plans in plan_shards(recipe, manifest.get("limit")).values():
         next_index = 0
         for plan in plans:
             path = out / plan.file
@@ -188,7 +189,7 @@ def validate(out: Path) -> list[str]:
                 pos += k
             if pos != n:
                 problems.append(f"{plan.file}: episode records cover {pos} rows of {n}")
-            for col, shape in layout.arrays.items():
+            for col in layout.arrays:
                 storage = table.column(col)
                 lengths = [len(c.storage if isinstance(c.type, pa.BaseExtensionType) else c) for c in storage.chunks]
                 if sum(lengths) != n:
@@ -269,10 +270,10 @@ def _json_file_problem(out: Path, rel: str, want: Any) -> str | None:
 
 def _derived_problems(out: Path, recipe: Recipe, layout: StepLayout, manifest: dict[str, Any], rows: list[dict[str, Any]]) -> list[str]:
     """meta/stats.json, meta/info.json and the planner export, rebuilt and compared byte by byte."""
-    from echo_data.dataset.build import _Writer
     from echo_data.dataset.planner import planner_files
+    from echo_data.dataset.writer import DatasetWriter
 
-    problems = []
+    problems: list[str] = []
     metas = []
     for e in manifest.get("shards", []):
         try:
@@ -285,7 +286,7 @@ def _derived_problems(out: Path, recipe: Recipe, layout: StepLayout, manifest: d
     except Exception as e:
         problems.append(f"meta/stats.json: cannot be rebuilt from the shards ({type(e).__name__}: {e})")
     plans = plan_shards(recipe, manifest.get("limit"))
-    expected["meta/info.json"] = _Writer(out, recipe, layout, manifest, plans).info_json()
+    expected["meta/info.json"] = DatasetWriter(out, recipe, layout, manifest, plans).info_json()
     if recipe.outputs.planner_export:
         expected.update(planner_files(out, recipe, rows))
     for rel, want in expected.items():

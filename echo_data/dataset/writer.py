@@ -1,432 +1,210 @@
-"""Turning episodes into bytes, and putting bytes on disk atomically.
+"""The output folder of one build: staged episodes, shards in order, the manifest, meta files.
 
-`encode_episode` runs in a worker: it validates an `EpisodeResult`, encodes images (PNG),
-audio (WAV) and the step rows (an Arrow table), and summarises the statistics. `write_shard`
-runs in the parent: it joins finished episodes into one Parquet shard under a temporary name,
-fsyncs, hashes and renames it. Nothing here depends on time, host or worker identity, so the
-same episodes always give the same bytes.
+Only the build's own process writes (`echo_data.dataset.build` orchestrates; workers only
+encode). Each finished episode is staged under `.work/` (its rows as Arrow IPC, then a JSON
+commit marker) and its WAV under audio/; once every episode of a shard is staged and the
+shards before it in its split are written, the shard is written and the manifest rewritten.
+`finalize` writes meta/ (episodes, stats, info), the planner export and the dataset card.
 """
 
 from __future__ import annotations
 
-import hashlib
-import io
 import json
-import os
-from dataclasses import dataclass, field
+import shutil
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
 
 from echo_data.dataset import stats as stats_mod
-from echo_data.dataset.schema import (
-    ACTION,
-    CAMERA_POSES,
-    CHAIN_SLOTS,
-    IMAGE_TYPE,
-    POSE_DIM,
-    MEL,
-    PARQUET_COMPRESSION,
-    PARQUET_COMPRESSION_LEVEL,
-    ROW_GROUP_ROWS,
-    SHARD_META_KEY,
-    SPECTROGRAM,
-    STATE,
-    StepLayout,
-    array3d_column,
-    audio_relpath,
-    task_index,
-)
-from echo_data.pcm import as_written, quantise
-from echo_data.records import ACTION_DIM, STATE_DIM, EpisodeResult
+from echo_data.dataset.encode import EncodedEpisode
+from echo_data.dataset.manifest import ShardPlan, ShardPlans, write_manifest
+from echo_data.dataset.schema import EPISODE_FIELDS, FORMAT_VERSION, StepLayout
+from echo_data.dataset.shards import read_shard_meta, write_shard
+from echo_data.dataset.storage import atomic_write_bytes, atomic_write_json, atomic_write_parquet, sha256_file
+from echo_data.recipe import Recipe
+from echo_data.records import ACTION_NAMES, STATE_NAMES
 
-PNG_COMPRESS_LEVEL = 1  # the build is CPU-bound; zlib 1 is several times faster than 6
-WAV_SUBTYPE = "PCM_16"  # no PEAK chunk (libsndfile stamps float WAVs with the time)
-PLANNER_AUDIO_SECONDS = 3.0
-PLANNER_SAMPLE_RATE = 16000  # Qwen2.5-Omni takes 16 kHz mono only
-_RECORD_IMAGE_ATTR = {
-    "observation.images.head_rgb": "head_rgb",
-    "observation.images.head_depth": "head_depth",
-    "observation.images.wrist_depth": "wrist_depth",
-}
+WORK = ".work"  # staged episodes of an unfinished build
 
 
-# ---------------------------------------------------------------- atomic files
+class DatasetWriter:
+    """Owns the output directory during a build: intermediates, shards, manifest, meta."""
 
+    def __init__(self, out: Path, recipe: Recipe, layout: StepLayout, manifest: dict[str, Any], plans: dict[str, ShardPlans]):
+        self.out, self.recipe, self.layout, self.manifest, self.plans = out, recipe, layout, manifest, plans
+        self.done: dict[str, dict[str, Any]] = {}
+        # per split: (next shard to write, rows written before it), so a flush costs O(1) shards
+        self.cursor: dict[str, tuple[int, int]] = {s: (0, 0) for s in plans}
+        self.split_order = {s: n for n, s in enumerate(plans)}
 
-def fsync_dir(path: Path) -> None:
-    """Make a rename in `path` durable."""
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
+    # -- state on disk
+    def work(self, split: str, index: int, ext: str) -> Path:
+        return self.out / WORK / split / f"{index:06d}.{ext}"
 
+    def stored(self, split: str, index: int) -> bool:
+        return self.work(split, index, "json").is_file() and self.work(split, index, "arrow").is_file()
 
-def tmp_path(path: Path) -> Path:
-    """Temporary sibling of `path`; the `.tmp-` marker lets resume and validate spot leftovers."""
-    return path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    def verify_shards(self) -> int:
+        """Keep manifest shards whose file matches its sha256; drop the rest (they are redone)."""
+        kept = []
+        for entry in self.manifest["shards"]:
+            path = self.out / entry["file"]
+            ps = self.plans.get(entry.get("split", ""))
+            if ps is not None and ps.of_file(entry["file"]) and path.is_file() and sha256_file(path) == entry["sha256"]:
+                kept.append(entry)
+                self.done[entry["file"]] = entry
+        if len(kept) != len(self.manifest["shards"]):
+            self.manifest["shards"] = kept
+            self.manifest["complete"] = False
+            write_manifest(self.out, self.manifest)
+        return sum(e["episodes"][1] - e["episodes"][0] for e in kept)
 
+    def remove_leftovers(self) -> None:
+        """Temporary files of a killed writer are never part of the dataset."""
+        for path in self.out.rglob(".*.tmp-*"):
+            if path.is_file():
+                path.unlink()
 
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write, fsync, rename: readers see the old file or the whole new one, never a part."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = tmp_path(path)
-    with open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-    fsync_dir(path.parent)
+    # -- episodes
+    def store(self, enc: EncodedEpisode) -> None:
+        """Media first, rows next, the JSON commit marker last (each atomic)."""
+        atomic_write_bytes(self.out / enc.episode["audio_path"], enc.wav)
+        if self.recipe.outputs.planner_export:
+            atomic_write_bytes(self.out / "planner" / "audio" / enc.split / f"{enc.episode_id}.wav", enc.planner_wav or b"")
+            if enc.planner_png is not None:
+                atomic_write_bytes(self.out / "planner" / "images" / enc.split / f"{enc.episode_id}.png", enc.planner_png)
+        atomic_write_bytes(self.work(enc.split, enc.index, "arrow"), enc.table_ipc)
+        atomic_write_json(self.work(enc.split, enc.index, "json"), enc.meta())
 
+    # -- shards
+    def flush(self, split: str) -> None:
+        """Write every shard of `split` that is ready, in order (a shard's global `index`
+        numbering starts after the rows of the shards before it)."""
+        k, offset = self.cursor[split]
+        plans = self.plans[split]
+        while k < len(plans):
+            plan = plans[k]
+            entry = self.done.get(plan.file)
+            if entry is None:
+                if not all(self.stored(split, i) for i in plan.indices):
+                    break
+                metas = [json.loads(self.work(split, i, "json").read_text()) for i in plan.indices]
+                tables = [pa.ipc.open_stream(pa.memory_map(str(self.work(split, i, "arrow")))).read_all() for i in plan.indices]
+                entry = self._write(plan, metas, tables, offset)
+            offset += entry["rows"]
+            k += 1
+        self.cursor[split] = (k, offset)
 
-def canonical_json(obj: Any) -> bytes:
-    """Stable JSON bytes (sorted keys) for files whose bytes must not depend on dict order."""
-    return (json.dumps(obj, sort_keys=True, indent=1, ensure_ascii=False) + "\n").encode()
-
-
-def atomic_write_json(path: Path, obj: Any) -> None:
-    atomic_write_bytes(path, canonical_json(obj))
-
-
-def sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
-# ---------------------------------------------------------------- media encoding
-
-
-def encode_png(image: np.ndarray) -> bytes:
-    """uint8 (H, W, 3) RGB or uint16 (H, W) depth in millimetres -> PNG bytes (16-bit for depth)."""
-    from PIL import Image
-
-    if image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3:
-        img = Image.fromarray(image, mode="RGB")
-    elif image.dtype == np.uint16 and image.ndim == 2:
-        img = Image.fromarray(image)  # mode I;16 -> 16-bit greyscale PNG
-    else:
-        raise ValueError(f"unsupported image: dtype {image.dtype}, shape {image.shape}")
-    buf = io.BytesIO()
-    img.save(buf, format="PNG", compress_level=PNG_COMPRESS_LEVEL)
-    return buf.getvalue()
-
-
-def encode_wav(audio: np.ndarray, sample_rate: int, what: str = "audio") -> bytes:
-    """float (n, channels) -> 16-bit PCM WAV bytes; ClippingError if it would clip (see pcm)."""
-    import soundfile as sf
-
-    buf = io.BytesIO()
-    sf.write(buf, quantise(audio, what), sample_rate, subtype=WAV_SUBTYPE, format="WAV")
-    return buf.getvalue()
-
-
-def planner_audio(audio: np.ndarray, sample_rate: int) -> np.ndarray:
-    """The first seconds heard, as 16 kHz mono (mean of the two ears)."""
-    head = np.asarray(audio[: int(round(PLANNER_AUDIO_SECONDS * sample_rate))], dtype=np.float64)
-    mono = head.mean(axis=1) if head.ndim == 2 else head
-    if sample_rate != PLANNER_SAMPLE_RATE:
-        from math import gcd
-
-        from scipy.signal import resample_poly
-
-        g = gcd(PLANNER_SAMPLE_RATE, sample_rate)
-        mono = resample_poly(mono, PLANNER_SAMPLE_RATE // g, sample_rate // g)
-    return mono.astype(np.float32)
-
-
-def planner_wav_bytes(audio: np.ndarray, sample_rate: int) -> bytes:
-    """The planner export's clip of an episode track (as written: validate recomputes it from the WAV)."""
-    return encode_wav(planner_audio(audio, sample_rate)[:, None], PLANNER_SAMPLE_RATE, "planner audio")
-
-
-# ---------------------------------------------------------------- episodes
-
-
-@dataclass
-class EncodedEpisode:
-    """A successful episode as bytes, plus what the manifest needs about every attempt."""
-
-    split: str
-    index: int
-    episode_id: str
-    table_ipc: bytes  # step rows (StepLayout.episode_schema), Arrow IPC stream
-    wav: bytes
-    planner_wav: bytes | None
-    planner_png: bytes | None
-    episode: dict[str, Any]  # row of meta/episodes.parquet (shard fields filled later)
-    stats: dict[str, dict[str, Any]]  # feature -> summary (see stats.py)
-    failures: list[dict[str, Any]] = field(default_factory=list)  # failed attempts before success
-    rejected: dict[str, int] = field(default_factory=dict)  # sampling rejections by reason
-    skills: dict[str, list[int]] = field(default_factory=dict)  # skill -> [attempts, successes]
-
-    def meta(self) -> dict[str, Any]:
-        """Everything but the bulky bytes (stored as the episode's commit marker)."""
-        return {
-            "split": self.split,
-            "index": self.index,
-            "episode_id": self.episode_id,
-            "episode": self.episode,
-            "stats": self.stats,
-            "failures": self.failures,
-            "rejected": self.rejected,
-            "skills": self.skills,
+    def _write(self, plan: ShardPlan, metas: list[dict[str, Any]], tables: list[pa.Table], offset: int) -> dict[str, Any]:
+        episodes, failures = [], []
+        rejected: Counter[str] = Counter()
+        skills: dict[str, list[int]] = {}
+        settings: Counter[str] = Counter()
+        start = offset
+        name = Path(plan.file).name
+        for meta, table in zip(metas, tables):
+            row = dict(meta["episode"])
+            row.update({"shard": name, "dataset_from_index": start, "dataset_to_index": start + table.num_rows})
+            start += table.num_rows
+            episodes.append(row)
+            failures += meta["failures"]
+            rejected.update(meta["rejected"])
+            settings[row["setting"]] += 1
+            for k, (a, s) in meta["skills"].items():
+                acc = skills.setdefault(k, [0, 0])
+                acc[0] += a
+                acc[1] += s
+        shard_meta = {
+            "split": plan.split,
+            "shard": plan.shard,
+            "of": plan.of,
+            "episodes": episodes,
+            "stats": stats_mod.merge_features(m["stats"] for m in metas),
         }
+        written = write_shard(self.out / plan.file, self.layout, tables, offset, shard_meta)
+        entry = {
+            "file": plan.file,
+            "split": plan.split,
+            "shard": plan.shard,
+            "of": plan.of,
+            "episodes": [plan.first, plan.last],
+            "index_from": offset,
+            "rows": written.rows,
+            "bytes": written.bytes,
+            "sha256": written.sha256,
+            "settings": dict(sorted(settings.items())),
+            "skills": {k: skills[k] for k in sorted(skills)},
+            "rejected": dict(sorted(rejected.items())),
+            "failures": failures,
+        }
+        self.done[plan.file] = entry
+        self.manifest["shards"] = sorted(self.done.values(), key=lambda e: (self.split_order[e["split"]], e["shard"]))
+        write_manifest(self.out, self.manifest)
+        for i in plan.indices:  # only after the manifest names the shard
+            self.work(plan.split, i, "arrow").unlink(missing_ok=True)
+            self.work(plan.split, i, "json").unlink(missing_ok=True)
+        return entry
 
+    # -- the end
+    def finalize(self) -> None:
+        """meta/episodes.parquet, meta/stats.json, meta/info.json, planner export, manifest complete."""
+        from echo_data.dataset.card import write_card
+        from echo_data.dataset.planner import write_planner_export
 
-def _spec_row(spec: Any) -> dict[str, Any]:
-    return {
-        "episode_index": int(spec.index),
-        "episode_id": str(spec.episode_id),
-        "split": str(spec.split),
-        "setting": str(spec.setting),
-        "task_index": task_index(spec.setting),
-        "seed": int(spec.seed),
-        "attempt": int(spec.attempt),
-        "scene_seed": int(getattr(spec.plan, "seed", spec.seed)),
-        "start": [float(v) for v in spec.start],
-        "events": [
-            {
-                "category": e.category,
-                "sound_id": e.sound_id,
-                "priority": int(e.priority),
-                "target": e.target,
-                "source": [float(v) for v in e.source],
+        metas = [read_shard_meta(self.out / e["file"]) for e in self.manifest["shards"]]
+        rows = [row for m in metas for row in m["episodes"]]
+        atomic_write_parquet(self.out / "meta" / "episodes.parquet", pa.Table.from_pylist(rows, schema=EPISODE_FIELDS))
+        atomic_write_json(self.out / "meta" / "stats.json", stats_mod.dataset_stats(metas))
+        atomic_write_json(self.out / "meta" / "info.json", self.info_json())
+        if self.recipe.outputs.planner_export:
+            write_planner_export(self.out, self.recipe, rows)
+        write_card(self.out)
+        self.manifest["complete"] = True
+        write_manifest(self.out, self.manifest)
+        shutil.rmtree(self.out / WORK, ignore_errors=True)
+
+    def info_json(self) -> dict[str, Any]:
+        """LeRobot-like meta/info.json: how to read the files without echo-data."""
+        shards = self.manifest["shards"]
+        splits: dict[str, Any] = {}
+        for s in self.plans:
+            mine = [e for e in shards if e["split"] == s]
+            splits[s] = {
+                "episodes": sum(e["episodes"][1] - e["episodes"][0] for e in mine),
+                "frames": sum(e["rows"] for e in mine),
+                "files": [e["file"] for e in mine],
             }
-            for e in spec.events
-        ],
-        "chain": [
-            {"skill": c.skill, "target": c.target, "event": int(c.event), "target_kind": target_kind(c.target, spec.plan)}
-            for c in spec.chain
-        ],
-    }
-
-
-def target_kind(target: str, plan: Any) -> str:
-    """What a listener would call a scene target: "phone_0" -> phone, "door:1" -> door,
-    "faucet:0" -> sink, "furniture:3" -> its kind (table, counter, ...)."""
-    if target.startswith("door:"):
-        return "door"
-    if target.startswith("faucet:"):
-        return "sink"
-    if target.startswith("furniture:"):
-        i = int(target.split(":", 1)[1])
-        return next((f.kind for f in getattr(plan, "furniture", ()) if f.index == i), "furniture")
-    return next((o.category for o in getattr(plan, "objects", ()) if o.name == target), target.rsplit("_", 1)[0])
-
-
-def _check_stack(name: str, arr: np.ndarray | None, n: int, shape: tuple[int, ...]) -> np.ndarray:
-    if arr is None:
-        raise ValueError(f"episode has no {name} but the recipe stores it")
-    arr = np.asarray(arr)
-    if arr.shape != (n, *shape):
-        raise ValueError(f"{name} has shape {arr.shape}, expected {(n, *shape)}")
-    return arr
-
-
-def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
-    """Validate a successful `EpisodeResult` against the layout and encode it (runs in workers)."""
-    spec = result.spec
-    steps = result.steps
-    n = len(steps)
-    if n == 0:
-        raise ValueError(f"{spec.episode_id}: episode has no steps")
-    if result.audio is None or result.audio_offsets is None:
-        raise ValueError(f"{spec.episode_id}: episode has no audio track / offsets")
-    audio = np.asarray(result.audio, dtype=np.float32)
-    if audio.ndim != 2 or audio.shape[1] != 2:
-        raise ValueError(f"{spec.episode_id}: audio must be (n_samples, 2), got {audio.shape}")
-    offsets = np.asarray(result.audio_offsets, dtype=np.int64)
-    if offsets.shape != (n,) or (offsets < 0).any() or (offsets > len(audio)).any():
-        raise ValueError(f"{spec.episode_id}: audio_offsets must be ({n},) within [0, {len(audio)}]")
-
-    action = np.stack([np.asarray(s.action, dtype=np.float32) for s in steps])
-    state = np.stack([np.asarray(s.state, dtype=np.float32) for s in steps])
-    if action.shape != (n, ACTION_DIM) or state.shape != (n, STATE_DIM):
-        raise ValueError(f"{spec.episode_id}: action/state shapes {action.shape}/{state.shape}")
-
-    chain_len = len(spec.chain)
-    if chain_len > CHAIN_SLOTS:
-        raise ValueError(f"{spec.episode_id}: chain of {chain_len} skills exceeds the {CHAIN_SLOTS} skill_success slots")
-    cols: dict[str, pa.Array] = {
-        "episode_index": pa.array(np.full(n, spec.index, dtype=np.int64)),
-        "frame_index": pa.array(np.array([s.frame_index for s in steps], dtype=np.int64)),
-        "timestamp": pa.array(np.array([s.timestamp for s in steps], dtype=np.float32)),
-        "task_index": pa.array(np.full(n, task_index(spec.setting), dtype=np.int64)),
-        "setting": pa.array([spec.setting] * n, pa.string()),
-        "skill": pa.array([s.skill for s in steps], pa.string()),
-        "skill_index": pa.array(np.array([s.skill_index for s in steps], dtype=np.int64)),
-        ACTION: pa.FixedSizeListArray.from_arrays(pa.array(action.reshape(-1)), ACTION_DIM),
-        STATE: pa.FixedSizeListArray.from_arrays(pa.array(state.reshape(-1)), STATE_DIM),
-    }
-    if not np.array_equal(cols["frame_index"].to_numpy(), np.arange(n)):
-        raise ValueError(f"{spec.episode_id}: frame_index must run 0..{n - 1}")
-
-    image_stacks: dict[str, tuple[str, np.ndarray]] = {}
-    for col, (kind, h, w) in layout.images.items():
-        attr = _RECORD_IMAGE_ATTR[col]
-        frames = [getattr(s, attr) for s in steps]
-        if any(f is None for f in frames):
-            raise ValueError(f"{spec.episode_id}: a step has no {attr} but the recipe stores it")
-        shape = (h, w, 3) if kind == "rgb" else (h, w)
-        dtype = np.uint8 if kind == "rgb" else np.uint16
-        stack = np.stack(frames)
-        if stack.shape != (n, *shape) or stack.dtype != dtype:
-            raise ValueError(f"{spec.episode_id}: {attr} is {stack.dtype}{stack.shape[1:]}, expected {np.dtype(dtype)}{shape}")
-        image_stacks[col] = (kind, stack)
-        cols[col] = pa.array([{"bytes": encode_png(f), "path": None} for f in stack], IMAGE_TYPE)
-
-    array_stacks: dict[str, np.ndarray] = {}
-    sources = {SPECTROGRAM: result.spectrogram, MEL: result.mel}
-    for col, shape in layout.arrays.items():
-        stack = _check_stack(col, sources[col], n, shape).astype(np.float32)
-        array_stacks[col] = stack
-        cols[col] = array3d_column(stack)
-
-    for cam in layout.cameras:
-        if any(cam not in s.camera_poses for s in steps):
-            raise ValueError(f"{spec.episode_id}: a step has no {cam} camera pose but the recipe stores the camera")
-        poses = np.stack([np.asarray(s.camera_poses[cam], dtype=np.float32).reshape(POSE_DIM) for s in steps])
-        cols[CAMERA_POSES[cam]] = pa.FixedSizeListArray.from_arrays(pa.array(poses.reshape(-1)), POSE_DIM)
-    audio_path = audio_relpath(spec.split, spec.episode_id)
-    cols["audio_path"] = pa.array([audio_path] * n, pa.string())
-    cols["audio_sample_rate"] = pa.array(np.full(n, layout.sample_rate, dtype=np.int64))
-    cols["audio_offset"] = pa.array(offsets)
-    cols["done"] = pa.array(np.array([bool(s.done) for s in steps]))
-    flags = [bool(v) for s in steps for v in (tuple(s.skill_success)[:chain_len] + (False,) * CHAIN_SLOTS)[:CHAIN_SLOTS]]
-    cols["skill_success"] = pa.FixedSizeListArray.from_arrays(pa.array(flags, pa.bool_()), CHAIN_SLOTS)
-    schema = layout.episode_schema()
-    table = pa.Table.from_arrays([cols[f.name] for f in schema], schema=schema)
-    sink = io.BytesIO()
-    with pa.ipc.new_stream(sink, schema) as w:
-        w.write_table(table)
-
-    audio = as_written(audio, f"{spec.episode_id} audio")  # what the WAV holds (and the planner clip is cut from)
-    wav = encode_wav(audio, layout.sample_rate, f"{spec.episode_id} audio")
-    row = _spec_row(spec)
-    row.update(
-        {
-            "outcomes": [
-                {"skill": o.skill, "target": o.target, "success": bool(o.success), "reason": o.reason, "steps": int(o.steps)}
-                for o in result.outcomes
-            ],
-            "success": bool(result.success),
-            "n_steps": n,
-            "audio_path": audio_path,
-            "audio_samples": int(len(audio)),
-            "audio_sha256": hashlib.sha256(wav).hexdigest(),
+        return {
+            "codebase_version": FORMAT_VERSION,
+            "name": self.recipe.name,
+            "fps": self.layout.fps,
+            "audio_sample_rate": self.layout.sample_rate,
+            "total_episodes": sum(v["episodes"] for v in splits.values()),
+            "total_frames": sum(v["frames"] for v in splits.values()),
+            "splits": splits,
+            "data_path": "data/{split}-{shard:05d}-of-{num_shards:05d}.parquet",
+            "audio_path": "audio/{split}/{episode_id}.wav",
+            "episode_index": "per split: equals the episode's index in its split; `index` counts frames per split",
+            "stats_split": "train" if "train" in self.plans else "all",
+            "names": {"action": list(ACTION_NAMES), "observation.state": list(STATE_NAMES)},
+            "features": self.layout.hf_features(),
+            "cameras": camera_infos(self.recipe, self.layout),
         }
-    )
-    values = stats_mod.episode_feature_values(action, state, image_stacks, array_stacks)
-    summaries = {k: stats_mod.summarize(v, n) for k, v in values.items()}
-
-    planner_png = None
-    if steps[0].head_rgb is not None:
-        planner_png = encode_png(np.asarray(steps[0].head_rgb, dtype=np.uint8))
-    planner_wav = planner_wav_bytes(audio, layout.sample_rate)
-    return EncodedEpisode(
-        split=spec.split,
-        index=int(spec.index),
-        episode_id=spec.episode_id,
-        table_ipc=sink.getvalue(),
-        wav=wav,
-        planner_wav=planner_wav,
-        planner_png=planner_png,
-        episode=row,
-        stats=summaries,
-    )
 
 
-def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
-    """Rebuild `table` with exactly `schema` (re-wrapping extension columns that a round trip
-    through IPC returned as their plain storage). Chunk by chunk: one chunk per episode keeps
-    32-bit list/binary offsets far from overflowing however large a shard is."""
-    columns = []
-    for f in schema:
-        chunks = []
-        for chunk in table.column(f.name).chunks:
-            if isinstance(f.type, pa.BaseExtensionType):
-                if isinstance(chunk.type, pa.BaseExtensionType):
-                    chunk = chunk.storage
-                chunk = pa.ExtensionArray.from_storage(f.type, chunk.cast(f.type.storage_type))
-            elif chunk.type != f.type:
-                chunk = chunk.cast(f.type)
-            chunks.append(chunk)
-        columns.append(pa.chunked_array(chunks, type=f.type))
-    return pa.Table.from_arrays(columns, schema=schema)
+def camera_infos(recipe: Recipe, layout: StepLayout) -> dict[str, Any]:
+    """Intrinsics and depth units of each stored camera, and where its pose and images are."""
+    from echo_data.camera import camera_info
+    from echo_data.dataset.schema import CAMERA_POSES, IMAGE_COLUMNS
 
-
-def read_ipc(data: bytes) -> pa.Table:
-    return pa.ipc.open_stream(pa.py_buffer(data)).read_all()
-
-
-# ---------------------------------------------------------------- shards
-
-
-@dataclass
-class ShardWritten:
-    rows: int
-    bytes: int
-    sha256: str
-
-
-def write_shard(
-    path: Path,
-    layout: StepLayout,
-    episode_tables: list[pa.Table],
-    index_offset: int,
-    shard_meta: dict[str, Any],
-) -> ShardWritten:
-    """Join episodes' rows (in order), number them from `index_offset`, write one Parquet shard
-    atomically. `shard_meta` (episode records, partial stats) goes into the schema metadata."""
-    schema = layout.schema()
-    table = pa.concat_tables(episode_tables) if episode_tables else layout.episode_schema().empty_table()
-    n = table.num_rows
-    table = table.add_column(2, pa.field("index", pa.int64()), pa.array(np.arange(index_offset, index_offset + n, dtype=np.int64)))
-    metadata = dict(schema.metadata)
-    metadata[SHARD_META_KEY.encode()] = json.dumps(shard_meta, sort_keys=True, separators=(",", ":")).encode()
-    table = conform(table, schema.with_metadata(metadata))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = tmp_path(path)
-    leaf = ".list.element"  # Parquet leaf paths of the float lists (1 level for vectors, 3 for arrays)
-    floats = [ACTION + leaf, STATE + leaf] + [col + leaf * 3 for col in layout.arrays]
-    with pq.ParquetWriter(
-        tmp,
-        table.schema,
-        compression=PARQUET_COMPRESSION,
-        compression_level=PARQUET_COMPRESSION_LEVEL,
-        # Dictionaries only where values repeat: on float features they made real shards 1/3
-        # larger and slower to read; byte-stream split shaves a little more off the floats.
-        use_byte_stream_split=floats,
-        use_dictionary=["setting", "skill", "task_index", "skill_index", "episode_index", "audio_path", "audio_sample_rate"],
-        write_statistics=True,
-        store_schema=True,
-    ) as w:
-        w.write_table(table, row_group_size=ROW_GROUP_ROWS)
-    with open(tmp, "rb+") as f:
-        os.fsync(f.fileno())
-    digest = sha256_file(tmp)
-    size = tmp.stat().st_size
-    os.replace(tmp, path)
-    fsync_dir(path.parent)
-    return ShardWritten(rows=n, bytes=size, sha256=digest)
-
-
-def read_shard_meta(path: Path) -> dict[str, Any]:
-    """The echo-data record a shard carries in its schema metadata."""
-    md = pq.read_schema(path).metadata or {}
-    raw = md.get(SHARD_META_KEY.encode())
-    if raw is None:
-        raise ValueError(f"{path.name}: no {SHARD_META_KEY!r} schema metadata")
-    return json.loads(raw)
+    cfg = {"head": recipe.robot.head_camera, "wrist": recipe.robot.wrist_camera}
+    return {
+        cam: {
+            **camera_info(cfg[cam]),
+            "pose_column": CAMERA_POSES[cam],
+            "image_columns": [col for key, col in IMAGE_COLUMNS.items() if key.startswith(cam) and col in layout.images],
+        }
+        for cam in layout.cameras
+    }

@@ -22,8 +22,9 @@ Episode-level rules live here too:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import scipy.fft as sfft
@@ -149,9 +150,9 @@ class OnlineTrack:
 
     def step(self, pose: Sequence[float]) -> np.ndarray:
         """Render the next control period heard at head pose [x, y, z, yaw]; returns it (hop, 2) float32."""
-        pose = np.asarray(pose, dtype=np.float64).reshape(4)
-        self._last_pose = pose
-        block = self._render(len(self.blocks), pose)
+        head = np.asarray(pose, dtype=np.float64).reshape(4)
+        self._last_pose = head
+        block = self._render(len(self.blocks), head)
         self.blocks.append(block)
         return block
 

@@ -21,7 +21,7 @@ dataset episode replays here action by action to the same states, images and aud
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -30,6 +30,9 @@ from gymnasium import spaces
 from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_DIM, STATE_DIM
+
+if TYPE_CHECKING:
+    from echo_data.world import World
 
 STATE = "observation.state"
 BINAURAL = "observation.audio.binaural"
@@ -61,7 +64,7 @@ def resolve_recipe(recipe: Recipe | str | Path) -> tuple[Recipe, Path | None]:
 
 def skill_budget(recipe: Recipe, skill: str) -> int:
     """Control steps a skill may take: its recipe limit (Place also drives: plus Navigate's) plus a guard."""
-    ms = recipe.robot.max_steps
+    ms: dict[str, int] = {str(k): v for k, v in recipe.robot.max_steps.items()}
     return ms[skill] + (ms["Navigate"] if skill == "Place" else 0) + GUARD_STEPS
 
 
@@ -124,12 +127,26 @@ class EchoDataEnv(gym.Env):
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": self.recipe.robot.control_hz}
         self._library = library
-        self.observation_space = observation_space(self.recipe, images, audio)
+        self.observation_space: spaces.Dict = observation_space(self.recipe, images, audio)
         self.action_space = action_space()
-        self.world: Any = None
+        self._world: World | None = None
         self.track: Any = None
-        self.episode: EpisodeSpec | None = None
-        self._obs: dict[str, np.ndarray] | None = None
+        self._episode: EpisodeSpec | None = None
+        self._obs: dict[str, np.ndarray] = {}
+
+    @property
+    def world(self) -> World:
+        """The current episode's world (after `reset`)."""
+        if self._world is None:
+            raise EnvInputError("no episode: call reset() first")
+        return self._world
+
+    @property
+    def episode(self) -> EpisodeSpec:
+        """The current episode's spec (after `reset`)."""
+        if self._episode is None:
+            raise EnvInputError("no episode: call reset() first")
+        return self._episode
 
     # ------------------------------------------------------------------ episode
     @property
@@ -166,14 +183,14 @@ class EchoDataEnv(gym.Env):
             index = int(self.np_random.integers(max(self.recipe.splits.get(split, 1), 1)))
             spec, _ = sample_episode(fresh, split, index, self.library)
         self._start(spec)
-        return self._obs, self._info(reset=True)  # type: ignore[return-value]
+        return self._obs, self._info(reset=True)
 
     def _start(self, spec: EpisodeSpec) -> None:
         from echo_data.world import World
 
         self._close_world()
-        self.episode = spec
-        self.world = World(spec, self.recipe, render=self.images)
+        self._episode = spec
+        self._world = World(spec, self.recipe, render=self.images)
         self.sounding = [True] * len(spec.events)
         self.resolved_step: list[int | None] = [None] * len(spec.events)
         self.door_changes: list[tuple[int, dict[int, float]]] = []
@@ -194,14 +211,14 @@ class EchoDataEnv(gym.Env):
         self._obs = self._observe(block)
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
-        if self.world is None:
+        if self._world is None:
             raise EnvInputError("step() before reset()")
         a = np.asarray(action, dtype=np.float32)
         if a.shape != (ACTION_DIM,):
             raise EnvInputError(f"action: expected shape ({ACTION_DIM},), got {a.shape}")
         if not np.all(np.isfinite(a)):
             self.failure = f"non-finite action at step {self.steps}"
-            return self._obs, 0.0, True, False, self._info()  # type: ignore[return-value]
+            return self._obs, 0.0, True, False, self._info()
         pose = self.ear_pose()  # the head during this control period
         self.world.step(a)
         self.steps += 1
@@ -209,18 +226,18 @@ class EchoDataEnv(gym.Env):
         block = None
         if self.track is not None:
             for e in newly:
-                if self.episode.chain[self._resolver[e]].skill == "OpenDoor":  # type: ignore[union-attr]
+                if self.episode.chain[self._resolver[e]].skill == "OpenDoor":
                     self.track.open_doors(self.world.door_angles(), at=self.track.samples + self.track.hop)
             block = self.track.step(pose)
             for e in newly:
                 self.track.stop(e)
         for e in newly:
-            if self.episode.chain[self._resolver[e]].skill == "OpenDoor":  # type: ignore[union-attr]
+            if self.episode.chain[self._resolver[e]].skill == "OpenDoor":
                 self.door_changes.append((self.steps, self.world.door_angles()))
         before = self.progress
         self._advance()
         self._obs = self._observe(block)
-        terminated = self.progress == len(self.episode.chain)  # type: ignore[union-attr]
+        terminated = self.progress == len(self.episode.chain)
         truncated = not terminated and self.steps >= self.max_episode_steps
         return self._obs, float(self.progress - before), terminated, truncated, self._info()
 
@@ -228,14 +245,14 @@ class EchoDataEnv(gym.Env):
         """Events whose resolving skill's success test holds now (latched): they stop sounding."""
         newly = []
         for e, k in self._resolver.items():
-            if self.sounding[e] and self.skill_success(self.episode.chain[k]):  # type: ignore[union-attr]
+            if self.sounding[e] and self.skill_success(self.episode.chain[k]):
                 self.sounding[e] = False
                 self.resolved_step[e] = self.steps
                 newly.append(e)
         return sorted(newly)
 
     def _advance(self) -> None:
-        chain = self.episode.chain  # type: ignore[union-attr]
+        chain = self.episode.chain
         while self.progress < len(chain) and self.skill_success(chain[self.progress]):
             call = chain[self.progress]
             if call.skill == "Place":  # the object rests on its goal now (a later Pick lifts it from there)
@@ -318,7 +335,7 @@ class EchoDataEnv(gym.Env):
 
     def _held_object(self, call: SkillCall) -> str | None:
         """The object a Place call carries: the Pick target of the same event."""
-        for c in self.episode.chain:  # type: ignore[union-attr]
+        for c in self.episode.chain:
             if c.event == call.event and c.skill == "Pick":
                 return c.target
         return None
@@ -344,19 +361,19 @@ class EchoDataEnv(gym.Env):
         return self.track.finish(), self.track.offsets(self.steps)
 
     def render(self) -> np.ndarray | None:
-        if self.render_mode != "rgb_array" or self.world is None:
+        if self.render_mode != "rgb_array" or self._world is None:
             return None
         from echo_data.dataset.schema import IMAGE_COLUMNS
 
         col = IMAGE_COLUMNS["head_rgb"]
-        if self._obs is not None and col in self._obs:
+        if col in self._obs:
             return self._obs[col]
         return self.world.observe().get("head_rgb") if self.images else None
 
     def _close_world(self) -> None:
-        if self.world is not None:
-            self.world.close()
-        self.world = None
+        if self._world is not None:
+            self._world.close()
+        self._world = None
 
     def close(self) -> None:
         self._close_world()

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -77,7 +76,7 @@ def run_evaluate(
     bar.close()
     print(format_tables(doc))
     if json_out is not None:
-        from echo_data.dataset.writer import atomic_write_json
+        from echo_data.dataset.storage import atomic_write_json
 
         atomic_write_json(json_out, doc)
         print(f"wrote {json_out}")

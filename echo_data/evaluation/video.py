@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -76,7 +77,7 @@ class TopDown:
 def _fit(img: np.ndarray, h: int, w: int) -> np.ndarray:
     from PIL import Image
 
-    return np.asarray(Image.fromarray(img).resize((w, h), Image.NEAREST))
+    return np.asarray(Image.fromarray(img).resize((w, h), Image.Resampling.NEAREST))
 
 
 def compose(obs: dict[str, np.ndarray], plan_panel: np.ndarray, label: str = "") -> np.ndarray:

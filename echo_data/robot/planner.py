@@ -12,13 +12,15 @@ Full planner configuration order (`PlanQ`): torso, head pan, head tilt, 7 arm jo
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 import sapien
 
 from echo_data.robot import urdf as U
+
 
 # A box obstacle in the world: centre, full size, yaw about z.
 @dataclass(frozen=True)
@@ -29,7 +31,7 @@ class Box:
     yaw: float = 0.0
 
 
-def _mp_pose(p: sapien.Pose):  # noqa: ANN202 - mplib type
+def _mp_pose(p: sapien.Pose) -> Any:  # an mplib.Pose (mplib has no type information)
     import mplib
 
     return mplib.Pose(np.asarray(p.p, dtype=np.float64), np.asarray(p.q, dtype=np.float64))

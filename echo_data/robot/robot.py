@@ -7,7 +7,7 @@ Action and state follow `echo_data.records` exactly:
   opening, base vx, vy (robot frame), wz, torso vel, 7 arm joint vels, gripper opening rate,
   holding (1 when an object touches both fingers).
 
-Why this shape (FINDINGS): the planar base is a virtual x/y/yaw joint chain on a fixed root,
+Why this shape (docs/SIMULATION_NOTES.md#robot): the planar base is a virtual x/y/yaw joint chain on a fixed root,
 driven by velocity with high damping; gravity is off on every robot link so that position
 drives track exactly and a carried object's weight is the only load.
 """
@@ -33,7 +33,7 @@ GRIPPER_OPEN = 0.1  # m, full opening
 GRIPPER_CLOSED = 0.0
 MAX_BASE_SPEED = 0.6  # m/s, clip of the velocity action
 MAX_BASE_TURN = 1.2  # rad/s
-FINGER_FRICTION = 2.0  # FINDINGS: 29/29 lifts of a phone with 2.0
+FINGER_FRICTION = 2.0  # 29/29 lifts of a phone with 2.0 (docs/SIMULATION_NOTES.md#grasping)
 
 # drive gains (stiffness, damping, force limit); "force" mode
 BASE_DRIVE = (0.0, 2.0e5, 1.0e7)
@@ -43,7 +43,7 @@ HEAD_DRIVE = (1.0e3, 1.0e2, 100.0)
 ARM_DRIVE = (3.0e3, 3.0e2, 500.0)
 FINGER_DRIVE = (1.0e3, 1.0e2, 100.0)
 
-# Picture names of the "minimal" shader (camera.get_picture_names() segfaults, FINDINGS).
+# Picture names of the "minimal" shader (camera.get_picture_names() segfaults, docs/SIMULATION_NOTES.md#rendering).
 COLOR_PICTURE = "Color"
 POSITION_PICTURE = "PositionSegmentation"
 MINIMAL_SHADER_DIR = str(Path(sapien.__file__).parent / "vulkan_shader" / "minimal")
@@ -62,7 +62,7 @@ def yaw_of(pose: sapien.Pose) -> float:
 
 def has_render_system(scene: sapien.Scene) -> bool:
     try:
-        scene.render_system
+        scene.render_system  # noqa: B018 (raises without a render system)
         return True
     except RuntimeError:
         return False
@@ -120,7 +120,7 @@ class Robot:
         q[self.head_indices] = (HEAD_PAN, HEAD_TILT)
         q[self.arm_indices] = self.tuck_qpos
         q[self.finger_indices] = GRIPPER_OPEN / 2.0
-        self.articulation.set_qpos(q)  # link poses are stale until the first set_qpos (FINDINGS)
+        self.articulation.set_qpos(q)  # link poses are stale until the first set_qpos (docs/SIMULATION_NOTES.md#robot)
         self.articulation.set_qvel(np.zeros(len(names)))
         for i, v in zip(self.head_indices, (HEAD_PAN, HEAD_TILT)):
             self.articulation.active_joints[i].set_drive_target(v)
@@ -290,7 +290,8 @@ class Robot:
     # ------------------------------------------------------------------ grasp
     def finger_contacts(self) -> tuple[set[sapien.Entity], set[sapien.Entity]]:
         """Non-robot entities pressing on the left / right finger after the last physics step."""
-        left, right = set(), set()
+        left: set[sapien.Entity] = set()
+        right: set[sapien.Entity] = set()
         lf, rf = (ln.entity for ln in self.finger_links)
         for c in self.scene.get_contacts():
             e0, e1 = c.bodies[0].entity, c.bodies[1].entity

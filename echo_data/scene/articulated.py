@@ -20,27 +20,22 @@ import math
 import numpy as np
 import sapien
 
+from echo_data.scene.door_handle import HANDLE_BAR, HANDLE_POST, HANDLE_STANDOFF, door_handle_local
 from echo_data.scene.floorplan import Door, Faucet, Furniture
 
-# Door leaf: FINDINGS measured door opening with a ≈22 kg leaf.
+# Door leaf: door opening was measured with a ≈22 kg leaf (docs/SIMULATION_NOTES.md#door-opening).
 DOOR_MASS = 22.0  # kg
 DOOR_FLOOR_GAP = 0.012  # m between the leaf and the floor (>= 1 cm, or the joint jams)
 DOOR_HINGE_GAP = 0.01  # m between the hinge axis and the leaf's hinge-side edge
 DOOR_DAMPING = 6.0  # N m s / rad: a released door slows within a second
 DOOR_FRICTION = 0.03  # PhysX joint friction coefficient (scales the hinge load): a door stays where left
-# Pull handle (a vertical bar on two standoffs, on both faces): a parallel gripper with
-# horizontal fingers grasps the bar from the front.
-HANDLE_EDGE_OFFSET = 0.08  # m from the free edge to the bar's axis (nav.HANDLE_INSET agrees)
-HANDLE_STANDOFF = 0.06  # m from the leaf face to the bar's axis
-HANDLE_BAR = (0.024, 0.024, 0.18)  # bar size (along leaf, along normal, height), m
-HANDLE_POST = 0.016  # standoff post cross-section, m
 
 # Faucet lever.
 LEVER_SECTION = 0.02  # m, square cross-section of the lever bar
 LEVER_MASS = 0.25  # kg
 LEVER_DAMPING = 0.05  # N m s / rad
 LEVER_FRICTION = 0.05  # N m: the lever stays where it is left
-STATIC_CLEARANCE = 0.01  # m between the lever and any static shape (FINDINGS: joints jam)
+STATIC_CLEARANCE = 0.01  # m between the lever and any static shape (joints jam: docs/SIMULATION_NOTES.md#articulations)
 COLUMN_RADIUS = 0.022  # m, faucet body below the lever hub
 
 # Water stream.
@@ -89,7 +84,7 @@ def _x_to_z(sign: float) -> np.ndarray:
 
 
 def _vertical_revolute(
-    link: "sapien.wrapper.articulation_builder.LinkBuilder",
+    link: sapien.wrapper.articulation_builder.LinkBuilder,
     yaw0: float,
     sign: float,
     limits: tuple[float, float],
@@ -109,33 +104,12 @@ def _vertical_revolute(
     )
 
 
-def _fixed_root(builder: sapien.ArticulationBuilder, name: str) -> "sapien.wrapper.articulation_builder.LinkBuilder":
+def _fixed_root(builder: sapien.ArticulationBuilder, name: str) -> sapien.wrapper.articulation_builder.LinkBuilder:
     root = builder.create_link_builder()
     root.set_name(name)
     # a shapeless root needs explicit mass properties; it is fixed anyway
     root.set_mass_and_inertia(1.0, sapien.Pose(), [1e-3, 1e-3, 1e-3])
     return root
-
-
-def door_handle_local(door: Door, face: float = 1.0) -> np.ndarray:
-    """Centre of the handle bar in the leaf frame (x hinge→free edge, y leaf normal, z up).
-
-    `face` = +1 is the face the leaf's +y normal points to (the side the door opens towards
-    when `open_sign` = +1), -1 the other face.
-    """
-    return np.array(
-        [door.width - HANDLE_EDGE_OFFSET, face * (door.thickness / 2.0 + HANDLE_STANDOFF), door.handle_height]
-    )
-
-
-def door_handle_world(door: Door, q: float, face: float = 1.0) -> np.ndarray:
-    """World position of a handle bar's centre at hinge angle q (pure geometry, no SAPIEN)."""
-    local = door_handle_local(door, face)
-    yaw = door.leaf_yaw(q)
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array(
-        [door.hinge[0] + c * local[0] - s * local[1], door.hinge[1] + s * local[0] + c * local[1], local[2]]
-    )
 
 
 def build_door(scene: sapien.Scene, door: Door) -> sapien.physx.PhysxArticulation:

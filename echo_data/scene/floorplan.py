@@ -47,7 +47,7 @@ class Rect:
         """True when (x, y) lies inside the rectangle shrunk by `margin`."""
         return (self.xmin + margin <= x <= self.xmax - margin) and (self.ymin + margin <= y <= self.ymax - margin)
 
-    def intersects(self, other: "Rect", margin: float = 0.0) -> bool:
+    def intersects(self, other: Rect, margin: float = 0.0) -> bool:
         return not (
             self.xmax + margin <= other.xmin
             or other.xmax + margin <= self.xmin
@@ -55,7 +55,7 @@ class Rect:
             or other.ymax + margin <= self.ymin
         )
 
-    def expanded(self, d: float) -> "Rect":
+    def expanded(self, d: float) -> Rect:
         return Rect(self.xmin - d, self.ymin - d, self.xmax + d, self.ymax + d)
 
 
@@ -270,7 +270,7 @@ class FloorPlan:
         return dataclasses.asdict(self)
 
     @staticmethod
-    def from_dict(d: dict[str, Any]) -> "FloorPlan":
+    def from_dict(d: dict[str, Any]) -> FloorPlan:
         def rect(v: dict[str, Any]) -> Rect:
             return Rect(**v)
 

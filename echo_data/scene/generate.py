@@ -41,7 +41,7 @@ DOOR_MAX_ANGLE = math.radians(105.0)
 DOOR_OPEN_THRESHOLD = min(math.radians(60.0), 0.7 * DOOR_MAX_ANGLE)
 DOOR_THICKNESS = 0.04
 DOOR_OVERLAP = 0.02  # leaf overlaps the opening by this much on each side (it hangs on the wall face)
-DOOR_FACE_GAP = 0.012  # leaf to wall face when closed (FINDINGS: >= 1 cm or the joint jams)
+DOOR_FACE_GAP = 0.012  # leaf to wall face when closed (>= 1 cm or the joint jams: docs/SIMULATION_NOTES.md#articulations)
 DOOR_HANDLE_HEIGHT = 1.0
 DOORWAY_HEIGHT = 2.1
 DOORBELL_Z = 1.2
@@ -253,7 +253,7 @@ def _wall_pieces(rects: list[Rect]) -> list[_Piece]:
     for axis in ("x", "y"):
         # for a wall along x, the line is y = c; rooms below have ymax = c, above ymin = c
         def lo_hi(r: Rect) -> tuple[float, float, float, float]:
-            return (r.xmin, r.xmax, r.ymin, r.ymax) if axis == "x" else (r.ymin, r.ymax, r.xmin, r.xmax)
+            return (r.xmin, r.xmax, r.ymin, r.ymax) if axis == "x" else (r.ymin, r.ymax, r.xmin, r.xmax)  # noqa: B023 (used within this iteration)
 
         coords = sorted({v for r in rects for v in lo_hi(r)[2:]})
         for c in coords:
@@ -362,7 +362,7 @@ def _pick_doorway(
 def _make_door(
     dw: Doorway, door_index: int, swing_room: Room, t: float, bell: bool, rng: np.random.Generator, material: str
 ) -> Door:
-    """A leaf hung on the swing-side wall face, hinge axis outside that face (FINDINGS)."""
+    """A leaf hung on the swing-side wall face, hinge axis outside that face (docs/SIMULATION_NOTES.md#articulations)."""
     cu, cv = (dw.center[0], dw.center[1]) if dw.axis == "x" else (dw.center[1], dw.center[0])
     room_v = swing_room.rect.center[1] if dw.axis == "x" else swing_room.rect.center[0]
     s = 1.0 if room_v > cv else -1.0  # swing side along the wall normal

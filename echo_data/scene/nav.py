@@ -16,6 +16,7 @@ import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
+from echo_data.scene.door_handle import HANDLE_BAR, handle_xy
 from echo_data.scene.floorplan import Door, FloorPlan, Furniture, Rect
 
 # Extra clearance (m) the planner prefers beyond the robot radius: paths keep it where they
@@ -26,25 +27,7 @@ COMFORT_MARGIN = 0.08
 CLEARANCE_COST_BAND = 0.3
 # How far (m) a blocked start / goal may be moved to the nearest free cell.
 SNAP_RADIUS = 0.3
-# Door handle layout of the door builder (`echo_data.scene.articulated`, kept in step by a test):
-# bar axis this far from the free edge, and this far out from the leaf face; bar half-section.
-HANDLE_EDGE_OFFSET = 0.08
-HANDLE_STANDOFF = 0.06
-HANDLE_HALF_SECTION = 0.012
-
-
-def handle_xy(door: Door, q: float, face: float | None = None) -> tuple[float, float]:
-    """Plan position of a door's handle bar at hinge angle q.
-
-    `face` +1 is the leaf's +y normal side, -1 the other; default: the swing side
-    (`open_sign`), i.e. the handle a robot standing where the leaf opens to pulls.
-    """
-    f = door.open_sign if face is None else face
-    yaw = door.leaf_yaw(q)
-    u = door.width - HANDLE_EDGE_OFFSET
-    v = f * (door.thickness / 2.0 + HANDLE_STANDOFF)
-    c, s = math.cos(yaw), math.sin(yaw)
-    return (door.hinge[0] + c * u - s * v, door.hinge[1] + s * u + c * v)
+HANDLE_HALF_SECTION = HANDLE_BAR[0] / 2.0  # the handle bar's half-section, blocked in the grid
 
 
 @dataclass
@@ -75,7 +58,7 @@ class NavGrid:
         robot_radius: float = 0.32,
         resolution: float = 0.05,
         door_angles: dict[int, float] | None = None,
-    ) -> "NavGrid":
+    ) -> NavGrid:
         """Rasterise `plan` (doors at `door_angles`, else at `Door.angle`) and inflate it."""
         margin = 2.0 * resolution + robot_radius
         b = plan.bounds
@@ -281,6 +264,7 @@ class NavGrid:
         if s == g:
             return [s]
         graph = self._graph()
+        assert self._node is not None  # set by self._graph()
         start, goal = int(self._node[s]), int(self._node[g])
         if start < 0 or goal < 0:
             return None
@@ -288,6 +272,7 @@ class NavGrid:
         if not np.isfinite(dist[goal]):
             return None
         cells = self._cells  # node k is the k-th free cell in row-major order
+        assert cells is not None  # set by self._graph()
         out = []
         u = goal
         while u >= 0:

@@ -16,16 +16,18 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from echo_data.categories import RELOCATION_CATEGORIES
+
 if TYPE_CHECKING:  # sapien is imported lazily so that pure callers (sampling, acoustics) stay light
     import sapien
 
     from echo_data.scene.floorplan import PlacedObject
 
-TARGET_CATEGORIES = ("phone", "alarm", "furby")
+TARGET_CATEGORIES: tuple[str, ...] = RELOCATION_CATEGORIES
 DISTRACTOR_CATEGORIES = ("mug", "can", "box", "bowl", "bottle", "book")
 CATEGORIES = TARGET_CATEGORIES + DISTRACTOR_CATEGORIES
 
-# Objects are grippy (rubber/plastic); the robot's finger pads are 2.0 (FINDINGS: grasp study).
+# Objects are grippy (rubber/plastic); the robot's finger pads are 2.0 (docs/SIMULATION_NOTES.md#grasping).
 OBJECT_STATIC_FRICTION = 1.0
 OBJECT_DYNAMIC_FRICTION = 0.8
 OBJECT_RESTITUTION = 0.0
@@ -193,7 +195,7 @@ def _yaw_quat(yaw: float) -> list[float]:
     return [math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)]
 
 
-def build_object(scene: "sapien.Scene", obj: "PlacedObject") -> "sapien.Entity":
+def build_object(scene: sapien.Scene, obj: PlacedObject) -> sapien.Entity:
     """Add `obj` to `scene` as a dynamic rigid body named `obj.name`, at rest at its pose.
 
     Visual shapes are added only when the scene has a render system (physics-only scenes
@@ -201,11 +203,11 @@ def build_object(scene: "sapien.Scene", obj: "PlacedObject") -> "sapien.Entity":
     """
     import sapien
 
-    model = MODELS[obj.category] if obj.category in MODELS else None
+    model = MODELS.get(obj.category)
     if model is None:
         raise KeyError(f"unknown object category {obj.category!r}; known: {', '.join(CATEGORIES)}")
     try:
-        scene.render_system
+        scene.render_system  # noqa: B018 (raises without a render system)
         with_visuals = True
     except RuntimeError:
         with_visuals = False

@@ -12,13 +12,15 @@ Rejections are counted by reason; after `recipe.max_attempts_per_episode` failur
 from __future__ import annotations
 
 import math
-from typing import Protocol
+from collections.abc import Mapping
+from typing import Any, Protocol
 
 import numpy as np
 from scipy import ndimage
 
+from echo_data.categories import RELOCATION_CATEGORIES, STATE_CATEGORIES
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, attempt_draws
-from echo_data.recipe import RELOCATION_CATEGORIES, STATE_CATEGORIES, Recipe
+from echo_data.recipe import Recipe
 from echo_data.scene.floorplan import FloorPlan, Rect, Vec3
 from echo_data.scene.generate import GenerationError, door_swing_zone, front_zone, generate_floorplan, place_object
 from echo_data.scene.nav import NavGrid, interaction_pose
@@ -55,7 +57,7 @@ class _Library(Protocol):
     def instances(self, category: str | None = None, split: str | None = None) -> list: ...
 
 
-def _weighted(rng: np.random.Generator, names: list[str], weights: dict[str, float]) -> str:
+def _weighted(rng: np.random.Generator, names: list[str], weights: Mapping[Any, float]) -> str:
     """One of `names` by `weights` (missing = 0); uniform if every weight is zero."""
     w = np.array([max(float(weights.get(n, 0.0)), 0.0) for n in names])
     if w.sum() <= 0:
@@ -238,16 +240,18 @@ def _attempt(recipe: Recipe, split: str, index: int, attempt: int, seed: int, li
         plan = nxt
         obj = plan.object_by_name(name)
         events.append((reloc_cat, name, obj.position))
-    if state_cat == "doorbell":
-        door_i = int(state_target.split(":")[1])  # type: ignore[union-attr]
-        events.append(("doorbell", state_target, plan.doors[door_i].doorbell))  # type: ignore[arg-type]
+    if state_cat == "doorbell" and state_target is not None:
+        door_i = int(state_target.split(":")[1])
+        bell = plan.doors[door_i].doorbell
+        assert bell is not None  # the door was drawn among those with a bell
+        events.append(("doorbell", state_target, bell))
     elif state_cat == "sink":
         events.append(("sink", "faucet:0", plan.faucets[0].spout))
 
-    prio = list(recipe.events.priority)
+    prio: list[str] = list(recipe.events.priority)
     events.sort(key=lambda e: prio.index(e[0]))
     sound_events = tuple(
-        SoundEvent(category=c, sound_id=_sound_id(library, c, split, rng), target=t, source=tuple(float(v) for v in s), priority=k)  # type: ignore[arg-type]
+        SoundEvent(category=c, sound_id=_sound_id(library, c, split, rng), target=t, source=(float(s[0]), float(s[1]), float(s[2])), priority=k)
         for k, (c, t, s) in enumerate(events)
     )
 

@@ -20,7 +20,8 @@ per control step; the drives follow with about 0.1 s lag).
 from __future__ import annotations
 
 import math
-from typing import Any, Generator, Iterable, Sequence
+from collections.abc import Generator, Iterable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sapien
@@ -30,11 +31,15 @@ from echo_data.robot.planner import ArmPlanner, Box
 from echo_data.robot.robot import GRIPPER_OPEN, HEAD_PAN, HEAD_TILT, TUCK_QPOS, Robot
 from echo_data.scene.objects import object_size
 
+if TYPE_CHECKING:
+    from echo_data.world import World
+
 ARM_SPEED = 1.3  # rad/s per joint
 TORSO_SPEED = 0.15  # m/s
 SETTLE_TOL = 0.03  # rad: a path ends when every joint is this close to its target ...
 SETTLE_MAX = 8  # ... or after this many extra steps
 OBSTACLE_RADIUS = 2.0  # m around the base: furniture/walls/objects given to the planner
+SLOW = 0.35  # speed scale of careful moves: descending to and lifting from a surface (Pick, Place)
 
 Actions = Generator[np.ndarray, None, Any]
 
@@ -71,7 +76,7 @@ def commanded_group(robot: Robot) -> np.ndarray:
     return np.asarray(a[3:11], dtype=np.float64)
 
 
-def scene_boxes(world: Any, exclude: Iterable[str] = (), radius: float = OBSTACLE_RADIUS) -> list[Box]:
+def scene_boxes(world: World, exclude: Iterable[str] = (), radius: float = OBSTACLE_RADIUS) -> list[Box]:
     """Furniture, walls and objects (live poses) within `radius` of the base as planner boxes."""
     plan = world.plan
     bx, by, _ = world.robot.base_pose()
@@ -92,8 +97,7 @@ def scene_boxes(world: Any, exclude: Iterable[str] = (), radius: float = OBSTACL
         if near(fp.xmin, fp.ymin, fp.xmax, fp.ymax):
             c = fp.center
             boxes.append(Box(f"wall_{i}", (c[0], c[1], w.height / 2.0), (fp.size[0], fp.size[1], w.height)))
-    handles = getattr(world, "handles", None)
-    objects = getattr(handles, "objects", {}) if handles is not None else {}
+    objects = world.handles.objects
     for o in plan.objects:
         if o.name in skip or o.name not in objects:
             continue
@@ -103,17 +107,16 @@ def scene_boxes(world: Any, exclude: Iterable[str] = (), radius: float = OBSTACL
         sx, sy, sz = object_size(o.category)
         r = sapien.Pose(p.p, p.q).to_transformation_matrix()[:3, :3]
         yaw = math.atan2(r[1, 0], r[0, 0])
-        boxes.append(Box(f"object_{o.name}", tuple(float(v) for v in p.p), (sx, sy, sz), yaw))
+        boxes.append(Box(f"object_{o.name}", (float(p.p[0]), float(p.p[1]), float(p.p[2])), (sx, sy, sz), yaw))
     return boxes
 
 
-def arm_planner(world: Any, exclude: Iterable[str] = (), extra: Sequence[Box] = ()) -> ArmPlanner:
+def arm_planner(world: World, exclude: Iterable[str] = (), extra: Sequence[Box] = ()) -> ArmPlanner:
     """The world's ArmPlanner (one per world, seeded by the episode), synced to the robot now."""
-    planner = getattr(world, "_arm_planner", None)
+    planner = world.arm_planner
     if planner is None:
-        seed = int(getattr(getattr(world, "spec", None), "seed", 0)) & 0xFFFF_FFFF
-        planner = ArmPlanner(seed=seed)
-        world._arm_planner = planner
+        planner = ArmPlanner(seed=int(world.spec.seed) & 0xFFFF_FFFF)
+        world.arm_planner = planner
     robot: Robot = world.robot
     planner.sync(robot.base_pose(), commanded_group(robot), robot.gripper_opening(), (HEAD_PAN, HEAD_TILT))
     planner.set_obstacles(list(scene_boxes(world, exclude)) + list(extra))
@@ -129,7 +132,7 @@ def _action(robot: Robot, g: np.ndarray, gripper: float) -> np.ndarray:
 
 
 def follow_path(
-    world: Any, waypoints: Sequence[np.ndarray], gripper: float | None = None, speed_scale: float = 1.0, settle: bool = True
+    world: World, waypoints: Sequence[np.ndarray], gripper: float | None = None, speed_scale: float = 1.0, settle: bool = True
 ) -> Actions:
     """Yield actions that move (torso, arm) through `waypoints` at bounded joint speeds.
 
@@ -158,7 +161,7 @@ def follow_path(
     return n
 
 
-def set_gripper(world: Any, opening: float, steps: int = 8) -> Actions:
+def set_gripper(world: World, opening: float, steps: int = 8) -> Actions:
     """Hold the arm and drive the gripper to `opening` (m) for `steps` control steps."""
     robot: Robot = world.robot
     for _ in range(steps):
@@ -168,7 +171,7 @@ def set_gripper(world: Any, opening: float, steps: int = 8) -> Actions:
     return steps
 
 
-def hold(world: Any, steps: int) -> Actions:
+def hold(world: World, steps: int) -> Actions:
     """Yield `steps` rest actions (everything held, base still)."""
     for _ in range(steps):
         yield world.robot.rest_action()

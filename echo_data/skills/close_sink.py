@@ -10,7 +10,7 @@ The lever turns about the vertical axis through `Faucet.pivot` and opens counter
 (`echo_data.scene.articulated`). With the fingers closed and the gripper pitched down, the
 finger block is lowered beside the lever on its opening side (a lead angle ahead of it on
 the contact arc, `CONTACT_INSET` inside the lever tip) and then swept clockwise along the arc past angle 0, so
-the lever is pushed to its closed limit (FINDINGS: 60/60 this way); the water stops. The
+the lever is pushed to its closed limit (docs/SIMULATION_NOTES.md#closing-a-faucet); the water stops. The
 arm then lifts and tucks.
 """
 
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Generator
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,7 +26,7 @@ from echo_data.records import SkillOutcome
 from echo_data.scene.articulated import LEVER_SECTION
 from echo_data.scene.floorplan import Faucet, Furniture
 from echo_data.skills import arm
-from echo_data.skills.open_door import (
+from echo_data.skills.reach import (
     approach_base,
     arm_action,
     near_ik,
@@ -35,6 +36,10 @@ from echo_data.skills.open_door import (
     untuck_waypoints,
 )
 from echo_data.skills.success import sink_closed_success
+
+if TYPE_CHECKING:
+    from echo_data.episode import EpisodeSpec, SkillCall
+    from echo_data.world import World
 
 BASE_RADIUS = 0.28  # m, the robot's base disc
 FRONT_GAP = 0.06  # m between the base disc and the cabinet face, at least
@@ -46,7 +51,7 @@ FINGER_HALF = 0.02  # m, horizontal half-extent of the closed finger block
 CONTACT_CLEAR = 0.006  # m between the finger block and the lever before the sweep
 CONTACT_INSET = 0.025  # m from the lever tip to the contact point
 HOVER = 0.08  # m above the lever before descending
-UNTUCK_BACK = (0.35, 0.25, 0.15)  # m back from the stance where the arm unfolds (FINDINGS: untuck in open space)
+UNTUCK_BACK = (0.35, 0.25, 0.15)  # m back from the stance where the arm unfolds (untuck in open space: docs/SIMULATION_NOTES.md#robot)
 SWEEP_RATE = 0.6  # rad/s of the finger along the arc
 SWEEP_PAST = 0.2  # rad beyond closed the finger aims at (the joint limit stops the lever at 0)
 IK_STEP = 0.15  # rad between IK waypoints along the arc (joint-space lines in between)
@@ -79,13 +84,13 @@ def sink_stances(faucet: Faucet, cabinet: Furniture) -> list[tuple[float, float,
     return out
 
 
-def _base_fits(world: object, x: float, y: float) -> bool:
+def _base_fits(world: World, x: float, y: float) -> bool:
     """True when the base disc at (x, y) keeps BASE_CLEARANCE from walls, furniture and door leaves.
 
     Exact geometry rather than the navigation grid, whose cells and comfort margin reject
     stances the base fits in (a stance is reached by a straight, slow approach).
     """
-    plan = world.plan  # type: ignore[attr-defined]
+    plan = world.plan
     need = BASE_RADIUS + BASE_CLEARANCE
     rects = [w.footprint for w in plan.walls] + [f.footprint for f in plan.furniture]
     for r in rects:
@@ -93,7 +98,7 @@ def _base_fits(world: object, x: float, y: float) -> bool:
         dy = max(r.ymin - y, 0.0, y - r.ymax)
         if math.hypot(dx, dy) < need:
             return False
-    angles = world.handles.door_angles()  # type: ignore[attr-defined]
+    angles = world.handles.door_angles()
     for d in plan.doors:
         a = np.array(d.hinge)
         b = np.array(d.free_edge(angles.get(d.index, d.angle)))
@@ -103,7 +108,7 @@ def _base_fits(world: object, x: float, y: float) -> bool:
     return True
 
 
-def _step_back(world: object, pose: tuple[float, float, float]) -> tuple[float, float, float]:
+def _step_back(world: World, pose: tuple[float, float, float]) -> tuple[float, float, float]:
     """The pose the first of UNTUCK_BACK behind `pose` (along its heading) where the base fits."""
     x, y, yaw = pose
     for back in UNTUCK_BACK:
@@ -139,7 +144,7 @@ def _sweep_waypoints(faucet: Faucet, angle: float) -> tuple[list[float], float]:
 
 
 def _solve_sweep(
-    world: object, faucet: Faucet, angle: float, stance: tuple[float, float, float]
+    world: World, faucet: Faucet, angle: float, stance: tuple[float, float, float]
 ) -> tuple[np.ndarray, list[np.ndarray]] | None:
     """IK (torso fixed) for the hover point and every arc waypoint from `stance`, each seeded by the previous."""
     planner = planner_at(world, stance)
@@ -161,15 +166,15 @@ def _solve_sweep(
     return hover, sweep
 
 
-def close_sink(world: object, call: object, spec: object) -> Generator[np.ndarray, None, SkillOutcome]:
+def close_sink(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
     """The CloseSink expert for `call.target` = "faucet:<i>" (see the module docstring)."""
-    skill, target = call.skill, call.target  # type: ignore[attr-defined]
-    robot = world.robot  # type: ignore[attr-defined]
+    skill, target = call.skill, call.target
+    robot = world.robot
     max_steps = int(robot.cfg.max_steps["CloseSink"])
     i = int(target.partition(":")[2])
-    faucet: Faucet = world.plan.faucets[i]  # type: ignore[attr-defined]
-    cabinet: Furniture = world.plan.furniture[faucet.furniture]  # type: ignore[attr-defined]
-    art = world.handles.faucets[i]  # type: ignore[attr-defined]
+    faucet: Faucet = world.plan.faucets[i]
+    cabinet: Furniture = world.plan.furniture[faucet.furniture]
+    art = world.handles.faucets[i]
     steps = 0
 
     def fail(reason: str) -> SkillOutcome:

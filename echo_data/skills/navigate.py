@@ -11,12 +11,17 @@ from __future__ import annotations
 import math
 from collections.abc import Generator
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from echo_data.records import SkillOutcome
 from echo_data.scene.nav import NavGrid, interaction_pose
 from echo_data.skills.success import navigate_success
+
+if TYPE_CHECKING:
+    from echo_data.episode import EpisodeSpec, SkillCall
+    from echo_data.world import World
 
 # Speed limits and ramps (Fetch's base: ≈1 m/s top speed; slower keeps tracking tight).
 MAX_LIN = 0.6  # m/s
@@ -156,34 +161,29 @@ class DriveResult:
     replans: int = 0
 
 
-def door_angles(world: object) -> dict[int, float]:
+def door_angles(world: World) -> dict[int, float]:
     """Current hinge angle of every door in the world (empty when it has none)."""
-    handles = getattr(world, "handles", None)
-    return handles.door_angles() if handles is not None else {}
+    return world.handles.door_angles()
 
 
-def current_grid(world: object) -> NavGrid:
+def current_grid(world: World) -> NavGrid:
     """The world's occupancy grid with its doors where they stand now (≈2–12 ms to rebuild)."""
-    nav = getattr(world, "nav", None)
-    radius = nav.robot_radius if nav is not None else 0.32
-    resolution = nav.resolution if nav is not None else 0.05
-    return NavGrid.from_plan(world.plan, robot_radius=radius, resolution=resolution, door_angles=door_angles(world))  # type: ignore[attr-defined]
+    nav = world.nav
+    return NavGrid.from_plan(world.plan, robot_radius=nav.robot_radius, resolution=nav.resolution, door_angles=door_angles(world))
 
 
-def robot_collisions(world: object) -> list[str]:
+def robot_collisions(world: World) -> list[str]:
     """Names of walls, furniture, doors or faucets a robot link touches after the last physics step.
 
     The floor and dynamic objects (a carried object, clutter) do not count: a collision here
     is the base or arm hitting the apartment.
     """
-    robot = world.robot  # type: ignore[attr-defined]
+    robot = world.robot
     robot_entities = {ln.entity for ln in robot.articulation.links}
-    handles = getattr(world, "handles", None)
-    solid = set()
-    if handles is not None:
-        solid = {e for e in handles.statics if e.name != "floor"}
-        for art in list(handles.doors) + list(handles.faucets):
-            solid |= {ln.entity for ln in art.links}
+    handles = world.handles
+    solid = {e for e in handles.statics if e.name != "floor"}
+    for art in list(handles.doors) + list(handles.faucets):
+        solid |= {ln.entity for ln in art.links}
     hits = []
     for c in robot.scene.get_contacts():
         e0, e1 = c.bodies[0].entity, c.bodies[1].entity
@@ -203,7 +203,7 @@ def _stalled(history: list[tuple[float, float, float]]) -> bool:
 
 
 def drive_to(
-    world: object,
+    world: World,
     goal: tuple[float, float, float],
     max_steps: int,
     grid: NavGrid | None = None,
@@ -215,7 +215,7 @@ def drive_to(
     carried object stays in hand). Replans from where the robot is when it strays from the
     path or stalls; gives up on MAX_REPLANS failures or COLLISION_STEPS steps in contact.
     """
-    robot = world.robot  # type: ignore[attr-defined]
+    robot = world.robot
     dt = 1.0 / robot.cfg.control_hz
     base_action = (robot.rest_action() if hold is None else np.asarray(hold, dtype=np.float32)).copy()
     base_action[:3] = 0.0
@@ -265,14 +265,14 @@ def drive_to(
     return DriveResult(True, "", steps, replans)
 
 
-def navigate(world: object, call: object, spec: object) -> Generator[np.ndarray, None, SkillOutcome]:
+def navigate(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
     """The Navigate expert: drive to the interaction pose of `call.target` and face it."""
-    robot = world.robot  # type: ignore[attr-defined]
-    skill, target = call.skill, call.target  # type: ignore[attr-defined]
+    robot = world.robot
+    skill, target = call.skill, call.target
     max_steps = int(robot.cfg.max_steps["Navigate"])
     grid = current_grid(world)
     try:
-        goal = interaction_pose(world.plan, target, door_angles=door_angles(world) or None, grid=grid)  # type: ignore[attr-defined]
+        goal = interaction_pose(world.plan, target, door_angles=door_angles(world) or None, grid=grid)
     except ValueError:
         return SkillOutcome(skill, target, False, "no_path", 0)
     result = yield from drive_to(world, goal, max_steps, grid=grid)

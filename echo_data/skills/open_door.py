@@ -8,7 +8,7 @@ stance: 0.88 m from the swing-side handle bar along the leaf normal and 0.3 m to
 hinge, facing the leaf — the first of `STANCES` whose whole swing stays on free floor and
 whose grasp the arm reaches.
 
-Then (FINDINGS: 19-20/20 this way): reach a pre-grasp 7 cm in front of the bar with a
+Then (docs/SIMULATION_NOTES.md#door-opening): reach a pre-grasp 7 cm in front of the bar with a
 planned arm motion, move in, close the fingers on the vertical bar; once both fingers touch
 the bar the world completes the grasp with a stiff drive between gripper and leaf (a heavy
 door otherwise slips out of a parallel gripper; see `echo_data.world`). The base then turns about the hinge as one rigid
@@ -22,18 +22,30 @@ from __future__ import annotations
 
 import math
 from collections.abc import Generator
-from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import sapien
 
-from echo_data.records import ACTION_DIM, SkillOutcome
-from echo_data.robot.planner import ArmPlanner, Box
-from echo_data.robot.robot import HEAD_PAN, HEAD_TILT
-from echo_data.scene.articulated import door_handle_world
+from echo_data.records import SkillOutcome
+from echo_data.scene.door_handle import door_handle_world
 from echo_data.scene.floorplan import Door
 from echo_data.skills import arm
+from echo_data.skills.reach import (
+    Moved,
+    approach_base,
+    arm_action,
+    near_ik,
+    planner_at,
+    reach_ik,
+    tuck_arm,
+    untuck_waypoints,
+    wrap,
+)
 from echo_data.skills.success import DOOR_REST_QVEL, door_open_success
+
+if TYPE_CHECKING:
+    from echo_data.episode import EpisodeSpec, SkillCall
+    from echo_data.world import World
 
 # Grasp stances, preferred first: (distance from the bar along the leaf normal, shift along the
 # leaf towards its free edge). Standing 0.3 m towards the hinge keeps the swing radius small
@@ -43,150 +55,12 @@ STANCES = ((0.88, -0.3), (0.95, -0.3), (0.88, -0.15), (0.95, -0.15), (0.95, 0.0)
 PREGRASP_BACK = 0.07  # m, pre-grasp in front of the bar (4 cm clear of the open fingers)
 GRASP_TORSO = 0.15  # m, preferred torso height for a handle at ≈1 m
 SWING_RATE = 0.35  # rad/s hinge rate while the base swings
-SWING_RAMP = 1.0  # s, velocity ramp at the start of the swing (FINDINGS)
+SWING_RAMP = 1.0  # s, velocity ramp at the start of the swing (docs/SIMULATION_NOTES.md#door-opening)
 K_POSE = 2.0  # 1/s, base pose feedback during the swing
 OPEN_MARGIN = 0.12  # rad beyond the open threshold before letting go
 LOST_GRIP = 0.35  # rad between commanded and measured hinge angle: the handle slipped
 BACK_OFF = 0.15  # m the base backs away after letting go
-
-# ---------------------------------------------------------------------------------------------
-# Helpers shared with the CloseSink expert: planning on `echo_data.robot.planner.ArmPlanner`
-# (via `echo_data.skills.arm`) from a stance the base has not reached yet, a short holonomic
-# base approach.
-
 REACH_REF = np.array([0.0, -1.0, 0.0, 1.6, 0.0, -0.6, 0.0])  # arm bent forward: IK reference
-APPROACH_SPEED = 0.4  # m/s, final base approach
-APPROACH_MIN_SPEED = 0.04  # m/s, so the last centimetres do not crawl
-APPROACH_TURN = 0.8  # rad/s
-APPROACH_TOL = 0.015  # m
-APPROACH_YAW_TOL = math.radians(1.5)
-
-
-def wrap(a: float) -> float:
-    """Angle wrapped to (-pi, pi]."""
-    return math.remainder(a, 2.0 * math.pi)
-
-
-def door_boxes(world: object) -> list[Box]:
-    """Door leaves at their current hinge angles (handles left out: the gripper takes them) and
-    the floor, as planner boxes; `arm.scene_boxes` has walls, furniture and objects."""
-    plan = world.plan  # type: ignore[attr-defined]
-    angles = world.handles.door_angles()  # type: ignore[attr-defined]
-    x, y, _ = world.robot.base_pose()  # type: ignore[attr-defined]
-    boxes = [Box("floor", (x, y, -0.05), (6.0, 6.0, 0.1))]
-    for d in plan.doors:
-        yaw = d.leaf_yaw(angles.get(d.index, d.angle))
-        mid = (d.hinge[0] + d.width / 2.0 * math.cos(yaw), d.hinge[1] + d.width / 2.0 * math.sin(yaw))
-        if math.hypot(mid[0] - x, mid[1] - y) < arm.OBSTACLE_RADIUS + d.width:
-            boxes.append(Box(f"door_{d.index}", (mid[0], mid[1], d.height / 2.0), (d.width, d.thickness, d.height), yaw))
-    return boxes
-
-
-def planner_at(world: object, base: tuple[float, float, float] | None = None) -> ArmPlanner:
-    """The world's arm planner with the apartment's nearby boxes, its base at `base` (default: where it is)."""
-    robot = world.robot  # type: ignore[attr-defined]
-    planner = arm.arm_planner(world, extra=door_boxes(world))
-    if base is not None:
-        planner.sync(base, arm.commanded_group(robot), robot.gripper_opening(), (HEAD_PAN, HEAD_TILT))
-        planner.set_obstacles(arm.scene_boxes(world) + door_boxes(world))  # re-expressed in the new base frame
-    return planner
-
-
-def tcp_pose(position: np.ndarray, rotation: np.ndarray) -> sapien.Pose:
-    """A world TCP pose from a position and a 3x3 rotation (columns: approach, finger travel, normal)."""
-    m = np.eye(4)
-    m[:3, :3] = rotation
-    m[:3, 3] = position
-    return sapien.Pose(m)
-
-
-def reach_ik(planner: ArmPlanner, position: np.ndarray, rotation: np.ndarray, torso: float, ref: np.ndarray, fix_torso: bool = False) -> np.ndarray | None:
-    """IK for a first reach: the solution nearest the reference arm shape `ref` at `torso`."""
-    return planner.ik(tcp_pose(position, rotation), np.concatenate([[torso], ref]), fix_torso=fix_torso, tries=40)
-
-
-def near_ik(planner: ArmPlanner, position: np.ndarray, rotation: np.ndarray, seed: np.ndarray, fix_torso: bool = False) -> np.ndarray | None:
-    """IK next to `seed` (smooth sequences): None when only a different arm branch reaches it."""
-    q = planner.ik(tcp_pose(position, rotation), seed, fix_torso=fix_torso, tries=8)
-    if q is None or float(np.max(np.abs(q - seed))) > 0.6:
-        return None
-    return q
-
-
-def arm_action(robot: object, q: np.ndarray, gripper: float, base: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
-    """An action holding torso + arm at `q` (8 values) and the gripper at `gripper` (m)."""
-    a = np.zeros(ACTION_DIM, dtype=np.float32)
-    a[0:3] = base
-    a[3] = q[0]
-    a[4:11] = q[1:8]
-    a[11] = gripper
-    return a
-
-
-@dataclass
-class Moved:
-    """How a base approach ended."""
-
-    success: bool
-    reason: str
-    steps: int
-
-
-def approach_base(
-    world: object, goal: tuple[float, float, float], hold: np.ndarray, max_steps: int
-) -> Generator[np.ndarray, None, Moved]:
-    """Drive the (holonomic) base straight to a nearby pose, holding torso/arm/gripper as in `hold`.
-
-    For the last few decimetres in front of a door or counter, where the path is clear by
-    construction of the interaction pose; longer trips are Navigate's job.
-    """
-    robot = world.robot  # type: ignore[attr-defined]
-    steps = 0
-    while True:
-        x, y, yaw = robot.base_pose()
-        ex, ey, eyaw = goal[0] - x, goal[1] - y, wrap(goal[2] - yaw)
-        if math.hypot(ex, ey) < APPROACH_TOL and abs(eyaw) < APPROACH_YAW_TOL:
-            break
-        if steps >= max_steps:
-            return Moved(False, "timeout", steps)
-        c, s = math.cos(yaw), math.sin(yaw)
-        v = 2.0 * np.array([c * ex + s * ey, -s * ex + c * ey])
-        speed = float(np.linalg.norm(v))
-        if speed > APPROACH_SPEED:
-            v *= APPROACH_SPEED / speed
-        elif 0.0 < speed < APPROACH_MIN_SPEED:
-            v *= APPROACH_MIN_SPEED / speed
-        action = np.array(hold, dtype=np.float32)
-        action[0:3] = (v[0], v[1], float(np.clip(2.0 * eyaw, -APPROACH_TURN, APPROACH_TURN)))
-        yield action
-        steps += 1
-    stop = np.array(hold, dtype=np.float32)
-    stop[0:3] = 0.0
-    yield stop
-    return Moved(True, "", steps + 1)
-
-
-def untuck_waypoints(start: np.ndarray, goal: np.ndarray) -> list[np.ndarray]:
-    """Joint waypoints from `start` to a reach `goal`: out of the tuck with the upper arm raised
-    while the torso already travels (shorter than passing through the robot's READY pose)."""
-    if not arm.is_tucked(start):
-        return [start, goal]
-    raised = arm.tuck_group(float(goal[0]))
-    raised[2] = arm.UNTUCK_LIFT
-    return [start, raised, goal]
-
-
-def tuck_arm(world: object, gripper: float) -> Generator[np.ndarray, None, int | None]:
-    """Bring the arm back into the tuck (upper arm raised on the way in); None when no path is found."""
-    robot = world.robot  # type: ignore[attr-defined]
-    planner = planner_at(world)
-    start = arm.commanded_group(robot)
-    raised = arm.tuck_group(float(start[0]))
-    raised[2] = arm.UNTUCK_LIFT
-    path = arm.plan_through(planner, [start, raised, arm.tuck_group(float(start[0]))], gripper=gripper)
-    if path is None:
-        return None
-    return (yield from arm.follow_path(world, path, gripper=gripper))
 
 
 def _swing_frame(door: Door) -> tuple[np.ndarray, np.ndarray]:
@@ -214,11 +88,9 @@ def door_stances(door: Door, q: float = 0.0) -> list[tuple[float, float, float]]
     return out
 
 
-def _swing_is_free(world: object, door: Door, stance: tuple[float, float, float], q0: float, q1: float) -> bool:
+def _swing_is_free(world: World, door: Door, stance: tuple[float, float, float], q0: float, q1: float) -> bool:
     """True when the base stays on free floor while it turns about the hinge from q0 to q1."""
-    grid = getattr(world, "nav", None)
-    if grid is None:
-        return True
+    grid = world.nav
     hinge = np.asarray(door.hinge)
     for q in np.linspace(0.0, q1 - q0, 12):
         p = _rotate_about(np.asarray(stance[:2]), hinge, door.open_sign * float(q))
@@ -241,16 +113,16 @@ def _grasp_rotation(door: Door, q: float) -> np.ndarray:
 
 
 def _swing(
-    world: object, door: Door, art: object, hold: np.ndarray, q_goal: float, max_steps: int
+    world: World, door: Door, art: Any, hold: np.ndarray, q_goal: float, max_steps: int
 ) -> Generator[np.ndarray, None, Moved]:
     """Turn the base about the hinge as one rigid body with the held leaf until the hinge is at
     `q_goal` and at rest: feed-forward rigid rotation (ramped over SWING_RAMP) plus pose feedback."""
-    robot = world.robot  # type: ignore[attr-defined]
+    robot = world.robot
     dt = 1.0 / robot.cfg.control_hz
     hinge = np.asarray(door.hinge)
     x0, y0, yaw0 = robot.base_pose()
     p0 = np.array([x0, y0])
-    q_ref = q_cmd = float(art.get_qpos()[0])  # type: ignore[attr-defined]
+    q_ref = q_cmd = float(art.get_qpos()[0])
     steps = 0
     while True:
         if steps >= max_steps:
@@ -269,22 +141,22 @@ def _swing(
         action[0:3] = (c * v_world[0] + s * v_world[1], -s * v_world[0] + c * v_world[1], wz)
         yield action
         steps += 1
-        q = float(art.get_qpos()[0])  # type: ignore[attr-defined]
+        q = float(art.get_qpos()[0])
         if q_cmd - q > LOST_GRIP:
             return Moved(False, "lost_handle", steps)
-        if q_cmd >= q_goal and q >= door.open_threshold and abs(float(art.get_qvel()[0])) < DOOR_REST_QVEL:  # type: ignore[attr-defined]
+        if q_cmd >= q_goal and q >= door.open_threshold and abs(float(art.get_qvel()[0])) < DOOR_REST_QVEL:
             return Moved(True, "", steps)
 
 
-def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray, None, SkillOutcome]:
+def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
     """The OpenDoor expert for `call.target` = "door:<i>" (see the module docstring)."""
-    skill, target = call.skill, call.target  # type: ignore[attr-defined]
-    robot = world.robot  # type: ignore[attr-defined]
+    skill, target = call.skill, call.target
+    robot = world.robot
     max_steps = int(robot.cfg.max_steps["OpenDoor"])
     dt = 1.0 / robot.cfg.control_hz
     i = int(target.partition(":")[2])
-    door: Door = world.plan.doors[i]  # type: ignore[attr-defined]
-    art = world.handles.doors[i]  # type: ignore[attr-defined]
+    door: Door = world.plan.doors[i]
+    art = world.handles.doors[i]
     leaf = art.links[1]
     steps = 0
 
@@ -308,7 +180,7 @@ def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray
         planner = planner_at(world, stance)
         grasp = reach_ik(planner, handle, rot, GRASP_TORSO, REACH_REF)
         pre = None if grasp is None else near_ik(planner, pre_point, rot, grasp)
-        if pre is not None:
+        if grasp is not None and pre is not None:
             plan_choice = (stance, grasp, pre)
             break
     if plan_choice is None:
@@ -324,10 +196,11 @@ def open_door(world: object, call: object, spec: object) -> Generator[np.ndarray
 
     # 3. arm: out of the tuck to the pre-grasp, straight in, close the fingers
     planner = planner_at(world)  # from where the base really stands
-    q_grasp = near_ik(planner, handle, rot, q_grasp)
-    q_pre = None if q_grasp is None else near_ik(planner, pre_point, rot, q_grasp)
-    if q_grasp is None or q_pre is None:
+    q_near = near_ik(planner, handle, rot, q_grasp)
+    q_back = None if q_near is None else near_ik(planner, pre_point, rot, q_near)
+    if q_near is None or q_back is None:
         return fail("no_ik")
+    q_grasp, q_pre = q_near, q_back
     path = arm.plan_through(planner, untuck_waypoints(arm.commanded_group(robot), q_pre), gripper=arm.GRIPPER_OPEN)
     if path is None:
         return fail("arm_plan_failed")

@@ -11,7 +11,8 @@ teleported: the object stays in the hand by friction alone.
 from __future__ import annotations
 
 import math
-from typing import Any, Generator
+from collections.abc import Generator
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,37 +20,18 @@ from echo_data.records import SkillOutcome
 from echo_data.robot.robot import GRIPPER_OPEN, yaw_of
 from echo_data.scene.objects import object_size
 from echo_data.skills import arm
+from echo_data.skills.budget import Budget, SkillFailed
 from echo_data.skills.success import object_bottom, pick_success
+
+if TYPE_CHECKING:
+    from echo_data.episode import EpisodeSpec, SkillCall
+    from echo_data.world import World
 
 PRE_GRASP_HEIGHT = 0.12  # m above the grasp point
 LIFT_HEIGHT = 0.15  # m
 GRASP_BELOW_TOP = 0.03  # m: pads centred this far below the object's top ...
 GRASP_ABOVE_BOTTOM = 0.010  # ... but the TCP at least this high above its bottom (tips clear the table)
 CLOSE_STEPS = 8
-SLOW = 0.35  # speed scale of the descend / lift moves
-
-
-class SkillFailed(Exception):
-    """An expert stops with this reason."""
-
-
-class Budget:
-    """Counts the actions an expert yields and stops it at the step limit ("timeout")."""
-
-    def __init__(self, max_steps: int) -> None:
-        self.max_steps = max_steps
-        self.steps = 0
-
-    def run(self, gen: Generator[np.ndarray, None, Any]) -> Generator[np.ndarray, None, Any]:
-        try:
-            while True:
-                action = next(gen)
-                if self.steps >= self.max_steps:
-                    raise SkillFailed("timeout")
-                self.steps += 1
-                yield action
-        except StopIteration as stop:
-            return stop.value
 
 
 def grasp_height(bottom: float, sz: float) -> float:
@@ -57,7 +39,7 @@ def grasp_height(bottom: float, sz: float) -> float:
     return max(bottom + GRASP_ABOVE_BOTTOM, bottom + sz - GRASP_BELOW_TOP)
 
 
-def pick(world: Any, call: Any, spec: Any) -> Generator[np.ndarray, None, SkillOutcome]:
+def pick(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
     """Pick expert (generator of actions; returns the SkillOutcome)."""
     robot = world.robot
     budget = Budget(int(robot.cfg.max_steps["Pick"]))
@@ -74,7 +56,7 @@ def pick(world: Any, call: Any, spec: Any) -> Generator[np.ndarray, None, SkillO
     return SkillOutcome(call.skill, name, ok, reason, budget.steps)
 
 
-def _pick(world: Any, name: str, budget: Budget) -> Generator[np.ndarray, None, None]:
+def _pick(world: World, name: str, budget: Budget) -> Generator[np.ndarray, None, None]:
     robot = world.robot
     plan = world.plan
     obj = plan.object_by_name(name)
@@ -101,7 +83,7 @@ def _pick(world: Any, name: str, budget: Budget) -> Generator[np.ndarray, None, 
     if path is None:
         raise SkillFailed("no motion plan")
     yield from arm.follow_path(world, path, gripper=GRIPPER_OPEN)
-    yield from arm.follow_path(world, list(descent), gripper=GRIPPER_OPEN, speed_scale=SLOW)
+    yield from arm.follow_path(world, list(descent), gripper=GRIPPER_OPEN, speed_scale=arm.SLOW)
     yield from arm.set_gripper(world, 0.0, CLOSE_STEPS)
     if robot.holding != name:
         raise SkillFailed("grasp missed")
@@ -111,7 +93,7 @@ def _pick(world: Any, name: str, budget: Budget) -> Generator[np.ndarray, None, 
     lift = arm.cartesian_path(planner, here, arm.line_poses(grasp_pose, lift_to))
     if lift is None:
         raise SkillFailed("no IK solution")
-    yield from arm.follow_path(world, lift, speed_scale=SLOW)
+    yield from arm.follow_path(world, lift, speed_scale=arm.SLOW)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
     # carry: back to READY with the object attached (as a box) where it hangs now
@@ -127,7 +109,7 @@ def _pick(world: Any, name: str, budget: Budget) -> Generator[np.ndarray, None, 
         raise SkillFailed("grasp slipped")
 
 
-def _grasp_plan(world: Any, name: str, ox: float, oy: float, oyaw: float, gz: float) -> tuple[float, np.ndarray, np.ndarray, float] | None:
+def _grasp_plan(world: World, name: str, ox: float, oy: float, oyaw: float, gz: float) -> tuple[float, np.ndarray, np.ndarray, float] | None:
     """(cost, pre-grasp q, descent path, jaw yaw) of the cheapest top-down grasp from here."""
     planner = arm.arm_planner(world, exclude={name})
     ready = arm.untuck_waypoints(arm.commanded_group(world.robot))[-1]
@@ -151,7 +133,7 @@ APPROACH_SPEED = 0.25  # m/s
 APPROACH_TURN = 0.8  # rad/s
 
 
-def _approach(world: Any, ox: float, oy: float) -> Generator[np.ndarray, None, bool]:
+def _approach(world: World, ox: float, oy: float) -> Generator[np.ndarray, None, bool]:
     """Drive the base (holonomic, straight) to a free stance facing the object; False if none."""
     robot = world.robot
     x, y, _ = robot.base_pose()

@@ -14,7 +14,8 @@ Step limits: the drive may use max_steps["Navigate"], the arm work max_steps["Pl
 from __future__ import annotations
 
 import math
-from typing import Any, Generator
+from collections.abc import Generator
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,8 +23,12 @@ from echo_data.records import SkillOutcome
 from echo_data.robot.robot import GRIPPER_OPEN
 from echo_data.scene.objects import object_size
 from echo_data.skills import arm
-from echo_data.skills.pick import SLOW, Budget, SkillFailed
+from echo_data.skills.budget import Budget, SkillFailed
 from echo_data.skills.success import object_bottom, place_success
+
+if TYPE_CHECKING:
+    from echo_data.episode import EpisodeSpec, SkillCall
+    from echo_data.world import World
 
 ABOVE = 0.08  # m: object bottom above the top before the final descent
 RELEASE_GAP = 0.012  # m: object bottom above the top when the fingers open (drops the rest)
@@ -42,7 +47,7 @@ TUCK_SPEED = 1.4  # speed scale of the empty-handed tuck (1.8 rad/s, within Fetc
 CARRY_DRIVE_GROUP = np.array([0.386, 1.134, -0.888, -2.298, 2.032, 0.491, 1.601, 1.868])
 
 
-def held_object(world: Any, call: Any, spec: Any) -> str | None:
+def held_object(world: World, call: SkillCall, spec: EpisodeSpec) -> str | None:
     """The object to place: what the robot holds, else the event's target object."""
     name = world.robot.holding
     if name is not None:
@@ -53,7 +58,7 @@ def held_object(world: Any, call: Any, spec: Any) -> str | None:
         return None
 
 
-def place_spots(world: Any, name: str, furniture: int) -> list[tuple[float, float]]:
+def place_spots(world: World, name: str, furniture: int) -> list[tuple[float, float]]:
     """Free points on the top of `furniture` within reach of the base, best first."""
     plan = world.plan
     f = plan.furniture[furniture]
@@ -84,7 +89,7 @@ def place_spots(world: Any, name: str, furniture: int) -> list[tuple[float, floa
     return [(x, y) for _, x, y in spots]
 
 
-def place(world: Any, call: Any, spec: Any) -> Generator[np.ndarray, None, SkillOutcome]:
+def place(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
     """Place expert (generator of actions; returns the SkillOutcome)."""
     robot = world.robot
     # Place includes a drive across the apartment: the drive gets Navigate's step limit, the
@@ -105,13 +110,13 @@ def place(world: Any, call: Any, spec: Any) -> Generator[np.ndarray, None, Skill
     except SkillFailed as e:
         return SkillOutcome(call.skill, call.target, False, str(e), drive_budget.steps + budget.steps)
     ok = place_success(world, name, goal)
-    if ok and isinstance(getattr(world, "receptacles", None), dict):
+    if ok:
         world.receptacles[name] = goal
     reason = "" if ok else ("still held" if robot.holding == name else "not on goal")
     return SkillOutcome(call.skill, call.target, ok, reason, drive_budget.steps + budget.steps)
 
 
-def _drive(world: Any, goal: int, budget: Budget) -> Generator[np.ndarray, None, None]:
+def _drive(world: World, goal: int, budget: Budget) -> Generator[np.ndarray, None, None]:
     from echo_data.scene.nav import interaction_pose
     from echo_data.skills.navigate import current_grid, door_angles, drive_to
 
@@ -125,11 +130,11 @@ def _drive(world: Any, goal: int, budget: Budget) -> Generator[np.ndarray, None,
     result = yield from drive_to(world, pose, budget.max_steps - budget.steps, grid=grid, hold=world.robot.rest_action())
     if not result.success:
         raise SkillFailed(result.reason)
-    if folded:
-        yield from _fold(world, name, arm.READY_GROUP)  # type: ignore[arg-type]
+    if folded and name is not None:
+        yield from _fold(world, name, arm.READY_GROUP)
 
 
-def _fold(world: Any, name: str, goal: np.ndarray) -> Generator[np.ndarray, None, bool]:
+def _fold(world: World, name: str, goal: np.ndarray) -> Generator[np.ndarray, None, bool]:
     """Move the arm, object in hand, to `goal` (torso + arm) on a collision-free path; False if none."""
     robot = world.robot
     o = world.plan.object_by_name(name)
@@ -144,7 +149,7 @@ def _fold(world: Any, name: str, goal: np.ndarray) -> Generator[np.ndarray, None
     return True
 
 
-def _place(world: Any, name: str, goal: int) -> Generator[np.ndarray, None, None]:
+def _place(world: World, name: str, goal: int) -> Generator[np.ndarray, None, None]:
     robot = world.robot
     plan = world.plan
     top = plan.furniture[goal].top_z
@@ -185,13 +190,13 @@ def _place(world: Any, name: str, goal: int) -> Generator[np.ndarray, None, None
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
     yield from arm.hold(world, 2)  # let a swinging object come to rest before going down
-    yield from arm.follow_path(world, descent, speed_scale=SLOW)
+    yield from arm.follow_path(world, descent, speed_scale=arm.SLOW)
     yield from arm.set_gripper(world, GRIPPER_OPEN, OPEN_STEPS)
     up = arm.top_down_pose(float(down.p[0]), float(down.p[1]), float(down.p[2]) + RETREAT, arm.jaw_yaw(down))
     retreat = arm.cartesian_path(planner, descent[-1], arm.line_poses(down, up), gripper=GRIPPER_OPEN)
     if retreat is None:
         raise SkillFailed("no IK solution")
-    yield from arm.follow_path(world, retreat, gripper=GRIPPER_OPEN, speed_scale=SLOW)
+    yield from arm.follow_path(world, retreat, gripper=GRIPPER_OPEN, speed_scale=arm.SLOW)
     planner = arm.arm_planner(world)
     home = arm.plan_through(planner, arm.tuck_waypoints(np.asarray(retreat[-1])), gripper=GRIPPER_OPEN)
     if home is None:

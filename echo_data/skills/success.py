@@ -1,4 +1,4 @@
-"""Success tests of the skills (Habitat-style criteria, see SPEC §4), read from the live world.
+"""Success tests of the skills (Habitat-style criteria, docs/SIMULATION_NOTES.md#success-tests), read from the live world.
 
 Shared file: Pick/Place here; navigation, door and sink owners add theirs below.
 """
@@ -6,11 +6,14 @@ Shared file: Pick/Place here; navigation, door and sink owners add theirs below.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from echo_data.scene.objects import object_size
+
+if TYPE_CHECKING:
+    from echo_data.world import World
 
 # ------------------------------------------------------------------ Pick / Place
 LIFT_MIN = 0.05  # m: object bottom above its receptacle top for a pick
@@ -20,20 +23,19 @@ PLACE_HEIGHT_TOL = 0.02  # m: object bottom within this of the goal's top
 REST_SPEED = 0.05  # m/s: an object slower than this is at rest
 
 
-def object_bottom(world: Any, name: str) -> float:
+def object_bottom(world: World, name: str) -> float:
     """z of the lowest point of the object's collision box (upright objects)."""
     o = world.plan.object_by_name(name)
     p = world.handles.objects[name].pose
     return float(p.p[2]) - object_size(o.category)[2] / 2.0
 
 
-def receptacle_of(world: Any, name: str) -> int:
+def receptacle_of(world: World, name: str) -> int:
     """Furniture index the object rests on (before a pick): the world's record, else the plan's."""
-    known = getattr(world, "receptacles", None) or {}
-    return int(known.get(name, world.plan.object_by_name(name).receptacle))
+    return int(world.receptacles.get(name, world.plan.object_by_name(name).receptacle))
 
 
-def tcp_in_base(world: Any) -> np.ndarray:
+def tcp_in_base(world: World) -> np.ndarray:
     """TCP position in the base frame (x forward, y left, z above the floor)."""
     x, y, yaw = world.robot.base_pose()
     p = np.asarray(world.robot.ee_pose().p, dtype=np.float64)
@@ -42,11 +44,11 @@ def tcp_in_base(world: Any) -> np.ndarray:
     return np.array([c * dx + s * dy, -s * dx + c * dy, p[2]])
 
 
-def arm_at_carry(world: Any) -> bool:
+def arm_at_carry(world: World) -> bool:
     return bool(np.linalg.norm(tcp_in_base(world) - np.asarray(CARRY_TCP)) <= CARRY_TOL)
 
 
-def pick_success(world: Any, name: str) -> bool:
+def pick_success(world: World, name: str) -> bool:
     """Held between both fingers, bottom >= LIFT_MIN above its receptacle's top, arm at the carry pose."""
     if world.robot.holding != name:
         return False
@@ -54,14 +56,14 @@ def pick_success(world: Any, name: str) -> bool:
     return object_bottom(world, name) >= top + LIFT_MIN and arm_at_carry(world)
 
 
-def object_speed(world: Any, name: str) -> float:
+def object_speed(world: World, name: str) -> float:
     import sapien
 
     body = world.handles.objects[name].find_component_by_type(sapien.physx.PhysxRigidDynamicComponent)
     return float(np.linalg.norm(body.linear_velocity))
 
 
-def place_success(world: Any, name: str, goal_furniture: int) -> bool:
+def place_success(world: World, name: str, goal_furniture: int) -> bool:
     """At rest on the goal receptacle: bottom within PLACE_HEIGHT_TOL of its top, centre inside its footprint, not held."""
     f = world.plan.furniture[goal_furniture]
     p = world.handles.objects[name].pose.p
@@ -71,11 +73,11 @@ def place_success(world: Any, name: str, goal_furniture: int) -> bool:
 
 
 # ------------------------------------------------------------------ Navigate
-NAV_SUCCESS_DIST = 1.5  # m from the target's interaction point (SPEC §4, Habitat's criterion)
+NAV_SUCCESS_DIST = 1.5  # m from the target's interaction point (Habitat's criterion, docs/SIMULATION_NOTES.md#success-tests)
 NAV_SUCCESS_YAW = math.radians(15)  # base heading vs the bearing to the target
 
 
-def navigate_success(world: Any, target: str, grid: Any = None) -> bool:
+def navigate_success(world: World, target: str, grid: Any = None) -> bool:
     """Base within NAV_SUCCESS_DIST of the target's interaction point and facing the target.
 
     Facing: the base heading points at the target (object centre, swing-side door handle,
@@ -85,11 +87,9 @@ def navigate_success(world: Any, target: str, grid: Any = None) -> bool:
     from echo_data.scene.nav import NavGrid, interaction_pose, target_point
 
     plan = world.plan
-    angles = world.handles.door_angles() if getattr(world, "handles", None) is not None else {}
-    nav = getattr(world, "nav", None)
-    radius = nav.robot_radius if nav is not None else 0.32
+    angles = world.handles.door_angles()
     if grid is None:
-        grid = NavGrid.from_plan(plan, robot_radius=radius, door_angles=angles)
+        grid = NavGrid.from_plan(plan, robot_radius=world.nav.robot_radius, door_angles=angles)
     x, y, yaw = world.robot.base_pose()
     try:
         px, py, _ = interaction_pose(plan, target, door_angles=angles or None, grid=grid)
@@ -104,15 +104,15 @@ def navigate_success(world: Any, target: str, grid: Any = None) -> bool:
 DOOR_REST_QVEL = 0.05  # rad/s: a door whose hinge turns slower than this is at rest
 
 
-def door_open_success(world: Any, i: int) -> bool:
-    """Door i's hinge angle is at least its `open_threshold` and the leaf is at rest (SPEC §4)."""
+def door_open_success(world: World, i: int) -> bool:
+    """Door i's hinge angle is at least its `open_threshold` and the leaf is at rest (docs/SIMULATION_NOTES.md#success-tests)."""
     door = world.plan.doors[i]
     art = world.handles.doors[i]
     return float(art.get_qpos()[0]) >= door.open_threshold and abs(float(art.get_qvel()[0])) < DOOR_REST_QVEL
 
 
-def sink_closed_success(world: Any, i: int) -> bool:
-    """Faucet i's lever is within its `closed_tolerance` of 0 and its water stream is off (SPEC §4)."""
+def sink_closed_success(world: World, i: int) -> bool:
+    """Faucet i's lever is within its `closed_tolerance` of 0 and its water stream is off (docs/SIMULATION_NOTES.md#success-tests)."""
     faucet = world.plan.faucets[i]
     angle = float(world.handles.faucets[i].get_qpos()[0])
     stream = world.handles.water[i]

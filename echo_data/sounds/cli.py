@@ -5,18 +5,23 @@ from __future__ import annotations
 import json
 from dataclasses import asdict
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING
 
 import typer
 
+from echo_data.categories import CATEGORIES
+
+if TYPE_CHECKING:
+    from echo_data.sounds.library import SoundInstance, SoundLibrary
+
 sounds_app = typer.Typer(add_completion=False, no_args_is_help=True, help="List and export the sound library.")
 
-_CATEGORY = typer.Option(None, "--category", "-c", help="Only this category (phone, alarm, furby, doorbell, sink).")
+_CATEGORY = typer.Option(None, "--category", "-c", help=f"Only this category ({', '.join(CATEGORIES)}).")
 _SPLIT = typer.Option(None, "--split", "-s", help="Only this split (train or test).")
 _RECIPE = typer.Option(None, "--recipe", "-r", help="Use this recipe's sounds (built-ins and/or its WAV folders).")
 
 
-def _library(recipe: Optional[Path]):  # type: ignore[no-untyped-def]
+def _library(recipe: Path | None) -> SoundLibrary:
     from echo_data.recipe import RecipeError, load_recipe
     from echo_data.sounds import SoundLibrary, SoundLibraryError
 
@@ -29,7 +34,7 @@ def _library(recipe: Optional[Path]):  # type: ignore[no-untyped-def]
         raise typer.Exit(2) from None
 
 
-def _select(lib, category: Optional[str], split: Optional[str]):  # type: ignore[no-untyped-def]
+def _select(lib: SoundLibrary, category: str | None, split: str | None) -> list[SoundInstance]:
     try:
         return lib.instances(category=category, split=split)
     except ValueError as e:
@@ -40,9 +45,9 @@ def _select(lib, category: Optional[str], split: Optional[str]):  # type: ignore
 @sounds_app.command("list")
 def list_sounds(
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list of {id, category, split, duration, source}."),
-    category: Optional[str] = _CATEGORY,
-    split: Optional[str] = _SPLIT,
-    recipe: Optional[Path] = _RECIPE,
+    category: str | None = _CATEGORY,
+    split: str | None = _SPLIT,
+    recipe: Path | None = _RECIPE,
 ) -> None:
     """Every sound instance with id, category, split, loop duration and source (builtin or file)."""
     items = _select(_library(recipe), category, split)
@@ -59,11 +64,11 @@ def list_sounds(
 @sounds_app.command("export")
 def export_sounds(
     out_dir: Path = typer.Argument(..., help="Folder to write <id>.wav files into (created if missing)."),
-    category: Optional[str] = _CATEGORY,
-    split: Optional[str] = _SPLIT,
+    category: str | None = _CATEGORY,
+    split: str | None = _SPLIT,
     seconds: float = typer.Option(3.0, "--seconds", min=0.01, max=600.0, help="Length of each file (the loop repeated)."),
     sample_rate: int = typer.Option(16000, "--sample-rate", min=8000, max=96000, help="Sample rate of the files."),
-    recipe: Optional[Path] = _RECIPE,
+    recipe: Path | None = _RECIPE,
 ) -> None:
     """Write the dry instances as 16-bit WAV files so a person can listen to them."""
     import soundfile as sf

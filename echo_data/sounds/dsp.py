@@ -7,8 +7,8 @@ exactly periodic: playing it back to back has no discontinuity at the loop point
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from math import gcd
-from typing import Callable, Sequence
 
 import numpy as np
 from scipy.signal import resample_poly
@@ -109,7 +109,7 @@ def partials(
     taus: Sequence[float],
     n: int,
     sr: int,
-    phases: Sequence[float] | None = None,
+    phases: Sequence[float] | np.ndarray | None = None,
     attack: float = 0.002,
 ) -> np.ndarray:
     """Sum of exponentially decaying sinusoids (bells, bars, resonators); partials near Nyquist dropped."""

@@ -7,6 +7,7 @@ that draws train episodes from `instances(split="train")` never plays a test sou
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -14,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from echo_data.categories import CATEGORY_COUNTS
 from echo_data.sounds import synth
 from echo_data.sounds.dsp import peak_normalise
 from echo_data.sounds.user_folders import (
@@ -31,7 +33,7 @@ from echo_data.sounds.user_folders import (
 if TYPE_CHECKING:
     from echo_data.recipe import Recipe
 
-CATEGORIES: tuple[str, ...] = tuple(synth.CATEGORY_COUNTS)
+CATEGORIES: tuple[str, ...] = tuple(CATEGORY_COUNTS)
 SPLITS: tuple[str, ...] = ("train", "test")
 ONSET_FADE_S = 0.005  # raised-cosine fade-in when a sound starts, so an event never clicks on
 
@@ -61,12 +63,12 @@ class SoundLibrary:
             raise SoundLibraryError("duplicate sound instance ids")
 
     @classmethod
-    def builtin(cls) -> "SoundLibrary":
-        """The 113 synthesised instances (alarm 11/5, furby 30/14, phone 19/9, sink 6/3, doorbell 11/5)."""
+    def builtin(cls) -> SoundLibrary:
+        """The 113 synthesised instances (the paper's counts, `echo_data.categories.CATEGORY_COUNTS`)."""
         return cls(_builtin_instances())
 
     @classmethod
-    def from_recipe(cls, recipe: "Recipe", recipe_dir: Path | None = None) -> "SoundLibrary":
+    def from_recipe(cls, recipe: Recipe, recipe_dir: Path | None = None) -> SoundLibrary:
         """Built-ins if `recipe.sounds.builtin`, plus each user folder (relative to `recipe_dir`, default cwd)."""
         cfg = recipe.sounds
         out: list[SoundInstance] = list(_builtin_instances()) if cfg.builtin else []
@@ -80,7 +82,7 @@ class SoundLibrary:
     def __len__(self) -> int:
         return len(self._instances)
 
-    def __iter__(self):  # type: ignore[no-untyped-def]
+    def __iter__(self) -> Iterator[SoundInstance]:
         return iter(self._instances)
 
     def __contains__(self, instance_id: object) -> bool:

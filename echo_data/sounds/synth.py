@@ -11,10 +11,12 @@ has the same melody and rhythm at 16 kHz and at 48 kHz.
 from __future__ import annotations
 
 import zlib
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
+from echo_data.categories import CATEGORY_COUNTS
 from echo_data.sounds.dsp import (
     Loop,
     circular_noise,
@@ -29,15 +31,6 @@ from echo_data.sounds.dsp import (
     shaped_burst,
     smooth_periodic,
 )
-
-# The paper's instance counts per category: (train, test).
-CATEGORY_COUNTS: dict[str, tuple[int, int]] = {
-    "alarm": (11, 5),
-    "furby": (30, 14),
-    "phone": (19, 9),
-    "sink": (6, 3),
-    "doorbell": (11, 5),
-}
 
 # Peak level of one rendered loop per category (dBFS): alarms are shrill and loud, running
 # water is a broadband hiss whose peak-normalised level would otherwise dwarf the others.
