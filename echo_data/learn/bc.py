@@ -52,15 +52,15 @@ class BCConfig:
     val_episodes: list[int] = field(default_factory=list)
 
     @staticmethod
-    def from_dict(d: dict[str, Any]) -> "BCConfig":
+    def from_dict(d: dict[str, Any]) -> BCConfig:
         return BCConfig(**{**d, "inputs": tuple(d["inputs"])})
 
 
 def build_model(cfg: BCConfig) -> Any:
-    from echo_data.learn.models import BCNet
+    from echo_data.learn.models import BCNet, stored_audio_shape
 
     spec = FeatureSpec.from_dict(cfg.features)
-    return BCNet(spec, tuple(cfg.audio_shape) if cfg.audio_shape else None, chunk=cfg.chunk)
+    return BCNet(spec, stored_audio_shape(cfg.audio_shape), chunk=cfg.chunk)
 
 
 def resolve(cfg: BCConfig) -> BCConfig:

@@ -4,18 +4,18 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
 train_app = typer.Typer(add_completion=False, no_args_is_help=True, help="Train reference policies on a dataset (needs the torch extra).")
 
 _Dataset = Annotated[Path, typer.Argument(metavar="DATASET", help="Dataset folder (out/<name>).")]
-_Epochs = Annotated[Optional[int], typer.Option("--epochs", min=1, help="Passes over the training rows.")]
+_Epochs = Annotated[int | None, typer.Option("--epochs", min=1, help="Passes over the training rows.")]
 _Seed = Annotated[int, typer.Option("--seed", help="Seed of initialisation, split and batch order.")]
 _Resume = Annotated[bool, typer.Option("--resume", help="Continue the run in --out from its last checkpoint.")]
 _Overwrite = Annotated[bool, typer.Option("--overwrite", help="Replace the run in --out.")]
-_MaxSteps = Annotated[Optional[int], typer.Option("--max-steps", min=1, help="Stop after this many optimiser steps (checkpointed).")]
+_MaxSteps = Annotated[int | None, typer.Option("--max-steps", min=1, help="Stop after this many optimiser steps (checkpointed).")]
 _Threads = Annotated[int, typer.Option("--threads", min=1, help="torch CPU threads (results are reproducible for a fixed count; 1 is fastest on a busy machine).")]
 _Progress = Annotated[bool, typer.Option("--progress/--no-progress", help="Show progress bars.")]
 
@@ -46,7 +46,7 @@ def bc_cmd(
     inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, depth, state (velocities left out), state_raw (all 25), target.")] = "audio,depth,state",
     epochs: _Epochs = None,
     seed: _Seed = 0,
-    out: Annotated[Optional[Path], typer.Option("--out", help="Run folder (default runs/bc-<skill>-<inputs>).")] = None,
+    out: Annotated[Path | None, typer.Option("--out", help="Run folder (default runs/bc-<skill>-<inputs>).")] = None,
     chunk: Annotated[int, typer.Option("--chunk", min=1, help="Actions predicted per step (action chunking).")] = 1,
     execute: Annotated[int, typer.Option("--execute", min=1, help="Predicted actions executed before predicting again.")] = 1,
     batch_size: Annotated[int, typer.Option("--batch-size", min=1)] = 64,
@@ -82,7 +82,7 @@ def planner_cmd(
     train_frames: Annotated[int, typer.Option("--train-frames", min=1, help="Frames 0..N-1 of each training episode are training examples (test: frame 0).")] = 10,
     epochs: _Epochs = None,
     seed: _Seed = 0,
-    out: Annotated[Optional[Path], typer.Option("--out", help="Run folder (default runs/planner-<inputs>).")] = None,
+    out: Annotated[Path | None, typer.Option("--out", help="Run folder (default runs/planner-<inputs>).")] = None,
     max_steps: _MaxSteps = None,
     threads: _Threads = 1,
     resume: _Resume = False,

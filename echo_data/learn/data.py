@@ -11,9 +11,10 @@ same (episode_index, skill_index) (a chain may Navigate twice).
 from __future__ import annotations
 
 import io
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -22,6 +23,7 @@ from echo_data.dataset.manifest import load_manifest
 from echo_data.dataset.schema import ACTION, STATE, StepLayout, column_to_numpy
 from echo_data.learn.features import FeatureSpec, canonical, prepare
 from echo_data.records import ACTION_DIM, STATE_DIM
+
 
 @dataclass
 class SkillRows:
@@ -45,7 +47,7 @@ class Shards:
     layout: StepLayout
 
     @staticmethod
-    def of(dataset: Path, split: str) -> "Shards":
+    def of(dataset: Path, split: str) -> Shards:
         manifest = load_manifest(dataset)
         if split not in manifest["splits"]:
             raise ValueError(f"{dataset}: no split {split!r} (has {', '.join(manifest['splits'])})")
@@ -87,7 +89,7 @@ def _chunks(actions: np.ndarray, seg_start: np.ndarray, seg_end: np.ndarray, chu
 
 
 def load_skill_rows(
-    dataset: Path, split: str, skill: str, spec: FeatureSpec, chunk: int = 1, tick: Callable[[int], None] | None = None
+    dataset: Path, split: str, skill: str, spec: FeatureSpec, chunk: int = 1, tick: Callable[[int], object] | None = None
 ) -> SkillRows:
     """Decode and prepare every row of `skill` in `split` (in shard order)."""
     import torch
@@ -131,7 +133,7 @@ def load_skill_rows(
 
 
 def prepare_rows(
-    pf: pq.ParquetFile, shards: Shards, keep: np.ndarray, spec: FeatureSpec, goals: np.ndarray | None = None, tick: Callable[[int], None] | None = None
+    pf: pq.ParquetFile, shards: Shards, keep: np.ndarray, spec: FeatureSpec, goals: np.ndarray | None = None, tick: Callable[[int], object] | None = None
 ) -> dict[str, Any]:
     """Decode and prepare rows `keep` (sorted, shard-local) of one shard, one row group (64
     rows) at a time so memory stays bounded; `goals` (rows of the shard, 3) feed "target"."""

@@ -16,9 +16,10 @@ to measure the shortcut). See docs/learners.md.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -84,7 +85,7 @@ class FeatureSpec:
         return asdict(self)
 
     @staticmethod
-    def from_dict(d: Mapping[str, Any]) -> "FeatureSpec":
+    def from_dict(d: Mapping[str, Any]) -> FeatureSpec:
         tup = {k: tuple(v) for k, v in d.items() if isinstance(v, list)}
         return FeatureSpec(**{**d, **tup})
 

@@ -29,6 +29,14 @@ def audio_strides(freq: int, frames: int) -> tuple[int, int, int]:
     return (2, 2, 1) if min(freq, frames) < 30 else (4, 2, 2)
 
 
+def stored_audio_shape(shape: list[int] | tuple[int, ...] | None) -> tuple[int, int] | None:
+    """(freq, frames) of the audio feature as a run's config stores it (a JSON list), or None."""
+    if not shape:
+        return None
+    freq, frames = (int(v) for v in tuple(shape)[:2])
+    return (freq, frames)
+
+
 class AudioEncoder(nn.Module):
     """(B, 2, F, T) normalised binaural features -> (B, out)."""
 

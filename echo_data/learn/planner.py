@@ -59,7 +59,7 @@ class PlannerConfig:
     val_episodes: list[int] = field(default_factory=list)
 
     @staticmethod
-    def from_dict(d: dict[str, Any]) -> "PlannerConfig":
+    def from_dict(d: dict[str, Any]) -> PlannerConfig:
         return PlannerConfig(**{**d, "inputs": tuple(d["inputs"])})
 
 
@@ -158,9 +158,9 @@ def resolve(cfg: PlannerConfig) -> PlannerConfig:
 
 
 def build_model(cfg: PlannerConfig) -> Any:
-    from echo_data.learn.models import PlannerNet
+    from echo_data.learn.models import PlannerNet, stored_audio_shape
 
-    return PlannerNet(FeatureSpec.from_dict(cfg.features), tuple(cfg.audio_shape) if cfg.audio_shape else None, len(cfg.categories))
+    return PlannerNet(FeatureSpec.from_dict(cfg.features), stored_audio_shape(cfg.audio_shape), len(cfg.categories))
 
 
 def decode(logits: np.ndarray, scores: np.ndarray, categories: list[str]) -> list[str]:

@@ -10,8 +10,9 @@ returns the skill chain in the planner export's JSON shape.
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -65,7 +66,7 @@ class BCPolicy:
         self._goal: np.ndarray | None = None
 
     @classmethod
-    def from_run(cls, folder: Path | str) -> "BCPolicy":
+    def from_run(cls, folder: Path | str) -> BCPolicy:
         return cls(checkpoint=folder)
 
     def reset(self, info: Mapping[str, Any] | None = None) -> None:
@@ -100,7 +101,7 @@ class PlannerModel:
         self.templates = cfg.templates
 
     @classmethod
-    def from_run(cls, folder: Path | str) -> "PlannerModel":
+    def from_run(cls, folder: Path | str) -> PlannerModel:
         return cls(checkpoint=folder)
 
     def events(self, first_obs: Mapping[str, Any]) -> list[str]:
