@@ -100,7 +100,7 @@ def preview(
     seed: int = typer.Option(0, "--seed", help="Seed of the previewed episode (replaces the recipe's)."),
     out: Path = typer.Option(Path("preview"), "--out", help="Folder for the pictures and sound."),
 ) -> None:
-    """Write one episode's spec, top-down plan, first head frame, heard audio and acoustic map."""
+    """Write one episode's spec, top-down plan, first head frame, a contact sheet of head frames every 2 s, heard audio and acoustic map."""
     from echo_data.preview import write_preview
 
     recipe = _load(recipe_path)
