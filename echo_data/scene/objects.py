@@ -259,11 +259,14 @@ def _visual_shape(p: Part, colour: tuple[float, float, float], variant: int, fla
     return shape
 
 
-def build_object(scene: "sapien.Scene", obj: "PlacedObject", seed: int = 0, flat: bool = False) -> "sapien.Entity":
+def build_object(
+    scene: "sapien.Scene", obj: "PlacedObject", seed: int = 0, flat: bool = False, mono: tuple[float, float, float] | None = None
+) -> "sapien.Entity":
     """Add `obj` to `scene` as a dynamic rigid body named `obj.name`, at rest at its pose.
 
     Collision is the model's primitives; visuals are textured meshes in the instance's look
-    (`instance_look`; `flat`: one colour per part, no print). Visual shapes are added only when
+    (`instance_look`; `flat`: one colour per part, no print; `mono`: every part in this one
+colour, shape alone — the visual probe's control). Visual shapes are added only when
     the scene has a render system (physics-only scenes for solvability checks work too).
     """
     import sapien
@@ -304,7 +307,8 @@ def build_object(scene: "sapien.Scene", obj: "PlacedObject", seed: int = 0, flat
         body_colour, variant = instance_look(obj.category, obj.name, seed)
         body = sapien.render.RenderBodyComponent()
         for p in model.parts:
-            body.attach(_visual_shape(p, body_colour if p.body else p.color, variant, flat))
+            colour = mono if mono is not None else body_colour if p.body else p.color
+            body.attach(_visual_shape(p, colour, variant, flat or mono is not None))
         entity.add_component(body)
     scene.add_entity(entity)
     return entity
