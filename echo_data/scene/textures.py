@@ -88,13 +88,13 @@ def _detail(pattern: str, variant: int) -> np.ndarray:
     elif pattern == "screen":  # phone: dark bezel, bright app grid on a wallpaper
         v = 0.15 * one
         inner = (x > 0.06) & (x < 0.94) & (y > 0.1) & (y < 0.9)
-        wall = 2.2 + 1.2 * _fbm(rng, n, (2, 4))
+        wall = 1.0 + 0.7 * _fbm(rng, n, (2, 4))
         v = np.where(inner, wall, v)
         for i in range(4):
             for j in range(6):
                 cx, cy = 0.2 + 0.2 * i, 0.18 + 0.12 * j + 0.02
                 icon = (np.abs(x - cx) < 0.06) & (np.abs(y - cy) < 0.035)
-                v = np.where(icon & inner, 3.0 + 1.5 * rng.random(), v)
+                v = np.where(icon & inner, 1.6 + 0.8 * rng.random(), v)
         return np.repeat(v[..., None], 3, axis=2)
     elif pattern == "clock_face":  # white dial, hour ticks, two hands
         u, w = x - 0.5, y - 0.5
