@@ -7,7 +7,8 @@ spot holds in turn a phone, an alarm, a furby or a random distractor, resting on
 and a camera renders each object from head-like viewpoints (0.45-0.75 m away, 0.4-0.7 m above
 it, any azimuth; a narrow field of view so the crop is the object and a little of its
 surroundings: what a crop of the 128² head frame around the object holds, at 48² pixels).
-The control renders the same shapes, poses and scenes with every object in one grey (`mono`).
+Viewpoints inside or behind a wall or a piece of furniture are redrawn (a crop *around an
+object* shows it). The control renders the same shapes, poses and scenes with every object in one grey (`mono`).
 Usage: python benchmarks/bench_visual_probe.py [-n TRAIN_HOMES] [--test N] [--epochs E]
 """
 
@@ -46,6 +47,15 @@ def _look_at(eye: np.ndarray, target: np.ndarray):  # -> sapien.Pose (SAPIEN cam
     return sapien.Pose(m)
 
 
+def _clear(eye: np.ndarray, target: np.ndarray, blockers: list) -> bool:
+    """No wall or furniture block between the camera and the object (sampled along the ray)."""
+    for t in np.linspace(0.0, 0.9, 40):
+        x, y, z = eye + t * (target - eye)
+        if any(r.xmin <= x <= r.xmax and r.ymin <= y <= r.ymax and z < top for r, top in blockers):
+            return False
+    return True
+
+
 def collect(recipe_path: Path, seeds: list[int], views: int, mono: bool) -> tuple[np.ndarray, np.ndarray]:
     """(crops uint8 (N, CROP, CROP, 3), labels (N,)) from the homes of `seeds`."""
     import sapien
@@ -69,6 +79,7 @@ def collect(recipe_path: Path, seeds: list[int], views: int, mono: bool) -> tupl
         build_statics(scene, plan)
         cam = scene.add_camera("probe", CROP, CROP, math.radians(FOV_DEG), 0.02, 20.0)
         solid = [w.footprint.expanded(0.1) for w in plan.walls] + [f.footprint.expanded(0.1) for f in plan.furniture]
+        blockers = [(w.footprint, w.height) for w in plan.walls] + [(f.footprint, f.top_z) for f in plan.furniture]
         for k, o in enumerate(plan.objects):
             label = (k + seed) % len(CLASSES)
             cat = CLASSES[label] if label < 3 else str(rng.choice(DISTRACTOR_CATEGORIES))
@@ -82,7 +93,7 @@ def collect(recipe_path: Path, seeds: list[int], views: int, mono: bool) -> tupl
                     az = rng.uniform(0, 2 * math.pi)
                     d, h = rng.uniform(*DISTANCE), rng.uniform(*HEIGHT)
                     eye = target + np.array([d * math.cos(az), d * math.sin(az), h])
-                    if not any(r.xmin <= eye[0] <= r.xmax and r.ymin <= eye[1] <= r.ymax for r in solid):
+                    if not any(r.xmin <= eye[0] <= r.xmax and r.ymin <= eye[1] <= r.ymax for r in solid) and _clear(eye, target, blockers):
                         break
                 cam.entity.set_pose(_look_at(eye, target))
                 scene.update_render()

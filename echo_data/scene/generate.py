@@ -33,7 +33,6 @@ from echo_data.scene.floorplan import (
     WallSegment,
 )
 from echo_data.scene.objects import object_size
-from echo_data.scene.surfaces import room_floor
 
 ROOM_KINDS = ("living", "kitchen", "bedroom", "bathroom", "hall", "study")
 
@@ -689,7 +688,7 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
             index=i,
             kind=kinds[i],
             rect=r,
-            floor_material=room_floor(kinds[i], str(rng.choice(sc.floor_materials)), sc.floor_materials),
+            floor_material=str(rng.choice(sc.floor_materials)),
             wall_material=str(rng.choice(sc.wall_materials)),
             ceiling_material=str(rng.choice(sc.ceiling_materials)),
         )

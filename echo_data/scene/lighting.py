@@ -16,7 +16,7 @@ import numpy as np
 
 from echo_data.scene.floorplan import FloorPlan
 
-MAX_ROOM_LIGHTS = 6
+MAX_ROOM_LIGHTS = 3  # lamps in the largest rooms; each costs about 0.3-0.5 ms per 128² frame on lavapipe
 LAMP_KELVIN = (2700.0, 4500.0)
 LAMP_POWER = (2.0, 4.5)  # emission at 1 m; a lamp 1.5 m above a table top gives about 1-2
 SUN_ELEVATION_DEG = (25.0, 65.0)

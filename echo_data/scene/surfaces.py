@@ -61,7 +61,6 @@ ROOM_STYLE: dict[str, dict] = {
     "study": {"paint": ((0.86, 0.9, 0.86), (0.92, 0.9, 0.86)), "lino": "wood"},
     "hall": {"paint": ((0.93, 0.93, 0.9), (0.9, 0.88, 0.84)), "lino": "wood"},
 }
-WET_ROOMS = ("kitchen", "bathroom")  # no carpet underfoot where water is
 PAINTED = ("plaster",)
 
 FURNITURE_LOOKS: dict[str, tuple[str, tuple[float, float, float], float]] = {
@@ -120,12 +119,3 @@ def furniture_look(kind: str, material: str, seed: int = 0, key: object = "") ->
         pattern, colour, rough = FURNITURE_LOOKS[kind]
         return Look(pattern, _salt(seed, kind, key) % 4, colour, rough, 1.0)
     return surface_look(material, None, seed, key)
-
-
-def room_floor(kind: str, drawn: str, pool: tuple[str, ...]) -> str:
-    """The acoustic floor of a room of `kind`: the drawn one, except carpet in a wet room, which
-    becomes the pool's first hard floor (the pool is the recipe's; unchanged if it has none)."""
-    if kind not in WET_ROOMS or _family(drawn)[0] != "carpet":
-        return drawn
-    hard = [m for m in pool if _family(m)[0] != "carpet"]
-    return hard[0] if hard else drawn
