@@ -3,8 +3,8 @@
 
 Static geometry is plain boxes (exactly the plan's footprints, so navigation, acoustics and
 physics agree), drawn as textured meshes whose look follows the surface's acoustic material and
-room kind (`echo_data.scene.surfaces`), so what the camera sees is what the ears hear. Dynamic objects, doors and faucets come from `echo_data.scene.objects` and
-`echo_data.scene.articulated`. Works in physics-only scenes too (no visuals then).
+room kind (`echo_data.scene.surfaces`), so what the camera sees is what the ears hear. Dynamic
+objects, doors and faucets come from `echo_data.scene.objects` and `echo_data.scene.articulated`. Works in physics-only scenes too (no visuals then).
 """
 
 from __future__ import annotations
@@ -14,8 +14,13 @@ from dataclasses import dataclass, field, replace
 import sapien
 
 from echo_data.recipe import Recipe
-from echo_data.scene.articulated import WaterStream, build_door, build_faucet, has_render
 from echo_data.scene import meshes, textures
+from echo_data.scene.articulated import (
+    WaterStream,
+    build_door,
+    build_faucet,
+    has_render,
+)
 from echo_data.scene.floorplan import FloorPlan, Furniture, Rect
 from echo_data.scene.objects import build_object
 from echo_data.scene.surfaces import Look, furniture_look, surface_look
@@ -33,9 +38,7 @@ Visual = tuple[tuple[float, float, float], tuple[float, float, float], Look]
 
 def render_material(look: Look, flat: bool):  # -> sapien.render.RenderMaterial
     """The SAPIEN material of a look: textured, or (flat) its colour alone."""
-    if flat or look.pattern == "plain":
-        return sapien.render.RenderMaterial(base_color=[*look.colour, 1.0], roughness=look.roughness)
-    return textures.render_material(look.pattern, look.variant, look.colour, look.roughness)
+    return textures.render_material("plain" if flat else look.pattern, look.variant, look.colour, look.roughness)
 
 
 def add_visual_box(body: sapien.render.RenderBodyComponent, offset, half, look: Look, flat: bool) -> None:

@@ -250,10 +250,7 @@ def _visual_shape(p: Part, colour: tuple[float, float, float], variant: int, fla
         if p.kind == "ycyl":
             mesh = meshes.rotated(mesh, np.asarray(_Z_TO_Y))
     rough = 0.2 if p.pattern == "screen" else 0.6
-    if flat or p.pattern == "plain":
-        mat = sapien.render.RenderMaterial(base_color=[*colour, 1.0], roughness=rough)
-    else:
-        mat = textures.render_material(p.pattern, variant, colour, rough)
+    mat = textures.render_material("plain" if flat else p.pattern, variant, colour, rough)
     shape = sapien.render.RenderShapeTriangleMesh(*mesh, mat)
     shape.local_pose = sapien.Pose(list(p.center))
     return shape

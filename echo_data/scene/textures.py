@@ -11,7 +11,7 @@ per process: a handful of variants per pattern, built once and reused by every e
 from __future__ import annotations
 
 import zlib
-from functools import lru_cache
+from functools import cache, lru_cache
 
 import numpy as np
 
@@ -121,7 +121,7 @@ def _detail(pattern: str, variant: int) -> np.ndarray:
     return np.repeat(v[..., None], 3, axis=2)
 
 
-@lru_cache(maxsize=None)
+@cache
 def texture_rgba(pattern: str, variant: int, colour: tuple[float, float, float]) -> np.ndarray:
     """(SIZE, SIZE, 4) uint8 texels of `pattern` variant `variant` tinted by `colour` (linear 0..1)."""
     if pattern not in PATTERNS:
@@ -135,9 +135,12 @@ def texture_rgba(pattern: str, variant: int, colour: tuple[float, float, float])
 
 @lru_cache(maxsize=1024)
 def render_material(pattern: str, variant: int, colour: tuple[float, float, float], roughness: float):  # -> sapien.render.RenderMaterial
-    """A SAPIEN material with the texture as base colour; one GPU texture per key per process."""
+    """A SAPIEN material with the texture as base colour ("plain": the colour alone, no texture);
+    one GPU texture per key per process."""
     import sapien
 
+    if pattern == "plain":
+        return sapien.render.RenderMaterial(base_color=[*colour, 1.0], roughness=roughness)
     mat = sapien.render.RenderMaterial(base_color=[1.0, 1.0, 1.0, 1.0], roughness=roughness)
     mat.base_color_texture = sapien.render.RenderTexture2D(texture_rgba(pattern, variant, colour), "R8G8B8A8Unorm", mipmap_levels=1)
     return mat
