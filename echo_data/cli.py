@@ -104,7 +104,7 @@ def preview(
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of the previewed episode (replaces the recipe's)."),
     out: Path = typer.Option(Path("preview"), "--out", help="Folder for the pictures and sound."),
 ) -> None:
-    """Write one episode's spec, top-down plan, first head frame, heard audio and acoustic map."""
+    """Write one episode's spec, top-down plan, first head frame, a contact sheet of head frames every 2 s, heard audio and acoustic map."""
     from echo_data.dataset.build import OutputError, check_output_path
     from echo_data.preview import write_preview
 

@@ -1,7 +1,8 @@
 """`echo-data preview`: one episode as a person would look at and listen to it.
 
 Writes the sampled spec (episode.json), a top-down plan with the expert's path
-(topdown.png), the first head RGB frame (head_rgb.png), what the robot hears at its start
+(topdown.png), the first head RGB frame (head_rgb.png), a contact sheet of head RGB every 2 s
+of the expert run (frames.png), what the robot hears at its start
 pose for the first 2 s (heard.wav), its spectrogram (spectrogram.png) and a dB map of the
 first source over the floor plan at ear height (acoustic_map.png).
 """
@@ -23,6 +24,26 @@ def _save_png(path: Path, img: np.ndarray) -> None:
     from PIL import Image
 
     Image.fromarray(img).save(path)
+
+
+CONTACT_EVERY_S = 2.0  # seconds of episode between frames of the contact sheet
+CONTACT_COLUMNS = 6
+
+
+def contact_sheet(frames: list[np.ndarray], times: list[float], out: Path, columns: int = CONTACT_COLUMNS) -> None:
+    """Head frames side by side in rows, each captioned with its episode time (frames.png)."""
+    from PIL import Image, ImageDraw
+
+    h, w = frames[0].shape[:2]
+    columns = min(columns, len(frames))
+    rows = (len(frames) + columns - 1) // columns
+    sheet = Image.new("RGB", (columns * w, rows * (h + 12)), (255, 255, 255))
+    draw = ImageDraw.Draw(sheet)
+    for k, (img, t) in enumerate(zip(frames, times)):
+        x, y = (k % columns) * w, (k // columns) * (h + 12)
+        sheet.paste(Image.fromarray(img), (x, y + 12))
+        draw.text((x + 2, y), f"{t:.0f} s", fill=(0, 0, 0))
+    sheet.save(out)
 
 
 def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: object) -> np.ndarray:
@@ -144,6 +165,9 @@ def write_preview(recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path,
     draw_topdown(spec.plan, out / "topdown.png", path=path, start=spec.start, events=spec.events)
     if rollout.steps and rollout.steps[0].head_rgb is not None:
         _save_png(out / "head_rgb.png", rollout.steps[0].head_rgb)
+        every = max(1, int(round(CONTACT_EVERY_S * recipe.robot.control_hz)))
+        picked = list(range(0, len(rollout.steps), every))
+        contact_sheet([rgb for i in picked if (rgb := rollout.steps[i].head_rgb) is not None], [i / recipe.robot.control_hz for i in picked], out / "frames.png")
     fs = recipe.acoustics.sample_rate
     heard = heard_at_start(spec, recipe, library)
     sf.write(out / "heard.wav", heard, fs, subtype="PCM_16")

@@ -91,6 +91,9 @@ class SceneConfig(_Strict):
     floor_materials: tuple[str, ...] = ("linoleum_on_concrete", "carpet_cotton", "carpet_thin")
     ceiling_materials: tuple[str, ...] = ("ceiling_plasterboard",)
     furniture_materials: tuple[str, ...] = ("wooden_door",)
+    # "textured": procedural textures, per-room style, randomised room lights and sun;
+    # "flat": one colour per surface and fixed lights (the cheaper pre-texture look)
+    look: Literal["textured", "flat"] = "textured"
 
     @field_validator("wall_materials", "floor_materials", "ceiling_materials", "furniture_materials")
     @classmethod

@@ -101,9 +101,9 @@ class World:
         self.substeps = cfg.physics_hz // cfg.control_hz
         self.scene.set_timestep(1.0 / cfg.physics_hz)
         if render:
-            self.scene.set_ambient_light([0.45, 0.45, 0.45])
-            self.scene.add_directional_light([0.3, 0.4, -1.0], [0.7, 0.7, 0.65], shadow=False)
-            self.scene.add_directional_light([-0.4, -0.2, -1.0], [0.25, 0.25, 0.3], shadow=False)
+            from echo_data.scene.lighting import add_lights
+
+            add_lights(self.scene, self.plan, flat=recipe.scene.look == "flat")
         self.handles = (builder or _default_builder)(self.scene, self.plan, recipe)
         self.robot = Robot(self.scene, cfg)
         self.robot.set_base_pose(*spec.start)

@@ -63,7 +63,7 @@ def test_preview_writes_pictures_and_sound(tmp_path: Path) -> None:
     out = tmp_path / "pv"
     res = runner.invoke(app, ["preview", str(small_recipe(tmp_path, "object_relocation.yaml")), "--seed", "4", "--out", str(out)])
     assert res.exit_code == 0, res.output
-    for name in ("episode.json", "topdown.png", "head_rgb.png", "heard.wav", "spectrogram.png", "acoustic_map.png"):
+    for name in ("episode.json", "topdown.png", "head_rgb.png", "frames.png", "heard.wav", "spectrogram.png", "acoustic_map.png"):
         assert (out / name).is_file(), name
     spec = json.loads((out / "episode.json").read_text())
     assert [c["skill"] for c in spec["chain"]] == ["Navigate", "Pick", "Place"]
@@ -73,3 +73,13 @@ def test_preview_writes_pictures_and_sound(tmp_path: Path) -> None:
     rgb = Image.open(out / "head_rgb.png")
     assert rgb.size == (48, 48)
     assert len(set(rgb.convert("RGB").getdata())) >= 2  # a rendered view (floor and wall at least), not a blank frame
+    # contact sheet: one 48-px frame (plus a caption strip) per 2 s of the run, 6 to a row
+    import re
+
+    from echo_data.recipe import load_recipe
+
+    steps = int(re.search(r'"steps": (\d+)', res.output).group(1))
+    every = 2 * load_recipe(small_recipe(tmp_path, "object_relocation.yaml")).robot.control_hz
+    n_frames = -(-steps // every)
+    sheet = Image.open(out / "frames.png")
+    assert sheet.size == (48 * min(n_frames, 6), (48 + 12) * -(-n_frames // 6))

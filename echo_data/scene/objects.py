@@ -13,7 +13,8 @@ visual only; they never change `object_size`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import zlib
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from echo_data.categories import RELOCATION_CATEGORIES
@@ -50,6 +51,8 @@ class Part:
     dims: tuple[float, ...]
     color: tuple[float, float, float]
     collide: bool = True
+    pattern: str = "plain"  # texture of `echo_data.scene.textures`; fitted once per face
+    body: bool = False  # drawn in the instance's body colour (see VARIANT_COLOURS), not `color`
 
 
 @dataclass(frozen=True)
@@ -61,42 +64,64 @@ class ObjectModel:
 
 def _lift(parts: list[Part], sz: float) -> tuple[Part, ...]:
     """Parts are authored with z measured from the object's bottom; shift to bbox centre."""
-    return tuple(Part(p.kind, (p.center[0], p.center[1], p.center[2] - sz / 2.0), p.dims, p.color, p.collide) for p in parts)
+    return tuple(replace(p, center=(p.center[0], p.center[1], p.center[2] - sz / 2.0)) for p in parts)
+
+
+# Instance looks: an object's body colour and texture variant are drawn from its plan seed and
+# name, so two phones differ and identity has to come from shape and print, not colour.
+VARIANT_COLOURS: dict[str, tuple[tuple[float, float, float], ...]] = {
+    "phone": ((0.06, 0.06, 0.07), (0.85, 0.85, 0.88), (0.2, 0.25, 0.45), (0.75, 0.55, 0.5), (0.25, 0.35, 0.3)),
+    "alarm": ((0.85, 0.12, 0.1), (0.15, 0.3, 0.75), (0.2, 0.6, 0.3), (0.12, 0.12, 0.12), (0.75, 0.75, 0.78)),
+    "furby": ((0.55, 0.25, 0.7), (0.9, 0.55, 0.2), (0.2, 0.6, 0.65), (0.9, 0.5, 0.65), (0.8, 0.78, 0.72)),
+    "mug": ((0.92, 0.92, 0.88), (0.8, 0.2, 0.2), (0.2, 0.4, 0.75), (0.95, 0.8, 0.3), (0.3, 0.3, 0.3)),
+    "can": ((0.75, 0.75, 0.8), (0.8, 0.1, 0.1), (0.1, 0.5, 0.2), (0.2, 0.3, 0.7)),
+    "box": ((0.6, 0.45, 0.25), (0.7, 0.55, 0.35), (0.85, 0.8, 0.7)),
+    "bowl": ((0.2, 0.35, 0.8), (0.92, 0.92, 0.88), (0.8, 0.4, 0.2), (0.3, 0.6, 0.4)),
+    "bottle": ((0.15, 0.55, 0.25), (0.5, 0.3, 0.15), (0.3, 0.5, 0.8), (0.85, 0.85, 0.9)),
+    "book": ((0.55, 0.1, 0.12), (0.1, 0.25, 0.5), (0.15, 0.4, 0.2), (0.8, 0.65, 0.2), (0.2, 0.2, 0.2)),
+}
 
 
 def _models() -> dict[str, ObjectModel]:
     m: dict[str, ObjectModel] = {}
-    # phone: thin slab, dark body, lighter screen (visual)
+    # phone: thin slab in the body colour, a printed screen (home-screen icons) and a camera bump
     sz = 0.015
     m["phone"] = ObjectModel(
         (0.15, 0.07, sz),
         0.17,
         _lift(
             [
-                Part("box", (0, 0, sz / 2), (0.075, 0.035, sz / 2), (0.08, 0.08, 0.1)),
-                Part("box", (0.0, 0, sz + 0.0005), (0.066, 0.031, 0.0006), (0.25, 0.45, 0.85), False),
+                Part("box", (0, 0, sz / 2), (0.075, 0.035, sz / 2), (0.08, 0.08, 0.1), body=True),
+                Part("box", (0.0, 0, sz + 0.0005), (0.068, 0.032, 0.0006), (0.3, 0.4, 0.6), False, "screen"),
+                Part("zcyl", (0.055, 0.02, -0.0008), (0.008, 0.0008), (0.05, 0.05, 0.05), False),
             ],
             sz,
         ),
     )
-    # alarm clock: round body on its side (face along -y/+y) standing on a foot block, bells on top
+    # alarm clock: round body on its side (face along -y) on a foot block, a printed dial, two
+    # bells and a hammer on top, little feet
     body_r, foot_h = 0.045, 0.012
     sz = foot_h + 2 * body_r
+    bell = (0.85, 0.75, 0.2)
     m["alarm"] = ObjectModel(
         (2 * body_r, 0.05, sz),
         0.3,
         _lift(
             [
                 Part("box", (0, 0, foot_h / 2), (0.035, 0.022, foot_h / 2), (0.2, 0.2, 0.2)),
-                Part("ycyl", (0, 0, foot_h + body_r), (body_r, 0.025), (0.85, 0.12, 0.1)),
-                Part("ycyl", (0, -0.0255, foot_h + body_r), (0.038, 0.001), (0.95, 0.95, 0.9), False),
-                Part("sphere", (-0.032, 0, sz - 0.004), (0.017,), (0.85, 0.75, 0.2), False),
-                Part("sphere", (0.032, 0, sz - 0.004), (0.017,), (0.85, 0.75, 0.2), False),
+                Part("ycyl", (0, 0, foot_h + body_r), (body_r, 0.025), (0.85, 0.12, 0.1), body=True),
+                Part("ycyl", (0, -0.0255, foot_h + body_r), (0.038, 0.001), (1.0, 1.0, 0.97), False, "clock_face"),
+                Part("ycyl", (0, 0.0255, foot_h + body_r), (0.03, 0.001), (0.3, 0.3, 0.3), False),
+                Part("sphere", (-0.032, 0, sz - 0.004), (0.017,), bell, False),
+                Part("sphere", (0.032, 0, sz - 0.004), (0.017,), bell, False),
+                Part("box", (0, 0, sz + 0.004), (0.004, 0.004, 0.012), (0.3, 0.3, 0.3), False),
+                Part("sphere", (-0.03, -0.012, 0.004), (0.007,), (0.2, 0.2, 0.2), False),
+                Part("sphere", (0.03, -0.012, 0.004), (0.007,), (0.2, 0.2, 0.2), False),
             ],
             sz,
         ),
     )
-    # furby: egg of a body sphere and a head sphere on a foot block; ears and eyes visual only
+    # furby: furry egg of a body and a head on a foot block; ears, big eyes with pupils, a beak
     foot_h, body_r, head_r = 0.012, 0.042, 0.036
     body_z = 0.045
     head_z = 0.095
@@ -108,12 +133,15 @@ def _models() -> dict[str, ObjectModel]:
         _lift(
             [
                 Part("box", (0, 0, foot_h / 2), (0.03, 0.025, foot_h / 2), (0.95, 0.6, 0.1)),
-                Part("sphere", (0, 0, body_z), (body_r,), purple),
-                Part("sphere", (0, 0, head_z), (head_r,), purple),
-                Part("box", (0, 0.02, sz + 0.012), (0.004, 0.008, 0.016), (0.3, 0.1, 0.4), False),
-                Part("box", (0, -0.02, sz + 0.012), (0.004, 0.008, 0.016), (0.3, 0.1, 0.4), False),
-                Part("sphere", (0.03, 0.013, head_z + 0.008), (0.009,), (1.0, 1.0, 1.0), False),
-                Part("sphere", (0.03, -0.013, head_z + 0.008), (0.009,), (1.0, 1.0, 1.0), False),
+                Part("sphere", (0, 0, body_z), (body_r,), purple, True, "fur", True),
+                Part("sphere", (0, 0, head_z), (head_r,), purple, True, "fur", True),
+                Part("box", (0, 0.022, sz + 0.012), (0.005, 0.01, 0.02), (0.3, 0.1, 0.4), False, "fur", True),
+                Part("box", (0, -0.022, sz + 0.012), (0.005, 0.01, 0.02), (0.3, 0.1, 0.4), False, "fur", True),
+                Part("sphere", (0.03, 0.014, head_z + 0.008), (0.011,), (1.0, 1.0, 1.0), False),
+                Part("sphere", (0.03, -0.014, head_z + 0.008), (0.011,), (1.0, 1.0, 1.0), False),
+                Part("sphere", (0.04, 0.014, head_z + 0.009), (0.005,), (0.05, 0.05, 0.05), False),
+                Part("sphere", (0.04, -0.014, head_z + 0.009), (0.005,), (0.05, 0.05, 0.05), False),
+                Part("box", (0.037, 0, head_z - 0.012), (0.008, 0.007, 0.005), (0.95, 0.65, 0.1), False),
             ],
             sz,
         ),
@@ -125,16 +153,17 @@ def _models() -> dict[str, ObjectModel]:
         0.3,
         _lift(
             [
-                Part("zcyl", (-0.015, 0, h / 2), (r, h / 2), (0.92, 0.92, 0.88)),
-                Part("box", (-0.015 + r + 0.012, 0, h / 2), (0.012, 0.006, 0.03), (0.92, 0.92, 0.88)),
+                Part("zcyl", (-0.015, 0, h / 2), (r, h / 2), (0.92, 0.92, 0.88), body=True),
+                Part("box", (-0.015 + r + 0.012, 0, h / 2), (0.012, 0.006, 0.03), (0.92, 0.92, 0.88), body=True),
+                Part("zcyl", (-0.015, 0, h - 0.002), (r - 0.005, 0.0021), (0.25, 0.15, 0.08), False),
             ],
             h,
         ),
     )
     r, h = 0.033, 0.12
-    m["can"] = ObjectModel((2 * r, 2 * r, h), 0.35, _lift([Part("zcyl", (0, 0, h / 2), (r, h / 2), (0.75, 0.75, 0.8))], h))
+    m["can"] = ObjectModel((2 * r, 2 * r, h), 0.35, _lift([Part("zcyl", (0, 0, h / 2), (r, h / 2), (0.75, 0.75, 0.8), True, "label", True)], h))
     m["box"] = ObjectModel(
-        (0.12, 0.08, 0.06), 0.2, _lift([Part("box", (0, 0, 0.03), (0.06, 0.04, 0.03), (0.6, 0.45, 0.25))], 0.06)
+        (0.12, 0.08, 0.06), 0.2, _lift([Part("box", (0, 0, 0.03), (0.06, 0.04, 0.03), (0.6, 0.45, 0.25), True, "cover", True)], 0.06)
     )
     r, h = 0.07, 0.05
     m["bowl"] = ObjectModel(
@@ -142,8 +171,9 @@ def _models() -> dict[str, ObjectModel]:
         0.25,
         _lift(
             [
-                Part("zcyl", (0, 0, 0.006), (0.045, 0.006), (0.2, 0.35, 0.8)),
-                Part("zcyl", (0, 0, 0.012 + (h - 0.012) / 2), (r, (h - 0.012) / 2), (0.2, 0.35, 0.8)),
+                Part("zcyl", (0, 0, 0.006), (0.045, 0.006), (0.2, 0.35, 0.8), body=True),
+                Part("zcyl", (0, 0, 0.012 + (h - 0.012) / 2), (r, (h - 0.012) / 2), (0.2, 0.35, 0.8), body=True),
+                Part("zcyl", (0, 0, h - 0.002), (r - 0.006, 0.0021), (0.9, 0.9, 0.85), False),
             ],
             h,
         ),
@@ -155,14 +185,15 @@ def _models() -> dict[str, ObjectModel]:
         0.5,
         _lift(
             [
-                Part("zcyl", (0, 0, h_body / 2), (r, h_body / 2), (0.15, 0.55, 0.25)),
-                Part("zcyl", (0, 0, h_body + h_neck / 2), (0.013, h_neck / 2), (0.15, 0.55, 0.25)),
+                Part("zcyl", (0, 0, h_body / 2), (r, h_body / 2), (0.15, 0.55, 0.25), True, "label", True),
+                Part("zcyl", (0, 0, h_body + h_neck / 2), (0.013, h_neck / 2), (0.15, 0.55, 0.25), body=True),
+                Part("zcyl", (0, 0, h + 0.006), (0.014, 0.006), (0.9, 0.9, 0.9), False),
             ],
             h,
         ),
     )
     m["book"] = ObjectModel(
-        (0.2, 0.14, 0.03), 0.4, _lift([Part("box", (0, 0, 0.015), (0.1, 0.07, 0.015), (0.55, 0.1, 0.12))], 0.03)
+        (0.2, 0.14, 0.03), 0.4, _lift([Part("box", (0, 0, 0.015), (0.1, 0.07, 0.015), (0.55, 0.1, 0.12), True, "cover", True)], 0.03)
     )
     return m
 
@@ -195,11 +226,47 @@ def _yaw_quat(yaw: float) -> list[float]:
     return [math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)]
 
 
-def build_object(scene: sapien.Scene, obj: PlacedObject) -> sapien.Entity:
+def instance_look(category: str, name: str, seed: int) -> tuple[tuple[float, float, float], int]:
+    """(body colour, texture variant) of object `name` of `category` in plan `seed`: pure."""
+    h = zlib.crc32(f"{seed}:{name}".encode())
+    palette = VARIANT_COLOURS.get(category, ((0.6, 0.6, 0.6),))
+    return palette[h % len(palette)], (h // 7) % 4
+
+
+_Z_TO_Y = ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0), (0.0, -1.0, 0.0))
+
+
+def _visual_shape(p: Part, colour: tuple[float, float, float], variant: int, flat: bool) -> sapien.render.RenderShapeTriangleMesh:
+    """One part as a textured mesh (UVs fitted once per face / around once)."""
+    import numpy as np
+    import sapien
+
+    from echo_data.scene import meshes, textures
+
+    if p.kind == "box":
+        mesh = meshes.box(tuple(p.dims), None)
+    elif p.kind == "sphere":
+        mesh = meshes.ellipsoid((p.dims[0],) * 3)
+    else:
+        mesh = meshes.cylinder(p.dims[0], p.dims[1])
+        if p.kind == "ycyl":
+            mesh = meshes.rotated(mesh, np.asarray(_Z_TO_Y))
+    rough = 0.2 if p.pattern == "screen" else 0.6
+    mat = textures.render_material("plain" if flat else p.pattern, variant, colour, rough)
+    shape = sapien.render.RenderShapeTriangleMesh(*mesh, mat)
+    shape.local_pose = sapien.Pose(list(p.center))
+    return shape
+
+
+def build_object(
+    scene: sapien.Scene, obj: PlacedObject, seed: int = 0, flat: bool = False, mono: tuple[float, float, float] | None = None
+) -> sapien.Entity:
     """Add `obj` to `scene` as a dynamic rigid body named `obj.name`, at rest at its pose.
 
-    Visual shapes are added only when the scene has a render system (physics-only scenes
-    for solvability checks work too).
+    Collision is the model's primitives; visuals are textured meshes in the instance's look
+    (`instance_look`; `flat`: one colour per part, no print; `mono`: every part in this one
+    colour, shape alone — the visual probe's control). Visual shapes are added only when
+    the scene has a render system (physics-only scenes for solvability checks work too).
     """
     import sapien
 
@@ -218,28 +285,29 @@ def build_object(scene: sapien.Scene, obj: PlacedObject) -> sapien.Entity:
     to_z = sapien.Pose(q=[math.sqrt(0.5), 0.0, -math.sqrt(0.5), 0.0])
     to_y = sapien.Pose(q=[math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)])
     builder = scene.create_actor_builder()
-    for p in model.parts:
+    for p in solid:
         at = sapien.Pose(p.center)
         if p.kind == "zcyl":
             at = at * to_z
         elif p.kind == "ycyl":
             at = at * to_y
-        if p.collide:
-            patch = {"patch_radius": PATCH_RADIUS, "min_patch_radius": MIN_PATCH_RADIUS}
-            if p.kind == "box":
-                builder.add_box_collision(at, p.dims, material=mat, density=density, **patch)
-            elif p.kind == "sphere":
-                builder.add_sphere_collision(at, p.dims[0], material=mat, density=density, **patch)
-            else:
-                builder.add_cylinder_collision(at, p.dims[0], p.dims[1], material=mat, density=density, **patch)
-        if with_visuals:
-            color = sapien.render.RenderMaterial(base_color=[*p.color, 1.0], roughness=0.6)
-            if p.kind == "box":
-                builder.add_box_visual(at, p.dims, material=color)
-            elif p.kind == "sphere":
-                builder.add_sphere_visual(at, p.dims[0], material=color)
-            else:
-                builder.add_cylinder_visual(at, p.dims[0], p.dims[1], material=color)
+        patch = {"patch_radius": PATCH_RADIUS, "min_patch_radius": MIN_PATCH_RADIUS}
+        if p.kind == "box":
+            builder.add_box_collision(at, p.dims, material=mat, density=density, **patch)
+        elif p.kind == "sphere":
+            builder.add_sphere_collision(at, p.dims[0], material=mat, density=density, **patch)
+        else:
+            builder.add_cylinder_collision(at, p.dims[0], p.dims[1], material=mat, density=density, **patch)
     builder.set_initial_pose(sapien.Pose(list(obj.position), _yaw_quat(obj.yaw)))
-    entity = builder.build(name=obj.name)
+    entity = builder.build_entity()  # unlike build(), leaves pose and scene to the caller
+    entity.name = obj.name
+    entity.pose = sapien.Pose(list(obj.position), _yaw_quat(obj.yaw))
+    if with_visuals:
+        body_colour, variant = instance_look(obj.category, obj.name, seed)
+        body = sapien.render.RenderBodyComponent()
+        for p in model.parts:
+            colour = mono if mono is not None else body_colour if p.body else p.color
+            body.attach(_visual_shape(p, colour, variant, flat or mono is not None))
+        entity.add_component(body)
+    scene.add_entity(entity)
     return entity
