@@ -61,6 +61,7 @@ class BCPolicy:
         self.std = np.asarray(cfg.action_std, dtype=np.float32)
         self.execute = cfg.execute
         self.skill = cfg.skill
+        self.observations = tuple(self.spec.columns)  # what evaluate must render for it
         self._queue: deque[np.ndarray] = deque()
         self._goal: np.ndarray | None = None
 
@@ -98,6 +99,7 @@ class PlannerModel:
         cfg, self.model, self.spec = _load(self.checkpoint, PlannerConfig, build_model)
         self.categories = cfg.categories
         self.templates = cfg.templates
+        self.observations = tuple(self.spec.columns)
 
     @classmethod
     def from_run(cls, folder: Path | str) -> "PlannerModel":
