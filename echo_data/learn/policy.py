@@ -74,14 +74,20 @@ class BCPolicy:
         self._queue.clear()
         self._goal = goal_from_info(info or {}) if "target" in self.spec.inputs else None
 
+    def inputs(self, obs: Mapping[str, Any]) -> dict[str, Any]:
+        """One observation -> the model's prepared inputs (batch of one), as training rows are."""
+        import torch
+
+        goal = None if self._goal is None else torch.from_numpy(self._goal[None])
+        return prepare(single(obs, self.spec), self.spec, goal=goal)
+
     def act(self, obs: Mapping[str, Any]) -> np.ndarray:
         """One observation (dataset keys) -> the next action, float32 (ACTION_DIM,)."""
         import torch
 
         if not self._queue:
-            goal = None if self._goal is None else torch.from_numpy(self._goal[None])
             with torch.no_grad():
-                pred = self.model(prepare(single(obs, self.spec), self.spec, goal=goal))[0].numpy()
+                pred = self.model(self.inputs(obs))[0].numpy()
             for a in pred[: self.execute]:
                 self._queue.append((a * self.std + self.mean).astype(np.float32))
         action = self._queue.popleft()
