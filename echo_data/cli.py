@@ -130,7 +130,11 @@ def evaluate(
     recipe_path: Path = typer.Argument(..., metavar="RECIPE", help="Recipe YAML (its episodes, split sizes and budgets)."),
     split: str = typer.Option("test", "--split", help="Split to evaluate on."),
     n: int = typer.Option(30, "-n", min=1, help="Episodes: indices 0..n-1 of the split."),
-    policy: str = typer.Option("oracle", "--policy", help="Skill policy: oracle | random | still | module:Class | checkpoint folder."),
+    policy: list[str] = typer.Option(
+        ["oracle"], "--policy",
+        help="Skill policy: oracle | random | still | module:Class | checkpoint folder; repeat as SKILL=POLICY for one per skill "
+        "(e.g. --policy Navigate=runs/nav --policy oracle: skills not named use the plain one, default oracle).",
+    ),
     planner: str = typer.Option("oracle", "--planner", help="Planner: oracle | module:Class | checkpoint folder."),
     workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
     json_out: Path | None = typer.Option(None, "--json", help="Write the results (metrics, per-episode outcomes) here."),
@@ -139,7 +143,7 @@ def evaluate(
     """Run a policy closed-loop on a split and report the paper's metrics with 95 % intervals."""
     from echo_data.evaluation.cli import run_evaluate
 
-    code = run_evaluate(_load(recipe_path), recipe_path, split, n, policy, planner, workers, json_out, video)
+    code = run_evaluate(_load(recipe_path), recipe_path, split, n, tuple(policy), planner, workers, json_out, video)
     raise typer.Exit(code)
 
 

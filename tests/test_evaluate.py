@@ -29,7 +29,7 @@ def test_wilson_matches_published_intervals() -> None:
 def _ep(setting: str, chain: int, plan: bool, done: int, spl: list[float | None]) -> dict:
     return {
         "setting": setting, "true_chain": [{}] * chain, "plan_correct": plan, "skills_completed": done if plan else 0,
-        "success": plan and done == chain, "steps": 10, "navigate": [{"spl": s} for s in spl],
+        "success": plan and done == chain, "steps": 10, "navigate": [{"spl": s, "success": bool(s)} for s in spl],
     }
 
 
@@ -40,6 +40,7 @@ def test_progressive_success_counts_latched_stages() -> None:
     through = [(p["k"], p["n"]) for p in m["progressive"]]
     assert through == [(3, 4), (2, 4), (2, 3), (1, 1), (0, 1)]  # through p: over chains of >= p skills
     assert m["navigate_spl"]["n"] == 3 and m["navigate_spl"]["value"] == pytest.approx((0.8 + 1.0 + 0.5) / 3)
+    assert (m["navigate_success"]["k"], m["navigate_success"]["n"]) == (3, 4)  # every attempted Navigate
 
 
 class _BadShape:

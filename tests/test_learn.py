@@ -230,3 +230,61 @@ def test_action_chunks_and_target_input(ds: Path, tmp_path: Path) -> None:
     actions = [policy.act(obs) for _ in range(5)]
     assert len(calls) == 3 and all(a.shape == (ACTION_DIM,) and np.isfinite(a).all() for a in actions)
     assert not np.array_equal(actions[0], actions[1])  # two different steps of one chunk
+
+
+QUICK = str(RECIPES / "quickstart.yaml")
+
+
+def test_evaluate_runs_a_trained_planner_and_a_per_skill_bc_run(ds: Path, tmp_path: Path) -> None:
+    planner, bc = tmp_path / "planner", tmp_path / "bc"
+    res = runner.invoke(app, ["train", "planner", str(ds), "--inputs", "audio", "--epochs", "1", "--out", str(planner), "--threads", "1", "--no-progress"])
+    assert res.exit_code == 0, res.output
+    _train(ds, bc, "--inputs", "state", "--max-steps", "2")
+    out = tmp_path / "p.json"
+    # the planner reads audio although the policy reads only the state: evaluate renders both
+    res = runner.invoke(app, ["evaluate", QUICK, "-n", "1", "--planner", str(planner), "--policy", "still", "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(out.read_text())
+    ep = doc["episodes"][0]
+    assert doc["planner"]["class"] == "echo_data.learn.policy:PlannerModel" and not ep["failure"].startswith("agent error"), ep
+    assert isinstance(ep["planned_chain"], list)
+    res = runner.invoke(app, ["evaluate", QUICK, "-n", "1", "--policy", f"Navigate={bc}", "--policy", "oracle", "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(out.read_text())
+    nav = doc["episodes"][0]["skills"][0]
+    assert nav["skill"] == "Navigate" and nav["steps"] > 0
+    assert doc["policy"]["skills"]["Navigate"]["class"] == "echo_data.learn.policy:BCPolicy"
+
+
+def test_dagger_labeller_answers_as_the_expert_from_its_start(ds: Path) -> None:
+    from echo_data.envs.env import EchoDataEnv
+    from echo_data.learn.dagger import NavigateLabeller, recipe_of
+    from echo_data.skills import EXPERTS
+
+    recipe, n_train = recipe_of(ds)
+    env = EchoDataEnv(recipe, split="train", images=False, audio=False)
+    try:
+        spec = env.sample_spec("train", 0)
+        env.reset(options={"spec": spec})
+        call = spec.chain[0]
+        label = NavigateLabeller(env.world, call.target, env._nav_grid())(np.zeros(3, np.float32))
+        expert = EXPERTS["Navigate"](env.world, call, spec)
+        first = np.asarray(next(expert), np.float32)
+        expert.close()
+    finally:
+        env.close()
+    assert n_train >= 1 and label is not None
+    np.testing.assert_allclose(label, first, atol=1e-6)
+
+
+def test_dagger_round_adds_expert_labelled_rows_and_retrains(ds: Path, tmp_path: Path) -> None:
+    base = _train(ds, tmp_path / "bc", "--inputs", "state", "--epochs", "1")
+    run = tmp_path / "dagger"
+    summary = _train(ds, run, "--inputs", "state", "--epochs", "1", "--dagger", "1", "--dagger-episodes", "1", "--dagger-steps", "5")
+    assert summary["rows"]["dagger"] == 5 and summary["rows"]["train"] == base["rows"]["train"] + 5
+    assert summary["rows"]["val"] == base["rows"]["val"]  # DAgger rows never validate
+    log = (run / "dagger.csv").read_text().splitlines()
+    assert log[0].startswith("round,") and log[1].split(",")[:4] == ["1", "0", "5", "5"]
+    assert BCPolicy.from_run(run).act(_obs(ds, "test")[0]).shape == (ACTION_DIM,)
+    res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Pick", "--out", str(tmp_path / "pick"), "--dagger", "1", "--no-progress"])
+    assert res.exit_code == 2 and "only Navigate's expert can act from any state" in res.output, res.output

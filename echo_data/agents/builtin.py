@@ -94,6 +94,7 @@ class OraclePlanner:
     """Returns the episode's true skill chain (the paper's starred rows score low-level skills alone)."""
 
     name = "oracle"
+    observations: tuple[str, ...] = ()  # reads the true chain, no observation
 
     def __init__(self) -> None:
         self._chain: list[dict[str, str]] = []

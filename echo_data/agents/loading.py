@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -69,9 +70,25 @@ def _load(target: str, builtins: dict[str, Any], what: str, methods: tuple[str, 
     return agent
 
 
-def load_policy(target: str) -> Any:
-    """A low-level skill policy: `reset(info)`, `act(obs) -> action | None`."""
-    return _load(target, BUILTIN_POLICIES, "policy", ("reset", "act"))
+def load_policy(target: str | Sequence[str]) -> Any:
+    """A low-level skill policy: `reset(info)`, `act(obs) -> action | None`.
+
+    A list of specs (`["Navigate=runs/nav", "oracle"]`) gives one policy per skill
+    (`echo_data.agents.compose`)."""
+    from echo_data.agents.compose import PolicySpecError, SkillDispatch, is_composite, parse_specs
+
+    if not is_composite(target):
+        one = target if isinstance(target, str) else target[0]
+        return _load(one, BUILTIN_POLICIES, "policy", ("reset", "act"))
+    try:
+        by_skill, fallback = parse_specs(target)
+    except PolicySpecError as e:
+        raise AgentLoadError(str(e)) from None
+    loaded: dict[str, Any] = {}  # one instance per distinct target
+    for t in [*by_skill.values(), fallback]:
+        if t not in loaded:
+            loaded[t] = _load(t, BUILTIN_POLICIES, "policy", ("reset", "act"))
+    return SkillDispatch({s: loaded[t] for s, t in by_skill.items()}, loaded[fallback], {**by_skill, "*": fallback})
 
 
 def load_planner(target: str) -> Any:
@@ -79,8 +96,16 @@ def load_planner(target: str) -> Any:
     return _load(target, BUILTIN_PLANNERS, "planner", ("plan",))
 
 
-def identity(agent: Any, target: str) -> dict[str, Any]:
-    """What was evaluated, for the results file: the name asked for, the class, its version if any."""
+def identity(agent: Any, target: str | Sequence[str]) -> dict[str, Any]:
+    """What was evaluated, for the results file: the name asked for, the class, its version if any
+    (per skill for a composition)."""
+    from echo_data.agents.compose import SkillDispatch, spec_name
+
+    if isinstance(agent, SkillDispatch):
+        skills = {s: identity(agent.policy_for(s) if s != "*" else agent.fallback, t) for s, t in agent.names.items()}
+        return {"name": spec_name(target), "class": "echo_data.agents.compose:SkillDispatch", "skills": skills}
+    if not isinstance(target, str):
+        target = target[0]
     cls = type(agent)
     out: dict[str, Any] = {"name": target, "class": f"{cls.__module__}:{cls.__qualname__}"}
     for attr in ("version", "checkpoint"):

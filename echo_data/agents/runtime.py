@@ -150,7 +150,6 @@ def run_episode(env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any]
         return run
     obs = first_obs
     flags = [False] * len(spec.chain)
-    ends_itself = bool(getattr(policy, "ends_itself", False))
     for k, call in enumerate(spec.chain):
         budget = skill_budget(env.recipe, call.skill)
         policy.reset({
@@ -159,6 +158,7 @@ def run_episode(env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any]
             # privileged: for scripted experts only
             "call": call, "spec_object": spec, "world": env.world,
         })
+        ends_itself = bool(getattr(policy, "ends_itself", False))  # after reset: a per-skill policy switches
         expert_len = _expert_path_length(env, call) if call.skill == "Navigate" else math.nan
         path = 0.0
         n = 0

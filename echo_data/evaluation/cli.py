@@ -29,6 +29,7 @@ def format_tables(doc: dict[str, Any]) -> str:
         lines.append(f"    skill completion   {cell(m['skill_completion'])}")
         for p in m["progressive"]:
             lines.append(f"    through skill {p['through']}    {cell(p)}")
+        lines.append(f"    Navigate success   {cell(m['navigate_success'])}")
         lines.append(f"    Navigate SPL       {cell(m['navigate_spl'])}")
     if doc["skipped"]:
         lines.append(f"  skipped (no solvable layout): {doc['skipped']}")
@@ -37,10 +38,11 @@ def format_tables(doc: dict[str, Any]) -> str:
 
 
 def run_evaluate(
-    recipe: Recipe, recipe_path: Path, split: str, n: int, policy: str, planner: str, workers: int, json_out: Path | None, video: Path | None
+    recipe: Recipe, recipe_path: Path, split: str, n: int, policy: str | tuple[str, ...], planner: str, workers: int, json_out: Path | None, video: Path | None
 ) -> int:
     from tqdm import tqdm
 
+    from echo_data.agents.compose import is_composite
     from echo_data.agents.loading import AgentLoadError, load_planner, load_policy
     from echo_data.agents.runtime import AgentActionError
     from echo_data.evaluation.run import evaluate
@@ -54,6 +56,8 @@ def run_evaluate(
         return _fail(f"--json {json_out}: folder {json_out.parent} does not exist")
     if video is not None and video.exists() and not video.is_dir():
         return _fail(f"--video {video}: exists and is not a folder")
+    if not isinstance(policy, str) and not is_composite(policy):
+        policy = policy[0]  # one plain policy: as before
     try:
         load_policy(policy)
         load_planner(planner)

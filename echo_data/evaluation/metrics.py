@@ -4,6 +4,8 @@
 - skill completion: the plan right and every skill succeeded in order;
 - progressive success at position p: the plan right and skills 1..p succeeded, over the
   episodes whose chain has at least p skills (Habitat-style latched stages);
+- Navigate success: the Navigate skill's success test, over every Navigate skill attempted (a
+  skill is attempted when the plan is right and the skills before it succeeded);
 - Navigate SPL: S * l / max(l, p) per attempted Navigate skill (Anderson et al. 2018, "On
   Evaluation of Embodied Navigation Agents"), l = the navigation expert's planned path from where
   the skill started, p = the path the base drove.
@@ -59,11 +61,13 @@ def summarise(episodes: list[dict[str, Any]]) -> dict[str, Any]:
         eligible = [e for e in episodes if len(e["true_chain"]) >= p]
         progressive.append({"through": p, **proportion(sum(e["skills_completed"] >= p for e in eligible), len(eligible))})
     spl = [nv["spl"] for e in episodes for nv in e["navigate"] if nv["spl"] is not None]
+    nav = [bool(nv["success"]) for e in episodes for nv in e["navigate"]]
     return {
         "episodes": n,
         "task_planning": proportion(plan, n),
         "skill_completion": proportion(done, n),
         "progressive": progressive,
+        "navigate_success": proportion(sum(nav), len(nav)),
         "navigate_spl": mean_interval(spl),
         "mean_steps": sum(e["steps"] for e in episodes) / n if n else None,
         "seconds": sum(e.get("seconds", 0.0) for e in episodes),

@@ -34,17 +34,22 @@ class EvalJob:
     recipe: Recipe
     recipe_dir: str | None
     split: str
-    policy: str
+    policy: str | tuple[str, ...]  # a tuple: one policy per skill (`echo_data.agents.compose`)
     planner: str
     video_dir: str | None = None
 
 
-def needs(policy: Any) -> tuple[bool, bool]:
-    """(images, audio): which observation groups the policy reads."""
-    keys = getattr(policy, "observations", None)
-    if keys is None:
-        return True, True
-    return any(k.startswith(IMAGE_PREFIX) for k in keys), any(k.startswith(AUDIO_PREFIX) for k in keys)
+def needs(*agents: Any) -> tuple[bool, bool]:
+    """(images, audio): which observation groups the agents (policy, planner) read; an agent
+    that does not say (no `observations`) gets everything."""
+    images = audio = False
+    for agent in agents:
+        keys = getattr(agent, "observations", None)
+        if keys is None:
+            return True, True
+        images |= any(k.startswith(IMAGE_PREFIX) for k in keys)
+        audio |= any(k.startswith(AUDIO_PREFIX) for k in keys)
+    return images, audio
 
 
 _WORKER: dict[str, Any] = {}
@@ -59,7 +64,7 @@ def _worker_state(job: EvalJob) -> tuple[Any, Any, Any]:
         if _WORKER.get("env") is not None:
             _WORKER["env"].close()
         policy, planner = load_policy(job.policy), load_planner(job.planner)
-        images, audio = needs(policy)
+        images, audio = needs(policy, planner)
         if job.video_dir:
             images = audio = True
         env = EchoDataEnv(job.recipe, split=job.split, images=images, audio=audio, recipe_dir=job.recipe_dir)
@@ -186,7 +191,7 @@ def evaluate(
     recipe_path: Path | None,
     split: str,
     n: int,
-    policy: str,
+    policy: str | tuple[str, ...],
     planner: str,
     workers: int = 1,
     video_dir: Path | None = None,
@@ -198,6 +203,8 @@ def evaluate(
     from echo_data.evaluation.metrics import by_setting
 
     pol, plan = load_policy(policy), load_planner(planner)  # fail fast, in this process
+    if not isinstance(policy, str):
+        policy = tuple(policy)
     job = EvalJob(recipe, str(recipe_path.parent) if recipe_path else None, split, policy, planner, str(video_dir) if video_dir else None)
     t0 = time.perf_counter()
     episodes = run_episodes(job, n, workers, progress)

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from echo_data.learn import runs
-from echo_data.learn.data import count_rows, load_skill_rows, skills_in, split_episodes
+from echo_data.learn.data import append_rows, count_rows, load_skill_rows, skills_in, split_episodes
 from echo_data.learn.features import FeatureSpec, feature_spec
 from echo_data.learn.loop import LoopConfig, fit, setup_torch
 
@@ -101,8 +101,11 @@ def _masked_mse(pred: Any, target: Any, valid: Any) -> Any:
     return (err * valid).sum() / valid.sum().clamp(min=1)
 
 
-def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = False, progress: bool = True) -> dict[str, Any]:
-    """Train (or continue) a BC run in `out`; returns the summary also printed by the CLI."""
+def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = False, progress: bool = True, extra: Any = None) -> dict[str, Any]:
+    """Train (or continue) a BC run in `out`; returns the summary also printed by the CLI.
+
+    `extra` (DAgger's labelled rollouts: `inputs`, `actions` (n, 1, ACTION_DIM)) is appended to
+    the training rows, never to validation."""
     from tqdm import tqdm
 
     runs.check_out(out, resume, overwrite)
@@ -125,6 +128,8 @@ def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = F
         rows = load_skill_rows(root, "train", cfg.skill, spec, chunk=cfg.chunk, tick=bar.update)
     val_eps = split_episodes(rows.episodes, cfg.val_fraction, cfg.seed)
     cfg.val_episodes = [int(e) for e in val_eps]
+    if extra is not None and len(extra):
+        rows = append_rows(rows, extra.inputs, extra.actions)
     is_val = np.isin(rows.episodes, val_eps)
     tr, va = np.flatnonzero(~is_val), np.flatnonzero(is_val)
     mean, std = np.asarray(cfg.action_mean, np.float32), np.asarray(cfg.action_std, np.float32)
@@ -169,7 +174,7 @@ def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = F
         "skill": cfg.skill,
         "inputs": list(cfg.inputs),
         "state_fed": list(spec.state_names),
-        "rows": {"train": int(len(tr)), "val": int(len(va))},
+        "rows": {"train": int(len(tr)), "val": int(len(va)), "dagger": int(len(extra)) if extra is not None else 0},
         "episodes": {"train": int(len(np.unique(rows.episodes[tr]))), "val": int(len(val_eps))},
         "step": state["step"],
         "epoch": state["epoch"],

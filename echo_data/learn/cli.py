@@ -56,11 +56,16 @@ def bc_cmd(
     resume: _Resume = False,
     overwrite: _Overwrite = False,
     progress: _Progress = True,
+    dagger: Annotated[int, typer.Option("--dagger", min=0, help="DAgger rounds after BC (Navigate only): roll the learner on train episodes, label with the expert, retrain.")] = 0,
+    dagger_episodes: Annotated[int, typer.Option("--dagger-episodes", min=1, help="Train episodes rolled per DAgger round.")] = 8,
+    dagger_steps: Annotated[int | None, typer.Option("--dagger-steps", min=1, help="Learner steps per rollout (default: the Navigate budget).")] = None,
 ) -> None:
     """Behaviour-clone one skill from the dataset's step rows; the run folder loads as a policy."""
     _need_torch()
+    from echo_data.learn import runs
     from echo_data.learn.bc import BCConfig, train_bc
     from echo_data.learn.features import BC_INPUTS, parse_inputs
+    from echo_data.learn.runs import RunError
 
     try:
         names = parse_inputs(inputs, BC_INPUTS)
@@ -68,7 +73,15 @@ def bc_cmd(
         cfg = BCConfig(str(dataset), skill, names, seed=seed, chunk=chunk, execute=execute, batch_size=batch_size, lr=lr, max_steps=max_steps, threads=threads)
         if epochs is not None:
             cfg.epochs = epochs
-        summary = train_bc(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)
+        if dagger:
+            from echo_data.learn.dagger import run_dagger
+
+            if resume:
+                raise RunError("--dagger: rounds are not resumable; run again with --overwrite")
+            runs.check_out(folder, False, overwrite)
+            summary = run_dagger(cfg, folder, dagger, dagger_episodes, dagger_steps, progress)
+        else:
+            summary = train_bc(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)
     except _errors() as e:
         raise _fail(str(e)) from None
     typer.echo(json.dumps(summary, indent=1))

@@ -132,6 +132,22 @@ def load_skill_rows(
     )
 
 
+def append_rows(rows: SkillRows, inputs: dict[str, Any], actions: np.ndarray) -> SkillRows:
+    """`rows` plus labelled rows from elsewhere (DAgger), as episode -1 so they never validate."""
+    import torch
+
+    n, chunk = len(actions), rows.actions.shape[1]
+    if chunk != actions.shape[1]:
+        raise ValueError(f"appended rows carry {actions.shape[1]} actions per row, training {chunk}")
+    return SkillRows(
+        inputs={k: torch.cat([v, inputs[k]]) for k, v in rows.inputs.items()},
+        actions=np.concatenate([rows.actions, actions.astype(np.float32)]),
+        action_pad=np.concatenate([rows.action_pad, np.zeros((n, chunk), dtype=bool)]),
+        goals=np.concatenate([rows.goals, np.full((n, 3), np.nan, dtype=np.float32)]),
+        episodes=np.concatenate([rows.episodes, np.full(n, -1, dtype=rows.episodes.dtype)]),
+    )
+
+
 def prepare_rows(
     pf: pq.ParquetFile, shards: Shards, keep: np.ndarray, spec: FeatureSpec, goals: np.ndarray | None = None, tick: Callable[[int], object] | None = None
 ) -> dict[str, Any]:

@@ -62,6 +62,7 @@ class BCPolicy:
         self.std = np.asarray(cfg.action_std, dtype=np.float32)
         self.execute = cfg.execute
         self.skill = cfg.skill
+        self.observations = tuple(self.spec.columns)  # what evaluate must render for it
         self._queue: deque[np.ndarray] = deque()
         self._goal: np.ndarray | None = None
 
@@ -74,14 +75,20 @@ class BCPolicy:
         self._queue.clear()
         self._goal = goal_from_info(info or {}) if "target" in self.spec.inputs else None
 
+    def inputs(self, obs: Mapping[str, Any]) -> dict[str, Any]:
+        """One observation -> the model's prepared inputs (batch of one), as training rows are."""
+        import torch
+
+        goal = None if self._goal is None else torch.from_numpy(self._goal[None])
+        return prepare(single(obs, self.spec), self.spec, goal=goal)
+
     def act(self, obs: Mapping[str, Any]) -> np.ndarray:
         """One observation (dataset keys) -> the next action, float32 (ACTION_DIM,)."""
         import torch
 
         if not self._queue:
-            goal = None if self._goal is None else torch.from_numpy(self._goal[None])
             with torch.no_grad():
-                pred = self.model(prepare(single(obs, self.spec), self.spec, goal=goal))[0].numpy()
+                pred = self.model(self.inputs(obs))[0].numpy()
             for a in pred[: self.execute]:
                 self._queue.append((a * self.std + self.mean).astype(np.float32))
         action = self._queue.popleft()
@@ -99,6 +106,7 @@ class PlannerModel:
         cfg, self.model, self.spec = _load(self.checkpoint, PlannerConfig, build_model)
         self.categories = cfg.categories
         self.templates = cfg.templates
+        self.observations = tuple(self.spec.columns)
 
     @classmethod
     def from_run(cls, folder: Path | str) -> PlannerModel:

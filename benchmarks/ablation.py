@@ -1,0 +1,124 @@
+"""The paper's ablation on echo-data, closed loop: build, train, evaluate, write the JSON.
+
+Rows (issue: reference policies):
+- Navigate BC with inputs {state only (no target), audio, audio + depth, target position,
+  audio + target} (proprioception without velocities in every row; docs/learners.md explains the
+  leak); scored closed loop with `echo-data evaluate RECIPE --split test --policy
+  Navigate=RUN --policy oracle --planner oracle`: the learner drives every Navigate skill, the
+  scripted experts do the rest, and Navigate success is the Navigate skill's success test over
+  every Navigate skill attempted (and over each episode's first Navigate alone, the one the sound
+  has to guide), with 95 % Wilson intervals;
+- the planner with {image, audio, audio + image}: `echo-data train planner`, scored on the
+  dataset's test split (test sounds only) by its `eval.json`.
+Test episodes come from the recipe's test split (the sounds no training episode uses); nothing
+is tuned on them: every hyper-parameter is the CLI default unless given here.
+
+Usage (the full table: `recipes/bc_navigate.yaml`, 60 + 60 + 60 train / 54 test episodes,
+build ~26 min at 6.7 s per episode with 2 uncontended workers):
+  python benchmarks/ablation.py --data data/bc_navigate --runs runs/ablation --episodes 54
+A small run (a prefix of both splits, fewer test episodes, two rows):
+  python benchmarks/ablation.py --limit 16 --episodes 12 --rows state audio,depth,state --no-planner
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+NAV_ROWS = ("state", "audio,state", "audio,depth,state", "state,target", "audio,state,target")
+PLANNER_ROWS = ("image", "audio", "audio,image")
+
+
+def cli(*args: str) -> tuple[str, float]:
+    """Run `echo-data ARGS` (this checkout), fail loudly; (stdout, wall seconds)."""
+    t0 = time.perf_counter()
+    r = subprocess.run([sys.executable, "-m", "echo_data.cli", *args], cwd=ROOT, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"echo-data {' '.join(args)} failed ({r.returncode}):\n{r.stderr[-2000:]}")
+    return r.stdout, time.perf_counter() - t0
+
+
+def navigate_success(doc: dict) -> dict:
+    """Navigate success over all attempted Navigate skills and over first Navigates, with Wilson intervals."""
+    from echo_data.evaluation.metrics import proportion
+
+    navs = [nv for e in doc["episodes"] if "skipped" not in e for nv in e["navigate"]]
+    first = [nv for e in doc["episodes"] if "skipped" not in e for nv in e["navigate"][:1] if nv["skill_index"] == 0]
+    spl = [nv["spl"] for nv in navs if nv["spl"] is not None]
+    return {
+        "all_navigate": proportion(sum(nv["success"] for nv in navs), len(navs)),
+        "first_navigate": proportion(sum(nv["success"] for nv in first), len(first)),
+        "spl_mean": sum(spl) / len(spl) if spl else None,
+        "episodes": len([e for e in doc["episodes"] if "skipped" not in e]),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--recipe", default=str(ROOT / "recipes" / "bc_navigate.yaml"))
+    ap.add_argument("--data", default=str(ROOT / "data" / "bc_navigate"), help="dataset folder (built unless complete)")
+    ap.add_argument("--limit", type=int, default=None, help="build a prefix: N episodes per split")
+    ap.add_argument("--runs", default=str(ROOT / "runs" / "ablation"))
+    ap.add_argument("--episodes", type=int, default=54, help="test episodes evaluated per Navigate row (>= 50 for the table)")
+    ap.add_argument("--rows", nargs="*", default=list(NAV_ROWS), help="Navigate input sets")
+    ap.add_argument("--no-planner", action="store_true")
+    ap.add_argument("--epochs", type=int, default=30)
+    ap.add_argument("--dagger", type=int, default=0, help="DAgger rounds for every Navigate row (0: BC only)")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "ablation.json"))
+    a = ap.parse_args()
+
+    data, runs, out = Path(a.data), Path(a.runs), Path(a.out)
+    runs.mkdir(parents=True, exist_ok=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    doc: dict = {"recipe": a.recipe, "data": str(data), "limit": a.limit, "seed": a.seed, "epochs": a.epochs, "dagger": a.dagger,
+                 "episodes_per_row": a.episodes, "commands": [], "navigate": [], "planner": []}
+
+    def run(*args: str) -> tuple[str, float]:
+        doc["commands"].append("echo-data " + " ".join(args))
+        return cli(*args)
+
+    manifest = data / "manifest.json"
+    if not (manifest.is_file() and json.loads(manifest.read_text()).get("complete")):
+        build = ["build", a.recipe, "--out", str(data), "--workers", str(a.workers), "--no-progress", "--resume" if data.exists() else "--overwrite"]
+        if a.limit:
+            build += ["--limit", str(a.limit)]
+        _, secs = run(*build)
+        doc["build_seconds"] = round(secs, 1)
+    for inputs in a.rows:
+        name = "nav-" + inputs.replace(",", "-") + (f"-dagger{a.dagger}" if a.dagger else "")
+        train = ["train", "bc", str(data), "--skill", "Navigate", "--inputs", inputs, "--epochs", str(a.epochs), "--seed", str(a.seed),
+                 "--out", str(runs / name), "--overwrite", "--no-progress"]
+        if a.dagger:
+            train += ["--dagger", str(a.dagger)]
+        summary, train_s = run(*train)
+        res = out.parent / f"{out.stem}-{name}.json"
+        _, eval_s = run("evaluate", a.recipe, "--split", "test", "-n", str(a.episodes), "--policy", f"Navigate={runs / name}", "--policy", "oracle",
+                        "--planner", "oracle", "--workers", str(a.workers), "--json", str(res))
+        ev = json.loads(res.read_text())
+        s = json.loads(summary)
+        row = {"inputs": inputs, "run": str(runs / name), "train_seconds": round(train_s, 1), "eval_seconds": round(eval_s, 1),
+               "best_val_loss": s["best_val_loss"], "val_loss_of_mean_train_action": s["val_loss_of_mean_train_action"],
+               "rows": s["rows"], "results": str(res), **navigate_success(ev)}
+        doc["navigate"].append(row)
+        print(f"{inputs:24s} first Navigate {row['first_navigate']['k']}/{row['first_navigate']['n']} "
+              f"all {row['all_navigate']['k']}/{row['all_navigate']['n']} ci95 {row['all_navigate']['ci95']}", flush=True)
+        out.write_text(json.dumps(doc, indent=1))
+    if not a.no_planner:
+        for inputs in PLANNER_ROWS:
+            name = "planner-" + inputs.replace(",", "-")
+            report, secs = run("train", "planner", str(data), "--inputs", inputs, "--seed", str(a.seed), "--out", str(runs / name), "--overwrite", "--no-progress")
+            doc["planner"].append({"inputs": inputs, "run": str(runs / name), "train_seconds": round(secs, 1), "test": json.loads(report)["test"]})
+            out.write_text(json.dumps(doc, indent=1))
+    out.write_text(json.dumps(doc, indent=1))
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,181 @@
+"""DAgger for Navigate: roll the learner in the world, ask the scripted expert what it would do
+from each state the learner reached, add those labelled rows, retrain (Ross et al. 2011,
+"A Reduction of Imitation Learning and Structured Prediction to No-Regret Online Learning").
+
+Why Navigate only: its expert is a planner plus a path follower, so it can be asked from any
+base pose — plan a path from where the learner stands to the interaction pose (the same grid,
+goal and start snap as the expert), then take the follower's command with its speed ramp
+started from the base's current commanded velocity, as the expert itself does when it replans.
+The path is kept while the base stays within the expert's own stray distance of it and
+replanned otherwise (A* per step would cost more than the rollout). The manipulation experts
+(Pick, Place, OpenDoor, CloseSink) are open-loop motion plans with grasp phases: from a state
+where the learner holds the handle half-turned or the object half-lifted there is no expert
+answer short of restarting the skill, so DAgger refuses any other skill (one-line error).
+
+Only train-split episodes of the dataset's recipe are rolled (indices below the train split's
+size in the dataset), never the test split. Rollouts act with the learner alone (beta = 0).
+Rows added by DAgger train only; validation stays on the expert's held-out episodes so the
+losses of rounds stay comparable.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from echo_data.learn import runs
+
+DAGGER_LOG = "dagger.csv"
+
+
+class DaggerError(runs.RunError):
+    """DAgger cannot run as asked (one line)."""
+
+
+class NavigateLabeller:
+    """The Navigate expert's action from the current state of a world (see module doc)."""
+
+    def __init__(self, world: Any, target: str, grid: Any) -> None:
+        from echo_data.scene.nav import interaction_pose
+        from echo_data.skills.navigate import door_angles
+
+        self.world, self.grid = world, grid
+        self.goal = interaction_pose(world.plan, target, door_angles=door_angles(world) or None, grid=grid)
+        self.follower: Any = None
+        self.hold = world.robot.rest_action().astype(np.float32)  # the expert drives with the arm at rest
+
+    def __call__(self, last_command: np.ndarray) -> np.ndarray | None:
+        """Expert action now, given the base velocity the learner commanded last; None: no path."""
+        from echo_data.skills.navigate import START_SNAP, STRAY_DIST, PathFollower
+
+        x, y, yaw = self.world.robot.base_pose()
+        f = self.follower
+        if f is None or (not f.turning and f.off_path(x, y) > STRAY_DIST):
+            path = self.grid.plan_path((x, y), (self.goal[0], self.goal[1]), start_snap=START_SNAP)
+            if path is None:
+                return None
+            f = self.follower = PathFollower(path, self.goal[2], 1.0 / self.world.robot.cfg.control_hz)
+        f.v, f.w = float(last_command[0]), float(last_command[2])  # the ramp starts where the base is
+        vx, vy, wz = f.command((x, y, yaw))
+        action = self.hold.copy()
+        action[:3] = (vx, vy, wz) if not f.done else (0.0, 0.0, 0.0)
+        return action
+
+
+@dataclass
+class Rollouts:
+    """Labelled rows from learner rollouts (the `SkillRows` fields training appends)."""
+
+    inputs: dict[str, Any]
+    actions: np.ndarray  # (n, 1, ACTION_DIM): the expert's labels
+    success: list[bool]  # per rollout: the learner's Navigate success test at its end
+    agreement: float  # mean |learner - expert| of (vx, wz) over the visited states
+
+    def __len__(self) -> int:
+        return len(self.actions)
+
+
+def recipe_of(dataset: Path) -> Any:
+    """The recipe a dataset was built from (its manifest copy) and its train episode count."""
+    from echo_data.recipe import recipe_from_mapping
+
+    manifest = runs.read_json(dataset / "manifest.json")
+    return recipe_from_mapping(manifest["recipe"], source=str(dataset / "manifest.json")), int(manifest["splits"]["train"]["episodes"])
+
+
+def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None = None) -> Rollouts:
+    """Roll the policy in `run` on train episodes `episodes`, label every visited state."""
+    import torch
+
+    from echo_data.agents.runtime import true_chain
+    from echo_data.envs.env import EchoDataEnv, skill_budget
+    from echo_data.evaluation.run import needs
+    from echo_data.learn.policy import BCPolicy
+    from echo_data.scene.sampling import SamplingError
+
+    policy = BCPolicy.from_run(run)
+    recipe, _ = recipe_of(dataset)
+    images, audio = needs(policy)
+    env = EchoDataEnv(recipe, split="train", images=images, audio=audio)
+    parts: dict[str, list[Any]] = {}
+    labels: list[np.ndarray] = []
+    success: list[bool] = []
+    gaps: list[float] = []
+    try:
+        for i in episodes:
+            spec = None
+            for attempt in range(3):
+                try:
+                    spec = env.sample_spec("train", i, attempt)
+                    break
+                except SamplingError:
+                    continue
+            if spec is None or spec.chain[0].skill != "Navigate":
+                continue
+            obs, info = env.reset(options={"spec": spec})
+            call = spec.chain[0]
+            policy.reset({"skill": call.skill, "target": call.target, "target_kind": true_chain(spec)[0]["target"], "skill_index": 0,
+                          "event": call.event, "spec_object": spec, "world": env.world})
+            label = NavigateLabeller(env.world, call.target, env._nav_grid())
+            budget = skill_budget(recipe, "Navigate") if max_steps is None else max_steps
+            last = np.zeros(3, dtype=np.float32)
+            for _ in range(budget):
+                if env.skill_success(call):
+                    break
+                y = label(last)
+                if y is None:
+                    break
+                for k, v in policy.inputs(obs).items():
+                    parts.setdefault(k, []).append(v)
+                a = policy.act(obs)
+                labels.append(y)
+                gaps.append(float(np.abs(a[[0, 2]] - y[[0, 2]]).mean()))
+                obs, _, _, _, step_info = env.step(a)
+                last = a[:3]
+                if step_info.get("failure"):
+                    break
+            success.append(bool(env.skill_success(call)))
+    finally:
+        env.close()
+    inputs = {k: torch.cat(v) for k, v in parts.items()}
+    acts = np.stack(labels)[:, None, :] if labels else np.zeros((0, 1, 12), np.float32)
+    return Rollouts(inputs, acts.astype(np.float32), success, float(np.mean(gaps)) if gaps else math.nan)
+
+
+def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_steps: int | None, progress: bool) -> dict[str, Any]:
+    """BC on the dataset, then `rounds` of collect + retrain on the aggregate; returns the last summary."""
+    from echo_data.learn.bc import train_bc
+
+    if cfg.skill != "Navigate":
+        raise DaggerError(f"--dagger: only Navigate's expert can act from any state (not {cfg.skill!r}; see docs/learners.md)")
+    if cfg.chunk != 1:
+        raise DaggerError("--dagger: the expert labels one action per state; use --chunk 1")
+    _, n_train = recipe_of(Path(cfg.dataset))
+    summary = train_bc(cfg, out, overwrite=True, progress=progress)
+    agg: Rollouts | None = None
+    log = ["round,episodes,rows_added,rows_aggregated,learner_success,learner_expert_gap,best_val_loss"]
+    for r in range(1, rounds + 1):
+        eps = [((r - 1) * episodes_per_round + j) % n_train for j in range(episodes_per_round)]
+        new = collect(out, Path(cfg.dataset), eps, max_steps)
+        agg = new if agg is None else _concat(agg, new)
+        summary = train_bc(cfg, out, overwrite=True, progress=progress, extra=agg)
+        rate = sum(new.success) / len(new.success) if new.success else math.nan
+        log.append(f"{r},{' '.join(map(str, eps))},{len(new)},{len(agg)},{rate:.4f},{new.agreement:.4f},{summary['best_val_loss']}")
+        (out / DAGGER_LOG).write_text("\n".join(log) + "\n")
+    summary["dagger"] = {"rounds": rounds, "rows_aggregated": len(agg) if agg is not None else 0, "log": str(out / DAGGER_LOG)}
+    return summary
+
+
+def _concat(a: Rollouts, b: Rollouts) -> Rollouts:
+    import torch
+
+    if not len(b):
+        return a
+    if not len(a):
+        return b
+    return Rollouts({k: torch.cat([a.inputs[k], b.inputs[k]]) for k in a.inputs}, np.concatenate([a.actions, b.actions]),
+                    a.success + b.success, (a.agreement * len(a) + b.agreement * len(b)) / (len(a) + len(b)))
