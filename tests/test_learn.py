@@ -14,18 +14,17 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+import torch  # the test extra installs torch: a broken install must fail here, not skip
 from typer.testing import CliRunner
 
-torch = pytest.importorskip("torch")
-
-from echo_data.cli import app  # noqa: E402
-from echo_data.dataset.schema import ACTION, STATE, column_to_numpy  # noqa: E402
-from echo_data.dataset.torch import StepDataset  # noqa: E402
-from echo_data.learn import runs  # noqa: E402
-from echo_data.learn.features import HEAD_DEPTH, LEAKING_STATE, feature_spec, prepare, single  # noqa: E402
-from echo_data.learn.models import AudioEncoder  # noqa: E402
-from echo_data.learn.policy import BCPolicy, PlannerModel  # noqa: E402
-from echo_data.records import ACTION_DIM, STATE_DIM, STATE_NAMES  # noqa: E402
+from echo_data.cli import app
+from echo_data.dataset.schema import ACTION, STATE, column_to_numpy
+from echo_data.dataset.torch import StepDataset
+from echo_data.learn import runs
+from echo_data.learn.features import HEAD_DEPTH, LEAKING_STATE, feature_spec, prepare, single
+from echo_data.learn.models import AudioEncoder
+from echo_data.learn.policy import BCPolicy, PlannerModel
+from echo_data.records import ACTION_DIM, STATE_DIM, STATE_NAMES
 
 RECIPES = Path(__file__).resolve().parent.parent / "recipes"
 runner = CliRunner()
