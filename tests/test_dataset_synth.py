@@ -141,3 +141,12 @@ def build_synth(out: Path, splits: dict[str, int]) -> Path:
 
     build(synth_recipe(splits=splits), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
     return out
+
+
+def damageable_copy(pristine: Path, tmp_path: Path) -> Path:
+    """A copy of a built dataset that one test may damage without touching the shared original."""
+    import shutil
+
+    copy = tmp_path / "synth"
+    shutil.copytree(pristine, copy)
+    return copy

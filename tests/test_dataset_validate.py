@@ -3,32 +3,26 @@
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import pytest
 import typer
 from typer.testing import CliRunner
 
-from echo_data.dataset.build import build
 from echo_data.dataset.commands import register
 from echo_data.dataset.info import info
 from echo_data.dataset.validate import validate
-from test_dataset_synth import null_library, synth_generate, synth_recipe
+from test_dataset_synth import build_synth, damageable_copy
 
 
 @pytest.fixture(scope="module")
 def pristine(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("val") / "synth"
-    build(synth_recipe(splits={"train": 3, "test": 2}), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
-    return out
+    return build_synth(tmp_path_factory.mktemp("val") / "synth", {"train": 3, "test": 2})
 
 
 @pytest.fixture
 def ds(pristine: Path, tmp_path: Path) -> Path:
-    copy = tmp_path / "synth"
-    shutil.copytree(pristine, copy)
-    return copy
+    return damageable_copy(pristine, tmp_path)
 
 
 def _cli(args: list[str]):  # noqa: ANN202

@@ -17,24 +17,21 @@ import soundfile as sf
 import echo_data.dataset.encode as encode_mod
 from echo_data.dataset.build import BuildError, build
 from echo_data.dataset.validate import validate
-from test_dataset_synth import null_library, synth_generate, synth_recipe
+from test_dataset_synth import build_synth, damageable_copy, null_library, synth_generate, synth_recipe
 
 TESTS = Path(__file__).resolve().parent
 
 
 @pytest.fixture(scope="session")
 def pristine(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("faults-validate") / "synth"
-    build(synth_recipe(), TESTS, out, generate=synth_generate, make_library=null_library, progress=False)
+    out = build_synth(tmp_path_factory.mktemp("faults-validate") / "synth", dict(synth_recipe().splits))
     assert validate(out) == []
     return out
 
 
 @pytest.fixture
 def ds(pristine: Path, tmp_path: Path) -> Path:
-    copy = tmp_path / "synth"
-    shutil.copytree(pristine, copy)
-    return copy
+    return damageable_copy(pristine, tmp_path)
 
 
 def _edit_json(path: Path, edit: Callable[[dict], None]) -> None:
