@@ -9,6 +9,7 @@ same folder, then renamed), so a killed run never leaves a truncated video behin
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Iterable
 from fractions import Fraction
@@ -19,6 +20,21 @@ import numpy as np
 
 AUDIO_BITRATE = 128_000
 """AAC bit rate for the two channels (transparent enough for listening to cues)."""
+
+
+@functools.lru_cache(maxsize=8)
+def colour_lut(name: str = "magma") -> np.ndarray:
+    """256-entry RGB uint8 lookup table of a matplotlib colour map, for drawing spectrograms."""
+    import matplotlib
+
+    return (matplotlib.colormaps[name](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
+
+
+def fit_nearest(img: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Nearest-neighbour resize to (height, width): a video frame shows pixels as pixels."""
+    from PIL import Image
+
+    return np.asarray(Image.fromarray(img).resize((width, height), Image.Resampling.NEAREST))
 
 
 def _even(n: int) -> int:

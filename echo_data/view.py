@@ -20,6 +20,7 @@ from PIL import Image, ImageDraw
 
 from echo_data.dataset.manifest import load_manifest
 from echo_data.dataset.schema import IMAGE_COLUMNS, STATE
+from echo_data.media import colour_lut, fit_nearest
 
 PANEL = 256  # side of the image and map panels (pixels)
 SPEC_H = 128  # spectrogram strip height
@@ -34,22 +35,11 @@ class ViewError(ValueError):
     """Bad input for `view` (no such episode, no images): exit 2, nothing written."""
 
 
-def _lut(name: str) -> np.ndarray:
-    import matplotlib
-
-    return (matplotlib.colormaps[name](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
-
-
-def _fit(img: np.ndarray, w: int, h: int) -> np.ndarray:
-    """Nearest-neighbour resize to (h, w): pixels stay visible as pixels."""
-    return np.asarray(Image.fromarray(img).resize((w, h), Image.Resampling.NEAREST))
-
-
 def _panel(img: np.ndarray) -> np.ndarray:
     """A camera image scaled into a PANEL x PANEL square without distortion."""
     h, w = img.shape[:2]
     s = PANEL / max(h, w)
-    fitted = _fit(img, max(1, round(w * s)), max(1, round(h * s)))
+    fitted = fit_nearest(img, max(1, round(w * s)), max(1, round(h * s)))
     out = np.zeros((PANEL, PANEL, 3), dtype=np.uint8)
     y, x = (PANEL - fitted.shape[0]) // 2, (PANEL - fitted.shape[1]) // 2
     out[y : y + fitted.shape[0], x : x + fitted.shape[1]] = fitted
@@ -165,10 +155,10 @@ def render_episode_video(root: str | Path, index: int, out: str | Path, split: s
     track = audio[first : first + len(rows) * hop]
     track = np.pad(track, ((0, len(rows) * hop - len(track)), (0, 0)))
     spec, cols_per_s = _spectrogram_image(audio, sr)
-    spec_rgb = _lut("magma")[spec]
+    spec_rgb = colour_lut("magma")[spec]
     spec_w = 3 * PANEL
     px_per_s = spec_w / (SPEC_SECONDS + SPEC_AHEAD)
-    turbo = _lut("turbo")
+    turbo = colour_lut("turbo")
     state = np.array([r[STATE] for r in rows], dtype=np.float64)
     chain = ep["chain"]
     mapper = _Map(_plan(manifest, ep["scene_seed"]), ep["events"], state[:, :2])
@@ -188,7 +178,7 @@ def render_episode_video(root: str | Path, index: int, out: str | Path, split: s
             ok = (cols >= 0) & (cols < spec_rgb.shape[1])
             strip = np.zeros((spec_rgb.shape[0], spec_w, 3), dtype=np.uint8)
             strip[:, ok] = spec_rgb[:, cols[ok]]
-            strip = _fit(strip, spec_w, SPEC_H).copy()
+            strip = fit_nearest(strip, spec_w, SPEC_H).copy()
             cursor = int(SPEC_SECONDS * px_per_s)
             strip[:, cursor : cursor + 2] = 255
             canvas[PANEL : PANEL + SPEC_H] = strip

@@ -8,24 +8,17 @@ The MP4 itself is written by `echo_data.media.write_mp4` with the binaural track
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
+from echo_data.media import colour_lut, fit_nearest
+
 PANEL = 256  # px, side of the camera and plan panels
 STRIP = 128  # px, height of the spectrogram strip
 MEL_RANGE_DB = (-100.0, 0.0)  # log-mel floor and full scale (features clip at -100 dB)
-
-
-@functools.lru_cache(maxsize=1)
-def _lut() -> np.ndarray:
-    """256-entry RGB colour map (matplotlib's magma) for the spectrogram strip."""
-    import matplotlib
-
-    return (matplotlib.colormaps["magma"](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
 
 
 class TopDown:
@@ -74,12 +67,6 @@ class TopDown:
         return np.asarray(img)
 
 
-def _fit(img: np.ndarray, h: int, w: int) -> np.ndarray:
-    from PIL import Image
-
-    return np.asarray(Image.fromarray(img).resize((w, h), Image.Resampling.NEAREST))
-
-
 def compose(obs: dict[str, np.ndarray], plan_panel: np.ndarray, label: str = "") -> np.ndarray:
     """One (PANEL + STRIP, 2 * PANEL, 3) uint8 frame from an observation and a drawn plan panel."""
     from PIL import Image, ImageDraw
@@ -87,14 +74,14 @@ def compose(obs: dict[str, np.ndarray], plan_panel: np.ndarray, label: str = "")
     frame = np.zeros((PANEL + STRIP, 2 * PANEL, 3), dtype=np.uint8)
     rgb = obs.get("observation.images.head_rgb")
     if rgb is not None:
-        frame[:PANEL, :PANEL] = _fit(np.asarray(rgb, dtype=np.uint8), PANEL, PANEL)
+        frame[:PANEL, :PANEL] = fit_nearest(np.asarray(rgb, dtype=np.uint8), PANEL, PANEL)
     frame[:PANEL, PANEL:] = plan_panel
     mel = obs.get("observation.audio.mel")
     if mel is not None:
         lo, hi = MEL_RANGE_DB
         both = np.concatenate([mel[::-1, :, 0], mel[::-1, :, 1]], axis=0)  # left ear on top, low bands at the bottom
         idx = np.clip((both - lo) / (hi - lo) * 255, 0, 255).astype(np.uint8)
-        frame[PANEL:] = _fit(_lut()[idx], STRIP, 2 * PANEL)
+        frame[PANEL:] = fit_nearest(colour_lut("magma")[idx], 2 * PANEL, STRIP)
     if label:
         img = Image.fromarray(frame)
         ImageDraw.Draw(img).text((6, 4), label, fill=(255, 255, 0))
