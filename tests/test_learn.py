@@ -166,6 +166,9 @@ def test_planner_trains_scores_and_plans(ds: Path, tmp_path: Path) -> None:
     assert int(item["frame_index"]) == 0
     chain = PlannerModel.from_run(run).plan({k: v for k, v in item.items() if k != "frame_index"})
     assert chain and all(set(c) == {"skill", "target"} for c in chain)
+    # resuming is continuing the same run: other inputs are refused, one line, exit 2
+    res = runner.invoke(app, ["train", "planner", str(ds), "--inputs", "audio", "--epochs", "3", "--out", str(run), "--resume", "--no-progress"])
+    assert res.exit_code == 2 and "inputs is ['audio', 'image'], not ['audio']" in res.output, res.output
 
 
 @pytest.mark.parametrize(

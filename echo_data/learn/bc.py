@@ -111,12 +111,7 @@ def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = F
     runs.check_out(out, resume, overwrite)
     if resume:
         saved = BCConfig.from_dict(runs.read_json(out / runs.CONFIG))
-        for key in ("dataset", "skill", "inputs", "seed", "chunk"):
-            mine, theirs = getattr(cfg, key), getattr(saved, key)
-            if key == "dataset":
-                mine = str(Path(mine).resolve())
-            if mine != theirs:
-                raise runs.RunError(f"{out / runs.CONFIG}: {key} is {theirs!r}, not {mine!r}; resume with the same arguments")
+        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "skill", "inputs", "seed", "chunk"))
         cfg = BCConfig.from_dict({**asdict(saved), "epochs": cfg.epochs, "max_steps": cfg.max_steps})
     else:
         cfg = resolve(cfg)

@@ -230,6 +230,7 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     runs.check_out(out, resume, overwrite)
     if resume:
         saved = PlannerConfig.from_dict(runs.read_json(out / runs.CONFIG))
+        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "inputs", "seed", "audio", "image_size"))
         cfg = PlannerConfig.from_dict({**asdict(saved), "epochs": cfg.epochs, "max_steps": cfg.max_steps})
     else:
         cfg = resolve(cfg)

@@ -105,6 +105,19 @@ def _plot(path: Path, rows: list[dict[str, Any]]) -> None:
     atomic_write_bytes(path, buf.getvalue())
 
 
+def check_same_run(folder: Path, given: dict[str, Any], saved: dict[str, Any], keys: tuple[str, ...]) -> None:
+    """A resumed run must be the run that was started: the arguments that define it (data, inputs,
+    seed...) must equal the saved config's, or the checkpoint would be continued on other data."""
+    for key in keys:
+        mine, theirs = given[key], saved[key]
+        if key == "dataset":
+            mine, theirs = str(Path(mine).resolve()), str(Path(theirs).resolve())
+        if isinstance(mine, (list, tuple)) and isinstance(theirs, (list, tuple)):
+            mine, theirs = list(mine), list(theirs)
+        if mine != theirs:
+            raise RunError(f"{folder / CONFIG}: {key} is {theirs!r}, not {mine!r}; resume with the same arguments")
+
+
 def check_out(folder: Path, resume: bool, overwrite: bool) -> None:
     """Refuse to mix runs: a new run needs an empty or absent folder (or --overwrite)."""
     if resume and overwrite:
