@@ -171,6 +171,20 @@ def test_planner_trains_scores_and_plans(ds: Path, tmp_path: Path) -> None:
     assert res.exit_code == 2 and "inputs is ['audio', 'image'], not ['audio']" in res.output, res.output
 
 
+def test_planner_learning_curve_subsets_are_seeded_and_nested(ds: Path, tmp_path: Path) -> None:
+    """`--train-episodes N` trains on N train episodes drawn from the seed, nested across sizes."""
+    from echo_data.learn.planner import subset
+
+    assert subset(list(range(40)), 10, 0) < subset(list(range(40)), 20, 0)
+    assert subset(list(range(40)), 10, 0) != subset(list(range(40)), 10, 1) and subset([3, 4], None, 0) == {3, 4}
+    assert len(subset(list(range(40)), 10, 0)) == 10 and subset(list(range(5)), 9, 0) == set(range(5))
+    run = tmp_path / "small"
+    res = runner.invoke(app, ["train", "planner", str(ds), "--train-episodes", "1", "--max-steps", "1", "--out", str(run), "--no-progress"])
+    assert res.exit_code == 0, res.output
+    assert json.loads((run / runs.CONFIG).read_text())["train_episodes"] == 1
+    assert sum(json.loads(res.stdout)["episodes"][k] for k in ("train", "val")) == 1
+
+
 @pytest.mark.parametrize(
     "args, message",
     [

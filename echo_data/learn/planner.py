@@ -51,6 +51,8 @@ class PlannerConfig:
     # first seconds, all events still sounding): more views of each scene for few episodes.
     # Validation and test read frame 0 only, the planner's input.
     train_frames: int = 10
+    # A seeded subset of the train split's episodes (None: all), for learning curves.
+    train_episodes: int | None = None
     # Filled in by resolve():
     features: dict[str, Any] = field(default_factory=dict)
     audio_shape: list[int] | None = None
@@ -105,12 +107,20 @@ def chain_of(categories: list[str], templates: dict[str, list[list[str]]]) -> li
     return [{"skill": s, "target": t} for cat in categories for s, t in templates.get(cat, [])]
 
 
-def load_episodes(dataset: Path, split: str, spec: FeatureSpec, frames: int = 1) -> Episodes:
-    """Frames 0..frames-1 of every episode of `split` while its first skill runs (no event is
-    resolved before the first skill, a Navigate, ends), prepared with `features.prepare`."""
+def subset(indices: list[int], n: int | None, seed: int) -> set[int]:
+    """The first `n` episodes of a permutation drawn from `seed` (all when `n` is None): a size
+    that mixes the settings (episode indices run setting by setting), nested across sizes so a
+    learning curve adds episodes to the same set."""
+    order = np.random.default_rng(np.random.SeedSequence([seed, 0x5EB5E7])).permutation(sorted(indices))
+    return {int(i) for i in order[: len(order) if n is None else n]}
+
+
+def load_episodes(dataset: Path, split: str, spec: FeatureSpec, frames: int = 1, episodes: set[int] | None = None) -> Episodes:
+    """Frames 0..frames-1 of every episode of `split` (or of `episodes`) while its first skill runs
+    (no event is resolved before the first skill, a Navigate, ends), prepared with `features.prepare`."""
     import torch
 
-    meta = {r["episode_index"]: r for r in episode_rows(dataset, split)}
+    meta = {r["episode_index"]: r for r in episode_rows(dataset, split) if episodes is None or r["episode_index"] in episodes}
     shards = Shards.of(dataset, split)
     parts: dict[str, list[Any]] = {}
     index: list[int] = []
@@ -119,7 +129,7 @@ def load_episodes(dataset: Path, split: str, spec: FeatureSpec, frames: int = 1)
         pf = pq.ParquetFile(f)
         t = pf.read(columns=["episode_index", "frame_index", "skill_index"])
         fr = t.column("frame_index").to_numpy()
-        keep = np.flatnonzero((fr < frames) & (t.column("skill_index").to_numpy() == 0))
+        keep = np.flatnonzero((fr < frames) & (t.column("skill_index").to_numpy() == 0) & np.isin(t.column("episode_index").to_numpy(), list(meta)))
         index += t.column("episode_index").to_numpy()[keep].tolist()
         frame += fr[keep].tolist()
         for k, v in prepare_rows(pf, shards, keep, spec).items():
@@ -230,14 +240,15 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     runs.check_out(out, resume, overwrite)
     if resume:
         saved = PlannerConfig.from_dict(runs.read_json(out / runs.CONFIG))
-        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "inputs", "seed", "audio", "image_size"))
+        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "inputs", "seed", "audio", "image_size", "train_episodes"))
         cfg = PlannerConfig.from_dict({**asdict(saved), "epochs": cfg.epochs, "max_steps": cfg.max_steps})
     else:
         cfg = resolve(cfg)
     torch = setup_torch(cfg.seed, cfg.threads)
     spec = FeatureSpec.from_dict(cfg.features)
     root = Path(cfg.dataset)
-    train = load_episodes(root, "train", spec, frames=cfg.train_frames)
+    chosen = subset([r["episode_index"] for r in episode_rows(root, "train")], cfg.train_episodes, cfg.seed)
+    train = load_episodes(root, "train", spec, frames=cfg.train_frames, episodes=chosen)
     val_eps = split_episodes(train.index, cfg.val_fraction, cfg.seed)
     cfg.val_episodes = [int(e) for e in val_eps]
     is_val = np.isin(train.index, val_eps)
