@@ -43,6 +43,13 @@ def cli(*args: str) -> tuple[str, float]:
     return r.stdout, time.perf_counter() - t0
 
 
+def _commit() -> str:
+    """The checkout's commit (with "+dirty" for local changes): the numbers belong to this code."""
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    return head + ("+dirty" if dirty else "")
+
+
 def navigate_success(doc: dict) -> dict:
     """Navigate success over all attempted Navigate skills and over first Navigates, with Wilson intervals."""
     from echo_data.evaluation.metrics import proportion
@@ -67,6 +74,8 @@ def main() -> None:
     ap.add_argument("--episodes", type=int, default=54, help="test episodes evaluated per Navigate row (>= 50 for the table)")
     ap.add_argument("--rows", nargs="*", default=list(NAV_ROWS), help="Navigate input sets")
     ap.add_argument("--no-planner", action="store_true")
+    ap.add_argument("--curve", type=int, nargs="*", default=[30, 60, 120],
+                    help="also train the audio planner on seeded subsets of this many train episodes (a learning curve)")
     ap.add_argument("--epochs", type=int, default=30)
     ap.add_argument("--dagger", type=int, default=0, help="DAgger rounds for every Navigate row (0: BC only)")
     ap.add_argument("--workers", type=int, default=2)
@@ -78,7 +87,7 @@ def main() -> None:
     runs.mkdir(parents=True, exist_ok=True)
     out.parent.mkdir(parents=True, exist_ok=True)
     doc: dict = {"recipe": a.recipe, "data": str(data), "limit": a.limit, "seed": a.seed, "epochs": a.epochs, "dagger": a.dagger,
-                 "episodes_per_row": a.episodes, "commands": [], "navigate": [], "planner": []}
+                 "episodes_per_row": a.episodes, "commit": _commit(), "commands": [], "navigate": [], "planner": []}
 
     def run(*args: str) -> tuple[str, float]:
         doc["commands"].append("echo-data " + " ".join(args))
@@ -115,6 +124,14 @@ def main() -> None:
             name = "planner-" + inputs.replace(",", "-")
             report, secs = run("train", "planner", str(data), "--inputs", inputs, "--seed", str(a.seed), "--out", str(runs / name), "--overwrite", "--no-progress")
             doc["planner"].append({"inputs": inputs, "run": str(runs / name), "train_seconds": round(secs, 1), "test": json.loads(report)["test"]})
+            out.write_text(json.dumps(doc, indent=1))
+        doc["planner_curve"] = []
+        for n in a.curve:
+            name = f"planner-audio-{n}ep"
+            report, secs = run("train", "planner", str(data), "--inputs", "audio", "--train-episodes", str(n), "--seed", str(a.seed),
+                               "--out", str(runs / name), "--overwrite", "--no-progress")
+            r = json.loads(report)
+            doc["planner_curve"].append({"train_episodes": n, "episodes": r["episodes"], "train_seconds": round(secs, 1), "test": r["test"]})
             out.write_text(json.dumps(doc, indent=1))
     out.write_text(json.dumps(doc, indent=1))
     print(f"wrote {out}")
