@@ -253,6 +253,19 @@ class FloorPlan:
             max(r.rect.ymax for r in self.rooms),
         )
 
+    @property
+    def open_doorways(self) -> frozenset[int]:
+        """Doorways that are wide doorless openings joining the rooms of one space (an L-shaped
+        room, an open-plan kitchen/living room; `echo_data.scene.layouts`)."""
+        return frozenset(int(i) for i in self.extra.get("open_doorways", ()))
+
+    def space_of(self, room: int) -> int:
+        """The lowest index among the rooms that form one space with `room` (itself if alone)."""
+        for a, b in self.extra.get("spaces", ()):
+            if room in (a, b):
+                return min(int(a), int(b))
+        return room
+
     def room_at(self, x: float, y: float) -> int:
         """Index of the room containing (x, y), or -1."""
         for r in self.rooms:
