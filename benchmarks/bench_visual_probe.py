@@ -83,7 +83,7 @@ def collect(recipe_path: Path, seeds: list[int], views: int, mono: bool) -> tupl
         for k, o in enumerate(plan.objects):
             label = (k + seed) % len(CLASSES)
             cat = CLASSES[label] if label < 3 else str(rng.choice(DISTRACTOR_CATEGORIES))
-            bottom = o.position[2] - object_size(o.category)[2] / 2.0
+            bottom = o.position[2] - object_size(o.category, o.scale)[2] / 2.0
             z = bottom + object_size(cat)[2] / 2.0
             obj = replace(o, category=cat, position=(o.position[0], o.position[1], z), yaw=float(rng.uniform(0, 2 * math.pi)))
             ent = build_object(scene, obj, seed, mono=MONO if mono else None)

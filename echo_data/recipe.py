@@ -156,6 +156,9 @@ class ObjectsConfig(_Strict):
     targets: tuple[RelocationCategory, ...] = RELOCATION_CATEGORIES
     distractors: tuple[int, int] = (1, 3)
     distractor_shapes: tuple[str, ...] = ("mug", "can", "box", "bowl", "bottle", "book")
+    # each instance drawn at its own size within its category's range (scene/objects.py
+    # SIZE_RANGES); false: every instance at the category's base size (before this key)
+    size_variants: bool = True
 
     @field_validator("distractors")
     @classmethod

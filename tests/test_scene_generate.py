@@ -256,10 +256,10 @@ def test_distractors_rest_on_receptacles_within_edges() -> None:
             assert not o.sounding and o.category in recipe.objects.distractor_shapes
             f = plan.furniture[o.receptacle]
             assert f.receptacle
-            r = object_radius(o.category)
+            r = object_radius(o.category, o.scale)
             fp = f.footprint
             assert fp.contains(o.position[0], o.position[1], margin=EDGE_MARGIN + r - 1e-6)
-            assert o.position[2] == pytest.approx(f.top_z + object_size(o.category)[2] / 2.0, abs=1e-4)
+            assert o.position[2] == pytest.approx(f.top_z + object_size(o.category, o.scale)[2] / 2.0, abs=1e-4)
             # front-reachable: centre within FRONT_REACH of the front edge
             n = (round(math.cos(f.yaw)), round(math.sin(f.yaw)))
             half_depth = (abs(n[0]) * f.size[0] + abs(n[1]) * f.size[1]) / 2.0
@@ -268,7 +268,7 @@ def test_distractors_rest_on_receptacles_within_edges() -> None:
         for i, a in enumerate(plan.objects):
             for b in plan.objects[i + 1 :]:
                 d = math.hypot(a.position[0] - b.position[0], a.position[1] - b.position[1])
-                assert d >= object_radius(a.category) + object_radius(b.category)
+                assert d >= object_radius(a.category, a.scale) + object_radius(b.category, b.scale)
     assert n_total > len(PLANS)  # clutter really gets placed
 
 

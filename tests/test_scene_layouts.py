@@ -123,6 +123,17 @@ def test_wet_rooms_get_hard_floors() -> None:
             else:
                 assert room.floor_material in carpets
     assert seen >= 20
+    # and a bathroom always has a door (shut: its ring stays out of the other rooms' T30,
+    # tests/test_acoustics_furnished.py)
+    baths = 0
+    for s in range(30):
+        plan = generate_floorplan_from_seed(r, s)
+        doored = {d.doorway for d in plan.doors}
+        for dw in plan.doorways:
+            if any(i >= 0 and plan.rooms[i].kind == "bathroom" for i in dw.rooms):
+                baths += 1
+                assert dw.index in doored, (s, dw)
+    assert baths >= 10
     # null keeps the drawn floor: wet rooms carpeted as before the key existed
     old = Recipe(name="t", scene={"rooms": (3, 6), "floor_materials": carpets, "wet_floor_materials": None})  # type: ignore[arg-type]
     assert all(is_soft(room.floor_material) for room in generate_floorplan_from_seed(old, 0).rooms)
@@ -135,10 +146,11 @@ def test_rows_reproduce_the_old_generator() -> None:
     for name in RECIPES:
         recipe = load_recipe(ROOT / name)
         scene = recipe.scene.model_copy(update={"layouts": ("rows",), "wet_floor_materials": None})
-        assert compute(recipe.model_copy(update={"scene": scene})) == ref[name], name
+        objects = recipe.objects.model_copy(update={"size_variants": False})
+        assert compute(recipe.model_copy(update={"scene": scene, "objects": objects})) == ref[name], name
     # bc_navigate as shipped asks for exactly that (its ablation numbers must stay reproducible)
     bc = load_recipe(ROOT / "recipes/bc_navigate.yaml")
-    assert bc.scene.layouts == ("rows",) and bc.scene.wet_floor_materials is None
+    assert bc.scene.layouts == ("rows",) and bc.scene.wet_floor_materials is None and not bc.objects.size_variants
 
 
 def test_default_draws_every_family() -> None:

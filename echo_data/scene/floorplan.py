@@ -226,6 +226,7 @@ class PlacedObject:
     yaw: float
     receptacle: int  # furniture index it rests on
     sounding: bool
+    scale: float = 1.0  # uniform size factor of this instance (`echo_data.scene.objects.instance_scale`)
 
 
 @dataclass(frozen=True)
@@ -280,7 +281,13 @@ class FloorPlan:
         raise KeyError(name)
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """Plain data; an object at scale 1 is written without its `scale`, so plans made before
+        instance sizes existed keep their bytes (and digests: tests/test_scene_layouts.py)."""
+        d = dataclasses.asdict(self)
+        for o in d["objects"]:
+            if o["scale"] == 1.0:
+                del o["scale"]
+        return d
 
     @staticmethod
     def from_dict(d: dict[str, Any]) -> FloorPlan:

@@ -34,7 +34,7 @@ from echo_data.scene.floorplan import (
     WallSegment,
 )
 from echo_data.scene.layouts import Layout, draw_layout, opening_span
-from echo_data.scene.objects import object_size
+from echo_data.scene.objects import instance_scale, object_size
 from echo_data.scene.surfaces import room_floor
 
 ROOM_KINDS = ("living", "kitchen", "bedroom", "bathroom", "hall", "study")
@@ -589,9 +589,9 @@ def _front_frame(f: Furniture) -> tuple[tuple[float, float], tuple[float, float]
     return n, lat, half_depth, half_len
 
 
-def object_radius(category: str) -> float:
+def object_radius(category: str, scale: float = 1.0) -> float:
     """Radius of the circle that holds an object's footprint at any yaw."""
-    sx, sy, _ = object_size(category)
+    sx, sy, _ = object_size(category, scale)
     return math.hypot(sx, sy) / 2.0
 
 
@@ -603,6 +603,7 @@ def place_object(
     sounding: bool,
     receptacles: list[int] | None = None,
     tries: int = 40,
+    scale: float = 1.0,
 ) -> FloorPlan | None:
     """`plan` plus one object of `category` resting on a receptacle, or None if none fits.
 
@@ -614,8 +615,8 @@ def place_object(
     cands = [f.index for f in plan.furniture if f.receptacle] if receptacles is None else list(receptacles)
     if not cands:
         return None
-    r = object_radius(category)
-    sz = object_size(category)[2]
+    r = object_radius(category, scale)
+    sz = object_size(category, scale)[2]
     t = plan.walls[0].thickness if plan.walls else 0.0
     for _ in range(tries):
         f = plan.furniture[cands[int(rng.integers(len(cands)))]]
@@ -633,7 +634,7 @@ def place_object(
         if not room_inner.contains(x, y, margin=OBJECT_WALL_CLEARANCE):
             continue  # an arm reaching into a corner hits the side wall
         if any(
-            math.hypot(o.position[0] - x, o.position[1] - y) < r + object_radius(o.category) + OBJECT_GAP
+            math.hypot(o.position[0] - x, o.position[1] - y) < r + object_radius(o.category, o.scale) + OBJECT_GAP
             for o in plan.objects
         ):
             continue
@@ -647,6 +648,7 @@ def place_object(
             yaw=round(yaw, 4),
             receptacle=f.index,
             sounding=sounding,
+            scale=scale,
         )
         return dataclasses.replace(plan, objects=plan.objects + (obj,))
     return None
@@ -724,7 +726,11 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
         if dw in opened:
             continue  # a wide opening has no door
         is_entrance = dw is entrance
-        if not is_entrance and rng.random() >= sc.door_probability:
+        draw = 1.0 if is_entrance else rng.random()
+        # a bathroom is never left without a door (where wet rooms are modelled, see
+        # `scene.wet_floor_materials`): its hard, ringing room stays shut off from the others
+        bath = sc.wet_floor_materials is not None and any(r >= 0 and rooms[r].kind == "bathroom" for r in dw.rooms)
+        if not is_entrance and draw >= sc.door_probability and not bath:
             continue
         if is_entrance:
             swing = rooms[max(dw.rooms)]
@@ -808,7 +814,9 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
     n_distractors = int(rng.integers(lo, hi + 1)) if shapes else 0
     for k in range(n_distractors):
         cat = shapes[int(rng.integers(len(shapes)))]
-        nxt = place_object(plan, cat, f"distractor_{k}", rng, sounding=False)
+        name = f"distractor_{k}"
+        scale = instance_scale(cat, name, seed) if recipe.objects.size_variants else 1.0
+        nxt = place_object(plan, cat, name, rng, sounding=False, scale=scale)
         if nxt is not None:
             plan = nxt
     return plan
