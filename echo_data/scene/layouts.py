@@ -21,10 +21,10 @@ Sizes. Every rectangle other than the hall keeps the recipe's `scene.room_size` 
 (base.yaml: 3.2-5.0 m, i.e. 10-25 m² per rectangle). Against real flats:
 - UK Nationally Described Space Standard (DCLG, 2015): a single bedroom at least 7.5 m² and
   2.15 m wide, a double at least 11.5 m² and 2.55 m (one of them 2.75 m) wide: our smallest
-  rectangle (3.2 x 3.2 m) passes as a double bedroom;
+  rectangle (3.2 x 3.2 m, 10.2 m²) is above the single and as wide as the double;
 - London Housing Design Guide (interim edition, 2010), combined living/kitchen/dining floor
-  area of 23-31 m² for 2-6 person homes: an open-plan room here is 2 rectangles, 20-50 m², an
-  L-shaped living room (two rectangles of visibly different widths) 20-45 m²;
+  area of 23-31 m² for 2-6 person homes: an open-plan room or an L-shaped living room here is
+  two rectangles, 20-50 m²;
 - hall widths: UK Approved Document M vol. 1 (2015) asks 900-1200 mm of clear corridor width
   in dwellings depending on the door width and the approach, DIN 18040-2 (barrier-free
   dwellings) 1.20 m; HALL_WIDTH spans 1.0-1.4 m wall centre to wall centre, i.e. 0.9-1.3 m
