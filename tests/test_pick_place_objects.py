@@ -38,7 +38,10 @@ def test_instance_sizes_vary_within_range_and_keep_targets_graspable() -> None:
     for c in CATEGORIES:
         lo, hi = SIZE_RANGES[c]
         scales = {instance_scale(c, f"{c}_0", seed) for seed in range(200)}
-        assert min(scales) >= lo and max(scales) <= hi and len(scales) > 50, c
+        assert min(scales) >= lo and max(scales) <= hi, c
+        if hi == lo:
+            continue  # a category kept at its base size
+        assert len(scales) > 50, c
         assert max(scales) - min(scales) > 0.8 * (hi - lo), c  # the range is used
         assert instance_scale(c, f"{c}_0", 5) == instance_scale(c, f"{c}_0", 5)
         if c in TARGET_CATEGORIES:  # the narrow side at the largest size still fits the gripper

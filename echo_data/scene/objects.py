@@ -206,11 +206,14 @@ MODELS: dict[str, ObjectModel] = _models()
 # smartphones), twin-bell alarm clocks 7.7-9.9 cm across the body, toys 11-13 cm tall, mugs
 # 7-9 cm across, drink cans 11-13 cm tall, bowls 11-17 cm, bottles 18-25 cm, books 16-25 cm.
 # Grasping bounds the targets: the narrow side (the grasp axis, local y) stays <= 0.085 m
-# for a 0.1 m gripper opening (phone 7.6 cm, alarm 5.5 cm, furby 8.4 cm at their largest).
+# for a 0.1 m gripper opening (phone 7.6 cm, alarm 5.5 cm at their largest). The furby keeps
+# its base size: it is already the widest the gripper takes (8.4 cm), and smaller furbies
+# (0.85-0.94) tipped over when put down in 6 of 13 object-relocation trial episodes (3 of them
+# rerun at the base size: all placed); the cause is not found yet.
 SIZE_RANGES: dict[str, tuple[float, float]] = {
     "phone": (0.92, 1.08),
     "alarm": (0.85, 1.1),
-    "furby": (0.85, 1.0),
+    "furby": (1.0, 1.0),
     "mug": (0.85, 1.1),
     "can": (0.9, 1.1),
     "box": (0.75, 1.3),
