@@ -32,7 +32,7 @@ def main() -> None:
     out = {}
     for fam in base.scene.layouts:
         recipe = base.model_copy(update={"scene": base.scene.model_copy(update={"layouts": (fam,)})})
-        first = sum(generate._try_generate(recipe, np.random.default_rng(s), s) is not None for s in range(args.n))
+        first = sum(generate._try_generate(recipe, np.random.default_rng(s), s, fam) is not None for s in range(args.n))
         ok, attempts, reasons = 0, [], collections.Counter()
         for i in range(args.n):
             try:

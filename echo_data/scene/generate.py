@@ -33,7 +33,7 @@ from echo_data.scene.floorplan import (
     Room,
     WallSegment,
 )
-from echo_data.scene.layouts import Layout, draw_layout, opening_span
+from echo_data.scene.layouts import Layout, draw_family, draw_layout, opening_span
 from echo_data.scene.objects import instance_scale, object_size
 from echo_data.scene.surfaces import room_floor
 
@@ -669,17 +669,18 @@ def generate_floorplan(recipe: Recipe, rng: np.random.Generator) -> FloorPlan:
 def generate_floorplan_from_seed(recipe: Recipe, seed: int, max_tries: int = 40) -> FloorPlan:
     """The apartment identified by (recipe, seed)."""
     rng = np.random.default_rng(seed)
+    family = draw_family(recipe, rng)
     for _ in range(max_tries):
-        plan = _try_generate(recipe, rng, seed)
+        plan = _try_generate(recipe, rng, seed, family)
         if plan is not None:
             return plan
     raise GenerationError(f"no valid apartment in {max_tries} tries (seed {seed}); loosen recipe.scene")
 
 
-def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorPlan | None:
+def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int, family: str) -> FloorPlan | None:
     sc = recipe.scene
     t = sc.wall_thickness
-    layout = draw_layout(recipe, rng)
+    layout = draw_layout(recipe, family, rng)
     if layout is None:
         return None
     rects = layout.rects

@@ -219,14 +219,17 @@ def _corridor(recipe: Recipe, rng: np.random.Generator) -> Layout | None:
 _FAMILIES = {"rows": _rows, "l_shape": _l_shape, "corridor": _corridor, "open_plan": _open_plan}
 
 
-def draw_layout(recipe: Recipe, rng: np.random.Generator) -> Layout | None:
-    """One apartment's rectangles from one of the recipe's layout families, or None (redraw).
-
-    A single family draws no family choice, so `layouts: [rows]` keeps the old draws.
-    """
+def draw_family(recipe: Recipe, rng: np.random.Generator) -> str:
+    """The layout family of one apartment, each of the recipe's equally likely. Drawn once per
+    apartment (the generator's redraws stay in it, so families that need more redraws are not
+    rarer); a single family draws nothing, so `layouts: [rows]` keeps the old draws."""
     fams = recipe.scene.layouts
-    fam = fams[0] if len(fams) == 1 else fams[int(rng.integers(len(fams)))]
-    return _FAMILIES[fam](recipe, rng)
+    return fams[0] if len(fams) == 1 else fams[int(rng.integers(len(fams)))]
+
+
+def draw_layout(recipe: Recipe, family: str, rng: np.random.Generator) -> Layout | None:
+    """One apartment's rectangles in `family`, or None (redraw)."""
+    return _FAMILIES[family](recipe, rng)
 
 
 def opening_span(a: Rect, b: Rect, t: float) -> tuple[str, float, float, float]:
