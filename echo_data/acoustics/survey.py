@@ -14,7 +14,6 @@ from echo_data.acoustics.room import AcousticScene, omni_rir
 from echo_data.recipe import AcousticsConfig, Recipe
 from echo_data.scene.generate import generate_floorplan_from_seed
 
-
 CORRIDOR_WIDTH = 2.0  # m: a hall narrower than this is a corridor (scene/layouts.HALL_WIDTH: 1.0-1.4 m)
 
 
