@@ -64,7 +64,7 @@ def collect(recipe_path: Path, seeds: list[int], views: int, mono: bool) -> tupl
     from echo_data.scene.build import build_statics
     from echo_data.scene.generate import generate_floorplan_from_seed
     from echo_data.scene.lighting import add_lights
-    from echo_data.scene.objects import DISTRACTOR_CATEGORIES, build_object, object_size
+    from echo_data.scene.objects import DISTRACTOR_CATEGORIES, build_object, instance_scale, object_size
     from echo_data.world import keep_render_alive
 
     recipe = load_recipe(recipe_path)
@@ -83,9 +83,10 @@ def collect(recipe_path: Path, seeds: list[int], views: int, mono: bool) -> tupl
         for k, o in enumerate(plan.objects):
             label = (k + seed) % len(CLASSES)
             cat = CLASSES[label] if label < 3 else str(rng.choice(DISTRACTOR_CATEGORIES))
-            bottom = o.position[2] - object_size(o.category)[2] / 2.0
-            z = bottom + object_size(cat)[2] / 2.0
-            obj = replace(o, category=cat, position=(o.position[0], o.position[1], z), yaw=float(rng.uniform(0, 2 * math.pi)))
+            bottom = o.position[2] - object_size(o.category, o.scale)[2] / 2.0
+            scale = instance_scale(cat, o.name, seed) if recipe.objects.size_variants else 1.0  # as the dataset draws it
+            z = bottom + object_size(cat, scale)[2] / 2.0
+            obj = replace(o, category=cat, position=(o.position[0], o.position[1], z), yaw=float(rng.uniform(0, 2 * math.pi)), scale=scale)
             ent = build_object(scene, obj, seed, mono=MONO if mono else None)
             target = np.array(obj.position)
             for _ in range(views):

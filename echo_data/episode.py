@@ -75,7 +75,7 @@ class EpisodeSpec:
     chain: tuple[SkillCall, ...]
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        return {**dataclasses.asdict(self), "plan": self.plan.to_dict()}  # the plan writes itself (FloorPlan.to_dict)
 
     @staticmethod
     def from_dict(d: dict[str, Any]) -> EpisodeSpec:

@@ -25,6 +25,10 @@ SETTINGS = ("object_relocation", "state_transition", "multi_event")
 SkillName = Literal["Navigate", "Pick", "Place", "OpenDoor", "CloseSink"]
 SKILLS: tuple[SkillName, ...] = ("Navigate", "Pick", "Place", "OpenDoor", "CloseSink")
 _MAX_STEPS: dict[SkillName, int] = {"Navigate": 600, "Pick": 250, "Place": 250, "OpenDoor": 300, "CloseSink": 200}
+# Apartment layout families (echo_data/scene/layouts.py): rows of rectangular rooms, an L-shaped
+# room, a corridor with rooms off it, an open-plan kitchen/living room.
+LayoutName = Literal["rows", "l_shape", "corridor", "open_plan"]
+LAYOUTS: tuple[LayoutName, ...] = ("rows", "l_shape", "corridor", "open_plan")
 
 
 class RecipeError(ValueError):
@@ -94,10 +98,25 @@ class SceneConfig(_Strict):
     # "textured": procedural textures, per-room style, randomised room lights and sun;
     # "flat": one colour per surface and fixed lights (the cheaper pre-texture look)
     look: Literal["textured", "flat"] = "textured"
+    # layout families drawn from per apartment; [rows] alone reproduces the generator as it was
+    # before the other families existed, draw for draw
+    layouts: tuple[LayoutName, ...] = LAYOUTS
+    # floors of kitchens and bathrooms: a floor drawn from `floor_materials` that is soft (a
+    # carpet) is replaced by one of these; null keeps the drawn floor (the generator before this key)
+    wet_floor_materials: tuple[str, ...] | None = ("ceramic_tiles", "linoleum_on_concrete")
 
-    @field_validator("wall_materials", "floor_materials", "ceiling_materials", "furniture_materials")
+    @field_validator("layouts")
     @classmethod
-    def _materials(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+    def _layouts(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        if not v or len(set(v)) != len(v):
+            raise ValueError(f"layouts must name each of {list(LAYOUTS)} at most once, at least one, got {list(v)}")
+        return v
+
+    @field_validator("wall_materials", "floor_materials", "ceiling_materials", "furniture_materials", "wet_floor_materials")
+    @classmethod
+    def _materials(cls, v: tuple[str, ...] | None) -> tuple[str, ...] | None:
+        if v is None:
+            return v
         if not v:
             raise ValueError("at least one material is required")
         known = _known_materials()
@@ -137,6 +156,9 @@ class ObjectsConfig(_Strict):
     targets: tuple[RelocationCategory, ...] = RELOCATION_CATEGORIES
     distractors: tuple[int, int] = (1, 3)
     distractor_shapes: tuple[str, ...] = ("mug", "can", "box", "bowl", "bottle", "book")
+    # each instance drawn at its own size within its category's range (scene/objects.py
+    # SIZE_RANGES); false: every instance at the category's base size (before this key)
+    size_variants: bool = True
 
     @field_validator("distractors")
     @classmethod

@@ -3,7 +3,7 @@
 For every room of the plans of `--seeds` seeds of a recipe: an omnidirectional RIR (source
 and receiver 2/5 and 3/5 across the room, 1 s long) rendered by the acoustic model, and its
 octave-band T30 (Schroeder backward integral, -5 to -35 dB). Left: per-band medians and
-10th-90th percentiles for furnished rooms and for kitchens/bathrooms, with Jackson &
+10th-90th percentiles for furnished rooms and for kitchens/bathrooms/corridors, with Jackson &
 Leventhall's 50 British living rooms (0.69 s at 125 Hz falling to 0.40 s at 8 kHz, ends
 joined linearly in log-frequency as an indication) and the BBC band of better-furnished
 rooms (0.35-0.45 s). Right: histogram of the 500 Hz-1 kHz mean.
@@ -42,7 +42,7 @@ def main() -> None:
     kinds, t30 = room_t30s(recipe, range(args.seeds), cfg, BANDS)
     soft = np.isin(kinds, FURNISHED)
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.5))
-    for mask, label, colour in ((soft, "generated: living rooms, bedrooms, studies, halls", "tab:blue"), (~soft, "generated: kitchens, bathrooms", "tab:orange")):
+    for mask, label, colour in ((soft, "generated: living rooms, bedrooms, studies, halls", "tab:blue"), (~soft, "generated: kitchens, bathrooms, corridors", "tab:orange")):
         if not mask.any():
             continue
         med = np.median(t30[mask], axis=0)
@@ -60,14 +60,14 @@ def main() -> None:
     ax.legend(fontsize=7)
     mid = t30[:, 2:4].mean(axis=1)
     bins = np.linspace(0.1, 1.5, 29)
-    bx.hist([mid[soft], mid[~soft]], bins=bins, stacked=True, color=["tab:blue", "tab:orange"], label=["furnished rooms", "kitchens, bathrooms"])
+    bx.hist([mid[soft], mid[~soft]], bins=bins, stacked=True, color=["tab:blue", "tab:orange"], label=["furnished rooms", "kitchens, bathrooms, corridors"])
     bx.axvspan(0.35, 0.6, color="green", alpha=0.1, label="target median 0.35-0.6 s")
     bx.axvline(0.9, color="red", ls=":", label="target 90th percentile <= 0.9 s")
     bx.set_xlabel("T30, mean of 500 Hz and 1 kHz (s)")
     bx.set_ylabel("rooms")
     bx.set_title(
         f"furnished rooms: median {np.median(mid[soft]):.2f} s, p90 {np.percentile(mid[soft], 90):.2f} s\n"
-        f"kitchens, bathrooms: median {np.median(mid[~soft]):.2f} s"
+        f"kitchens, bathrooms, corridors: median {np.median(mid[~soft]):.2f} s"
     )
     bx.legend(fontsize=7)
     fig.tight_layout()

@@ -7,7 +7,9 @@ References for the target ranges (500 Hz–1 kHz, T30 measured from rendered RIR
 - Díaz & Pedrero (2005), 11,457 furnished bedrooms and living rooms in Madrid: reverberation
   falls steadily with frequency and grows with volume; mid-frequency values mostly 0.3–0.7 s.
 So: median 0.35–0.6 s, falling above 500 Hz, 90th percentile at most 0.9 s in furnished rooms
-(living rooms, bedrooms, studies, halls); kitchens and bathrooms (hard surfaces) spread wider.
+(living rooms, bedrooms, studies, halls); kitchens and bathrooms (hard surfaces) spread wider,
+and so do corridors (halls 1.0–1.4 m wide, `survey.room_t30s` reports them as "corridor"),
+which none of these surveys measured.
 """
 
 from __future__ import annotations

@@ -23,6 +23,7 @@ from echo_data.scene.generate import (
     generate_floorplan,
     object_radius,
 )
+from echo_data.scene.layouts import HALL_WIDTH
 from echo_data.scene.nav import NavGrid, interaction_pose
 from echo_data.scene.objects import object_size
 
@@ -60,9 +61,14 @@ def test_deterministic_per_seed_and_varied_across_seeds() -> None:
 @pytest.mark.parametrize("recipe,plan", PLANS[:: len(SEEDS)] + PLANS[5 :: len(SEEDS)])
 def test_rooms_tile_without_overlap_within_size_range(recipe: Recipe, plan: FloorPlan) -> None:
     lo, hi = recipe.scene.rooms
-    assert lo <= len(plan.rooms) <= hi
+    spaces = len(plan.rooms) - len(plan.open_doorways)  # rooms joined by a wide opening are one
+    corridor = plan.extra.get("layout") == "corridor"
+    assert lo <= spaces <= (max(hi, 3) if corridor else hi)  # a corridor home has 3 spaces at least
     smin, smax = recipe.scene.room_size
     for r in plan.rooms:
+        if corridor and r.kind == "hall":
+            assert HALL_WIDTH[0] - 1e-6 <= min(r.rect.size) <= HALL_WIDTH[1] + 1e-6
+            continue
         assert smin - 0.02 <= r.rect.size[0] <= smax + 0.02 and smin - 0.02 <= r.rect.size[1] <= smax + 0.02
     for i, a in enumerate(plan.rooms):
         for b in plan.rooms[i + 1 :]:
@@ -118,12 +124,14 @@ def test_walls_listed_once_and_doorways_open() -> None:
             else:
                 opening = Rect(dw.center[0] - 0.01, dw.center[1] - half, dw.center[0] + 0.01, dw.center[1] + half)
             assert not any(opening.intersects(w.footprint) for w in walls), dw
-            assert math.isclose(dw.width, 1.0)
+            assert math.isclose(dw.width, 1.0) or dw.index in plan.open_doorways
 
 
 def test_doorways_keep_distance_from_corners() -> None:
     for _, plan in PLANS:
         for dw in plan.doorways:
+            if dw.index in plan.open_doorways:
+                continue  # a wide opening runs to short wall returns (tests/test_scene_layouts.py)
             u = dw.center[0] if dw.axis == "x" else dw.center[1]
             for ri in dw.rooms:
                 if ri < 0:
@@ -248,10 +256,10 @@ def test_distractors_rest_on_receptacles_within_edges() -> None:
             assert not o.sounding and o.category in recipe.objects.distractor_shapes
             f = plan.furniture[o.receptacle]
             assert f.receptacle
-            r = object_radius(o.category)
+            r = object_radius(o.category, o.scale)
             fp = f.footprint
             assert fp.contains(o.position[0], o.position[1], margin=EDGE_MARGIN + r - 1e-6)
-            assert o.position[2] == pytest.approx(f.top_z + object_size(o.category)[2] / 2.0, abs=1e-4)
+            assert o.position[2] == pytest.approx(f.top_z + object_size(o.category, o.scale)[2] / 2.0, abs=1e-4)
             # front-reachable: centre within FRONT_REACH of the front edge
             n = (round(math.cos(f.yaw)), round(math.sin(f.yaw)))
             half_depth = (abs(n[0]) * f.size[0] + abs(n[1]) * f.size[1]) / 2.0
@@ -260,7 +268,7 @@ def test_distractors_rest_on_receptacles_within_edges() -> None:
         for i, a in enumerate(plan.objects):
             for b in plan.objects[i + 1 :]:
                 d = math.hypot(a.position[0] - b.position[0], a.position[1] - b.position[1])
-                assert d >= object_radius(a.category) + object_radius(b.category)
+                assert d >= object_radius(a.category, a.scale) + object_radius(b.category, b.scale)
     assert n_total > len(PLANS)  # clutter really gets placed
 
 

@@ -27,4 +27,4 @@ def test_probe_tells_objects_apart_on_unseen_homes() -> None:
     xt, yt = probe.collect(recipe, list(range(10_000, 10_008)), 6, mono=False)
     assert set(y.tolist()) == set(yt.tolist()) == {0, 1, 2, 3}  # all four classes on both sides
     acc = probe.train_probe(x, y, xt, yt, epochs=25)
-    assert acc >= 0.8, acc  # chance is 0.25; this seeded run gives 0.96
+    assert acc >= 0.8, acc  # chance is 0.25; this seeded run gives 0.86 (0.96 before the layout families and instance sizes)

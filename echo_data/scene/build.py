@@ -128,7 +128,7 @@ def _wall_visuals(plan: FloorPlan, fp: Rect, height: float, material: str, key: 
         off = (0.0, sign * sy / 2.0) if along_x else (sign * sx / 2.0, 0.0)
         probe = (cx, cy + sign * (sy + 0.05)) if along_x else (cx + sign * (sx + 0.05), cy)
         room = _room_at(plan, *probe)
-        look = surface_look(material, room.kind if room else None, plan.seed, room.index if room else key)
+        look = surface_look(material, room.kind if room else None, plan.seed, plan.space_of(room.index) if room else key)  # one paint per space
         if scale != 1.0:
             r, g, b = (c * scale for c in look.colour)
             look = replace(look, colour=(r, g, b))
@@ -156,7 +156,7 @@ def build_statics(
         (
             (r.rect.center[0] - ox, r.rect.center[1] - oy, FLOOR_THICKNESS / 2.0 + 0.0005),
             (r.rect.size[0] / 2.0, r.rect.size[1] / 2.0, 0.0005),
-            surface_look(r.floor_material, r.kind, plan.seed, r.index),
+            surface_look(r.floor_material, r.kind, plan.seed, plan.space_of(r.index)),  # one floor per space
         )
         for r in plan.rooms
     ]

@@ -226,6 +226,7 @@ class PlacedObject:
     yaw: float
     receptacle: int  # furniture index it rests on
     sounding: bool
+    scale: float = 1.0  # uniform size factor of this instance (`echo_data.scene.objects.instance_scale`)
 
 
 @dataclass(frozen=True)
@@ -253,6 +254,19 @@ class FloorPlan:
             max(r.rect.ymax for r in self.rooms),
         )
 
+    @property
+    def open_doorways(self) -> frozenset[int]:
+        """Doorways that are wide doorless openings joining the rooms of one space (an L-shaped
+        room, an open-plan kitchen/living room; `echo_data.scene.layouts`)."""
+        return frozenset(int(i) for i in self.extra.get("open_doorways", ()))
+
+    def space_of(self, room: int) -> int:
+        """The lowest index among the rooms that form one space with `room` (itself if alone)."""
+        for a, b in self.extra.get("spaces", ()):
+            if room in (a, b):
+                return min(int(a), int(b))
+        return room
+
     def room_at(self, x: float, y: float) -> int:
         """Index of the room containing (x, y), or -1."""
         for r in self.rooms:
@@ -267,7 +281,13 @@ class FloorPlan:
         raise KeyError(name)
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """Plain data; an object at scale 1 is written without its `scale`, so plans made before
+        instance sizes existed keep their bytes (and digests: tests/test_scene_layouts.py)."""
+        d = dataclasses.asdict(self)
+        for o in d["objects"]:
+            if o["scale"] == 1.0:
+                del o["scale"]
+        return d
 
     @staticmethod
     def from_dict(d: dict[str, Any]) -> FloorPlan:

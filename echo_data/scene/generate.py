@@ -1,10 +1,11 @@
 """Procedural apartments: rooms, walls with doorways, doors, furniture, sink + faucet, clutter.
 
-`generate_floorplan` is a pure function of (recipe, rng). Rooms are rows of rectangles
-(optionally transposed / mirrored) tiled without overlap; walls are the room outlines with
-each shared stretch listed once and doorways cut out; a random spanning tree of doorways
-connects the rooms, and one exterior doorway (the entrance) always carries a hinged door
-with a doorbell. Furniture stands against walls facing the room, away from doorway zones
+`generate_floorplan` is a pure function of (recipe, rng). The rooms' rectangles come from a
+layout family (`echo_data.scene.layouts`: rows, an L-shaped room, a corridor, an open-plan
+kitchen/living room); walls are the room outlines with each shared stretch listed once and
+doorways cut out; rectangles of one space are joined by a wide doorless opening, a random
+spanning tree of doorways connects the rest, and one exterior doorway (the entrance) always
+carries a hinged door with a doorbell. Furniture stands against walls facing the room, away from doorway zones
 and door swings, each with a free strip in front of it for the robot. The sounding targets
 are placed later by the episode sampler (`place_object`); here only silent distractors go
 onto receptacles.
@@ -32,7 +33,9 @@ from echo_data.scene.floorplan import (
     Room,
     WallSegment,
 )
-from echo_data.scene.objects import object_size
+from echo_data.scene.layouts import Layout, draw_family, draw_layout, opening_span
+from echo_data.scene.objects import instance_scale, object_size
+from echo_data.scene.surfaces import room_floor
 
 ROOM_KINDS = ("living", "kitchen", "bedroom", "bathroom", "hall", "study")
 
@@ -137,13 +140,6 @@ OBJECT_GAP = 0.03
 OBJECT_WALL_CLEARANCE = 0.25  # object centre to any wall face of its room
 REST_LIFT = 0.0  # objects rest exactly on the top (z = top + sz / 2)
 
-_ROW_PATTERNS: dict[int, tuple[tuple[int, ...], ...]] = {
-    2: ((2,), (1, 1)),
-    3: ((3,), (2, 1), (1, 2)),
-    4: ((2, 2), (3, 1), (1, 3)),
-    5: ((3, 2), (2, 3)),
-    6: ((3, 3), (2, 2, 2)),
-}
 _EPS = 1e-6
 
 
@@ -186,49 +182,6 @@ def _rect_uv(axis: str, u0: float, u1: float, v0: float, v1: float) -> Rect:
 
 
 # ------------------------------------------------------------------------------ rooms
-def _split_length(total: float, k: int, lo: float, hi: float, rng: np.random.Generator) -> list[float]:
-    """k lengths in [lo, hi] summing to `total` (assumed feasible), rounded to cm."""
-    for _ in range(50):
-        w = rng.dirichlet(np.full(k, 4.0)) * total
-        if np.all(w >= lo + 0.01) and np.all(w <= hi - 0.01):
-            break
-    else:
-        w = np.full(k, total / k)
-    out = [_r2(x) for x in w[:-1]]
-    out.append(_r2(total - sum(out)))
-    return out
-
-
-def _layout(recipe: Recipe, rng: np.random.Generator) -> list[Rect] | None:
-    """Rows of rooms: equal-width rows when the size range allows it, else left-aligned rows."""
-    n = int(rng.integers(recipe.scene.rooms[0], recipe.scene.rooms[1] + 1))
-    smin, smax = recipe.scene.room_size
-    patterns = _ROW_PATTERNS[n]
-    pattern = patterns[int(rng.integers(len(patterns)))]
-    lo_w = max(k * smin for k in pattern)
-    hi_w = min(k * smax for k in pattern)
-    rects: list[Rect] = []
-    y = 0.0
-    common = _r2(rng.uniform(lo_w + 0.02, hi_w - 0.02)) if lo_w + 0.04 <= hi_w else None
-    for k in pattern:
-        h = _r2(rng.uniform(smin + 0.01, smax - 0.01))
-        total = common if common is not None else _r2(rng.uniform(k * smin + 0.02, k * smax - 0.02))
-        x = 0.0
-        for w in _split_length(total, k, smin, smax, rng):
-            rects.append(Rect(_r2(x), _r2(y), _r2(x + w), _r2(y + h)))
-            x += w
-        y += h
-    xs = sorted({v for r in rects for v in (r.xmin, r.xmax)})
-    if any(0.0 < b - a < 0.3 for a, b in zip(xs, xs[1:])):
-        return None  # ragged rows whose walls almost line up: a sliver step in a wall
-    if rng.random() < 0.5:  # columns instead of rows
-        rects = [Rect(r.ymin, r.xmin, r.ymax, r.xmax) for r in rects]
-    if rng.random() < 0.5:  # mirror east-west
-        xmax = max(r.xmax for r in rects)
-        rects = [Rect(_r2(xmax - r.xmax), r.ymin, _r2(xmax - r.xmin), r.ymax) for r in rects]
-    return rects
-
-
 def _assign_kinds(rects: list[Rect], rng: np.random.Generator) -> list[str]:
     """Largest room is the living room; always a kitchen; a bathroom in the smallest room from 4 rooms."""
     n = len(rects)
@@ -244,6 +197,40 @@ def _assign_kinds(rects: list[Rect], rng: np.random.Generator) -> list[str]:
     for slot, idx in zip(perm, rest):
         kinds[idx] = pool[int(slot)]
     return kinds
+
+
+def _assign_space_kinds(layout: Layout, rng: np.random.Generator) -> list[str]:
+    """Kinds for a layout with fixed kinds (joined spaces, a corridor's hall): the largest free
+    space is the living room unless the family made one; a kitchen unless the family made one;
+    a bathroom in the smallest free rectangle from 4 spaces; the rest bedrooms, studies (and a
+    hall where there is no corridor)."""
+    rects = layout.rects
+    kinds = [layout.kinds.get(i, "") for i in range(len(rects))]
+    free = sorted((i for i in range(len(rects)) if not kinds[i]), key=lambda i: (-rects[i].area, i))
+    n_spaces = len(rects) - len(layout.joins)
+    if "living" not in kinds and free:
+        kinds[free.pop(0)] = "living"
+    if n_spaces >= 4 and free:
+        kinds[free.pop()] = "bathroom"
+    pool = [] if "kitchen" in kinds else ["kitchen"]
+    pool += ["bedroom", "study", "bedroom", "study"] if "hall" in kinds else ["bedroom", "study", "hall", "bedroom"]
+    pool = pool[: len(free)]
+    if "kitchen" not in kinds and "bathroom" not in kinds and "kitchen" not in pool:
+        return []  # no room for the sink
+    perm = rng.permutation(len(free))
+    for slot, idx in zip(perm, free):
+        kinds[idx] = pool[int(slot)]
+    return kinds
+
+
+def _wide_openings(layout: Layout, rooms: list[Room], t: float, height: float) -> list[Doorway]:
+    """The doorless, floor-to-ceiling openings that join the rectangles of one space."""
+    out: list[Doorway] = []
+    for a, b in layout.joins:
+        axis, c, u, width = opening_span(rooms[a].rect, rooms[b].rect, t)
+        lo_side, hi_side = (a, b) if (rooms[a].rect.center[1 if axis == "x" else 0] < c) else (b, a)
+        out.append(Doorway(len(out), _xy(axis, u, c), axis, width, height, (lo_side, hi_side)))
+    return out
 
 
 # ------------------------------------------------------------------------------ walls
@@ -432,9 +419,16 @@ def door_operation_zone(door: Door) -> Rect:
 
 
 def _spanning_doorways(
-    rooms: list[Room], pieces: list[_Piece], recipe: Recipe, rng: np.random.Generator
+    rooms: list[Room],
+    pieces: list[_Piece],
+    recipe: Recipe,
+    rng: np.random.Generator,
+    opened: list[Doorway] | None = None,
+    hubs: frozenset[int] = frozenset(),
 ) -> list[Doorway] | None:
-    """Random spanning tree over rooms that share a wall long enough for a doorway."""
+    """Random spanning tree over rooms that share a wall long enough for a doorway; the rooms
+    joined by the wide openings `opened` (listed first) count as connected already, and walls
+    of the `hubs` (a corridor) get their doorways first, so rooms open off the corridor."""
     t = recipe.scene.wall_thickness
     width = recipe.scene.doorway_width
     height = min(DOORWAY_HEIGHT, recipe.scene.wall_height - 0.3)
@@ -448,6 +442,8 @@ def _spanning_doorways(
             best[key] = p
     edges = sorted(best)
     order = rng.permutation(len(edges))
+    if hubs:
+        order = np.asarray(sorted(order, key=lambda k: not set(edges[int(k)]) & hubs))
     parent = list(range(len(rooms)))
 
     def find(i: int) -> int:
@@ -456,7 +452,9 @@ def _spanning_doorways(
             i = parent[i]
         return i
 
-    doorways: list[Doorway] = []
+    doorways: list[Doorway] = list(opened or ())
+    for joined in doorways:
+        parent[find(joined.rooms[0])] = find(joined.rooms[1])
     for k in order:
         a, b = edges[int(k)]
         ra, rb = find(a), find(b)
@@ -591,9 +589,9 @@ def _front_frame(f: Furniture) -> tuple[tuple[float, float], tuple[float, float]
     return n, lat, half_depth, half_len
 
 
-def object_radius(category: str) -> float:
+def object_radius(category: str, scale: float = 1.0) -> float:
     """Radius of the circle that holds an object's footprint at any yaw."""
-    sx, sy, _ = object_size(category)
+    sx, sy, _ = object_size(category, scale)
     return math.hypot(sx, sy) / 2.0
 
 
@@ -605,6 +603,7 @@ def place_object(
     sounding: bool,
     receptacles: list[int] | None = None,
     tries: int = 40,
+    scale: float = 1.0,
 ) -> FloorPlan | None:
     """`plan` plus one object of `category` resting on a receptacle, or None if none fits.
 
@@ -616,8 +615,8 @@ def place_object(
     cands = [f.index for f in plan.furniture if f.receptacle] if receptacles is None else list(receptacles)
     if not cands:
         return None
-    r = object_radius(category)
-    sz = object_size(category)[2]
+    r = object_radius(category, scale)
+    sz = object_size(category, scale)[2]
     t = plan.walls[0].thickness if plan.walls else 0.0
     for _ in range(tries):
         f = plan.furniture[cands[int(rng.integers(len(cands)))]]
@@ -635,7 +634,7 @@ def place_object(
         if not room_inner.contains(x, y, margin=OBJECT_WALL_CLEARANCE):
             continue  # an arm reaching into a corner hits the side wall
         if any(
-            math.hypot(o.position[0] - x, o.position[1] - y) < r + object_radius(o.category) + OBJECT_GAP
+            math.hypot(o.position[0] - x, o.position[1] - y) < r + object_radius(o.category, o.scale) + OBJECT_GAP
             for o in plan.objects
         ):
             continue
@@ -649,6 +648,7 @@ def place_object(
             yaw=round(yaw, 4),
             receptacle=f.index,
             sounding=sounding,
+            scale=scale,
         )
         return dataclasses.replace(plan, objects=plan.objects + (obj,))
     return None
@@ -669,20 +669,24 @@ def generate_floorplan(recipe: Recipe, rng: np.random.Generator) -> FloorPlan:
 def generate_floorplan_from_seed(recipe: Recipe, seed: int, max_tries: int = 40) -> FloorPlan:
     """The apartment identified by (recipe, seed)."""
     rng = np.random.default_rng(seed)
+    family = draw_family(recipe, rng)
     for _ in range(max_tries):
-        plan = _try_generate(recipe, rng, seed)
+        plan = _try_generate(recipe, rng, seed, family)
         if plan is not None:
             return plan
     raise GenerationError(f"no valid apartment in {max_tries} tries (seed {seed}); loosen recipe.scene")
 
 
-def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorPlan | None:
+def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int, family: str) -> FloorPlan | None:
     sc = recipe.scene
     t = sc.wall_thickness
-    rects = _layout(recipe, rng)
-    if rects is None:
+    layout = draw_layout(recipe, family, rng)
+    if layout is None:
         return None
-    kinds = _assign_kinds(rects, rng)
+    rects = layout.rects
+    kinds = _assign_kinds(rects, rng) if layout.family == "rows" else _assign_space_kinds(layout, rng)
+    if not kinds:
+        return None
     rooms = [
         Room(
             index=i,
@@ -694,15 +698,18 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
         )
         for i, r in enumerate(rects)
     ]
+    rooms = _room_surfaces(rooms, layout, sc.wet_floor_materials, seed)
+    height = min(DOORWAY_HEIGHT, sc.wall_height - 0.3)
     pieces = _wall_pieces(rects)
-    doorways = _spanning_doorways(rooms, pieces, recipe, rng)
+    opened = _wide_openings(layout, rooms, t, sc.wall_height)
+    doorways = _spanning_doorways(rooms, pieces, recipe, rng, opened, layout.no_entrance)
     if doorways is None:
         return None
-    # entrance: an exterior wall of the hall / living room / any room, in that order
-    height = min(DOORWAY_HEIGHT, sc.wall_height - 0.3)
+    # entrance: an exterior wall of the hall / living room / any room, in that order (never
+    # into a narrow corridor, where the leaf would close the hall)
     pref = {"hall": 0, "living": 1}
     ext = sorted(
-        (p for p in pieces if p.exterior),
+        (p for p in pieces if p.exterior and max(p.rooms) not in layout.no_entrance),
         key=lambda p: (pref.get(rooms[max(p.rooms)].kind, 2), -p.length),
     )
     entrance = None
@@ -717,11 +724,19 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
     door_material = "wooden_door"
     doors: list[Door] = []
     for dw in doorways:
+        if dw in opened:
+            continue  # a wide opening has no door
         is_entrance = dw is entrance
-        if not is_entrance and rng.random() >= sc.door_probability:
+        draw = 1.0 if is_entrance else rng.random()
+        # a bathroom is never left without a door (where wet rooms are modelled, see
+        # `scene.wet_floor_materials`): its hard, ringing room stays shut off from the others
+        bath = sc.wet_floor_materials is not None and any(r >= 0 and rooms[r].kind == "bathroom" for r in dw.rooms)
+        if not is_entrance and draw >= sc.door_probability and not bath:
             continue
         if is_entrance:
             swing = rooms[max(dw.rooms)]
+        elif layout.no_entrance & set(dw.rooms):  # into the room, never into a narrow hall
+            swing = rooms[next(r for r in dw.rooms if r not in layout.no_entrance)]
         else:
             swing = rooms[dw.rooms[int(rng.integers(2))]]
         bell = is_entrance or bool(rng.random() < INTERIOR_BELL_PROBABILITY)
@@ -792,7 +807,7 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
         faucets=(faucet,),
         objects=(),
         wall_height=sc.wall_height,
-        extra={"entrance_doorway": entrance.index},
+        extra=_layout_extra(layout, entrance.index, len(opened)),
         furnishings=_furnish(rooms, pieces, doorways, furniture, t, sc.wall_height, np.random.default_rng([seed, 0x50F7])),
     )
     lo, hi = recipe.objects.distractors
@@ -800,10 +815,38 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int) -> FloorP
     n_distractors = int(rng.integers(lo, hi + 1)) if shapes else 0
     for k in range(n_distractors):
         cat = shapes[int(rng.integers(len(shapes)))]
-        nxt = place_object(plan, cat, f"distractor_{k}", rng, sounding=False)
+        name = f"distractor_{k}"
+        scale = instance_scale(cat, name, seed) if recipe.objects.size_variants else 1.0
+        nxt = place_object(plan, cat, name, rng, sounding=False, scale=scale)
         if nxt is not None:
             plan = nxt
     return plan
+
+
+def _room_surfaces(rooms: list[Room], layout: Layout, wet_floors: tuple[str, ...] | None, seed: int) -> list[Room]:
+    """Rooms of one space share walls and ceiling (and the floor where they are the same kind);
+    wet rooms get a hard floor (`surfaces.room_floor`). Draws from its own generator, so the
+    apartment's other draws stay as they were."""
+    out = list(rooms)
+    for a, b in layout.joins:
+        first = out[a]
+        floor = first.floor_material if out[b].kind == first.kind else out[b].floor_material
+        out[b] = dataclasses.replace(out[b], wall_material=first.wall_material, ceiling_material=first.ceiling_material, floor_material=floor)
+    if wet_floors is not None:
+        rng = np.random.default_rng([seed, 0x3E7F])
+        out = [dataclasses.replace(r, floor_material=room_floor(r.floor_material, r.kind, wet_floors, int(rng.integers(1 << 30)))) for r in out]
+    return out
+
+
+def _layout_extra(layout: Layout, entrance: int, n_open: int) -> dict[str, object]:
+    """`FloorPlan.extra`: the entrance doorway; for families other than rows also the family, the
+    spaces of joined rooms and their openings (rows plans keep exactly the old keys)."""
+    extra: dict[str, object] = {"entrance_doorway": entrance}
+    if layout.family != "rows":
+        extra["layout"] = layout.family
+        extra["spaces"] = [list(j) for j in layout.joins]
+        extra["open_doorways"] = list(range(n_open))
+    return extra
 
 
 def _furnish(

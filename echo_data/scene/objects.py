@@ -201,17 +201,56 @@ def _models() -> dict[str, ObjectModel]:
 MODELS: dict[str, ObjectModel] = _models()
 
 
-def object_size(category: str) -> tuple[float, float, float]:
-    """Collision bounding box (sx, sy, sz) of a category in its own frame (x along its yaw)."""
+# Uniform size factors of an instance against the model above, per category. Our estimates of
+# the spread of real objects, not measurements: phones 13.8-16.2 cm long (compact to large
+# smartphones), twin-bell alarm clocks 7.7-9.9 cm across the body, toys 11-13 cm tall, mugs
+# 7-9 cm across, drink cans 11-13 cm tall, bowls 11-17 cm, bottles 18-25 cm, books 16-25 cm.
+# Grasping bounds the targets: the narrow side (the grasp axis, local y) stays <= 0.085 m
+# for a 0.1 m gripper opening (phone 7.6 cm, alarm 5.5 cm at their largest). The furby keeps
+# its base size: it is already the widest the gripper takes (8.4 cm), and smaller furbies
+# (0.85-0.94) tipped over when put down in 6 of 13 object-relocation trial episodes (3 of them
+# rerun at the base size: all placed); the cause is not found yet.
+SIZE_RANGES: dict[str, tuple[float, float]] = {
+    "phone": (0.92, 1.08),
+    "alarm": (0.85, 1.1),
+    "furby": (1.0, 1.0),
+    "mug": (0.85, 1.1),
+    "can": (0.9, 1.1),
+    "box": (0.75, 1.3),
+    "bowl": (0.8, 1.2),
+    "bottle": (0.8, 1.1),
+    "book": (0.8, 1.25),
+}
+MAX_TARGET_GRASP_WIDTH = 0.085  # m, the narrow side of a target at its largest
+
+
+def instance_scale(category: str, name: str, seed: int) -> float:
+    """Size factor of object `name` of `category` in plan `seed`: pure (a hash, no rng draw)."""
+    lo, hi = SIZE_RANGES.get(category, (1.0, 1.0))
+    u = (zlib.crc32(f"{seed}:{name}:size".encode()) % 10007) / 10006.0
+    return round(lo + u * (hi - lo), 3)
+
+
+def object_size(category: str, scale: float = 1.0) -> tuple[float, float, float]:
+    """Collision bounding box (sx, sy, sz) of a category in its own frame (x along its yaw),
+    of an instance at `scale`."""
     try:
-        return MODELS[category].size
+        sx, sy, sz = MODELS[category].size
     except KeyError:
         raise KeyError(f"unknown object category {category!r}; known: {', '.join(CATEGORIES)}") from None
+    return (sx * scale, sy * scale, sz * scale) if scale != 1.0 else (sx, sy, sz)
 
 
-def object_mass(category: str) -> float:
-    """Mass in kg of a category."""
-    return MODELS[category].mass
+def object_mass(category: str, scale: float = 1.0) -> float:
+    """Mass in kg of a category's instance at `scale` (same density)."""
+    return MODELS[category].mass * scale**3
+
+
+def _scaled(p: Part, s: float) -> Part:
+    """A part of an instance at uniform scale `s` about the object's bbox centre."""
+    if s == 1.0:
+        return p
+    return replace(p, center=(p.center[0] * s, p.center[1] * s, p.center[2] * s), dims=tuple(d * s for d in p.dims))
 
 
 def _part_volume(p: Part) -> float:
@@ -279,8 +318,9 @@ def build_object(
     except RuntimeError:
         with_visuals = False
     mat = sapien.physx.PhysxMaterial(OBJECT_STATIC_FRICTION, OBJECT_DYNAMIC_FRICTION, OBJECT_RESTITUTION)
-    solid = [p for p in model.parts if p.collide]
-    density = model.mass / sum(_part_volume(p) for p in solid)
+    parts = [_scaled(p, obj.scale) for p in model.parts]
+    solid = [p for p in parts if p.collide]
+    density = object_mass(obj.category, obj.scale) / sum(_part_volume(p) for p in solid)
     # upright cylinders: SAPIEN cylinders lie along x; turn x -> z (about y by -90 deg), or x -> y (about z)
     to_z = sapien.Pose(q=[math.sqrt(0.5), 0.0, -math.sqrt(0.5), 0.0])
     to_y = sapien.Pose(q=[math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)])
@@ -305,7 +345,7 @@ def build_object(
     if with_visuals:
         body_colour, variant = instance_look(obj.category, obj.name, seed)
         body = sapien.render.RenderBodyComponent()
-        for p in model.parts:
+        for p in parts:
             colour = mono if mono is not None else body_colour if p.body else p.color
             body.attach(_visual_shape(p, colour, variant, flat or mono is not None))
         entity.add_component(body)

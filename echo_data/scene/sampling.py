@@ -24,6 +24,7 @@ from echo_data.recipe import Recipe
 from echo_data.scene.floorplan import FloorPlan, Rect, Vec3
 from echo_data.scene.generate import GenerationError, door_swing_zone, front_zone, generate_floorplan, place_object
 from echo_data.scene.nav import NavGrid, interaction_pose
+from echo_data.scene.objects import instance_scale
 
 START_MIN_DISTANCE = 2.0  # m from the first target's sound source
 START_ROOM_MARGIN = 0.4  # m from the room's wall centre lines
@@ -234,7 +235,8 @@ def _attempt(recipe: Recipe, split: str, index: int, attempt: int, seed: int, li
         name = f"{reloc_cat}_0"
         if len(receptacles) < 2:
             raise _Reject("no_receptacle")
-        nxt = place_object(plan, reloc_cat, name, rng, sounding=True, receptacles=receptacles)
+        scale = instance_scale(reloc_cat, name, plan.seed) if recipe.objects.size_variants else 1.0
+        nxt = place_object(plan, reloc_cat, name, rng, sounding=True, receptacles=receptacles, scale=scale)
         if nxt is None:
             raise _Reject("no_receptacle")
         plan = nxt
@@ -317,7 +319,8 @@ def _place_goal(plan: FloorPlan, grid: NavGrid, source: int, category: str, rece
         f = plan.furniture[i]
         cands.append((math.hypot(f.center[0] - px, f.center[1] - py), i))
     for _, i in sorted(cands):
-        if place_object(plan, category, "_probe", probe_rng, sounding=False, receptacles=[i]) is None:
+        scale = plan.object_by_name(target).scale
+        if place_object(plan, category, "_probe", probe_rng, sounding=False, receptacles=[i], scale=scale) is None:
             continue
         try:
             gx, gy, _ = interaction_pose(plan, f"furniture:{i}", grid=grid)

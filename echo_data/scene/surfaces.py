@@ -62,6 +62,8 @@ ROOM_STYLE: dict[str, dict] = {
     "hall": {"paint": ((0.93, 0.93, 0.9), (0.9, 0.88, 0.84)), "lino": "wood"},
 }
 PAINTED = ("plaster",)
+WET_ROOMS = ("kitchen", "bathroom")  # floors that get wet: never carpeted
+SOFT_PATTERNS = ("carpet", "fabric")  # looks of absorbing (soft) materials
 
 FURNITURE_LOOKS: dict[str, tuple[str, tuple[float, float, float], float]] = {
     # wooden furniture (the recipe's furniture materials are woods): pattern, colour, roughness;
@@ -111,6 +113,19 @@ def surface_look(material: str, room_kind: str | None = None, seed: int = 0, key
     if material == "linoleum_on_concrete" and style:
         pattern = style["lino"]
     return Look(pattern, h % 4, colour, rough, period)
+
+
+def is_soft(material: str) -> bool:
+    """Whether a surface of `material` is drawn (and absorbs) as carpet or cloth."""
+    return _family(material)[0] in SOFT_PATTERNS
+
+
+def room_floor(material: str, room_kind: str, hard: tuple[str, ...], pick: int) -> str:
+    """The floor a room of `room_kind` gets when `material` was drawn for it: wet rooms
+    (kitchens, bathrooms) never keep a soft floor; they get `hard[pick % len(hard)]` instead."""
+    if room_kind in WET_ROOMS and is_soft(material):
+        return hard[pick % len(hard)]
+    return material
 
 
 def furniture_look(kind: str, material: str, seed: int = 0, key: object = "") -> Look:

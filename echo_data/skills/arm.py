@@ -104,7 +104,7 @@ def scene_boxes(world: World, exclude: Iterable[str] = (), radius: float = OBSTA
         p = objects[o.name].pose
         if math.hypot(p.p[0] - bx, p.p[1] - by) > radius:
             continue
-        sx, sy, sz = object_size(o.category)
+        sx, sy, sz = object_size(o.category, o.scale)
         r = sapien.Pose(p.p, p.q).to_transformation_matrix()[:3, :3]
         yaw = math.atan2(r[1, 0], r[0, 0])
         boxes.append(Box(f"object_{o.name}", (float(p.p[0]), float(p.p[1]), float(p.p[2])), (sx, sy, sz), yaw))

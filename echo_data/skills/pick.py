@@ -60,7 +60,7 @@ def _pick(world: World, name: str, budget: Budget) -> Generator[np.ndarray, None
     robot = world.robot
     plan = world.plan
     obj = plan.object_by_name(name)
-    sx, sy, sz = object_size(obj.category)
+    sx, sy, sz = object_size(obj.category, obj.scale)
     pose = world.handles.objects[name].pose
     ox, oy = float(pose.p[0]), float(pose.p[1])
     oyaw = yaw_of(pose)

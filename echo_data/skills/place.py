@@ -63,7 +63,7 @@ def place_spots(world: World, name: str, furniture: int) -> list[tuple[float, fl
     plan = world.plan
     f = plan.furniture[furniture]
     o = plan.object_by_name(name)
-    sx, sy, _ = object_size(o.category)
+    sx, sy, _ = object_size(o.category, o.scale)
     r = math.hypot(sx, sy) / 2.0
     fp = f.footprint
     bx, by, byaw = world.robot.base_pose()
@@ -72,7 +72,7 @@ def place_spots(world: World, name: str, furniture: int) -> list[tuple[float, fl
         if other.name == name or other.name not in world.handles.objects:
             continue
         p = world.handles.objects[other.name].pose.p
-        osx, osy, _ = object_size(other.category)
+        osx, osy, _ = object_size(other.category, other.scale)
         others.append((float(p[0]), float(p[1]), math.hypot(osx, osy) / 2.0))
     spots = []
     m = EDGE_MARGIN + r
@@ -140,7 +140,7 @@ def _fold(world: World, name: str, goal: np.ndarray) -> Generator[np.ndarray, No
     o = world.plan.object_by_name(name)
     tcp_to_obj = robot.ee_pose().inv() * world.handles.objects[name].pose
     planner = arm.arm_planner(world, exclude={name})
-    planner.attach_box(list(object_size(o.category)), tcp_to_obj)
+    planner.attach_box(list(object_size(o.category, o.scale)), tcp_to_obj)
     path = planner.path(arm.commanded_group(robot), np.asarray(goal, dtype=np.float64))
     planner.detach()
     if path is None:
@@ -154,7 +154,7 @@ def _place(world: World, name: str, goal: int) -> Generator[np.ndarray, None, No
     plan = world.plan
     top = plan.furniture[goal].top_z
     o = plan.object_by_name(name)
-    sx, sy, sz = object_size(o.category)
+    sx, sy, sz = object_size(o.category, o.scale)
     tcp = robot.ee_pose()
     tcp_above_bottom = float(tcp.p[2]) - object_bottom(world, name)
     tcp_to_obj = tcp.inv() * world.handles.objects[name].pose

@@ -27,7 +27,7 @@ def object_bottom(world: World, name: str) -> float:
     """z of the lowest point of the object's collision box (upright objects)."""
     o = world.plan.object_by_name(name)
     p = world.handles.objects[name].pose
-    return float(p.p[2]) - object_size(o.category)[2] / 2.0
+    return float(p.p[2]) - object_size(o.category, o.scale)[2] / 2.0
 
 
 def receptacle_of(world: World, name: str) -> int:
