@@ -292,7 +292,7 @@ def choose(rows: list[dict], estimator: str, cue: str, window: str) -> tuple:
     return max(keys, key=lambda k: (agreement(los, (window, k), "side")[0], -keys.index(k)))
 
 
-def diffuse_model(room: list[dict], free: list[dict], far: float = 3.0) -> tuple[float, float, int]:
+def diffuse_model(room: list[dict], free: list[dict], far: float = 3.0, sigma: float | None = None) -> tuple[float, float, int]:
     """Agreement a diffuse-field model predicts for the plain ILD, and the spread it uses.
 
     Per step the direct sound's ear energies are the free-field render's (same path, same
@@ -301,11 +301,12 @@ def diffuse_model(room: list[dict], free: list[dict], far: float = 3.0) -> tuple
     ILD_pred; the diffuse field's own ILD scatters about that with the spread sigma measured on
     the room render's steps beyond `far` x r_c (direct sound >= 9.5 dB below the diffuse field).
     Predicted agreement = mean of Phi(|ILD_pred| / sigma) with the direct sound's sign.
-    Returns (predicted agreement, sigma dB, n far steps)."""
+    Returns (predicted agreement, sigma dB, n far steps); a given `sigma` is used as is."""
     far_ild = [x["ild"] for x in room if x["dist"] > far * x["rc"]]
-    if len(far_ild) < 10:
-        return float("nan"), float("nan"), len(far_ild)
-    sigma = float(np.sqrt(np.mean(np.square(far_ild))))
+    if sigma is None:
+        if len(far_ild) < 10:
+            return float("nan"), float("nan"), len(far_ild)
+        sigma = float(np.sqrt(np.mean(np.square(far_ild))))
     p = []
     for r, f in zip(room, free):
         g = 10 ** (f["ild"] / 10.0)  # direct energies L = g R; their mean is (1 + g) / 2 R
@@ -494,6 +495,15 @@ def report(data: dict, header: dict) -> dict:
                     if truth == "door_side":
                         what = "doorway side, behind a wall"
                     add(f"{name}: sign = {what}", lambda nm, where=where, truth=truth, window=window, k=k: agreement(sub(rows(nm, "test"), where), (window, k), truth), goal, "test")
+    # per sound, the onset-weighted cues over the second (test)
+    for cue in ("ild", "itd"):
+        name = f"{cue.upper()} onset-weighted, 1s"
+        if name not in chosen:
+            continue
+        k = ("onset", cue, chosen[name]["param"], tuple(chosen[name]["bands_hz"]))
+        for cat in sorted({x["cat"] for x in rows("room", "test")}):
+            kind = "tonal" if cat in TONAL else "broadband"
+            add(f"{name}: {cat} ({kind}), line of sight", lambda nm, k=k, cat=cat: agreement([x for x in sub(rows(nm, "test"), "los") if x["cat"] == cat], ("1s", k), "side"), "", "test")
     # the plain cues on the same test steps, for comparison
     for cue, key in (("ILD", "ild"), ("ITD", "itd")):
         add(f"{cue} plain 100 ms: sign = source side, line of sight", lambda nm, key=key: agreement(sub(rows(nm, "test"), "los"), key, "side"), "≥ 0.85", "test")
@@ -521,8 +531,15 @@ def report(data: dict, header: dict) -> dict:
     pred_all, sigma, n_far = diffuse_model(los, free_los)
     far_idx = [i for i, x in enumerate(los) if x["dist"] > x["rc"]]
     near_idx = [i for i, x in enumerate(los) if x["dist"] <= x["rc"]]
-    pred_far = diffuse_model([los[i] for i in far_idx], [free_los[i] for i in far_idx])[0] if far_idx else float("nan")
-    pred_near = diffuse_model([los[i] for i in near_idx], [free_los[i] for i in near_idx])[0] if near_idx else float("nan")
+    pred_far = diffuse_model([los[i] for i in far_idx], [free_los[i] for i in far_idx], sigma=sigma)[0] if far_idx else float("nan")
+    pred_near = diffuse_model([los[i] for i in near_idx], [free_los[i] for i in near_idx], sigma=sigma)[0] if near_idx else float("nan")
+    bins = []
+    for lo, hi in ((0.0, 1.0), (1.0, 2.0), (2.0, 3.0), (3.0, 5.0), (5.0, np.inf)):
+        idx = [i for i, x in enumerate(los) if lo < x["dist"] / x["rc"] <= hi]
+        a, k = agreement([los[i] for i in idx], "ild", "side")
+        pred = diffuse_model([los[i] for i in idx], [free_los[i] for i in idx], sigma=sigma)[0] if idx else float("nan")
+        bins.append(dict(distance_over_rc=[lo, None if hi == np.inf else hi], n=k, plain_ild_agreement=round(a, 3), diffuse_model=round(pred, 3),
+                         free_field=round(agreement([free_los[i] for i in idx], "ild", "side")[0], 3)))
     distances = dict(
         los_steps=len(los),
         median_distance_m=round(float(np.median(d)), 2) if len(d) else None,
@@ -531,6 +548,7 @@ def report(data: dict, header: dict) -> dict:
         median_direct_to_reverberant_db=round(float(np.median(20 * np.log10(rc / d))), 1) if len(d) else None,
         diffuse_model_ild_agreement=dict(all=round(pred_all, 3), within_rc=round(pred_near, 3), beyond_rc=round(pred_far, 3),
                                          reverberant_ild_spread_db=round(sigma, 2), n_steps_beyond_3rc=n_far),
+        plain_ild_by_distance=bins,
     )
     return dict(header, table=table, chosen=chosen, distances=distances)
 
