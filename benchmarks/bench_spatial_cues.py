@@ -399,17 +399,36 @@ def add_episode(data: dict, split: str, idx: int, spec, ro, room: np.ndarray, fr
     """Rows, level rises and classifier features of one episode's two renders into `data`."""
     fs, hop = recipe.acoustics.sample_rate, step_samples(recipe)
     scene = AcousticScene(spec.plan, recipe.acoustics)
+    noise = noise_level_db(spec, recipe)
+    pairs: list[list[dict]] = []
     for name, audio in (("room", room), ("free", free)):
         res = EpisodeResult(spec, ro.steps, ro.outcomes, ro.success, audio=audio, audio_offsets=offsets)
         d = data[name][split]
         r = episode_rows(spec, res, audio, fs, hop, scene)
         for x in r:
             x["ep"] = idx
+        pairs.append(r)
         d["rows"] += r
         d["rises"] += level_rises(res, audio, fs, hop, recipe.robot.control_hz)
         if r:
             sp_f, mel_f = step_features(audio, offsets[[x["step"] for x in r]], fs, recipe.acoustics.mel_bands)
             d["feats"] += [dict(ep=idx, y=x["side"], los=x["los"], door=x["door_side"], x={k: classifier_features(a, b, k) for k in CLF_KINDS}) for a, b, x in zip(sp_f, mel_f, r)]
+    # the same steps in both renders: the source is audible in a step's 100 ms where its direct
+    # sound alone (the free-field render) stands >= AUDIBLE_DB above the noise floor
+    for x, f in zip(*pairs):
+        level = 10 * np.log10(max(float((_band(free[offsets[f["step"]] : offsets[f["step"]] + hop].astype(np.float64), fs) ** 2).mean()), 1e-30))
+        x["audible"] = f["audible"] = level >= noise + AUDIBLE_DB
+
+
+AUDIBLE_DB = 6.0
+
+
+def noise_level_db(spec, recipe) -> float:
+    """Band (500 Hz-8 kHz) level in dB re full scale of the episode's noise floor alone."""
+    cfg = recipe.acoustics
+    fs = cfg.sample_rate
+    bed = NoiseFloor(fs, cfg.noise_floor_dba, spec.plan.seed, Hrtf.load(cfg.hrtf, fs)).render(0, fs)
+    return float(10 * np.log10(max(float((_band(to_full_scale(bed, cfg.full_scale_db_spl), fs) ** 2).mean()), 1e-30)))
 
 
 def empty_data() -> dict:
@@ -469,6 +488,11 @@ def report(data: dict, header: dict) -> dict:
         add(f"{cue} sign = source side, line of sight, beyond the critical distance", lambda nm, key=key: agreement(sub(rows(nm), "los_far"), key, "side"))
         add(f"{cue} sign = source side, behind a wall", lambda nm, key=key: agreement(sub(rows(nm), "wall"), key, "side"))
         add(f"{cue} sign = doorway side, behind a wall", lambda nm, key=key: agreement(sub(rows(nm), "wall"), key, "door_side"), "≥ 0.75")
+    for cue, key in (("ILD", "ild"), ("ITD", "itd")):
+        add(f"{cue} sign = source side, line of sight, source audible in the step's 100 ms",
+            lambda nm, key=key: agreement([x for x in sub(rows(nm), "los") if x["audible"]], key, "side"))
+        add(f"{cue} sign = source side, line of sight, source silent in the step's 100 ms (a gap)",
+            lambda nm, key=key: agreement([x for x in sub(rows(nm), "los") if not x["audible"]], key, "side"))
     for cat in sorted({x["cat"] for x in rows("room")}):
         kind = "tonal" if cat in TONAL else "broadband"
         for cue, key in (("ILD", "ild"), ("ITD", "itd")):
@@ -542,6 +566,7 @@ def report(data: dict, header: dict) -> dict:
                          free_field=round(agreement([free_los[i] for i in idx], "ild", "side")[0], 3)))
     distances = dict(
         los_steps=len(los),
+        share_los_steps_source_silent=round(float(np.mean([not x["audible"] for x in los])), 3) if los else None,
         median_distance_m=round(float(np.median(d)), 2) if len(d) else None,
         median_critical_distance_m=round(float(np.median(rc)), 2) if len(rc) else None,
         share_beyond_critical_distance=round(float(np.mean(d > rc)), 3) if len(d) else None,
