@@ -36,10 +36,10 @@ def _alpha(name: str) -> np.ndarray:
     return np.asarray(m["coeffs"][:6], dtype=np.float64)
 
 
-def test_furnished_shoebox_t30_matches_eyring() -> None:
-    """A 5 x 4 m room with hard walls and floor, a cloth sofa, a rug and a curtain: band T30 of
-    the rendered RIR within ±20 % of Eyring's formula with the furnishings' absorption
-    (computed here from the database, independently of the product code)."""
+def _furnished_shoebox() -> tuple[AcousticScene, float, float, np.ndarray, np.ndarray]:
+    """A 5 x 4 m room with hard walls and floor, a cloth sofa, a rug and a curtain:
+    (scene, volume, surface, absorption area S·alpha per band, Eyring T60 per band), the
+    absorption computed here from the database, independently of the product code."""
     sx, sy = 5.0, 4.0
     sofa = Furniture(0, "sofa", 0, (2.5, 0.5), (2.0, 0.9, 0.8), np.pi / 2, "chairs_upholstered_cloth", False)
     rug = Furnishing(0, "rug", 0, Rect(1.0, 1.2, 4.0, 3.2), (0.0, 0.01), "carpet_tufted_9m")
@@ -59,6 +59,13 @@ def test_furnished_shoebox_t30_matches_eyring() -> None:
     A = A + 2.2 * 2.35 * (_alpha("curtains_cotton_0.5") - _alpha("plasterboard"))
     air = np.asarray(pra.parameters.Physics().get_air_absorption()["coeffs"][:6])
     eyring = 24 * np.log(10) / SPEED_OF_SOUND * V / (-S * np.log(1 - A / S) + 4 * air * V)
+    return scene, V, S, A, eyring
+
+
+def test_furnished_shoebox_t30_matches_eyring() -> None:
+    """Band T30 of the furnished shoebox's rendered RIR within ±20 % of Eyring's formula."""
+    sx, sy = 5.0, 4.0
+    scene, *_, eyring = _furnished_shoebox()
     h = omni_rir(scene.response((1.2, 2.6, 1.1), (3.9, 1.8, 1.3)))
     for b, fc in enumerate((250.0, 500.0, 1000.0, 2000.0, 4000.0), start=1):
         assert _t30(h, fc) == pytest.approx(eyring[b], rel=0.2), (fc, _t30(h, fc), eyring[b])
@@ -81,3 +88,33 @@ def test_generated_homes_ring_like_measured_furnished_homes() -> None:
     hard = ~soft
     spread = lambda m: np.percentile(m, 90) - np.percentile(m, 10)  # noqa: E731
     assert spread(mid[hard]) > spread(mid[soft])
+
+
+def test_direct_to_reverberant_ratio_follows_the_critical_distance() -> None:
+    """The direct sound over everything else (early reflections and tail) in the 1 kHz octave
+    of rendered RIRs is (r_c / r)^2, r_c^2 = A / (16 pi (1 - alpha)) with Eyring's A
+    (Kuttruff, Room Acoustics, eq. 5.42; ~ 0.057 sqrt(V / T60)), within 2 dB at every distance
+    from 0.4 to 3 m: the direct sound is not too weak for the room (a check behind the spatial
+    cue benchmark, whose steps mostly lie beyond r_c)."""
+    from dataclasses import replace
+
+    from scipy.signal import butter, sosfiltfilt
+
+    scene, V, S, A, _ = _furnished_shoebox()
+    alpha = A[3] / S  # 1 kHz
+    air = np.asarray(pra.parameters.Physics().get_air_absorption()["coeffs"][:6])[3]
+    rc = np.sqrt((-S * np.log(1 - alpha) + 4 * air * V) / (16 * np.pi * (1 - alpha)))
+    src = np.array([1.2, 2.6, 1.1])
+    sos = butter(4, [1000 / np.sqrt(2), 1000 * np.sqrt(2)], btype="band", fs=CFG.sample_rate, output="sos")
+    errors = []
+    for r, az in ((0.4, 0.3), (0.7, -0.5), (1.0, 0.1), (1.5, -0.2), (2.0, 0.4), (3.0, -0.1)):
+        rcv = src + np.array([r * np.cos(az), r * np.sin(az), 0.0])
+        resp = scene.response(tuple(src), tuple(rcv))
+        direct = [a for a in resp.arrivals if a.order == 0]
+        assert len(direct) == 1
+        rest = replace(resp, arrivals=[a for a in resp.arrivals if a.order != 0])
+        only = replace(resp, arrivals=direct, tail=np.zeros_like(resp.tail), apertures=[])
+        e_d, e_r = ((sosfiltfilt(sos, omni_rir(x).astype(np.float64)) ** 2).sum() for x in (only, rest))
+        errors.append(10 * np.log10(e_d / e_r) - 20 * np.log10(rc / r))
+    assert 0.4 < rc < 1.0, rc  # a furnished 50 m^3 room
+    assert np.abs(errors).max() < 2.0, errors
