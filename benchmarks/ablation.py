@@ -73,7 +73,8 @@ def main() -> None:
     ap.add_argument("--runs", default=str(ROOT / "runs" / "ablation"))
     ap.add_argument("--episodes", type=int, default=54, help="test episodes evaluated per Navigate row (>= 50 for the table)")
     ap.add_argument("--rows", nargs="*", default=list(NAV_ROWS), help="Navigate input sets")
-    ap.add_argument("--no-planner", action="store_true")
+    ap.add_argument("--no-planner", action="store_true", help="no planner rows and no learning curve")
+    ap.add_argument("--planner-rows", nargs="*", default=list(PLANNER_ROWS), help="planner input sets")
     ap.add_argument("--curve", type=int, nargs="*", default=[30, 60, 120],
                     help="also train the audio planner on seeded subsets of this many train episodes (a learning curve)")
     ap.add_argument("--epochs", type=int, default=30)
@@ -120,7 +121,7 @@ def main() -> None:
               f"all {row['all_navigate']['k']}/{row['all_navigate']['n']} ci95 {row['all_navigate']['ci95']}", flush=True)
         out.write_text(json.dumps(doc, indent=1))
     if not a.no_planner:
-        for inputs in PLANNER_ROWS:
+        for inputs in a.planner_rows:
             name = "planner-" + inputs.replace(",", "-")
             report, secs = run("train", "planner", str(data), "--inputs", inputs, "--seed", str(a.seed), "--out", str(runs / name), "--overwrite", "--no-progress")
             doc["planner"].append({"inputs": inputs, "run": str(runs / name), "train_seconds": round(secs, 1), "test": json.loads(report)["test"]})
