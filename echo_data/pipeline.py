@@ -28,7 +28,8 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
     """Run `spec`'s chain with the scripted experts acting in the environment; record every step.
 
     `observe`: render the cameras. With a sound `library` the robot also hears (online audio,
-    per-step features) and the rollout carries the finished episode track.
+    per-step features) and the rollout carries the finished episode track. The recipe's
+    `outputs.max_frames` cuts the run after that many steps (`Rollout.truncated_at`).
     """
     from echo_data.agents.builtin import OraclePlanner, OracleSkills
     from echo_data.agents.runtime import run_episode
@@ -39,11 +40,11 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
     policy = OracleSkills()
     try:
         obs, info = env.reset(options={"spec": spec})
-        run = run_episode(env, obs, info, OraclePlanner(), policy, on_step=recorder)
-        if recorder.steps:
+        run = run_episode(env, obs, info, OraclePlanner(), policy, on_step=recorder, max_steps=recipe.outputs.max_frames)
+        if recorder.steps:  # the last stored step ends the episode; its flags are the outcomes so far
             recorder.steps[-1].done = True
             recorder.steps[-1].skill_success = tuple(o.success for o in run.outcomes) + (False,) * (len(spec.chain) - len(run.outcomes))
-        ro = Rollout(recorder.steps, run.outcomes, list(env.resolved_step), len(spec.chain), list(env.door_changes))
+        ro = Rollout(recorder.steps, run.outcomes, list(env.resolved_step), len(spec.chain), list(env.door_changes), truncated_at=run.truncated_at)
         if env.track is not None and recorder.steps:
             ro.audio, ro.audio_offsets = env.episode_audio()
             ro.spectrogram = _stack(recorder.spectrogram)
@@ -127,14 +128,17 @@ def generate_episode(
     """Sample, simulate and hear one episode. `attempt` > 0 retries with fresh seeds after an expert failure.
 
     Raises `echo_data.scene.sampling.SamplingError` when no solvable episode is found within
-    the recipe's attempt budget. An expert failure is returned (success False) with reasons.
+    the recipe's attempt budget. An expert failure is returned (success False) with reasons; an
+    episode cut by `outputs.max_frames` is complete (`truncated_at` set, success False).
     """
     from echo_data.scene.sampling import sample_episode
 
     spec, rejected = sample_episode(recipe, split, index, library, attempt=attempt)
     rollout = simulate(spec, recipe, observe=True, library=library)
-    result = EpisodeResult(spec=spec, steps=rollout.steps, outcomes=rollout.outcomes, success=rollout.success, rejected=rejected)
-    if not result.success or not rollout.steps:
+    result = EpisodeResult(
+        spec=spec, steps=rollout.steps, outcomes=rollout.outcomes, success=rollout.success, rejected=rejected, truncated_at=rollout.truncated_at,
+    )
+    if not result.complete or not rollout.steps:
         return result
     result.audio = rollout.audio
     result.audio_offsets = rollout.audio_offsets

@@ -275,6 +275,11 @@ class OutputsConfig(_Strict):
         "mel",
     )
     planner_export: bool = True
+    # End every episode after its first `max_frames` control steps (None: whole episodes). The
+    # experts still act, so the stored frames are exactly the first frames of the full episode;
+    # a cut episode is complete, not a failure, and is marked `truncated_at` (README, "Episodes cut
+    # by outputs.max_frames"). For planner data, which reads the first second only.
+    max_frames: int | None = Field(None, ge=1, le=100_000)
 
 
 class Recipe(_Strict):
@@ -381,7 +386,10 @@ class Recipe(_Strict):
 
     def content_hash(self) -> str:
         """sha256 of the canonical JSON of the resolved recipe."""
-        blob = json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        data = self.model_dump(mode="json")
+        if data["outputs"]["max_frames"] is None:  # whole episodes: the hash recipes had before the key existed
+            del data["outputs"]["max_frames"]
+        blob = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(blob.encode()).hexdigest()
 
 

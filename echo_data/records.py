@@ -86,3 +86,11 @@ class EpisodeResult:
     spectrogram: np.ndarray | None = None  # (n_steps, 65, 26, 2) float32, SoundSpaces-style
     mel: np.ndarray | None = None  # (n_steps, n_mels, 101, 2) float32 log-mel of the last 1 s
     rejected: dict[str, int] = field(default_factory=dict)  # sampling rejections on the way
+    # Set when the recipe's `outputs.max_frames` cut the episode after this many steps: the steps
+    # are the whole episode's first ones, `success` and the outcomes are as they stood at the cut.
+    truncated_at: int | None = None
+
+    @property
+    def complete(self) -> bool:
+        """Worth storing: the chain succeeded, or the episode ran cleanly up to the recipe's cut."""
+        return self.success or self.truncated_at is not None

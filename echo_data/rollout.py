@@ -30,6 +30,7 @@ class Rollout:
     audio_offsets: np.ndarray | None = None
     spectrogram: np.ndarray | None = None
     mel: np.ndarray | None = None
+    truncated_at: int | None = None  # steps run when the recipe's `outputs.max_frames` cut the chain
 
     @property
     def success(self) -> bool:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +14,7 @@ from echo_data.recipe import RecipeError, load_recipe, recipe_from_mapping
 RECIPES = Path(__file__).resolve().parents[1] / "recipes"
 
 
-@pytest.mark.parametrize("name", ["quickstart", "object_relocation", "state_transition", "multi_event", "stmm_1_9k"])
+@pytest.mark.parametrize("name", ["quickstart", "object_relocation", "state_transition", "multi_event", "stmm_1_9k", "planner_audio"])
 def test_shipped_recipes_load(name: str) -> None:
     r = load_recipe(RECIPES / f"{name}.yaml")
     assert r.name == name
@@ -51,6 +53,12 @@ def test_hash_changes_with_content() -> None:
     b = recipe_from_mapping({"name": "x", "seed": 1})
     assert a.content_hash() == recipe_from_mapping({"name": "x"}).content_hash()
     assert a.content_hash() != b.content_hash()
+    # outputs.max_frames: null (the default) keeps the hash recipes had before the key existed,
+    # so older datasets still resume; a cut changes it
+    d = a.model_dump(mode="json")
+    del d["outputs"]["max_frames"]
+    assert a.content_hash() == hashlib.sha256(json.dumps(d, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+    assert recipe_from_mapping({"name": "x", "outputs": {"max_frames": 10}}).content_hash() != a.content_hash()
 
 
 @pytest.mark.parametrize(
@@ -66,6 +74,10 @@ def test_hash_changes_with_content() -> None:
         ("name: x\nsplits: {train: -1}\n", "splits"),
         ("name: x\nsounds:\n  folders: {phone: nowhere}\n", "sounds.folders.phone"),
         ("name: x\nscene: [1, 2\n", "malformed YAML"),
+        ("name: x\noutputs:\n  max_frames: 0\n", "outputs.max_frames"),
+        ("name: x\noutputs:\n  max_frames: ten\n", "outputs.max_frames"),
+        ("name: x\noutputs:\n  max_frames: 2.5\n", "outputs.max_frames"),
+        ("name: x\noutputs:\n  max_frames: true\n", "outputs.max_frames"),
         ("- a\n- b\n", "must be a mapping"),
     ],
 )

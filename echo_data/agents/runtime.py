@@ -11,6 +11,12 @@ under evaluation:
 
 A non-finite action ends the episode as failed with that reason; an action of the wrong shape
 is the policy's bug and raises `AgentActionError`.
+
+`max_steps` cuts an episode after its first `max_steps` control steps (the recipe's
+`outputs.max_frames`, for data that needs only the first seconds): the policy acts exactly as it
+would in the whole episode up to the cut, skills finished by then keep their outcomes, the skill
+running at the cut gets none, and `EpisodeRun.truncated_at` records the cut. A chain that ends
+within the budget is not truncated.
 """
 
 from __future__ import annotations
@@ -64,6 +70,7 @@ class EpisodeRun:
     navigate: list[NavigateRecord] = field(default_factory=list)
     steps: int = 0
     failure: str = ""
+    truncated_at: int | None = None  # control steps run when `max_steps` cut the episode
 
     @property
     def skills_completed(self) -> int:
@@ -129,11 +136,15 @@ def _expert_path_length(env: EchoDataEnv, call: SkillCall) -> float:
 StepHook = Callable[["EchoDataEnv", dict[str, np.ndarray], np.ndarray, int, SkillCall, tuple[bool, ...]], None]
 
 
-def run_episode(env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any], planner: Any, policy: Any, on_step: StepHook | None = None) -> EpisodeRun:
+def run_episode(
+    env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any], planner: Any, policy: Any,
+    on_step: StepHook | None = None, max_steps: int | None = None,
+) -> EpisodeRun:
     """Run one episode already reset in `env` (its first observation and info) with a planner and a skill policy.
 
     `on_step(env, obs, action, skill_index, call, skill_flags)` is called before each action is
-    applied (the build records its rows there).
+    applied (the build records its rows there). `max_steps`: cut the episode after that many
+    control steps (see the module docstring).
     """
     from echo_data.envs.env import skill_budget
 
@@ -150,7 +161,14 @@ def run_episode(env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any]
         return run
     obs = first_obs
     flags = [False] * len(spec.chain)
+
+    def cut() -> bool:
+        return max_steps is not None and env.steps >= max_steps
+
     for k, call in enumerate(spec.chain):
+        if cut():  # the previous skill ended exactly at the cut and more of the chain remains
+            run.truncated_at = env.steps
+            break
         budget = skill_budget(env.recipe, call.skill)
         policy.reset({
             "skill": call.skill, "target": call.target, "target_kind": truth[k]["target"], "skill_index": k,
@@ -169,6 +187,9 @@ def run_episode(env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any]
             action = policy.act(obs)
             if action is None:  # the policy ended the skill itself
                 break
+            if cut():  # after act(): a skill that ends exactly at the cut is finished, not cut
+                run.truncated_at = env.steps
+                break
             if n >= budget:
                 reason = "timeout"
                 break
@@ -185,8 +206,10 @@ def run_episode(env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any]
                 break
             x1, y1, _ = env.world.robot.base_pose()
             path += math.hypot(x1 - x0, y1 - y0)
-        if reason == "timeout" and ends_itself and callable(getattr(policy, "close", None)):
+        if (reason == "timeout" or run.truncated_at is not None) and ends_itself and callable(getattr(policy, "close", None)):
             policy.close()
+        if run.truncated_at is not None:  # the skill running at the cut has no outcome
+            break
         ok = not reason and env.skill_success(call)
         if not ok and not reason:
             expert = getattr(policy, "outcome", None)

@@ -179,7 +179,7 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
             s = skills.setdefault(o.skill, [0, 0])
             s[0] += 1
             s[1] += int(bool(o.success))
-        if result.success:
+        if result.complete:  # succeeded, or cut by outputs.max_frames with no expert failure before the cut
             try:
                 enc = encode_episode(result, job.layout)
             except ValueError as e:  # the result does not fit the dataset contract: a bug, not bad luck

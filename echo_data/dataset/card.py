@@ -160,11 +160,12 @@ def card_text(out: Path) -> str:
         "",
         *[f"- {k}: {v['successes']}/{v['attempts']}" for k, v in m["skills"].items()],
         "",
+        *_truncation_lines(recipe, counts),
         "## Known limits",
         "",
         "- Simulation: CPU rendering at low resolution, primitive furniture and objects, scripted experts (no human demonstrations).",
         "- Acoustics: no diffraction beyond doorway frames, doors leak sound with a fixed loss, a statistical late tail.",
-        "- Stored episodes are the successful attempts only; failures are listed in manifest.json.",
+        "- Stored episodes are the successful (or, with `outputs.max_frames`, cleanly cut) attempts only; failures are listed in manifest.json.",
         "",
         "## Loading",
         "",
@@ -184,6 +185,21 @@ def card_text(out: Path) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _truncation_lines(recipe: dict[str, Any], counts: dict[str, Any]) -> list[str]:
+    """What a build with `outputs.max_frames` stored: the first frames of each episode, not whole ones."""
+    n = recipe.get("outputs", {}).get("max_frames")
+    if n is None:
+        return []
+    cut = counts.get("truncated_episodes", {})
+    return [
+        f"Episodes end after their first {n} control steps (`outputs.max_frames`): the experts acted as in a whole "
+        "episode, so these are the first frames of whole episodes; an episode is cut when its chain is unfinished "
+        "at that step (`truncated_at` in meta/episodes.parquet, `success` and `skill_success` as they stood then; "
+        "cut: " + ", ".join(f"{s} {v}" for s, v in cut.items()) + "). Skill counts above cover skills finished before the cut.",
+        "",
+    ]
 
 
 def _calibration_lines(audio: dict[str, Any]) -> list[str]:

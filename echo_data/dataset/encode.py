@@ -92,7 +92,7 @@ def planner_wav_bytes(audio: np.ndarray, sample_rate: int) -> bytes:
 
 @dataclass
 class EncodedEpisode:
-    """A successful episode as bytes, plus what the manifest needs about every attempt."""
+    """A complete episode as bytes, plus what the manifest needs about every attempt."""
 
     split: str
     index: int
@@ -172,7 +172,7 @@ def _check_stack(name: str, arr: np.ndarray | None, n: int, shape: tuple[int, ..
 
 
 def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
-    """Validate a successful `EpisodeResult` against the layout and encode it (runs in workers)."""
+    """Validate a complete (successful or cut) `EpisodeResult` against the layout and encode it (runs in workers)."""
     spec = result.spec
     steps = result.steps
     n = len(steps)
@@ -258,6 +258,7 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
                 for o in result.outcomes
             ],
             "success": bool(result.success),
+            "truncated_at": None if result.truncated_at is None else int(result.truncated_at),
             "n_steps": n,
             "audio_path": audio_path,
             "audio_samples": int(len(audio)),

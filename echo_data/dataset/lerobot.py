@@ -175,6 +175,7 @@ def _data_files(src: Path, dst: Path, manifest: dict[str, Any], layout: StepLayo
                         "setting": row["setting"],
                         "seed": row["seed"],
                         "success": row["success"],
+                        "truncated": row.get("truncated_at") is not None,  # cut by outputs.max_frames after `length` frames
                         "audio_path": row["audio_path"],
                         "audio_sample_rate": int(manifest["audio"]["sample_rate"]),
                         "audio_samples": row["audio_samples"],

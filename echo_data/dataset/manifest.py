@@ -153,6 +153,7 @@ def totals(shards: list[dict[str, Any]]) -> dict[str, Any]:
     skills: dict[str, dict[str, int]] = {}
     rejected: dict[str, int] = {}
     failed: list[dict[str, Any]] = []
+    truncated: dict[str, int] | None = None  # only in manifests whose shard entries count cut episodes
     for sh in shards:
         sp = sh["split"]
         episodes[sp] = episodes.get(sp, 0) + sh["episodes"][1] - sh["episodes"][0]
@@ -166,15 +167,22 @@ def totals(shards: list[dict[str, Any]]) -> dict[str, Any]:
         for k, v in sh["rejected"].items():
             rejected[k] = rejected.get(k, 0) + v
         failed += sh["failures"]
+        if "truncated" in sh:
+            truncated = truncated or {}
+            truncated[sp] = truncated.get(sp, 0) + sh["truncated"]
     attempts = sum(episodes.values()) + len(failed)
+    counts: dict[str, Any] = {
+        "episodes": episodes,
+        "steps": steps,
+        "settings": settings,
+        "episode_attempts": attempts,
+        # stored episodes (whole, or cut by outputs.max_frames) per attempt
+        "episode_success_rate": (sum(episodes.values()) / attempts) if attempts else None,
+    }
+    if truncated is not None:
+        counts["truncated_episodes"] = truncated  # per split: episodes cut by outputs.max_frames
     return {
-        "counts": {
-            "episodes": episodes,
-            "steps": steps,
-            "settings": settings,
-            "episode_attempts": attempts,
-            "episode_success_rate": (sum(episodes.values()) / attempts) if attempts else None,
-        },
+        "counts": counts,
         "skills": {k: skills[k] for k in sorted(skills)},
         "rejected": {k: rejected[k] for k in sorted(rejected)},
         "failed_episodes": failed,

@@ -286,6 +286,8 @@ EPISODE_FIELDS = pa.schema(
             ),
         ),
         pa.field("success", pa.bool_()),
+        # steps after which the recipe's outputs.max_frames cut the episode (null: whole episode)
+        pa.field("truncated_at", pa.int64()),
         pa.field("n_steps", pa.int64()),
         pa.field("audio_path", pa.string()),
         pa.field("audio_samples", pa.int64()),

@@ -135,6 +135,7 @@ class DatasetWriter:
             "bytes": written.bytes,
             "sha256": written.sha256,
             "settings": dict(sorted(settings.items())),
+            "truncated": sum(r.get("truncated_at") is not None for r in episodes),  # cut by outputs.max_frames
             "skills": {k: skills[k] for k in sorted(skills)},
             "rejected": dict(sorted(rejected.items())),
             "failures": failures,
