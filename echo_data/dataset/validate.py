@@ -208,13 +208,17 @@ def validate(out: Path) -> list[str]:
     return problems
 
 
+def _episode_fields(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Records as EPISODE_FIELDS: a field added later (truncated_at) is null in the table and
+    absent from older shards' records, and both read as None here."""
+    return [{f: r.get(f) for f in EPISODE_FIELDS.names} for r in records]
+
+
 def _meta_problems(out: Path, recipe: Recipe, rows: list[dict[str, Any]]) -> list[str]:
     problems = []
     try:
         ep = pq.read_table(out / "meta" / "episodes.parquet").to_pylist()
-        # Fields added to EPISODE_FIELDS later (truncated_at) are null in the table, absent in older records.
-        same = lambda rs: [{f: r.get(f) for f in EPISODE_FIELDS.names} for r in rs]  # noqa: E731
-        if same(ep) != same(rows):
+        if _episode_fields(ep) != _episode_fields(rows):
             problems.append("meta/episodes.parquet: differs from the episode records in the shards")
     except Exception as e:
         problems.append(f"meta/episodes.parquet: unreadable ({type(e).__name__})")

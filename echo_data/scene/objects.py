@@ -238,7 +238,7 @@ def object_size(category: str, scale: float = 1.0) -> tuple[float, float, float]
         sx, sy, sz = MODELS[category].size
     except KeyError:
         raise KeyError(f"unknown object category {category!r}; known: {', '.join(CATEGORIES)}") from None
-    return (sx * scale, sy * scale, sz * scale) if scale != 1.0 else (sx, sy, sz)
+    return (sx * scale, sy * scale, sz * scale)  # x * 1.0 == x exactly: unscaled plans keep their numbers
 
 
 def object_mass(category: str, scale: float = 1.0) -> float:
