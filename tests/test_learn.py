@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -304,3 +305,8 @@ def test_dagger_round_adds_expert_labelled_rows_and_retrains(ds: Path, tmp_path:
     assert BCPolicy.from_run(run).act(_obs(ds, "test")[0]).shape == (ACTION_DIM,)
     res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Pick", "--out", str(tmp_path / "pick"), "--dagger", "1", "--no-progress"])
     assert res.exit_code == 2 and "only Navigate's expert can act from any state" in res.output, res.output
+    # --resume: the rounds start from the finished BC run already in the folder (not trained again)
+    shutil.copytree(tmp_path / "bc", tmp_path / "from_bc")
+    again = _train(ds, tmp_path / "from_bc", "--inputs", "state", "--epochs", "1", "--dagger", "1", "--dagger-episodes", "1", "--dagger-steps", "5", "--resume")
+    assert (tmp_path / "from_bc" / "dagger.csv").read_text().splitlines()[1].split(",")[:4] == ["1", "0", "5", "5"]
+    assert again["rows"] == summary["rows"] and again["best_val_loss"] == summary["best_val_loss"]

@@ -56,7 +56,7 @@ def bc_cmd(
     resume: _Resume = False,
     overwrite: _Overwrite = False,
     progress: _Progress = True,
-    dagger: Annotated[int, typer.Option("--dagger", min=0, help="DAgger rounds after BC (Navigate only): roll the learner on train episodes, label with the expert, retrain.")] = 0,
+    dagger: Annotated[int, typer.Option("--dagger", min=0, help="DAgger rounds after BC (Navigate only): roll the learner on train episodes, label with the expert, retrain. With --resume: start from the BC run in --out.")] = 0,
     dagger_episodes: Annotated[int, typer.Option("--dagger-episodes", min=1, help="Train episodes rolled per DAgger round.")] = 8,
     dagger_steps: Annotated[int | None, typer.Option("--dagger-steps", min=1, help="Learner steps per rollout (default: the Navigate budget).")] = None,
 ) -> None:
@@ -65,7 +65,6 @@ def bc_cmd(
     from echo_data.learn import runs
     from echo_data.learn.bc import BCConfig, train_bc
     from echo_data.learn.features import BC_INPUTS, parse_inputs
-    from echo_data.learn.runs import RunError
 
     try:
         names = parse_inputs(inputs, BC_INPUTS)
@@ -76,10 +75,8 @@ def bc_cmd(
         if dagger:
             from echo_data.learn.dagger import run_dagger
 
-            if resume:
-                raise RunError("--dagger: rounds are not resumable; run again with --overwrite")
-            runs.check_out(folder, False, overwrite)
-            summary = run_dagger(cfg, folder, dagger, dagger_episodes, dagger_steps, progress)
+            runs.check_out(folder, resume, overwrite)
+            summary = run_dagger(cfg, folder, dagger, dagger_episodes, dagger_steps, progress, resume=resume)
         else:
             summary = train_bc(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)
     except _errors() as e:

@@ -146,8 +146,13 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
     return Rollouts(inputs, acts.astype(np.float32), success, float(np.mean(gaps)) if gaps else math.nan)
 
 
-def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_steps: int | None, progress: bool) -> dict[str, Any]:
-    """BC on the dataset, then `rounds` of collect + retrain on the aggregate; returns the last summary."""
+def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_steps: int | None, progress: bool,
+               resume: bool = False) -> dict[str, Any]:
+    """BC on the dataset, then `rounds` of collect + retrain on the aggregate; returns the last summary.
+
+    `resume`: the BC run already in `out` (finished or not) is continued instead of trained anew,
+    so an existing behaviour-cloning run can be DAgger'd without paying for it twice. Rounds
+    themselves always start from the first."""
     from echo_data.learn.bc import train_bc
 
     if cfg.skill != "Navigate":
@@ -155,7 +160,7 @@ def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_st
     if cfg.chunk != 1:
         raise DaggerError("--dagger: the expert labels one action per state; use --chunk 1")
     _, n_train = recipe_of(Path(cfg.dataset))
-    summary = train_bc(cfg, out, overwrite=True, progress=progress)
+    summary = train_bc(cfg, out, resume=resume, overwrite=not resume, progress=progress)
     agg: Rollouts | None = None
     log = ["round,episodes,rows_added,rows_aggregated,learner_success,learner_expert_gap,best_val_loss"]
     for r in range(1, rounds + 1):
