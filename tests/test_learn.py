@@ -119,6 +119,33 @@ def test_audio_encoder_hears_left_from_right(ds: Path) -> None:
     assert (y - y_swapped).abs().max() > 1e-4
 
 
+def test_level_ild_form_is_the_ears_level_difference_in_db(ds: Path, tmp_path: Path) -> None:
+    """level_ild: channel 2 is 20 log10(|L| / |R|) (the level ratio of the ears in dB), so an ear
+    ten times louder reads +20 dB and swapping the ears flips its sign; a run trains and acts on it."""
+    from echo_data.learn.features import ILD_SCALE_DB, SPECTROGRAM
+
+    spec = feature_spec(ds, ("audio",), audio_form="level_ild")
+    mag = np.full((1, 65, 26, 2), 1e-3, np.float32)
+    mag[..., 0] *= 10.0  # the left ear 20 dB louder
+    x = prepare({SPECTROGRAM: np.log1p(mag)}, spec)["audio"]
+    assert x.shape == (1, 3, 65, 26)
+    np.testing.assert_allclose(x[:, 2].numpy() * ILD_SCALE_DB, 20.0, atol=1e-3)
+    swapped = prepare({SPECTROGRAM: np.log1p(mag[..., ::-1].copy())}, spec)["audio"]
+    np.testing.assert_allclose(swapped[:, 2].numpy(), -x[:, 2].numpy(), atol=1e-5)
+    obs, _ = _obs(ds)
+    real = prepare(single(obs, spec), spec)["audio"]
+    torch.manual_seed(0)
+    enc = AudioEncoder(65, 26, channels=3).eval()
+    with torch.no_grad():
+        assert (enc(real) - enc(torch.cat([real[:, [1, 0]], -real[:, 2:]], dim=1))).abs().max() > 1e-4
+    summary = _train(ds, tmp_path / "ild", "--inputs", "audio,state", "--audio-form", "level_ild", "--max-steps", "2")
+    assert summary["step"] == 2
+    policy = BCPolicy.from_run(tmp_path / "ild")
+    assert policy.act(obs).shape == (ACTION_DIM,)
+    res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Navigate", "--out", str(tmp_path / "bad"), "--audio-form", "db", "--no-progress"])
+    assert res.exit_code == 2 and "--audio-form: unknown form 'db'" in res.output, res.output
+
+
 def test_acting_preprocesses_raw_world_observations_like_training(ds: Path) -> None:
     """The world gives depth as uint16 millimetres (H, W); the loaders give float metres
     (1, H, W). Both go through the same `prepare` and must give the same model input."""

@@ -43,6 +43,7 @@ class BCConfig:
     threads: int = 1  # see loop.setup_torch: more threads than free cores is many times slower
     image_size: int = 64
     audio: str = "spectrogram"
+    audio_form: str = "stored"  # features.AUDIO_FORMS
     max_steps: int | None = None  # stop (and checkpoint) after this many optimiser steps
     # Filled in by train_bc:
     features: dict[str, Any] = field(default_factory=dict)
@@ -81,7 +82,7 @@ def resolve(cfg: BCConfig) -> BCConfig:
     skills = skills_in(root, "train")
     if cfg.skill not in skills:
         raise runs.RunError(f"--skill {cfg.skill!r}: no such rows in {root} (train split has {', '.join(skills)})")
-    spec = feature_spec(root, cfg.inputs, audio=cfg.audio, image_size=cfg.image_size)
+    spec = feature_spec(root, cfg.inputs, audio=cfg.audio, image_size=cfg.image_size, audio_form=cfg.audio_form)
     stats = json.loads((root / "meta" / "stats.json").read_text())["action"]
     shape = audio_shape(spec, manifest["layout"])
     return BCConfig(
@@ -111,7 +112,7 @@ def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = F
     runs.check_out(out, resume, overwrite)
     if resume:
         saved = BCConfig.from_dict(runs.read_json(out / runs.CONFIG))
-        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "skill", "inputs", "seed", "chunk"))
+        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "skill", "inputs", "seed", "chunk", "audio_form"))
         cfg = BCConfig.from_dict({**asdict(saved), "epochs": cfg.epochs, "max_steps": cfg.max_steps})
     else:
         cfg = resolve(cfg)

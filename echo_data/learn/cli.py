@@ -49,6 +49,7 @@ def bc_cmd(
     out: Annotated[Path | None, typer.Option("--out", help="Run folder (default runs/bc-<skill>-<inputs>).")] = None,
     chunk: Annotated[int, typer.Option("--chunk", min=1, help="Actions predicted per step (action chunking).")] = 1,
     execute: Annotated[int, typer.Option("--execute", min=1, help="Predicted actions executed before predicting again.")] = 1,
+    audio_form: Annotated[str, typer.Option("--audio-form", help="How audio is fed: stored (the dataset's spectrogram, normalised) or level_ild (each ear in dB plus their difference).")] = "stored",
     batch_size: Annotated[int, typer.Option("--batch-size", min=1)] = 64,
     lr: Annotated[float, typer.Option("--lr", min=0.0)] = 1e-3,
     max_steps: _MaxSteps = None,
@@ -69,7 +70,8 @@ def bc_cmd(
     try:
         names = parse_inputs(inputs, BC_INPUTS)
         folder = out or Path("runs") / f"bc-{skill}-{'-'.join(names)}"
-        cfg = BCConfig(str(dataset), skill, names, seed=seed, chunk=chunk, execute=execute, batch_size=batch_size, lr=lr, max_steps=max_steps, threads=threads)
+        cfg = BCConfig(str(dataset), skill, names, seed=seed, chunk=chunk, execute=execute, batch_size=batch_size, lr=lr, max_steps=max_steps, threads=threads,
+                       audio_form=audio_form)
         if epochs is not None:
             cfg.epochs = epochs
         if dagger:

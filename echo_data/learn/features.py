@@ -37,6 +37,13 @@ BC_INPUTS = ("audio", "depth", "state", "state_raw", "target")
 PLANNER_INPUTS = ("audio", "image")
 DEPTH_MAX_M = 10.0  # farther readings (and the renderer's 0 = nothing hit) carry no more cue
 GOAL_SCALE_M = 5.0  # goal offsets are divided by this: apartments are a few rooms across
+# Audio forms a model can read (`--audio-form`): "stored" is the dataset's feature normalised per
+# ear with its statistics; "level_ild" is each ear's level in dB plus the interaural level
+# difference L - R in dB as a third channel (see `_level_ild`).
+AUDIO_FORMS = ("stored", "level_ild")
+LEVEL_FLOOR = 1e-5  # spectrogram magnitude floor (-100 dB re 1, the log-mel's floor): below the noise bed
+LEVEL_REF_DB, LEVEL_SCALE_DB = -60.0, 20.0  # level channels: (dB - ref) / scale
+ILD_SCALE_DB = 6.0  # ILD channel: dB / scale (head-shadow ILDs reach about +-20 dB at high frequencies)
 YAW = STATE_NAMES.index("base_yaw")
 
 
@@ -61,7 +68,13 @@ class FeatureSpec:
     rgb_mean: tuple[float, ...] = (0.0, 0.0, 0.0)
     rgb_std: tuple[float, ...] = (1.0, 1.0, 1.0)
     image_key: str = HEAD_RGB
+    audio_form: str = "stored"  # one of AUDIO_FORMS
     extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def audio_channels(self) -> int:
+        """Input channels of the audio encoder: the two ears, plus the ILD for "level_ild"."""
+        return 3 if self.audio_form == "level_ild" else 2
 
     @property
     def columns(self) -> list[str]:
@@ -101,7 +114,7 @@ def parse_inputs(text: str, allowed: tuple[str, ...]) -> tuple[str, ...]:
     return names
 
 
-def feature_spec(dataset: Path, inputs: tuple[str, ...], audio: str = "spectrogram", image_size: int = 64) -> FeatureSpec:
+def feature_spec(dataset: Path, inputs: tuple[str, ...], audio: str = "spectrogram", image_size: int = 64, audio_form: str = "stored") -> FeatureSpec:
     """The spec for `inputs` with constants from `dataset`/meta/stats.json (train split)."""
     path = dataset / "meta" / "stats.json"
     try:
@@ -118,8 +131,11 @@ def feature_spec(dataset: Path, inputs: tuple[str, ...], audio: str = "spectrogr
     if "audio" in inputs:
         if audio not in AUDIO_COLUMNS:
             raise FeatureError(f"--audio: unknown feature {audio!r}; choose from {', '.join(AUDIO_COLUMNS)}")
+        if audio_form not in AUDIO_FORMS:
+            raise FeatureError(f"--audio-form: unknown form {audio_form!r}; choose from {', '.join(AUDIO_FORMS)}")
         s = need(AUDIO_COLUMNS[audio])
-        kw.update(audio_key=AUDIO_COLUMNS[audio], audio_mean=tuple(s["mean"]), audio_std=tuple(max(v, 1e-6) for v in s["std"]))
+        kw.update(audio_key=AUDIO_COLUMNS[audio], audio_mean=tuple(s["mean"]), audio_std=tuple(max(v, 1e-6) for v in s["std"]),
+                  audio_form=audio_form)
     if "depth" in inputs:
         s = need(HEAD_DEPTH)
         kw.update(depth_mean=s["mean"][0], depth_std=max(s["std"][0], 1e-6))
@@ -175,6 +191,24 @@ def goal_features(state: Any, goal: Any) -> Any:
 GOAL_DIM = 5
 
 
+def _level_ild(a: Any, key: str) -> Any:
+    """(B, 2, F, T) stored binaural feature -> (B, 3, F, T): left and right level in dB and their
+    difference, the interaural level difference (ILD).
+
+    Why: the stored spectrogram is log1p of magnitudes that are mostly far below 1 (median about
+    3e-4 at the calibrated full scale), so it is nearly linear and the ratio of the ears, the
+    cue that says left or right, is a small difference between tiny numbers. In dB the ILD is
+    a plain subtraction, 20 log10(|L| / |R|) (the level ratio of the two ears), which the network
+    no longer has to learn from magnitudes. The log-mel is already in dB (power, -100 dB floor).
+    Fixed scales, not dataset moments: stats.json holds the stored form's moments, and a fixed
+    scale keeps 0 dB ILD at 0 for every dataset."""
+    import torch
+
+    db = 20.0 * torch.log10(torch.clamp(torch.expm1(a), min=LEVEL_FLOOR)) if key == AUDIO_COLUMNS["spectrogram"] else a
+    ild = (db[:, 0:1] - db[:, 1:2]) / ILD_SCALE_DB
+    return torch.cat([(db - LEVEL_REF_DB) / LEVEL_SCALE_DB, ild], dim=1)
+
+
 def _area(x: Any, size: int) -> Any:
     import torch.nn.functional as F
 
@@ -190,9 +224,12 @@ def prepare(batch: Mapping[str, Any], spec: FeatureSpec, goal: Any | None = None
     out: dict[str, Any] = {}
     if "audio" in spec.inputs:
         a = t(spec.audio_key).permute(0, 3, 1, 2)  # (B, ears, F, T)
-        mean = torch.tensor(spec.audio_mean).view(1, -1, 1, 1)
-        std = torch.tensor(spec.audio_std).view(1, -1, 1, 1)
-        out["audio"] = (a - mean) / std
+        if spec.audio_form == "level_ild":
+            out["audio"] = _level_ild(a, spec.audio_key)
+        else:
+            mean = torch.tensor(spec.audio_mean).view(1, -1, 1, 1)
+            std = torch.tensor(spec.audio_std).view(1, -1, 1, 1)
+            out["audio"] = (a - mean) / std
     if "depth" in spec.inputs:
         d = _area(t(HEAD_DEPTH).clamp(0.0, DEPTH_MAX_M), spec.image_size)
         out["depth"] = (d - spec.depth_mean) / spec.depth_std

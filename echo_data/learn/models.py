@@ -38,13 +38,13 @@ def stored_audio_shape(shape: list[int] | tuple[int, ...] | None) -> tuple[int, 
 
 
 class AudioEncoder(nn.Module):
-    """(B, 2, F, T) normalised binaural features -> (B, out)."""
+    """(B, C, F, T) normalised binaural features -> (B, out); C = 2 ears (+ their ILD: 3)."""
 
-    def __init__(self, freq: int, frames: int, out: int = 128) -> None:
+    def __init__(self, freq: int, frames: int, out: int = 128, channels: int = 2) -> None:
         super().__init__()
         s1, s2, s3 = audio_strides(freq, frames)
         self.cnn = nn.Sequential(
-            nn.Conv2d(2, 32, 5, stride=s1),
+            nn.Conv2d(channels, 32, 5, stride=s1),
             nn.ReLU(),
             nn.Conv2d(32, 64, 3, stride=s2),
             nn.ReLU(),
@@ -52,7 +52,7 @@ class AudioEncoder(nn.Module):
             nn.ReLU(),
             nn.Flatten(),
         )
-        self.fc = nn.Sequential(nn.Linear(_conv_out(self.cnn, (2, freq, frames)), out), nn.ReLU())
+        self.fc = nn.Sequential(nn.Linear(_conv_out(self.cnn, (channels, freq, frames)), out), nn.ReLU())
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.fc(self.cnn(x))
@@ -94,7 +94,7 @@ class Encoders(nn.Module):
         self.parts = nn.ModuleDict()
         if "audio" in spec.inputs:
             assert audio_shape is not None
-            self.parts["audio"] = AudioEncoder(*audio_shape, out=width)
+            self.parts["audio"] = AudioEncoder(*audio_shape, out=width, channels=spec.audio_channels)
         if "depth" in spec.inputs:
             self.parts["depth"] = ImageEncoder(1, spec.image_size, out=width)
         if "image" in spec.inputs:
