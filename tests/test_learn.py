@@ -213,6 +213,50 @@ def test_planner_learning_curve_subsets_are_seeded_and_nested(ds: Path, tmp_path
     assert sum(json.loads(res.stdout)["episodes"][k] for k in ("train", "val")) == 1
 
 
+def test_planner_validation_by_sounds_holds_out_instances_never_trained_on() -> None:
+    """--val-by sounds: validation episodes play only held-out train instances, training episodes
+    none, so validation hears unheard sounds as the test split does."""
+    from echo_data.learn.planner import split_by_sounds
+
+    rows = [{"episode_index": i, "events": [{"category": c, "sound_id": f"{c}{i % n}"} for c, n in evs]}
+            for i, evs in enumerate([[("phone", 6)], [("sink", 3)], [("phone", 6), ("sink", 3)], [("alarm", 1)]] * 10)]
+    train, val, held = split_by_sounds(rows, 0.34, 0)
+    assert held and not train & val and train and val
+    assert not any(h.startswith("alarm") for h in held)  # a category with one instance keeps it for training
+    for r in rows:
+        sounds = {e["sound_id"] for e in r["events"]}
+        if r["episode_index"] in val:
+            assert sounds <= set(held)
+        if r["episode_index"] in train:
+            assert not sounds & set(held)
+    assert split_by_sounds(rows, 0.34, 0) == (train, val, held) and split_by_sounds(rows, 0.34, 1)[2] != held
+
+
+def test_planner_augmentation_shifts_pitch_and_gain_alike_in_both_ears() -> None:
+    from echo_data.learn.planner import AUG_GAIN_DB, augment_audio
+
+    x = torch.randn(4, 2, 64, 101)
+    x[:, 1] = x[:, 0]  # equal ears: augmentation must keep them equal (the interaural cue untouched)
+    std = torch.tensor([10.0, 10.0]).view(1, 2, 1, 1)
+    a = augment_audio(x, std, np.random.default_rng(0))
+    assert a.shape == x.shape and not torch.equal(a, x) and torch.equal(a[:, 0], a[:, 1])
+    assert torch.equal(a, augment_audio(x, std, np.random.default_rng(0)))  # seeded
+    y = torch.zeros(1, 2, 64, 101)
+    gains = [float(augment_audio(y, std, np.random.default_rng(k)).max()) for k in range(20)]
+    assert max(gains) <= AUG_GAIN_DB / 10.0 + 1e-6  # a gain of at most 6 dB, in per-ear std units
+
+
+def test_planner_options_select_by_accuracy_with_augmentation(ds: Path, tmp_path: Path) -> None:
+    run = tmp_path / "aug"
+    res = runner.invoke(app, ["train", "planner", str(ds), "--epochs", "2", "--augment", "--select", "accuracy", "--val-by", "sounds",
+                              "--out", str(run), "--no-progress"])
+    assert res.exit_code == 0, res.output
+    report = json.loads(res.stdout)
+    assert report["augment"] and report["select"] == "accuracy" and report["val_by"] == "sounds"
+    res = runner.invoke(app, ["train", "planner", str(ds), "--select", "luck", "--out", str(tmp_path / "bad"), "--no-progress"])
+    assert res.exit_code == 2 and "--select: unknown 'luck'" in res.output, res.output
+
+
 @pytest.mark.parametrize(
     "args, message",
     [

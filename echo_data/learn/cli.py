@@ -93,6 +93,9 @@ def planner_cmd(
     audio: Annotated[str, typer.Option("--audio", help="Audio feature: mel (64 bands x 101 frames) or spectrogram (SoundSpaces 65 x 26).")] = "mel",
     train_frames: Annotated[int, typer.Option("--train-frames", min=1, help="Frames 0..N-1 of each training episode are training examples (test: frame 0).")] = 10,
     train_episodes: Annotated[int | None, typer.Option("--train-episodes", min=1, help="Train on a seeded subset of N train episodes (learning curves).")] = None,
+    val_by: Annotated[str, typer.Option("--val-by", help="Validation: episodes (held-out train episodes) or sounds (episodes of held-out train sound instances, unheard like the test's).")] = "episodes",
+    select: Annotated[str, typer.Option("--select", help="Checkpoint kept: lowest validation loss (loss) or highest validation accuracy of the events in order (accuracy).")] = "loss",
+    augment: Annotated[bool, typer.Option("--augment/--no-augment", help="Augment training audio: pitch shift, gain, SpecAugment masks.")] = False,
     epochs: _Epochs = None,
     seed: _Seed = 0,
     out: Annotated[Path | None, typer.Option("--out", help="Run folder (default runs/planner-<inputs>).")] = None,
@@ -110,7 +113,8 @@ def planner_cmd(
     try:
         names = parse_inputs(inputs, PLANNER_INPUTS)
         folder = out or Path("runs") / f"planner-{'-'.join(names)}"
-        cfg = PlannerConfig(str(dataset), names, seed=seed, audio=audio, max_steps=max_steps, threads=threads, train_frames=train_frames, train_episodes=train_episodes)
+        cfg = PlannerConfig(str(dataset), names, seed=seed, audio=audio, max_steps=max_steps, threads=threads, train_frames=train_frames, train_episodes=train_episodes,
+                            val_by=val_by, select=select, augment=augment)
         if epochs is not None:
             cfg.epochs = epochs
         report = train_planner(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)

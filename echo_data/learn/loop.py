@@ -5,8 +5,9 @@ the epoch and the batch reached, so a resumed run takes exactly the batches an u
 would have. checkpoint.pt (with losses.csv and curves.png) is rewritten at an epoch's end when
 `CHECKPOINT_SECONDS` have passed since the last one, after the last epoch, and when `max_steps`
 stops the run (a killed run resumes from its last checkpoint);
-best.pt keeps the weights with the lowest validation loss (the latest when there is no
-validation set).
+best.pt keeps the weights with the best validation score: the lowest `val_loss` by default, or
+the highest value of another column the validation returns (`LoopConfig.select`, e.g. the
+planner's validation accuracy); the latest when there is no validation set.
 """
 
 from __future__ import annotations
@@ -44,6 +45,12 @@ class LoopConfig:
     batch_size: int
     seed: int
     max_steps: int | None = None
+    select: str = "val_loss"  # validation column that picks best.pt: val_loss is minimised, any other maximised
+
+    def badness(self, val: dict[str, float]) -> float:
+        """Lower is better: the loss itself, or minus a score to maximise (nan: no validation)."""
+        v = val.get(self.select, math.nan)
+        return v if self.select == "val_loss" else -v
 
 
 def fit(
@@ -100,11 +107,11 @@ def fit(
         train_loss = state["running"][0] / max(state["running"][1], 1)
         state["history"].append({"epoch": state["epoch"] + 1, "step": state["step"], "train_loss": train_loss, **val, "seconds": round(state["seconds"], 2)})
         bar.set_postfix(train=f"{train_loss:.4f}", val=f"{val.get('val_loss', float('nan')):.4f}")
-        v = val.get("val_loss", math.nan)
+        v = cfg.badness(val)
         if math.isnan(v) or v < state["best_val"]:
             if not math.isnan(v):
                 state["best_val"] = v
-            runs.save_torch(out / runs.BEST, {"model": model.state_dict(), "step": state["step"], "val_loss": v})
+            runs.save_torch(out / runs.BEST, {"model": model.state_dict(), "step": state["step"], "epoch": state["epoch"] + 1, **val})
         state.update(epoch=state["epoch"] + 1, batch=0, running=[0.0, 0])
         if time.perf_counter() - saved >= CHECKPOINT_SECONDS:
             checkpoint()

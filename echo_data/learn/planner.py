@@ -53,6 +53,15 @@ class PlannerConfig:
     train_frames: int = 10
     # A seeded subset of the train split's episodes (None: all), for learning curves.
     train_episodes: int | None = None
+    # What validates: "episodes" (a seeded 15 % of train episodes, which hear the training sound
+    # instances) or "sounds" (a seeded share of each category's train instances is held out; the
+    # episodes that play only held-out instances validate, those that play none train, the rest
+    # are left out), so that validation, like the test split, hears instances never trained on.
+    val_by: str = "episodes"
+    # Which validation score picks best.pt: "loss" (lowest) or "accuracy" (events in order, highest).
+    select: str = "loss"
+    # Training-time augmentation of the audio input (see `augment_audio`): off by default.
+    augment: bool = False
     # Filled in by resolve():
     features: dict[str, Any] = field(default_factory=dict)
     audio_shape: list[int] | None = None
@@ -63,6 +72,61 @@ class PlannerConfig:
     @staticmethod
     def from_dict(d: dict[str, Any]) -> PlannerConfig:
         return PlannerConfig(**{**d, "inputs": tuple(d["inputs"])})
+
+
+VAL_BY = ("episodes", "sounds")
+SELECT = {"loss": "val_loss", "accuracy": "val_events_accuracy"}
+# Augmentation ranges (training rows only). Pitch: a shift of up to 2 mel bands moves a tone by
+# about 3-8 % in frequency above 1 kHz (mel bands are near-logarithmic there), the spread between
+# instances of a ringtone or a beeper; gain: +-6 dB, the level change of a source moved
+# by a factor of two in distance (inverse-square law); masks as SpecAugment (Park et al. 2019,
+# "SpecAugment: A Simple Data Augmentation Method for ASR"): one band of up to 8 mel bands and one
+# stretch of up to 20 frames (0.2 s) set to the mean. Pitch-shift augmentation for environmental
+# sound classification: Salamon & Bello 2017 (IEEE SPL 24(3)).
+AUG_SHIFT_BANDS, AUG_GAIN_DB, AUG_FREQ_MASK, AUG_TIME_MASK = 2, 6.0, 8, 20
+
+
+def augment_audio(x: Any, std_db: Any, rng: np.random.Generator) -> Any:
+    """(B, 2, F, T) normalised log-mel (dB / per-ear std `std_db`, (1, 2, 1, 1)) -> an augmented copy: the same pitch
+    shift, gain and masks on both ears of an example (interaural cues stay as heard)."""
+    import torch
+
+    out = x.clone()
+    b, _, f, t = x.shape
+    for n in range(b):
+        k = int(rng.integers(-AUG_SHIFT_BANDS, AUG_SHIFT_BANDS + 1))
+        if k > 0:
+            out[n, :, k:] = x[n, :, :-k]
+            out[n, :, :k] = x[n, :, :1]
+        elif k < 0:
+            out[n, :, :k] = x[n, :, -k:]
+            out[n, :, k:] = x[n, :, -1:]
+        out[n] += float(rng.uniform(-AUG_GAIN_DB, AUG_GAIN_DB)) / std_db[0]
+        w, lo = int(rng.integers(0, AUG_FREQ_MASK + 1)), int(rng.integers(0, f))
+        out[n, :, lo : lo + w] = 0.0
+        w, lo = int(rng.integers(0, AUG_TIME_MASK + 1)), int(rng.integers(0, t))
+        out[n, :, :, lo : lo + w] = 0.0
+    return out if isinstance(out, torch.Tensor) else torch.as_tensor(out)
+
+
+def split_by_sounds(rows: list[dict[str, Any]], fraction: float, seed: int) -> tuple[set[int], set[int], list[str]]:
+    """(train episodes, validation episodes, held-out instances): per category a seeded
+    `fraction` of its train instances (at least one, never all) is held out; an episode
+    validates when every sound it plays is held out, trains when none is."""
+    by_cat: dict[str, set[str]] = {}
+    for r in rows:
+        for e in r["events"]:
+            by_cat.setdefault(e["category"], set()).add(e["sound_id"])
+    held: set[str] = set()
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x50D5]))
+    for cat in sorted(by_cat):
+        ids = sorted(by_cat[cat])
+        if len(ids) >= 2:
+            n = min(len(ids) - 1, max(1, int(round(fraction * len(ids)))))
+            held |= set(rng.permutation(ids)[:n].tolist())
+    train = {r["episode_index"] for r in rows if not any(e["sound_id"] in held for e in r["events"])}
+    val = {r["episode_index"] for r in rows if all(e["sound_id"] in held for e in r["events"])}
+    return train, val, sorted(held)
 
 
 @dataclass
@@ -240,20 +304,32 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     runs.check_out(out, resume, overwrite)
     if resume:
         saved = PlannerConfig.from_dict(runs.read_json(out / runs.CONFIG))
-        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "inputs", "seed", "audio", "image_size", "train_episodes"))
+        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "inputs", "seed", "audio", "image_size", "train_episodes", "val_by", "augment"))
         cfg = PlannerConfig.from_dict({**asdict(saved), "epochs": cfg.epochs, "max_steps": cfg.max_steps})
     else:
+        if cfg.val_by not in VAL_BY:
+            raise runs.RunError(f"--val-by: unknown {cfg.val_by!r}; choose from {', '.join(VAL_BY)}")
+        if cfg.select not in SELECT:
+            raise runs.RunError(f"--select: unknown {cfg.select!r}; choose from {', '.join(SELECT)}")
         cfg = resolve(cfg)
     torch = setup_torch(cfg.seed, cfg.threads)
     spec = FeatureSpec.from_dict(cfg.features)
     root = Path(cfg.dataset)
-    chosen = subset([r["episode_index"] for r in episode_rows(root, "train")], cfg.train_episodes, cfg.seed)
+    meta = episode_rows(root, "train")
+    chosen = subset([r["episode_index"] for r in meta], cfg.train_episodes, cfg.seed)
+    held: list[str] = []
+    if cfg.val_by == "sounds":
+        fit_eps, val_set, held = split_by_sounds([r for r in meta if r["episode_index"] in chosen], cfg.val_fraction, cfg.seed)
+        chosen = fit_eps | val_set
+        val_eps = np.asarray(sorted(val_set), dtype=np.int64)
     train = load_episodes(root, "train", spec, frames=cfg.train_frames, episodes=chosen)
-    val_eps = split_episodes(train.index, cfg.val_fraction, cfg.seed)
+    if cfg.val_by == "episodes":
+        val_eps = split_episodes(train.index, cfg.val_fraction, cfg.seed)
     cfg.val_episodes = [int(e) for e in val_eps]
     is_val = np.isin(train.index, val_eps)
     tr, va = np.flatnonzero(~is_val), np.flatnonzero(is_val & (train.frame == 0))
     y, pairs = _targets(train, cfg.categories)
+    audio_std = torch.tensor(spec.audio_std, dtype=torch.float32).view(1, -1, 1, 1)
 
     torch.manual_seed(cfg.seed)
     model = build_model(cfg)
@@ -265,7 +341,10 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         return {k: v[t] for k, v in train.inputs.items()}
 
     def loss_fn(ix: np.ndarray) -> Any:
-        logits, scores = model(part(ix))
+        x = part(ix)
+        if cfg.augment and "audio" in x:  # seeded by the batch itself, so a resumed run draws the same
+            x["audio"] = augment_audio(x["audio"], audio_std, np.random.default_rng([cfg.seed, *ix[:8].tolist()]))
+        logits, scores = model(x)
         return planner_loss(logits, scores, y[ix], pairs[ix])
 
     def validate() -> dict[str, float]:
@@ -278,8 +357,10 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         acc = float(np.mean([p == train.events[i] for p, i in zip(pred, va)]))
         return {"val_loss": loss, "val_events_accuracy": acc}
 
-    state = fit(model, opt, tr, loss_fn, validate, LoopConfig(cfg.epochs, cfg.batch_size, cfg.seed, cfg.max_steps), out, resume, progress, desc="train planner")
-    model.load_state_dict(runs.load_torch(out / runs.BEST)["model"])
+    loop = LoopConfig(cfg.epochs, cfg.batch_size, cfg.seed, cfg.max_steps, select=SELECT[cfg.select])
+    state = fit(model, opt, tr, loss_fn, validate, loop, out, resume, progress, desc="train planner")
+    best = runs.load_torch(out / runs.BEST)
+    model.load_state_dict(best["model"])
     model.eval()
     test = load_episodes(root, "test", spec)
     heard = {s for ss in train.sounds for s in ss}
@@ -292,7 +373,12 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         "test_sounds_heard_in_training": sorted({s for ss in test.sounds for s in ss} & heard),
         "step": state["step"],
         "seconds": round(state["seconds"], 1),
-        "best_val_loss": state["best_val"] if state["best_val"] != math.inf else None,
+        "val_by": cfg.val_by,
+        "val_sounds_held_out": held,
+        "select": cfg.select,
+        "augment": cfg.augment,
+        "best": {"epoch": best.get("epoch"), "val_loss": best.get("val_loss"), "val_events_accuracy": best.get("val_events_accuracy")},
+        "best_val_loss": best.get("val_loss"),
         "templates": cfg.templates,
         "test": score(predict(model, test, cfg.categories), test, cfg.templates),
     }
