@@ -18,12 +18,19 @@ build ~26 min at 6.7 s per episode with 2 uncontended workers):
   python benchmarks/ablation.py --data data/bc_navigate --runs runs/ablation --episodes 54
 A small run (a prefix of both splits, fewer test episodes, two rows):
   python benchmarks/ablation.py --limit 16 --episodes 12 --rows state audio,depth,state --no-planner
+Audio as level + ILD channels, and DAgger on a row already trained (its BC run is copied and
+continued with `--dagger N --resume`, not trained again):
+  python benchmarks/ablation.py ... --rows audio,state --audio-form level_ild --no-planner
+  python benchmarks/ablation.py ... --rows audio,depth,state --dagger 2 --dagger-episodes 20 --no-planner
+`--reuse` scores run folders that already hold a finished run (its `summary.json`, written by this
+script) instead of training them again.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import subprocess
 import sys
 import time
@@ -79,6 +86,9 @@ def main() -> None:
                     help="also train the audio planner on seeded subsets of this many train episodes (a learning curve)")
     ap.add_argument("--epochs", type=int, default=30)
     ap.add_argument("--dagger", type=int, default=0, help="DAgger rounds for every Navigate row (0: BC only)")
+    ap.add_argument("--dagger-episodes", type=int, default=8, help="train episodes rolled per DAgger round")
+    ap.add_argument("--audio-form", default="stored", help="train bc --audio-form for the rows with audio (stored, level_ild)")
+    ap.add_argument("--reuse", action="store_true", help="run folders with a summary.json are scored, not trained again")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "ablation.json"))
@@ -88,6 +98,7 @@ def main() -> None:
     runs.mkdir(parents=True, exist_ok=True)
     out.parent.mkdir(parents=True, exist_ok=True)
     doc: dict = {"recipe": a.recipe, "data": str(data), "limit": a.limit, "seed": a.seed, "epochs": a.epochs, "dagger": a.dagger,
+                 "dagger_episodes": a.dagger_episodes, "audio_form": a.audio_form,
                  "episodes_per_row": a.episodes, "commit": _commit(), "commands": [], "navigate": [], "planner": []}
 
     def run(*args: str) -> tuple[str, float]:
@@ -102,18 +113,38 @@ def main() -> None:
         _, secs = run(*build)
         doc["build_seconds"] = round(secs, 1)
     for inputs in a.rows:
-        name = "nav-" + inputs.replace(",", "-") + (f"-dagger{a.dagger}" if a.dagger else "")
+        form = a.audio_form if "audio" in inputs.split(",") else "stored"
+        base = "nav-" + ("ild-" if form == "level_ild" else "") + inputs.replace(",", "-")
+        name = base + (f"-dagger{a.dagger}" if a.dagger else "")
         train = ["train", "bc", str(data), "--skill", "Navigate", "--inputs", inputs, "--epochs", str(a.epochs), "--seed", str(a.seed),
-                 "--out", str(runs / name), "--overwrite", "--no-progress"]
+                 "--audio-form", form, "--out", str(runs / name), "--no-progress"]
+        done = runs / name / "summary.json"  # what `train` printed, kept beside the run (written below)
         if a.dagger:
-            train += ["--dagger", str(a.dagger)]
-        summary, train_s = run(*train)
+            train += ["--dagger", str(a.dagger), "--dagger-episodes", str(a.dagger_episodes)]
+        if a.reuse and done.is_file():
+            summary, train_s = done.read_text(), 0.0
+        else:
+            if a.dagger and (runs / base / "summary.json").is_file():  # DAgger from the finished BC run of the same row
+                if (runs / name).exists():
+                    shutil.rmtree(runs / name)
+                shutil.copytree(runs / base, runs / name, ignore=shutil.ignore_patterns("summary.json", "dagger.csv"))
+                train.append("--resume")
+            else:
+                train.append("--overwrite")
+            summary, train_s = run(*train)
+            done.write_text(summary)
         res = out.parent / f"{out.stem}-{name}.json"
-        _, eval_s = run("evaluate", a.recipe, "--split", "test", "-n", str(a.episodes), "--policy", f"Navigate={runs / name}", "--policy", "oracle",
-                        "--planner", "oracle", "--workers", str(a.workers), "--json", str(res))
+        evaluate = ["evaluate", a.recipe, "--split", "test", "-n", str(a.episodes), "--policy", f"Navigate={runs / name}", "--policy", "oracle",
+                    "--planner", "oracle", "--workers", str(a.workers), "--json", str(res)]
+        if a.reuse and res.is_file() and len(json.loads(res.read_text())["episodes"]) == a.episodes:
+            eval_s = json.loads(res.read_text()).get("wall_seconds", 0.0)  # scored before: kept
+            doc["commands"].append("echo-data " + " ".join(evaluate) + "  # reused")
+        else:
+            _, eval_s = run(*evaluate)
         ev = json.loads(res.read_text())
         s = json.loads(summary)
-        row = {"inputs": inputs, "run": str(runs / name), "train_seconds": round(train_s, 1), "eval_seconds": round(eval_s, 1),
+        row = {"inputs": inputs, "audio_form": form, "run": str(runs / name), "train_seconds": round(train_s, 1),
+               "train_loop_seconds": json.loads(summary)["seconds"], "eval_seconds": round(eval_s, 1),
                "best_val_loss": s["best_val_loss"], "val_loss_of_mean_train_action": s["val_loss_of_mean_train_action"],
                "rows": s["rows"], "results": str(res), **navigate_success(ev)}
         doc["navigate"].append(row)
