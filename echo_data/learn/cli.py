@@ -95,8 +95,7 @@ def planner_cmd(
     train_episodes: Annotated[int | None, typer.Option("--train-episodes", min=1, help="Train on a seeded subset of N train episodes (learning curves).")] = None,
     val_by: Annotated[str, typer.Option("--val-by", help="Validation: episodes (held-out train episodes) or sounds (episodes of held-out train sound instances, unheard like the test's).")] = "episodes",
     select: Annotated[str, typer.Option("--select", help="Checkpoint kept: lowest validation loss (loss) or highest validation accuracy of the events in order (accuracy).")] = "loss",
-    augment: Annotated[bool, typer.Option("--augment/--no-augment", help="Augment training audio: pitch shift, time stretch, gain, SpecAugment masks.")] = False,
-    time_pool: Annotated[bool, typer.Option("--time-pool/--no-time-pool", help="The audio encoder max-pools over time (which patterns sound, not when).")] = False,
+    augment: Annotated[bool, typer.Option("--augment/--no-augment", help="Augment training audio: pitch shift, gain, SpecAugment masks.")] = False,
     epochs: _Epochs = None,
     seed: _Seed = 0,
     out: Annotated[Path | None, typer.Option("--out", help="Run folder (default runs/planner-<inputs>).")] = None,
@@ -115,7 +114,7 @@ def planner_cmd(
         names = parse_inputs(inputs, PLANNER_INPUTS)
         folder = out or Path("runs") / f"planner-{'-'.join(names)}"
         cfg = PlannerConfig(str(dataset), names, seed=seed, audio=audio, max_steps=max_steps, threads=threads, train_frames=train_frames, train_episodes=train_episodes,
-                            val_by=val_by, select=select, augment=augment, time_pool=time_pool)
+                            val_by=val_by, select=select, augment=augment)
         if epochs is not None:
             cfg.epochs = epochs
         report = train_planner(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)

@@ -38,27 +38,20 @@ def stored_audio_shape(shape: list[int] | tuple[int, ...] | None) -> tuple[int, 
 
 
 class AudioEncoder(nn.Module):
-    """(B, C, F, T) normalised binaural features -> (B, out); C = 2 ears (+ their ILD: 3).
+    """(B, C, F, T) normalised binaural features -> (B, out); C = 2 ears (+ their ILD: 3)."""
 
-    `time_pool`: the convolution maps are max-pooled over time before the linear layer, so the
-    code says which patterns sound, not when in the second they sounded (the planner's option:
-    a ring heard 0.3 s later is the same ring; the flattened layout lets few instances be
-    memorised by position)."""
-
-    def __init__(self, freq: int, frames: int, out: int = 128, channels: int = 2, time_pool: bool = False) -> None:
+    def __init__(self, freq: int, frames: int, out: int = 128, channels: int = 2) -> None:
         super().__init__()
         s1, s2, s3 = audio_strides(freq, frames)
-        layers: list[nn.Module] = [
+        self.cnn = nn.Sequential(
             nn.Conv2d(channels, 32, 5, stride=s1),
             nn.ReLU(),
             nn.Conv2d(32, 64, 3, stride=s2),
             nn.ReLU(),
             nn.Conv2d(64, 64, 3, stride=s3),
             nn.ReLU(),
-        ]
-        if time_pool:
-            layers.append(nn.AdaptiveMaxPool2d((None, 1)))
-        self.cnn = nn.Sequential(*layers, nn.Flatten())
+            nn.Flatten(),
+        )
         self.fc = nn.Sequential(nn.Linear(_conv_out(self.cnn, (channels, freq, frames)), out), nn.ReLU())
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -96,12 +89,12 @@ def mlp(inp: int, hidden: int, out: int, layers: int = 2) -> nn.Sequential:
 class Encoders(nn.Module):
     """One encoder per input of a FeatureSpec; `forward` concatenates their codes."""
 
-    def __init__(self, spec: FeatureSpec, audio_shape: tuple[int, int] | None, width: int = 128, time_pool: bool = False) -> None:
+    def __init__(self, spec: FeatureSpec, audio_shape: tuple[int, int] | None, width: int = 128) -> None:
         super().__init__()
         self.parts = nn.ModuleDict()
         if "audio" in spec.inputs:
             assert audio_shape is not None
-            self.parts["audio"] = AudioEncoder(*audio_shape, out=width, channels=spec.audio_channels, time_pool=time_pool)
+            self.parts["audio"] = AudioEncoder(*audio_shape, out=width, channels=spec.audio_channels)
         if "depth" in spec.inputs:
             self.parts["depth"] = ImageEncoder(1, spec.image_size, out=width)
         if "image" in spec.inputs:
@@ -133,9 +126,9 @@ class PlannerNet(nn.Module):
     """Encoders -> per-category logits (is this event sounding?) and priority scores (higher =
     resolve first); the chain follows from the sounding set sorted by score."""
 
-    def __init__(self, spec: FeatureSpec, audio_shape: tuple[int, int] | None, categories: int, hidden: int = 128, time_pool: bool = False) -> None:
+    def __init__(self, spec: FeatureSpec, audio_shape: tuple[int, int] | None, categories: int, hidden: int = 128) -> None:
         super().__init__()
-        self.enc = Encoders(spec, audio_shape, time_pool=time_pool)
+        self.enc = Encoders(spec, audio_shape)
         self.head = mlp(self.enc.out_dim, hidden, 2 * categories)
         self.categories = categories
 

@@ -62,8 +62,6 @@ class PlannerConfig:
     select: str = "loss"
     # Training-time augmentation of the audio input (see `augment_audio`): off by default.
     augment: bool = False
-    # Audio encoder pools its maps over time (models.AudioEncoder): off by default.
-    time_pool: bool = False
     # Filled in by resolve():
     features: dict[str, Any] = field(default_factory=dict)
     audio_shape: list[int] | None = None
@@ -78,49 +76,37 @@ class PlannerConfig:
 
 VAL_BY = ("episodes", "sounds")
 SELECT = {"loss": "val_loss", "accuracy": "val_events_accuracy"}
-# Augmentation ranges (training rows only). Pitch: a shift of up to 4 mel bands moves a tone by
-# about 6-16 % in frequency above 1 kHz (mel bands are near-logarithmic there), within the spread
-# between instances of one kind of ringtone or beeper; tempo: a time stretch by 0.8-1.25 (the
-# cadence of a ring or a beep train differs between instances); gain: +-6 dB, the level change of
-# a source moved by a factor of two in distance (inverse-square law); masks as SpecAugment (Park
-# et al. 2019, "SpecAugment: A Simple Data Augmentation Method for ASR"): one band of up to 8 mel
-# bands and one stretch of up to 20 frames (0.2 s) set to the mean. Pitch and tempo augmentation
-# for environmental sound classification: Salamon & Bello 2017 (IEEE SPL 24(3)).
-AUG_SHIFT_BANDS, AUG_STRETCH, AUG_GAIN_DB, AUG_FREQ_MASK, AUG_TIME_MASK = 4.0, 1.25, 6.0, 8, 20
-
-
-def _resample(x: Any, positions: Any, dim: int) -> Any:
-    """Linear interpolation of `x` along `dim` at fractional `positions` (clamped to the edges)."""
-    import torch
-
-    n = x.shape[dim]
-    p = positions.clamp(0, n - 1)
-    lo = p.floor().long()
-    hi = (lo + 1).clamp(max=n - 1)
-    w = (p - lo.float()).view([-1 if d == dim else 1 for d in range(x.dim())])
-    return torch.index_select(x, dim, lo) * (1 - w) + torch.index_select(x, dim, hi) * w
+# Augmentation ranges (training rows only). Pitch: a shift of up to 2 mel bands moves a tone by
+# about 3-8 % in frequency above 1 kHz (mel bands are near-logarithmic there), the spread between
+# instances of a ringtone or a beeper; gain: +-6 dB, the level change of a source moved
+# by a factor of two in distance (inverse-square law); masks as SpecAugment (Park et al. 2019,
+# "SpecAugment: A Simple Data Augmentation Method for ASR"): one band of up to 8 mel bands and one
+# stretch of up to 20 frames (0.2 s) set to the mean. Pitch-shift augmentation for environmental
+# sound classification: Salamon & Bello 2017 (IEEE SPL 24(3)).
+AUG_SHIFT_BANDS, AUG_GAIN_DB, AUG_FREQ_MASK, AUG_TIME_MASK = 2, 6.0, 8, 20
 
 
 def augment_audio(x: Any, std_db: Any, rng: np.random.Generator) -> Any:
-    """(B, 2, F, T) normalised log-mel (dB / per-ear std `std_db`, (1, 2, 1, 1)) -> an augmented
-    copy: the same pitch shift, time stretch, gain and masks on both ears of an example
-    (interaural cues stay as heard)."""
+    """(B, 2, F, T) normalised log-mel (dB / per-ear std `std_db`, (1, 2, 1, 1)) -> an augmented copy: the same pitch
+    shift, gain and masks on both ears of an example (interaural cues stay as heard)."""
     import torch
 
     out = x.clone()
-    _, _, f, t = x.shape
-    for n in range(x.shape[0]):
-        shift = float(rng.uniform(-AUG_SHIFT_BANDS, AUG_SHIFT_BANDS))
-        rate = float(np.exp(rng.uniform(-np.log(AUG_STRETCH), np.log(AUG_STRETCH))))
-        y = _resample(x[n], torch.arange(f, dtype=torch.float32) - shift, 1)  # band b hears what b - shift held
-        y = _resample(y, torch.arange(t, dtype=torch.float32) * rate, 2)  # played `rate` times as fast
-        y = y + float(rng.uniform(-AUG_GAIN_DB, AUG_GAIN_DB)) / std_db[0]
+    b, _, f, t = x.shape
+    for n in range(b):
+        k = int(rng.integers(-AUG_SHIFT_BANDS, AUG_SHIFT_BANDS + 1))
+        if k > 0:
+            out[n, :, k:] = x[n, :, :-k]
+            out[n, :, :k] = x[n, :, :1]
+        elif k < 0:
+            out[n, :, :k] = x[n, :, -k:]
+            out[n, :, k:] = x[n, :, -1:]
+        out[n] += float(rng.uniform(-AUG_GAIN_DB, AUG_GAIN_DB)) / std_db[0]
         w, lo = int(rng.integers(0, AUG_FREQ_MASK + 1)), int(rng.integers(0, f))
-        y[:, lo : lo + w] = 0.0
+        out[n, :, lo : lo + w] = 0.0
         w, lo = int(rng.integers(0, AUG_TIME_MASK + 1)), int(rng.integers(0, t))
-        y[:, :, lo : lo + w] = 0.0
-        out[n] = y
-    return out
+        out[n, :, :, lo : lo + w] = 0.0
+    return out if isinstance(out, torch.Tensor) else torch.as_tensor(out)
 
 
 def split_by_sounds(rows: list[dict[str, Any]], fraction: float, seed: int) -> tuple[set[int], set[int], list[str]]:
@@ -248,7 +234,7 @@ def resolve(cfg: PlannerConfig) -> PlannerConfig:
 def build_model(cfg: PlannerConfig) -> Any:
     from echo_data.learn.models import PlannerNet, stored_audio_shape
 
-    return PlannerNet(FeatureSpec.from_dict(cfg.features), stored_audio_shape(cfg.audio_shape), len(cfg.categories), time_pool=cfg.time_pool)
+    return PlannerNet(FeatureSpec.from_dict(cfg.features), stored_audio_shape(cfg.audio_shape), len(cfg.categories))
 
 
 def decode(logits: np.ndarray, scores: np.ndarray, categories: list[str]) -> list[str]:
@@ -318,7 +304,7 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     runs.check_out(out, resume, overwrite)
     if resume:
         saved = PlannerConfig.from_dict(runs.read_json(out / runs.CONFIG))
-        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "inputs", "seed", "audio", "image_size", "train_episodes", "val_by", "augment", "time_pool"))
+        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "inputs", "seed", "audio", "image_size", "train_episodes", "val_by", "augment"))
         cfg = PlannerConfig.from_dict({**asdict(saved), "epochs": cfg.epochs, "max_steps": cfg.max_steps})
     else:
         if cfg.val_by not in VAL_BY:
@@ -391,7 +377,6 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         "val_sounds_held_out": held,
         "select": cfg.select,
         "augment": cfg.augment,
-        "time_pool": cfg.time_pool,
         "best": {"epoch": best.get("epoch"), "val_loss": best.get("val_loss"), "val_events_accuracy": best.get("val_events_accuracy")},
         "best_val_loss": best.get("val_loss"),
         "templates": cfg.templates,

@@ -1,0 +1,91 @@
+"""The planner rows on `recipes/planner_audio.yaml`: build, train each configuration, write the JSON.
+
+Each row is `echo-data train planner DATA --inputs I [flags]`; the command scores the run on the
+dataset's test split (test sounds only, never heard in training) and writes eval.json, which
+this script collects into one JSON with the commands and the commit. Which row is "the" planner
+is chosen on validation only: with `--val-by sounds` the validation episodes play held-out train
+instances, unheard like the test's, and the row's best validation accuracy is reported beside
+its test scores (docs/learners.md).
+
+Usage (build ~10 min with 2 workers; each row 4-15 min on one core):
+  python benchmarks/planner_table.py --data data/planner_audio --runs runs/planner
+  python benchmarks/planner_table.py ... --rows "audio" "audio|--val-by sounds --select accuracy --augment --epochs 15"
+`--reuse` collects run folders whose eval.json was written by the same arguments instead of
+training them again.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import shlex
+from pathlib import Path
+
+from ablation import ROOT, _commit, cli
+
+ROWS = (
+    "audio",
+    "audio,image",
+    "audio|--val-by sounds --select accuracy",
+    "audio|--val-by sounds --select accuracy --augment --epochs 15",
+)
+
+
+def _name(row: str) -> str:
+    return "planner-" + re.sub(r"[^a-z0-9]+", "-", row.replace("--", "")).strip("-")
+
+
+def _validation_best(run: Path) -> dict:
+    """The kept epoch's validation scores (eval.json's `best`, or for older runs the best row of losses.csv)."""
+    import csv
+
+    rows = list(csv.DictReader((run / "losses.csv").open()))
+    return {"best_val_events_accuracy": max(float(r["val_events_accuracy"]) for r in rows), "epochs_run": len(rows)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--recipe", default=str(ROOT / "recipes" / "planner_audio.yaml"))
+    ap.add_argument("--data", default=str(ROOT / "data" / "planner_audio"), help="dataset folder (built unless complete)")
+    ap.add_argument("--runs", default=str(ROOT / "runs" / "planner"))
+    ap.add_argument("--rows", nargs="*", default=list(ROWS), help='"INPUTS" or "INPUTS|FLAGS" per row')
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--reuse", action="store_true", help="collect run folders whose eval.json has the same arguments")
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "planner_audio.json"))
+    a = ap.parse_args()
+
+    data, runs, out = Path(a.data), Path(a.runs), Path(a.out)
+    runs.mkdir(parents=True, exist_ok=True)
+    doc: dict = {"recipe": a.recipe, "data": str(data), "commit": _commit(), "commands": [], "rows": []}
+    manifest = data / "manifest.json"
+    if not (manifest.is_file() and json.loads(manifest.read_text()).get("complete")):
+        build = ["build", a.recipe, "--out", str(data), "--workers", str(a.workers), "--no-progress", "--resume" if data.exists() else "--overwrite"]
+        doc["commands"].append("echo-data " + " ".join(build))
+        doc["build_seconds"] = round(cli(*build)[1], 1)
+    for row in a.rows:
+        inputs, _, flags = row.partition("|")
+        run = runs / _name(row)
+        args = ["train", "planner", str(data), "--inputs", inputs, *shlex.split(flags), "--out", str(run), "--no-progress"]
+        command = "echo-data " + " ".join(args)
+        if a.reuse and (run / "eval.json").is_file() and (run / "command.txt").is_file() and (run / "command.txt").read_text() == command:
+            report, secs = json.loads((run / "eval.json").read_text()), None
+            doc["commands"].append(command + "  # reused")
+        else:
+            doc["commands"].append(command)
+            text, secs = cli(*args, "--overwrite")
+            report = json.loads(text)
+            (run / "command.txt").write_text(command)
+        doc["rows"].append({"inputs": inputs, "flags": flags, "run": str(run), "wall_seconds": secs, "train_seconds": report["seconds"],
+                            "episodes": report["episodes"], "best": report.get("best"), **_validation_best(run),
+                            "test_sounds_heard_in_training": report["test_sounds_heard_in_training"], "test": report["test"]})
+        t = report["test"]
+        print(f"{row:60s} single {t['single_event']['events_in_order']['correct']}/{t['single_event']['events_in_order']['n']} "
+              f"multi {t['multi_event']['events_in_order']['correct']}/{t['multi_event']['events_in_order']['n']}", flush=True)
+        out.write_text(json.dumps(doc, indent=1))
+    out.write_text(json.dumps(doc, indent=1))
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
