@@ -94,7 +94,7 @@ def planner_cmd(
     train_frames: Annotated[int, typer.Option("--train-frames", min=1, help="Frames 0..N-1 of each training episode are training examples (test: frame 0).")] = 10,
     train_episodes: Annotated[int | None, typer.Option("--train-episodes", min=1, help="Train on a seeded subset of N train episodes (learning curves).")] = None,
     val_by: Annotated[str, typer.Option("--val-by", help="Validation: episodes (held-out train episodes) or sounds (episodes of held-out train sound instances, unheard like the test's).")] = "episodes",
-    select: Annotated[str, typer.Option("--select", help="Checkpoint kept: lowest validation loss (loss) or highest validation accuracy of the events in order (accuracy).")] = "loss",
+    select: Annotated[str, typer.Option("--select", help="Checkpoint kept: lowest validation loss (loss) or highest validation accuracy of the events in order, single- and multi-event episodes weighing half each (accuracy).")] = "loss",
     augment: Annotated[bool, typer.Option("--augment/--no-augment", help="Augment training audio: pitch shift, gain, SpecAugment masks.")] = False,
     epochs: _Epochs = None,
     seed: _Seed = 0,
