@@ -123,6 +123,7 @@ def main() -> None:
             train += ["--dagger", str(a.dagger), "--dagger-episodes", str(a.dagger_episodes)]
         if a.reuse and done.is_file():
             summary, train_s = done.read_text(), 0.0
+            doc["commands"].append("echo-data " + " ".join(train) + "  # trained before: its summary.json reused")
         else:
             if a.dagger and (runs / base / "summary.json").is_file():  # DAgger from the finished BC run of the same row
                 if (runs / name).exists():
@@ -147,6 +148,8 @@ def main() -> None:
                "train_loop_seconds": json.loads(summary)["seconds"], "eval_seconds": round(eval_s, 1),
                "best_val_loss": s["best_val_loss"], "val_loss_of_mean_train_action": s["val_loss_of_mean_train_action"],
                "rows": s["rows"], "results": str(res), **navigate_success(ev)}
+        if (runs / name / "dagger.csv").is_file():  # per round: rollouts, rows added, the learner's success on them
+            row["dagger_log"] = (runs / name / "dagger.csv").read_text().splitlines()
         doc["navigate"].append(row)
         print(f"{inputs:24s} first Navigate {row['first_navigate']['k']}/{row['first_navigate']['n']} "
               f"all {row['all_navigate']['k']}/{row['all_navigate']['n']} ci95 {row['all_navigate']['ci95']}", flush=True)
