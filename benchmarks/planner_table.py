@@ -76,7 +76,7 @@ def main() -> None:
             text, secs = cli(*args, "--overwrite")
             report = json.loads(text)
             (run / "command.txt").write_text(command)
-        doc["rows"].append({"inputs": inputs, "flags": flags, "run": str(run), "wall_seconds": secs, "train_seconds": report["seconds"],
+        doc["rows"].append({"inputs": inputs, "flags": flags, "run": str(run), "trained_in": report["run"], "wall_seconds": secs, "train_seconds": report["seconds"],
                             "episodes": report["episodes"], "best": report.get("best"), **_validation_best(run),
                             "test_sounds_heard_in_training": report["test_sounds_heard_in_training"], "test": report["test"]})
         t = report["test"]
