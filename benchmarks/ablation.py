@@ -15,12 +15,13 @@ is tuned on them: every hyper-parameter is the CLI default unless given here.
 
 Usage (the full table: `recipes/bc_navigate.yaml`, 60 + 60 + 60 train / 54 test episodes,
 build ~26 min at 6.7 s per episode with 2 uncontended workers):
-  python benchmarks/ablation.py --data data/bc_navigate --runs runs/ablation --episodes 54
+  python benchmarks/ablation.py --data data/bc_navigate --runs runs/ablation --episodes 54 --audio-form stored
 A small run (a prefix of both splits, fewer test episodes, two rows):
   python benchmarks/ablation.py --limit 16 --episodes 12 --rows state audio,depth,state --no-planner
-Audio as level + ILD channels, and DAgger on a row already trained (its BC run is copied and
-continued with `--dagger N --resume`, not trained again):
-  python benchmarks/ablation.py ... --rows audio,state --audio-form level_ild --no-planner
+Audio as the stored spectrogram (the first table of the README; the default is level + ILD), and
+DAgger on a row already trained (its BC run is copied and continued with `--dagger N --resume`,
+not trained again):
+  python benchmarks/ablation.py ... --rows audio,state --audio-form stored --no-planner
   python benchmarks/ablation.py ... --rows audio,depth,state --dagger 2 --dagger-episodes 20 --no-planner
 `--reuse` scores run folders that already hold a finished run (its `summary.json`, written by this
 script) instead of training them again.
@@ -87,7 +88,7 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=30)
     ap.add_argument("--dagger", type=int, default=0, help="DAgger rounds for every Navigate row (0: BC only)")
     ap.add_argument("--dagger-episodes", type=int, default=8, help="train episodes rolled per DAgger round")
-    ap.add_argument("--audio-form", default="stored", help="train bc --audio-form for the rows with audio (stored, level_ild)")
+    ap.add_argument("--audio-form", default="level_ild", help="train bc --audio-form for the rows with audio (level_ild, stored)")
     ap.add_argument("--reuse", action="store_true", help="run folders with a summary.json are scored, not trained again")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)

@@ -43,7 +43,7 @@ class BCConfig:
     threads: int = 1  # see loop.setup_torch: more threads than free cores is many times slower
     image_size: int = 64
     audio: str = "spectrogram"
-    audio_form: str = "stored"  # features.AUDIO_FORMS
+    audio_form: str = "level_ild"  # features.AUDIO_FORMS; run folders from before the option were "stored"
     max_steps: int | None = None  # stop (and checkpoint) after this many optimiser steps
     # Filled in by train_bc:
     features: dict[str, Any] = field(default_factory=dict)
@@ -54,7 +54,7 @@ class BCConfig:
 
     @staticmethod
     def from_dict(d: dict[str, Any]) -> BCConfig:
-        return BCConfig(**{**d, "inputs": tuple(d["inputs"])})
+        return BCConfig(**{"audio_form": "stored", **d, "inputs": tuple(d["inputs"])})  # older runs fed the stored form
 
 
 def build_model(cfg: BCConfig) -> Any:

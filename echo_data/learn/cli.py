@@ -49,7 +49,7 @@ def bc_cmd(
     out: Annotated[Path | None, typer.Option("--out", help="Run folder (default runs/bc-<skill>-<inputs>).")] = None,
     chunk: Annotated[int, typer.Option("--chunk", min=1, help="Actions predicted per step (action chunking).")] = 1,
     execute: Annotated[int, typer.Option("--execute", min=1, help="Predicted actions executed before predicting again.")] = 1,
-    audio_form: Annotated[str, typer.Option("--audio-form", help="How audio is fed: stored (the dataset's spectrogram, normalised) or level_ild (each ear in dB plus their difference).")] = "stored",
+    audio_form: Annotated[str, typer.Option("--audio-form", help="How audio is fed: level_ild (each ear in dB plus their difference) or stored (the dataset's spectrogram, normalised).")] = "level_ild",
     batch_size: Annotated[int, typer.Option("--batch-size", min=1)] = 64,
     lr: Annotated[float, typer.Option("--lr", min=0.0)] = 1e-3,
     max_steps: _MaxSteps = None,
