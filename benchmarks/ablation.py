@@ -138,15 +138,16 @@ def main() -> None:
         res = out.parent / f"{out.stem}-{name}.json"
         evaluate = ["evaluate", a.recipe, "--split", "test", "-n", str(a.episodes), "--policy", f"Navigate={runs / name}", "--policy", "oracle",
                     "--planner", "oracle", "--workers", str(a.workers), "--json", str(res)]
-        if a.reuse and res.is_file() and len(json.loads(res.read_text())["episodes"]) == a.episodes:
-            eval_s = json.loads(res.read_text()).get("wall_seconds", 0.0)  # scored before: kept
+        scored = json.loads(res.read_text()) if a.reuse and res.is_file() else None
+        if scored is not None and len(scored["episodes"]) == a.episodes:
+            eval_s = scored.get("wall_seconds", 0.0)  # scored before: kept
             doc["commands"].append("echo-data " + " ".join(evaluate) + "  # reused")
         else:
             _, eval_s = run(*evaluate)
         ev = json.loads(res.read_text())
         s = json.loads(summary)
         row = {"inputs": inputs, "audio_form": form, "run": str(runs / name), "train_seconds": round(train_s, 1),
-               "train_loop_seconds": json.loads(summary)["seconds"], "eval_seconds": round(eval_s, 1),
+               "train_loop_seconds": s["seconds"], "eval_seconds": round(eval_s, 1),
                "best_val_loss": s["best_val_loss"], "val_loss_of_mean_train_action": s["val_loss_of_mean_train_action"],
                "rows": s["rows"], "results": str(res), **navigate_success(ev)}
         if (runs / name / "dagger.csv").is_file():  # per round: rollouts, rows added, the learner's success on them

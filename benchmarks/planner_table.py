@@ -36,12 +36,13 @@ def _name(row: str) -> str:
     return "planner-" + re.sub(r"[^a-z0-9]+", "-", row.replace("--", "")).strip("-")
 
 
-def _validation_best(run: Path) -> dict:
-    """The kept epoch's validation scores (eval.json's `best`, or for older runs the best row of losses.csv)."""
+def _validation_max(run: Path) -> dict:
+    """The highest plain validation accuracy over all epochs of the run (losses.csv; runs from before
+    eval.json's `best` existed have only this), and the number of epochs run."""
     import csv
 
     rows = list(csv.DictReader((run / "losses.csv").open()))
-    return {"best_val_events_accuracy": max(float(r["val_events_accuracy"]) for r in rows), "epochs_run": len(rows)}
+    return {"max_val_events_accuracy": max(float(r["val_events_accuracy"]) for r in rows), "epochs_run": len(rows)}
 
 
 def main() -> None:
@@ -77,7 +78,7 @@ def main() -> None:
             report = json.loads(text)
             (run / "command.txt").write_text(command)
         doc["rows"].append({"inputs": inputs, "flags": flags, "run": str(run), "trained_in": report["run"], "wall_seconds": secs, "train_seconds": report["seconds"],
-                            "episodes": report["episodes"], "best": report.get("best"), **_validation_best(run),
+                            "episodes": report["episodes"], "best": report.get("best"), **_validation_max(run),
                             "test_sounds_heard_in_training": report["test_sounds_heard_in_training"], "test": report["test"]})
         t = report["test"]
         print(f"{row:60s} single {t['single_event']['events_in_order']['correct']}/{t['single_event']['events_in_order']['n']} "

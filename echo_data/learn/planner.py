@@ -92,8 +92,6 @@ AUG_SHIFT_BANDS, AUG_GAIN_DB, AUG_FREQ_MASK, AUG_TIME_MASK = 2, 6.0, 8, 20
 def augment_audio(x: Any, std_db: Any, rng: np.random.Generator) -> Any:
     """(B, 2, F, T) normalised log-mel (dB / per-ear std `std_db`, (1, 2, 1, 1)) -> an augmented copy: the same pitch
     shift, gain and masks on both ears of an example (interaural cues stay as heard)."""
-    import torch
-
     out = x.clone()
     b, _, f, t = x.shape
     for n in range(b):
@@ -109,7 +107,7 @@ def augment_audio(x: Any, std_db: Any, rng: np.random.Generator) -> Any:
         out[n, :, lo : lo + w] = 0.0
         w, lo = int(rng.integers(0, AUG_TIME_MASK + 1)), int(rng.integers(0, t))
         out[n, :, :, lo : lo + w] = 0.0
-    return out if isinstance(out, torch.Tensor) else torch.as_tensor(out)
+    return out
 
 
 def split_by_sounds(rows: list[dict[str, Any]], fraction: float, seed: int) -> tuple[set[int], set[int], list[str]]:
@@ -307,7 +305,7 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     runs.check_out(out, resume, overwrite)
     if resume:
         saved = PlannerConfig.from_dict(runs.read_json(out / runs.CONFIG))
-        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "inputs", "seed", "audio", "image_size", "train_episodes", "val_by", "augment"))
+        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "inputs", "seed", "audio", "image_size", "train_episodes", "val_by", "select", "augment"))
         cfg = PlannerConfig.from_dict({**asdict(saved), "epochs": cfg.epochs, "max_steps": cfg.max_steps})
     else:
         if cfg.val_by not in VAL_BY:
