@@ -87,20 +87,36 @@ def info_cmd(
 
 def export_cmd(
     path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder of the exported dataset.")],
-    fmt: Annotated[str, typer.Option("--format", help="Target format: lerobot (LeRobot codebase v3.0).")] = "lerobot",
+    out: Annotated[Path, typer.Option("--out", "-o", help="Export: a folder (lerobot, zarr) or an .hdf5 file (robomimic).")],
+    fmt: Annotated[str, typer.Option("--format", help="lerobot (LeRobot v3.0), robomimic (one HDF5) or zarr (Diffusion Policy replay buffer).")] = "lerobot",
+    video: Annotated[list[str] | None, typer.Option("--video", help="lerobot: store this camera as an MP4 video feature (rgb; depth stays PNG).")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing export.")] = False,
 ) -> None:
-    """Write the dataset in another library's format (LeRobot v3.0), next to the original."""
-    from echo_data.dataset.lerobot import ExportError, export_lerobot
+    """Write the dataset in another library's format (LeRobot v3.0, robomimic HDF5, Zarr), next to the original."""
+    from echo_data.dataset.episode_arrays import ExportError
 
-    if fmt != "lerobot":
-        raise _fail(f"--format {fmt}: unknown format (use lerobot)", 2)
+    if fmt not in ("lerobot", "robomimic", "zarr"):
+        raise _fail(f"--format {fmt}: unknown format (use lerobot, robomimic or zarr)", 2)
+    if video and fmt != "lerobot":
+        raise _fail(f"--video: only the lerobot format stores videos, not {fmt}", 2)
     try:
-        info = export_lerobot(path, out, overwrite=overwrite)
+        if fmt == "lerobot":
+            from echo_data.dataset.lerobot import export_lerobot
+
+            info = export_lerobot(path, out, overwrite=overwrite, video=tuple(video or ()))
+            typer.echo(f"{out}: LeRobot {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
+        elif fmt == "robomimic":
+            from echo_data.dataset.robomimic import export_robomimic
+
+            s = export_robomimic(path, out, overwrite=overwrite)
+            typer.echo(f"{out}: robomimic HDF5, {s['demos']} demos, {s['frames']} frames, masks {s['masks']}")
+        else:
+            from echo_data.dataset.zarr_export import export_zarr
+
+            s = export_zarr(path, out, overwrite=overwrite)
+            typer.echo(f"{out}: Zarr replay buffer, {s['episodes']} episodes, {s['frames']} frames, splits {s['splits']}")
     except ExportError as e:
         raise _fail(str(e), 2) from None
-    typer.echo(f"{out}: LeRobot {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
 
 
 def view_cmd(
