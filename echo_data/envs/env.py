@@ -27,6 +27,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from echo_data.dataset.schema import BINAURAL, MEL, SPECTROGRAM, STATE
 from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_DIM, STATE_DIM
@@ -34,10 +35,6 @@ from echo_data.records import ACTION_DIM, STATE_DIM
 if TYPE_CHECKING:
     from echo_data.world import World
 
-STATE = "observation.state"
-BINAURAL = "observation.audio.binaural"
-SPECTROGRAM = "observation.audio.spectrogram"
-MEL = "observation.audio.mel"
 # The skill whose success resolves an event (and silences its sound): a ringing phone is
 # resolved when it is picked up, a doorbell when the door is open, a running faucet when closed.
 RESOLVING_SKILLS = ("Pick", "OpenDoor", "CloseSink")

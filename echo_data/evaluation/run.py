@@ -13,19 +13,15 @@ the same either way.
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
+from echo_data.dataset.schema import AUDIO_PREFIX, IMAGE_PREFIX
 from echo_data.recipe import Recipe
 
-IMAGE_PREFIX = "observation.images."
-AUDIO_PREFIX = "observation.audio."
 SAMPLING_RETRIES = 3
 
 
@@ -164,25 +160,31 @@ class _VideoRecorder:
         return str(path)
 
 
-def _init_worker() -> None:
-    os.environ.setdefault("LP_NUM_THREADS", "1")
+_JOB: dict[str, EvalJob] = {}
+
+
+def _set_job(job: EvalJob) -> None:
+    """Worker setup: the job every task of this evaluation shares (sent once per worker)."""
+    _JOB["job"] = job
+
+
+def _evaluate_index(index: int) -> dict[str, Any]:
+    return evaluate_episode(_JOB["job"], index)
 
 
 def run_episodes(job: EvalJob, n: int, workers: int = 1, progress: Callable[[dict[str, Any]], None] | None = None) -> list[dict[str, Any]]:
-    """Episodes 0..n-1 of the split, on `workers` processes; records ordered by index."""
+    """Episodes 0..n-1 of the split, on `workers` processes (the build's pool); records ordered by index."""
+    from echo_data.app.executors import make_executor
+
     out: dict[int, dict[str, Any]] = {}
-    if workers <= 1:
-        for i in range(n):
-            out[i] = evaluate_episode(job, i)
+    pool = make_executor("local", workers, _set_job, (job,))
+    try:
+        for rec in pool.imap_unordered(_evaluate_index, range(n)):
+            out[rec["index"]] = rec
             if progress:
-                progress(out[i])
-    else:
-        with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_init_worker) as pool:
-            futs = {pool.submit(evaluate_episode, job, i): i for i in range(n)}
-            for f in as_completed(futs):
-                out[futs[f]] = f.result()
-                if progress:
-                    progress(out[futs[f]])
+                progress(rec)
+    finally:
+        pool.close()
     return [out[i] for i in range(n)]
 
 

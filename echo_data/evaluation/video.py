@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from echo_data.dataset.schema import IMAGE_COLUMNS, MEL
 from echo_data.media import colour_lut, fit_nearest
 
 PANEL = 256  # px, side of the camera and plan panels
@@ -72,11 +73,11 @@ def compose(obs: dict[str, np.ndarray], plan_panel: np.ndarray, label: str = "")
     from PIL import Image, ImageDraw
 
     frame = np.zeros((PANEL + STRIP, 2 * PANEL, 3), dtype=np.uint8)
-    rgb = obs.get("observation.images.head_rgb")
+    rgb = obs.get(IMAGE_COLUMNS["head_rgb"])
     if rgb is not None:
         frame[:PANEL, :PANEL] = fit_nearest(np.asarray(rgb, dtype=np.uint8), PANEL, PANEL)
     frame[:PANEL, PANEL:] = plan_panel
-    mel = obs.get("observation.audio.mel")
+    mel = obs.get(MEL)
     if mel is not None:
         lo, hi = MEL_RANGE_DB
         both = np.concatenate([mel[::-1, :, 0], mel[::-1, :, 1]], axis=0)  # left ear on top, low bands at the bottom
