@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from echo_data.episode import EpisodeSpec
+from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 
 HEARD_SECONDS = 2.0
@@ -46,7 +47,7 @@ def contact_sheet(frames: list[np.ndarray], times: list[float], out: Path, colum
     sheet.save(out)
 
 
-def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: object) -> np.ndarray:
+def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: SoundLibrary) -> np.ndarray:
     """Binaural audio at the start pose for the first HEARD_SECONDS, every source sounding,
     calibrated as the dataset's WAVs (levels, noise floor, full scale)."""
     from echo_data.acoustics.hrtf import Hrtf

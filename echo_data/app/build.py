@@ -37,6 +37,7 @@ from echo_data.dataset.writer import DatasetWriter
 from echo_data.episode import attempt_draws
 from echo_data.outputs import OutputError, check_output_path
 from echo_data.pcm import ClippingError
+from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.records import EpisodeResult
 
@@ -93,7 +94,7 @@ class _Job:
     recipe_dir: Path
     layout: StepLayout
     generate: Generate
-    make_library: Callable[[Recipe, Path], Any] | None
+    make_library: Callable[[Recipe, Path], SoundLibrary] | None
 
 
 @dataclass
@@ -116,7 +117,7 @@ def _init_job(job: _Job) -> None:
     _JOB, _LIBRARY = job, _UNSET
 
 
-def default_library(recipe: Recipe, recipe_dir: Path) -> Any:
+def default_library(recipe: Recipe, recipe_dir: Path) -> SoundLibrary:
     """The recipe's sound library (built once per worker)."""
     try:
         from echo_data.sounds import SoundLibrary
@@ -248,7 +249,7 @@ def build(
     executor: Literal["local", "ray"] = "local",
     generate: Generate | None = None,
     progress: bool = True,
-    make_library: Callable[[Recipe, Path], Any] | None = None,
+    make_library: Callable[[Recipe, Path], SoundLibrary] | None = None,
     address: str | None = None,
 ) -> BuildSummary:
     """Build (or resume) the dataset of `recipe` in the directory `out`.
@@ -330,7 +331,7 @@ def _build_locked(
     executor: str,
     gen: Generate,
     progress: bool,
-    make_library: Callable[[Recipe, Path], Any] | None,
+    make_library: Callable[[Recipe, Path], SoundLibrary] | None,
     layout: StepLayout,
     plans: dict[str, ShardPlans],
     t0: float,
