@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from echo_data.dataset.episode_arrays import EpisodeArrays, check_out_file, check_source, iter_episodes
+from echo_data.dataset.episode_arrays import ExportError as ExportError  # the CLI catches `module.ExportError`
 from echo_data.dataset.schema import ACTION, CAMERA_POSES, IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE, StepLayout
 
 # echo-data column -> robomimic observation key
@@ -126,4 +127,4 @@ def export_robomimic(src: str | Path, out: str | Path, overwrite: bool = False) 
     finally:
         if tmp.exists():
             tmp.unlink()
-    return {"path": str(out), "demos": sum(len(v) for v in masks.values()), "frames": total, "masks": {k: len(v) for k, v in masks.items()}}
+    return {"codebase_version": "robomimic HDF5", "total_episodes": sum(len(v) for v in masks.values()), "total_frames": total, "splits": {k: len(v) for k, v in masks.items()}}

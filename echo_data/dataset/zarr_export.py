@@ -100,4 +100,5 @@ def export_zarr(src: str | Path, out: str | Path, overwrite: bool = False) -> di
         os.replace(tmp, out)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return {"path": str(out), "episodes": len(ends), "frames": row, "chunk_steps": chunk_steps, "splits": {s: splits.count(c) for s, c in sorted(SPLIT_CODES.items(), key=lambda kv: SPLIT_KEYS[kv[0]])}}
+    counts = {s: splits.count(c) for s, c in sorted(SPLIT_CODES.items(), key=lambda kv: SPLIT_KEYS[kv[0]]) if splits.count(c)}
+    return {"codebase_version": "Diffusion Policy replay buffer (Zarr format 2)", "total_episodes": len(ends), "total_frames": row, "splits": counts}
