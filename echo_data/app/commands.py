@@ -122,21 +122,29 @@ def view_cmd(
     path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
     episode: Annotated[int, typer.Option("--episode", "-e", help="Episode index within the split.")] = 0,
     split: Annotated[str, typer.Option("--split", help="Split of the episode.")] = "train",
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="MP4 to write (default: <split>-<episode>.mp4 here).")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="MP4 to write (default: <split>-<episode>.mp4 here, unless --rerun alone is given).")] = None,
+    rerun: Annotated[Path | None, typer.Option("--rerun", help="Also (or, without --out, only) write a Rerun recording (.rrd) to scrub through with `rerun FILE.rrd`.")] = None,
 ) -> None:
-    """Write an MP4 of one episode: head RGB, depth, top-down map, scrolling binaural spectrogram,
-    the active skill as a caption, and the episode's binaural sound."""
+    """Write an MP4 of one episode (head RGB, head and wrist depth, top-down map, scrolling binaural
+    spectrogram, the active skill, the sound at a stated listening gain) and/or a Rerun recording."""
     from echo_data.dataset.manifest import ManifestError
     from echo_data.view import ViewError, render_episode_video
+    from echo_data.viz.recording import RecordingTargetError, check_rerun_target, write_recording
 
-    target = out if out is not None else Path(f"{split}-{episode:06d}.mp4")
-    if target.exists() and target.is_dir():
+    target = out if out is not None else (Path(f"{split}-{episode:06d}.mp4") if rerun is None else None)
+    if target is not None and target.exists() and target.is_dir():
         raise _fail(f"--out {target}: is a folder", 2)
     try:
-        summary = render_episode_video(path, episode, target, split=split)
-    except (ManifestError, ViewError) as e:
+        if rerun is not None:
+            check_rerun_target(rerun)
+        if target is not None:
+            summary = render_episode_video(path, episode, target, split=split)
+            typer.echo(f"wrote {summary['path']}: {summary['frames']} frames, {summary['seconds']:.1f} s with binaural sound ({summary['listening']})")
+        if rerun is not None:
+            rec = write_recording(path, episode, rerun, split=split)
+            typer.echo(f"wrote {rec['path']}: {rec['steps']} steps, cameras {', '.join(rec['cameras'])} (open it with `rerun {rec['path']}`)")
+    except (ManifestError, ViewError, RecordingTargetError) as e:
         raise _fail(str(e), 2) from None
-    typer.echo(f"wrote {summary['path']}: {summary['frames']} frames, {summary['seconds']:.1f} s with binaural sound")
 
 
 def register(app: typer.Typer) -> None:

@@ -138,23 +138,24 @@ class _VideoRecorder:
 
     def __init__(self, env: Any) -> None:
         self.env = env
-        self.steps: list[tuple[Any, Any, tuple[float, float], float, tuple[bool, ...], str]] = []
+        self.steps: list[tuple[Any, Any, Any, tuple[float, float], float, tuple[bool, ...], str]] = []
 
     @property
     def frames(self) -> int:
         return len(self.steps)
 
     def __call__(self, env: Any, obs: dict, action: Any, k: int, call: Any, flags: tuple[bool, ...]) -> None:
+        from echo_data.camera import DEPTH_UNIT_M
         from echo_data.dataset.schema import IMAGE_COLUMNS
 
         x, y, yaw = env.world.robot.base_pose()
-        depth = obs.get(IMAGE_COLUMNS["head_depth"])
-        depth_m = None if depth is None else np.asarray(depth, dtype=np.float64) / 1000.0
-        self.steps.append((obs.get(IMAGE_COLUMNS["head_rgb"]), depth_m, (x, y), yaw, tuple(env.sounding), f"{call.skill}({call.target})"))
+        depth_m = [None if (d := obs.get(IMAGE_COLUMNS[c])) is None else np.asarray(d, dtype=np.float64) * DEPTH_UNIT_M for c in ("head_depth", "wrist_depth")]
+        self.steps.append((obs.get(IMAGE_COLUMNS["head_rgb"]), depth_m[0], depth_m[1], (x, y), yaw, tuple(env.sounding), f"{call.skill}({call.target})"))
 
     def write(self, path: Path) -> str:
         from echo_data.media import write_mp4
         from echo_data.viz.frames import PANEL, EpisodeFrames
+        from echo_data.viz.listening import listening
         from echo_data.viz.topdown import TopDownMap
 
         track, offsets = self.env.episode_audio()
@@ -162,14 +163,15 @@ class _VideoRecorder:
         start = int(offsets[0])
         audio = track[start : start + len(self.steps) * hop]
         episode = self.env.episode
-        video = EpisodeFrames(TopDownMap(episode.plan, episode.events, size=PANEL), track, fs)
-        path_xy = [s[2] for s in self.steps]
+        level = listening(audio, self.env.recipe.acoustics.full_scale_db_spl)
+        video = EpisodeFrames(TopDownMap(episode.plan, episode.events, size=PANEL), track, fs, sound_note=level.note())
+        path_xy = [s[3] for s in self.steps]
         frames = (
-            video.frame(rgb, depth, path_xy[: t + 1], yaw, start + t * hop, f"{episode.episode_id}  t={t / self.env.recipe.robot.control_hz:.1f}s  {caption}", sounding)
-            for t, (rgb, depth, _, yaw, sounding, caption) in enumerate(self.steps)
+            video.frame(rgb, depth, path_xy[: t + 1], yaw, start + t * hop, f"{episode.episode_id}  t={t / self.env.recipe.robot.control_hz:.1f}s  {caption}", sounding, wrist_depth_m=wrist)
+            for t, (rgb, depth, wrist, _, yaw, sounding, caption) in enumerate(self.steps)
         )
         path.parent.mkdir(parents=True, exist_ok=True)
-        write_mp4(path, frames, fps=float(self.env.recipe.robot.control_hz), audio=audio, sample_rate=fs)
+        write_mp4(path, frames, fps=float(self.env.recipe.robot.control_hz), audio=level.apply(audio), sample_rate=fs)
         return str(path)
 
 
