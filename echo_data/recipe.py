@@ -282,6 +282,16 @@ class OutputsConfig(_Strict):
     max_frames: int | None = Field(None, ge=1, le=100_000)
 
 
+class ExpertsConfig(_Strict):
+    """How the scripted experts demonstrate."""
+
+    # DART (Laskey et al. 2017): the executed action is the expert's plus zero-mean Gaussian noise
+    # of `action_noise` times the per-dimension standard deviations of
+    # `echo_data.agents.dart.NOISE_STD` (units there); the `action` column keeps the expert's own
+    # command from the perturbed state, `action.executed` what the robot did. 0 = no noise.
+    action_noise: float = Field(0.0, ge=0.0, le=4.0)
+
+
 class Recipe(_Strict):
     """A whole, validated recipe."""
 
@@ -304,6 +314,7 @@ class Recipe(_Strict):
     robot: RobotConfig = RobotConfig()
     acoustics: AcousticsConfig = AcousticsConfig()
     outputs: OutputsConfig = OutputsConfig()
+    experts: ExpertsConfig = ExpertsConfig()
 
     @field_validator("splits")
     @classmethod
@@ -389,6 +400,8 @@ class Recipe(_Strict):
         data = self.model_dump(mode="json")
         if data["outputs"]["max_frames"] is None:  # whole episodes: the hash recipes had before the key existed
             del data["outputs"]["max_frames"]
+        if data["experts"] == ExpertsConfig().model_dump(mode="json"):  # noiseless experts: as before the key existed
+            del data["experts"]
         blob = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(blob.encode()).hexdigest()
 

@@ -45,7 +45,7 @@ def records_digest(steps: list[StepRecord]) -> str:
     h = hashlib.sha256()
     for s in steps:
         h.update(f"{s.frame_index}|{s.timestamp!r}|{s.skill}|{s.skill_index}|{s.ear_position!r}|{s.ear_yaw!r}|{s.sounding}|{s.skill_success}|{s.done}".encode())
-        for arr in (s.action, s.state, s.head_rgb, s.head_depth, s.wrist_depth):
+        for arr in (s.action, s.executed, s.state, s.head_rgb, s.head_depth, s.wrist_depth):
             if arr is not None:
                 a = np.ascontiguousarray(arr)
                 h.update(f"{a.dtype}{a.shape}".encode())

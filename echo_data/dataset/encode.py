@@ -19,6 +19,7 @@ import pyarrow as pa
 from echo_data.dataset import stats as stats_mod
 from echo_data.dataset.schema import (
     ACTION,
+    ACTION_EXECUTED,
     CAMERA_POSES,
     CHAIN_SLOTS,
     IMAGE_TYPE,
@@ -188,9 +189,10 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
         raise ValueError(f"{spec.episode_id}: audio_offsets must be ({n},) within [0, {len(audio)}]")
 
     action = np.stack([np.asarray(s.action, dtype=np.float32) for s in steps])
+    executed = np.stack([np.asarray(s.action_executed, dtype=np.float32) for s in steps])
     state = np.stack([np.asarray(s.state, dtype=np.float32) for s in steps])
-    if action.shape != (n, ACTION_DIM) or state.shape != (n, STATE_DIM):
-        raise ValueError(f"{spec.episode_id}: action/state shapes {action.shape}/{state.shape}")
+    if action.shape != (n, ACTION_DIM) or executed.shape != (n, ACTION_DIM) or state.shape != (n, STATE_DIM):
+        raise ValueError(f"{spec.episode_id}: action/executed/state shapes {action.shape}/{executed.shape}/{state.shape}")
 
     chain_len = len(spec.chain)
     if chain_len > CHAIN_SLOTS:
@@ -204,6 +206,7 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
         "skill": pa.array([s.skill for s in steps], pa.string()),
         "skill_index": pa.array(np.array([s.skill_index for s in steps], dtype=np.int64)),
         ACTION: pa.FixedSizeListArray.from_arrays(pa.array(action.reshape(-1)), ACTION_DIM),
+        ACTION_EXECUTED: pa.FixedSizeListArray.from_arrays(pa.array(executed.reshape(-1)), ACTION_DIM),
         STATE: pa.FixedSizeListArray.from_arrays(pa.array(state.reshape(-1)), STATE_DIM),
     }
     if not np.array_equal(cols["frame_index"].to_numpy(), np.arange(n)):
@@ -265,7 +268,7 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
             "audio_sha256": hashlib.sha256(wav).hexdigest(),
         }
     )
-    values = stats_mod.episode_feature_values(action, state, image_stacks, array_stacks)
+    values = stats_mod.episode_feature_values(action, state, image_stacks, array_stacks, executed)
     summaries = {k: stats_mod.summarize(v, n) for k, v in values.items()}
 
     planner_png = None

@@ -189,7 +189,7 @@ class DatasetWriter:
             "audio_path": "audio/{split}/{episode_id}.wav",
             "episode_index": "per split: equals the episode's index in its split; `index` counts frames per split",
             "stats_split": "train" if "train" in self.plans else "all",
-            "names": {"action": list(ACTION_NAMES), "observation.state": list(STATE_NAMES)},
+            "names": {"action": list(ACTION_NAMES), "action.executed": list(ACTION_NAMES), "observation.state": list(STATE_NAMES)},
             "features": self.layout.hf_features(),
             "cameras": camera_infos(self.recipe, self.layout),
         }
