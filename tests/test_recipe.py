@@ -57,8 +57,12 @@ def test_hash_changes_with_content() -> None:
     # so older datasets still resume; a cut changes it
     d = a.model_dump(mode="json")
     del d["outputs"]["max_frames"]
+    del d["experts"]
     assert a.content_hash() == hashlib.sha256(json.dumps(d, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
     assert recipe_from_mapping({"name": "x", "outputs": {"max_frames": 10}}).content_hash() != a.content_hash()
+    # experts.action_noise: 0 (the default) likewise keeps the hash; DART noise changes it
+    assert recipe_from_mapping({"name": "x", "experts": {"action_noise": 0}}).content_hash() == a.content_hash()
+    assert recipe_from_mapping({"name": "x", "experts": {"action_noise": 1}}).content_hash() != a.content_hash()
 
 
 @pytest.mark.parametrize(
@@ -79,6 +83,9 @@ def test_hash_changes_with_content() -> None:
         ("name: x\noutputs:\n  max_frames: 2.5\n", "outputs.max_frames"),
         ("name: x\noutputs:\n  max_frames: true\n", "outputs.max_frames"),
         ("- a\n- b\n", "must be a mapping"),
+        ("name: x\nexperts:\n  action_noise: -0.5\n", "experts.action_noise"),
+        ("name: x\nexperts:\n  action_noise: lots\n", "experts.action_noise"),
+        ("name: x\nexperts:\n  action_nosie: 1\n", "experts.action_nosie: unknown key"),
     ],
 )
 def test_bad_recipes_give_one_line_errors(tmp_path: Path, text: str, key: str) -> None:
