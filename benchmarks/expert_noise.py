@@ -16,9 +16,9 @@ import json
 import subprocess
 from pathlib import Path
 
+from echo_data.app.trial import run_trial
 from echo_data.evaluation.metrics import wilson
 from echo_data.recipe import load_recipe
-from echo_data.trial import run_trial
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -41,19 +41,6 @@ def attempt_draws(recipe_seed: int, split: str, index: int, attempt: int, budget
     return [(k, episode_seed(recipe_seed, split, index, k)) for k in range(attempt * budget, (attempt + 1) * budget)]
 
 
-# Streams drawn from an episode's seed besides the sampler's own (one key each, never reused).
-ACTION_NOISE_STREAM = 1
-
-
-def action_noise_rng(seed: int) -> np.random.Generator:
-    """The generator of the experts' DART action noise in the episode of seed `seed` (`EpisodeSpec.seed`).
-
-    A separate SeedSequence stream of the same episode seed, so the noise repeats with the
-    episode and never shifts the sampler's draws.
-    """
-    return np.random.default_rng(np.random.SeedSequence([int(seed), ACTION_NOISE_STREAM]))
-
-
 @dataclass(frozen=True)
 class SoundEvent:
     """One sounding event: what sounds, where, and what resolves it."""

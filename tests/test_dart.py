@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from echo_data.agents.dart import NOISE_STD, QUIET_STEPS, noise_mask
-from echo_data.episode import action_noise_rng
 from echo_data.recipe import load_recipe
 from echo_data.records import ACTION_DIM
 from echo_data.robot.robot import GRIPPER_OPEN
+from echo_data.seeds import ACTION_NOISE, derived_rng
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -35,7 +35,7 @@ def test_mask_follows_the_documented_rules() -> None:
 
 @pytest.fixture(scope="module")
 def noisy_rollout() -> tuple:
-    from echo_data.pipeline import simulate
+    from echo_data.app.pipeline import simulate
     from echo_data.scene.sampling import sample_episode
     from echo_data.sounds import SoundLibrary
 
@@ -49,7 +49,7 @@ def noisy_rollout() -> tuple:
 def test_label_and_executed_differ_by_the_drawn_noise(noisy_rollout: tuple) -> None:
     spec, ro = noisy_rollout
     assert ro.success, [(o.skill, o.reason) for o in ro.outcomes]  # the expert recovers from its perturbations
-    rng = action_noise_rng(spec.seed)
+    rng = derived_rng(ACTION_NOISE, spec.seed)
     quiet, grip = 0, None
     perturbed = 0
     for s in ro.steps:

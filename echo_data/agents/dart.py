@@ -13,7 +13,7 @@ accumulate into a random walk; position targets are absolute, so the next label 
 perturbed joint back, and the base experts steer from the measured pose.
 
 The noise is zero-mean Gaussian, `level * NOISE_STD` per action dimension, drawn from the
-episode's own stream (`episode.action_noise_rng`), so an episode's noise repeats with its seed.
+episode's own stream (`seeds.ACTION_NOISE` salted onto the episode seed), so an episode's noise repeats with its seed.
 A dimension is left unperturbed where a perturbation could not be corrected by the expert:
 - base velocities only while the expert drives the base (a nonzero base command): a standing
   manipulation expert plans its arm in the base frame it measured once, so drift while it
@@ -33,9 +33,9 @@ from typing import Any
 import numpy as np
 
 from echo_data.agents.builtin import OracleSkills
-from echo_data.episode import action_noise_rng
 from echo_data.records import ACTION_DIM, ARM_JOINTS
 from echo_data.robot.robot import GRIPPER_OPEN, Robot
+from echo_data.seeds import ACTION_NOISE, derived_rng
 
 # Standard deviation of the executed-action noise at level 1.0, per element of the action
 # (echo_data.records.ACTION_NAMES). About a tenth of what each command changes in one 0.1 s
@@ -76,7 +76,7 @@ class NoisyExperts:
     def __init__(self, level: float, seed: int, experts: Any = None) -> None:
         self.inner = OracleSkills(experts)
         self.std = float(level) * NOISE_STD
-        self.rng = action_noise_rng(seed)
+        self.rng = derived_rng(ACTION_NOISE, seed)
         self.label: np.ndarray | None = None
         self.noise = np.zeros(ACTION_DIM, dtype=np.float32)
         self._executed: np.ndarray | None = None

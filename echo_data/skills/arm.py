@@ -40,6 +40,7 @@ SETTLE_TOL = 0.03  # rad: a path ends when every joint is this close to its targ
 SETTLE_MAX = 8  # ... or after this many extra steps
 OBSTACLE_RADIUS = 2.0  # m around the base: furniture/walls/objects given to the planner
 SLOW = 0.35  # speed scale of careful moves: descending to and lifting from a surface (Pick, Place)
+CARRY_SPEED = 0.3  # speed scale of arm moves with an object in hand between READY and CARRY (a friction grip: slower swings slip less)
 
 Actions = Generator[np.ndarray, None, Any]
 

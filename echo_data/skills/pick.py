@@ -108,7 +108,7 @@ def _pick(world: World, name: str, budget: Budget) -> Generator[np.ndarray, None
     planner.detach()
     if carry is None:
         raise SkillFailed("no motion plan")
-    yield from arm.follow_path(world, carry, speed_scale=0.6)
+    yield from arm.follow_path(world, carry, speed_scale=arm.CARRY_SPEED)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
 
