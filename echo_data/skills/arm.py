@@ -40,7 +40,6 @@ SETTLE_TOL = 0.03  # rad: a path ends when every joint is this close to its targ
 SETTLE_MAX = 8  # ... or after this many extra steps
 OBSTACLE_RADIUS = 2.0  # m around the base: furniture/walls/objects given to the planner
 SLOW = 0.35  # speed scale of careful moves: descending to and lifting from a surface (Pick, Place)
-CARRY_SPEED = 0.3  # speed scale of arm moves with an object in hand between READY and CARRY (a friction grip: slower swings slip less)
 
 Actions = Generator[np.ndarray, None, Any]
 
@@ -206,20 +205,10 @@ def tuck_group(torso: float) -> np.ndarray:
     return np.concatenate([[torso], TUCK_QPOS])
 
 
-# READY configuration: torso up, TCP 0.27 m ahead of the base centre at 1.15 m, pointing
+# READY / carry configuration: torso up, TCP 0.27 m ahead of the base centre at 1.15 m, pointing
 # down (found once with ArmPlanner.ik; reached from the tuck without self-collision via
-# UNTUCK_LIFT, and from it straight joint paths reach pre-grasps over 0.6-0.9 m tops). The hand
-# and the wrist links then fill ~74 % of the head camera's view: a pose to work from, not to carry in.
+# UNTUCK_LIFT, and from it straight joint paths reach pre-grasps over 0.6-0.9 m tops).
 READY_GROUP = np.array([0.386, 0.605, -0.379, -2.618, 2.145, 0.556, 2.065, 1.102])
-# CARRY configuration (Pick ends here, Place drives in it): TCP pointing down beside the head and
-# behind the head camera, 0.16 m behind the base centre, 0.25 m to its left, at 1.15 m
-# (`success.CARRY_TCP`), so neither the arm nor a held object up to a furby's size is in the head
-# camera's view (tests/test_carry_pose.py renders it), and every arm link origin stays within
-# 0.30 m of the base axis, inside the navigation grid's 0.32 m robot radius, so turning beside a wall
-# or in a doorway sweeps nothing into it. Found once with ArmPlanner.ik from random seeds over TCP
-# targets around the head, keeping the zero-coverage solution with the smallest link radius that
-# a free joint path joins to READY with a furby-sized box in the hand.
-CARRY_GROUP = np.array([0.386, 1.098, -1.09, -1.187, -1.864, -0.446, -1.48, -0.003])
 UNTUCK_LIFT = -0.5  # shoulder_lift while leaving / entering the tuck (upper arm raised)
 
 
@@ -292,7 +281,6 @@ __all__ = [
     "line_poses",
     "tuck_group",
     "READY_GROUP",
-    "CARRY_GROUP",
     "untuck_waypoints",
     "tuck_waypoints",
     "plan_through",

@@ -4,8 +4,7 @@ Starts where Navigate left the base (facing the object at its interaction pose).
 raise the torso while the arm leaves the tuck (a collision-checked joint path, RRTConnect only
 if the straight path hits something), stop 0.12 m above the object with the jaws across its
 narrow side, descend in a straight line, close, lift 0.15 m straight up, then bring the object
-to the carry pose beside and behind the head, out of the head camera's view (`arm.CARRY_GROUP`,
-`success.CARRY_TCP`). Nothing is welded or
+to the carry pose above the front of the base (`success.CARRY_TCP`). Nothing is welded or
 teleported: the object stays in the hand by friction alone.
 """
 
@@ -97,18 +96,15 @@ def _pick(world: World, name: str, budget: Budget) -> Generator[np.ndarray, None
     yield from arm.follow_path(world, lift, speed_scale=arm.SLOW)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
-    # carry: to CARRY with the object attached (as a box) where it hangs now; through READY when
-    # the direct path is blocked
+    # carry: back to READY with the object attached (as a box) where it hangs now
     tcp_to_obj = robot.ee_pose().inv() * world.handles.objects[name].pose
     planner = arm.arm_planner(world, exclude={name})
     planner.attach_box([sx, sy, sz], tcp_to_obj)
-    carry = planner.path(np.asarray(lift[-1]), arm.CARRY_GROUP.copy())
-    if carry is None:
-        carry = arm.plan_through(planner, [np.asarray(lift[-1]), arm.READY_GROUP.copy(), arm.CARRY_GROUP.copy()])
+    carry = planner.path(np.asarray(lift[-1]), arm.READY_GROUP.copy())
     planner.detach()
     if carry is None:
         raise SkillFailed("no motion plan")
-    yield from arm.follow_path(world, carry, speed_scale=arm.CARRY_SPEED)
+    yield from arm.follow_path(world, carry, speed_scale=0.6)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
 

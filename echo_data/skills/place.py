@@ -1,11 +1,10 @@
 """The Place expert: carry the held object to another receptacle, set it down, let go, tuck.
 
 `call.target` is "furniture:<i>". The base drives to that piece's interaction pose with the
-navigation follower (`echo_data.skills.navigate.drive_to`) while the arm holds the object in the
-carry pose Pick ends in (`arm.CARRY_GROUP`: beside and behind the head, out of the head camera's
-view, every arm link origin within 0.30 m of the base axis, so turning beside a wall does not
-sweep the elbow into it the way READY's elbow, 0.47 m out, does), back to READY on arrival
-(the drive stays in READY when the fold cannot be planned); then a free spot on the top within reach is
+navigation follower (`echo_data.skills.navigate.drive_to`) while the arm holds the object in a
+compact carry pose (elbow raised: every arm link origin within 0.35 m of the base centre, so
+turning beside a wall does not sweep the elbow into it the way READY's elbow, 0.47 m out, does; the object hangs where READY holds it, above every receptacle), back to READY on
+arrival (READY when the fold cannot be planned); then a free spot on the top within reach is
 chosen, the object is brought above it, lowered until its bottom is RELEASE_GAP above the top,
 released, and the arm retreats up and tucks (the torso stays up; Navigate does not mind).
 Step limits: the drive may use max_steps["Navigate"], the arm work max_steps["Place"];
@@ -42,6 +41,11 @@ REACH = (0.45, 0.74)  # m: base centre to the placing point
 PREFERRED_REACH = 0.6
 GRID = 0.03  # m
 TUCK_SPEED = 1.4  # speed scale of the empty-handed tuck (1.8 rad/s, within Fetch's joint limits)
+# Compact carry for driving: the TCP and jaw yaw of READY, the elbow raised beside the head
+# (found once with ArmPlanner.ik from random seeds with the head tilted as it drives, among the
+# configurations a short collision-free path joins to READY, the one nearest READY with its arm
+# link origins within 0.35 m of the base axis; READY's elbow is 0.47 m out).
+CARRY_DRIVE_GROUP = np.array([0.386, 1.134, -0.888, -2.298, 2.032, 0.491, 1.601, 1.868])
 
 
 def held_object(world: World, call: SkillCall, spec: EpisodeSpec) -> str | None:
@@ -126,7 +130,7 @@ def _drive(world: World, goal: int, budget: Budget) -> Generator[np.ndarray, Non
     except ValueError:
         raise SkillFailed("no_path") from None
     name = world.robot.holding
-    folded = name is not None and (yield from _fold(world, name, arm.CARRY_GROUP))
+    folded = name is not None and (yield from _fold(world, name, CARRY_DRIVE_GROUP))
     result = yield from drive_to(world, pose, budget.max_steps - budget.steps, grid=grid, hold=world.robot.rest_action())
     if not result.success:
         raise SkillFailed(result.reason)
@@ -137,8 +141,6 @@ def _drive(world: World, goal: int, budget: Budget) -> Generator[np.ndarray, Non
 def _fold(world: World, name: str, goal: np.ndarray) -> Generator[np.ndarray, None, bool]:
     """Move the arm, object in hand, to `goal` (torso + arm) on a collision-free path; False if none."""
     robot = world.robot
-    if np.allclose(arm.commanded_group(robot), goal, atol=1e-3):  # Pick left the arm there
-        return True
     o = world.plan.object_by_name(name)
     tcp_to_obj = robot.ee_pose().inv() * world.handles.objects[name].pose
     planner = arm.arm_planner(world, exclude={name})
@@ -147,7 +149,7 @@ def _fold(world: World, name: str, goal: np.ndarray) -> Generator[np.ndarray, No
     planner.detach()
     if path is None:
         return False
-    yield from arm.follow_path(world, path, speed_scale=arm.CARRY_SPEED)
+    yield from arm.follow_path(world, path)
     return True
 
 

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
 
 # ------------------------------------------------------------------ Pick / Place
 LIFT_MIN = 0.05  # m: object bottom above its receptacle top for a pick
-CARRY_TCP = (-0.16, 0.25, 1.15)  # TCP in the base frame (x fwd, y left, z from floor) while carrying (arm.CARRY_GROUP)
+CARRY_TCP = (0.27, 0.0, 1.15)  # TCP in the base frame (x fwd, y left, z from floor) while carrying
 CARRY_TOL = 0.12  # m: "arm back near rest" = TCP this close to CARRY_TCP
 PLACE_HEIGHT_TOL = 0.02  # m: object bottom within this of the goal's top
 REST_SPEED = 0.05  # m/s: an object slower than this is at rest
