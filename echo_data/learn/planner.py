@@ -367,6 +367,7 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     model.eval()
     test = load_episodes(root, "test", spec)
     heard = {s for ss in train.sounds for s in ss}
+    fitted = {s for n in tr for s in train.sounds[n]}
     report = {
         "run": str(out),
         "inputs": list(cfg.inputs),
@@ -378,6 +379,9 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         "seconds": round(state["seconds"], 1),
         "val_by": cfg.val_by,
         "val_sounds_held_out": held,
+        # validation episodes playing an instance the fitted rows play: 0 means the validation hears
+        # only unheard voices (by construction with --val-by sounds, or with fresh training instances)
+        "val_episodes_hearing_fitted_sounds": int(sum(any(s in fitted for s in train.sounds[n]) for n in va)),
         "select": cfg.select,
         "augment": cfg.augment,
         "best": {k: best.get(k) for k in ("epoch", "val_loss", "val_events_accuracy", "val_balanced_accuracy")},
