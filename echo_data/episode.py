@@ -41,6 +41,14 @@ def attempt_draws(recipe_seed: int, split: str, index: int, attempt: int, budget
     return [(k, episode_seed(recipe_seed, split, index, k)) for k in range(attempt * budget, (attempt + 1) * budget)]
 
 
+def fresh_sound_seed(seed: int, event: int) -> int:
+    """Seed of the fresh training sound instance of event `event` of the episode draw `seed`
+    (`sounds.fresh_train_instances`): a stream of its own, so the option changes the voices and
+    nothing else of the episode (same plan, start and events as without it)."""
+    ss = np.random.SeedSequence([int(seed), int(event), 0xF8E5])
+    return int(ss.generate_state(1, dtype=np.uint64)[0])
+
+
 @dataclass(frozen=True)
 class SoundEvent:
     """One sounding event: what sounds, where, and what resolves it."""

@@ -14,7 +14,7 @@ from echo_data.recipe import RecipeError, load_recipe, recipe_from_mapping
 RECIPES = Path(__file__).resolve().parents[1] / "recipes"
 
 
-@pytest.mark.parametrize("name", ["quickstart", "object_relocation", "state_transition", "multi_event", "stmm_1_9k", "planner_audio"])
+@pytest.mark.parametrize("name", ["quickstart", "object_relocation", "state_transition", "multi_event", "stmm_1_9k", "planner_audio", "planner_fresh"])
 def test_shipped_recipes_load(name: str) -> None:
     r = load_recipe(RECIPES / f"{name}.yaml")
     assert r.name == name
@@ -82,6 +82,8 @@ def test_hash_changes_with_content() -> None:
         ("name: x\noutputs:\n  max_frames: ten\n", "outputs.max_frames"),
         ("name: x\noutputs:\n  max_frames: 2.5\n", "outputs.max_frames"),
         ("name: x\noutputs:\n  max_frames: true\n", "outputs.max_frames"),
+        ("name: x\nsounds:\n  fresh_train_instances: maybe\n", "sounds.fresh_train_instances"),
+        ("name: x\nsounds:\n  builtin: false\n  fresh_train_instances: true\n", "sounds.fresh_train_instances"),
         ("- a\n- b\n", "must be a mapping"),
         ("name: x\nexperts:\n  action_noise: -0.5\n", "experts.action_noise"),
         ("name: x\nexperts:\n  action_noise: lots\n", "experts.action_noise"),

@@ -39,6 +39,7 @@ PNG_COMPRESS_LEVEL = 1  # the build is CPU-bound; zlib 1 is several times faster
 WAV_SUBTYPE = "PCM_16"  # no PEAK chunk (libsndfile stamps float WAVs with the time)
 PLANNER_AUDIO_SECONDS = 3.0
 PLANNER_SAMPLE_RATE = 16000  # Qwen2.5-Omni takes 16 kHz mono only
+PLANNER_BINAURAL_SECONDS = 1.0  # the first second, both ears: what the learned planner hears (frame 0)
 _RECORD_IMAGE_ATTR = {
     "observation.images.head_rgb": "head_rgb",
     "observation.images.head_depth": "head_depth",
@@ -70,18 +71,31 @@ def encode_wav(audio: np.ndarray, sample_rate: int, what: str = "audio") -> byte
     return buf.getvalue()
 
 
+def _at_planner_rate(x: np.ndarray, sample_rate: int) -> np.ndarray:
+    """Resampled along time (axis 0) to the planner export's 16 kHz."""
+    if sample_rate == PLANNER_SAMPLE_RATE:
+        return x
+    from math import gcd
+
+    from scipy.signal import resample_poly
+
+    g = gcd(PLANNER_SAMPLE_RATE, sample_rate)
+    return resample_poly(x, PLANNER_SAMPLE_RATE // g, sample_rate // g, axis=0)
+
+
 def planner_audio(audio: np.ndarray, sample_rate: int) -> np.ndarray:
     """The first seconds heard, as 16 kHz mono (mean of the two ears)."""
     head = np.asarray(audio[: int(round(PLANNER_AUDIO_SECONDS * sample_rate))], dtype=np.float64)
     mono = head.mean(axis=1) if head.ndim == 2 else head
-    if sample_rate != PLANNER_SAMPLE_RATE:
-        from math import gcd
+    return _at_planner_rate(mono, sample_rate).astype(np.float32)
 
-        from scipy.signal import resample_poly
 
-        g = gcd(PLANNER_SAMPLE_RATE, sample_rate)
-        mono = resample_poly(mono, PLANNER_SAMPLE_RATE // g, sample_rate // g)
-    return mono.astype(np.float32)
+def planner_binaural(audio: np.ndarray, sample_rate: int) -> np.ndarray:
+    """The first second heard, both ears (left, right) at 16 kHz: the window frame 0's features
+    look at, what the learned planner decides from. Interaural time and level differences (where
+    the source is) survive here; the mono clip averages them away."""
+    head = np.asarray(audio[: int(round(PLANNER_BINAURAL_SECONDS * sample_rate))], dtype=np.float64)
+    return _at_planner_rate(head, sample_rate).astype(np.float32)
 
 
 def planner_wav_bytes(audio: np.ndarray, sample_rate: int) -> bytes:
@@ -89,6 +103,9 @@ def planner_wav_bytes(audio: np.ndarray, sample_rate: int) -> bytes:
     return encode_wav(planner_audio(audio, sample_rate)[:, None], PLANNER_SAMPLE_RATE, "planner audio")
 
 
+def planner_binaural_wav_bytes(audio: np.ndarray, sample_rate: int) -> bytes:
+    """The planner export's binaural first second (2 channels; validate recomputes it from the WAV)."""
+    return encode_wav(planner_binaural(audio, sample_rate), PLANNER_SAMPLE_RATE, "planner binaural audio")
 
 
 @dataclass
@@ -102,6 +119,7 @@ class EncodedEpisode:
     wav: bytes
     planner_wav: bytes | None
     planner_png: bytes | None
+    planner_binaural_wav: bytes | None
     episode: dict[str, Any]  # row of meta/episodes.parquet (shard fields filled later)
     stats: dict[str, dict[str, Any]]  # feature -> summary (see stats.py)
     failures: list[dict[str, Any]] = field(default_factory=list)  # failed attempts before success
@@ -270,6 +288,7 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
     if steps[0].head_rgb is not None:
         planner_png = encode_png(np.asarray(steps[0].head_rgb, dtype=np.uint8))
     planner_wav = planner_wav_bytes(audio, layout.sample_rate)
+    planner_binaural_wav = planner_binaural_wav_bytes(audio, layout.sample_rate)
     return EncodedEpisode(
         split=spec.split,
         index=int(spec.index),
@@ -278,6 +297,7 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
         wav=wav,
         planner_wav=planner_wav,
         planner_png=planner_png,
+        planner_binaural_wav=planner_binaural_wav,
         episode=row,
         stats=summaries,
     )
