@@ -407,6 +407,8 @@ class Recipe(_Strict):
             del data["outputs"]["max_frames"]
         if data["experts"] == ExpertsConfig().model_dump(mode="json"):  # noiseless experts: as before the key existed
             del data["experts"]
+        if not data["sounds"]["fresh_train_instances"]:  # library voices only: as before the key existed
+            del data["sounds"]["fresh_train_instances"]
         blob = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(blob.encode()).hexdigest()
 
