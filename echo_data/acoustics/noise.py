@@ -24,6 +24,7 @@ from echo_data.acoustics.levels import P_REF
 NC25_BANDS_HZ = (63.0, 125.0, 250.0, 500.0, 1000.0, 2000.0, 4000.0, 8000.0)
 NC25_DB = (54.0, 44.0, 37.0, 31.0, 27.0, 24.0, 22.0, 21.0)
 _BLOCK_S = 1.0
+_KEEP_BLOCKS = 4  # blocks kept for streaming renders (a render spans at most 3 when n <= hop)
 
 
 def a_weighting_db(f: np.ndarray) -> np.ndarray:
@@ -60,9 +61,19 @@ class NoiseFloor:
         rho = np.clip(hrtf.diffuse_coherence(f), -1.0, 1.0)
         self.rho, self.rho_c = rho, np.sqrt(1.0 - rho**2)
         self.window = np.sin(np.pi * (np.arange(self.n) + 0.5) / self.n)  # sin^2 + cos^2 = 1 at 50 % overlap
+        self._blocks: dict[int, np.ndarray] = {}
 
     def _block(self, k: int) -> np.ndarray:
-        """Windowed block k (n, 2), covering samples [(k - 1) * hop, (k - 1) * hop + n)."""
+        """Windowed block k (n, 2), covering samples [(k - 1) * hop, (k - 1) * hop + n); the
+        last few are kept, so a stream of short renders draws each block once."""
+        hit = self._blocks.get(k)
+        if hit is None:
+            hit = self._blocks[k] = self._draw(k)
+            while len(self._blocks) > _KEEP_BLOCKS:
+                del self._blocks[min(self._blocks)]
+        return hit
+
+    def _draw(self, k: int) -> np.ndarray:
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, k + (1 << 40), 0x0F10]))
         x1 = np.fft.rfft(rng.standard_normal(self.n))
         x2 = np.fft.rfft(rng.standard_normal(self.n))

@@ -139,8 +139,9 @@ def _spec_row(spec: Any) -> dict[str, Any]:
                 "priority": int(e.priority),
                 "target": e.target,
                 "source": [float(v) for v in e.source],
+                "level_db": spec.source_level(k),
             }
-            for e in spec.events
+            for k, e in enumerate(spec.events)
         ],
         "chain": [
             {"skill": c.skill, "target": c.target, "event": int(c.event), "target_kind": target_kind(c.target, spec.plan)}
