@@ -280,9 +280,9 @@ class EchoDataEnv(gym.Env):
             obs[BINAURAL] = np.asarray(block, dtype=np.float32)
             spec, mel = self.track.features()
             if SPECTROGRAM in self.observation_space.spaces:
-                obs[SPECTROGRAM] = spec[0]
+                obs[SPECTROGRAM] = spec
             if MEL in self.observation_space.spaces:
-                obs[MEL] = mel[0]
+                obs[MEL] = mel
         return obs
 
     def _info(self, reset: bool = False) -> dict[str, Any]:
