@@ -55,7 +55,7 @@ def main() -> None:
     ap.add_argument("--keep", type=Path, default=None, help="keep the datasets under this folder")
     args = ap.parse_args()
 
-    from echo_data.dataset.build import build
+    from echo_data.app.build import build
     from echo_data.dataset.manifest import split_sizes
     from echo_data.dataset.validate import validate
     from echo_data.dataset.writer import DatasetWriter

@@ -3,7 +3,7 @@
 `OnlineTrack` is the episode's binaural track as a stream: `echo_data.acoustics.stream.StreamRenderer`
 (the same `RirCache` lattice, overlap-save blocks, whole-step crossfades between cached RIRs and
 20 ms stop fades) fed the episode's sources, one control step per call, knowing nothing of later
-poses. The environment, `echo_data.pipeline.render_episode_audio` and `echo-data preview` use it;
+poses. The environment, `echo_data.app.pipeline.render_episode_audio` and `echo-data preview` use it;
 `render_track` is the same renderer fed a whole path.
 
 Episode-level rules live here:
