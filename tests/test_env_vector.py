@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
+from test_env_replay import tiny_recipe
 
 import echo_data.envs  # noqa: F401  (registers the ids)
 from echo_data.envs.env import BINAURAL, SPECTROGRAM
-from test_env_replay import tiny_recipe
 
 
 def test_async_vector_env_over_two_processes() -> None:
