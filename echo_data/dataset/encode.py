@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import hashlib
 import io
+import struct
+import zlib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -36,6 +38,7 @@ from echo_data.pcm import as_written, quantise
 from echo_data.records import ACTION_DIM, STATE_DIM, EpisodeResult
 
 PNG_COMPRESS_LEVEL = 1  # the build is CPU-bound; zlib 1 is several times faster than 6
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 WAV_SUBTYPE = "PCM_16"  # no PEAK chunk (libsndfile stamps float WAVs with the time)
 PLANNER_AUDIO_SECONDS = 3.0
 PLANNER_SAMPLE_RATE = 16000  # Qwen2.5-Omni takes 16 kHz mono only
@@ -48,18 +51,32 @@ _RECORD_IMAGE_ATTR = {
 
 
 def encode_png(image: np.ndarray) -> bytes:
-    """uint8 (H, W, 3) RGB or uint16 (H, W) depth in millimetres -> PNG bytes (16-bit for depth)."""
-    from PIL import Image
+    """uint8 (H, W, 3) RGB or uint16 (H, W) depth in millimetres -> PNG bytes (16-bit for depth).
 
-    if image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3:
-        img = Image.fromarray(image, mode="RGB")
-    elif image.dtype == np.uint16 and image.ndim == 2:
-        img = Image.fromarray(image)  # mode I;16 -> 16-bit greyscale PNG
+    Written directly (IHDR, one IDAT, IEND): every row with the PNG "Sub" filter (each byte minus
+    the same byte of the pixel to its left), deflated at zlib level 1. Pillow's encoder tries all
+    five filters on every row, which made PNG encoding a tenth of the build; one fixed filter is
+    3-4x faster for the same size on rendered frames, and any PNG reader (Pillow, so HF `datasets`
+    and LeRobot) decodes it to the same pixels.
+    """
+    img = np.asarray(image)
+    if img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3:
+        rows, depth, colour, bpp = img.reshape(img.shape[0], -1), 8, 2, 3
+    elif img.dtype == np.uint16 and img.ndim == 2:
+        rows, depth, colour, bpp = img.astype(">u2").view(np.uint8), 16, 0, 2
     else:
         raise ValueError(f"unsupported image: dtype {image.dtype}, shape {image.shape}")
-    buf = io.BytesIO()
-    img.save(buf, format="PNG", compress_level=PNG_COMPRESS_LEVEL)
-    return buf.getvalue()
+    h, w = img.shape[:2]
+    filtered = np.empty((h, rows.shape[1] + 1), dtype=np.uint8)
+    filtered[:, 0] = 1  # filter type Sub
+    filtered[:, 1 : 1 + bpp] = rows[:, :bpp]
+    np.subtract(rows[:, bpp:], rows[:, :-bpp], out=filtered[:, 1 + bpp :])  # modulo 256
+
+    def chunk(tag: bytes, payload: bytes) -> bytes:
+        return struct.pack(">I", len(payload)) + tag + payload + struct.pack(">I", zlib.crc32(tag + payload))
+
+    header = struct.pack(">IIBBBBB", w, h, depth, colour, 0, 0, 0)
+    return _PNG_SIGNATURE + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(filtered.tobytes(), PNG_COMPRESS_LEVEL)) + chunk(b"IEND", b"")
 
 
 def encode_wav(audio: np.ndarray, sample_rate: int, what: str = "audio") -> bytes:
@@ -158,8 +175,9 @@ def _spec_row(spec: Any) -> dict[str, Any]:
                 "priority": int(e.priority),
                 "target": e.target,
                 "source": [float(v) for v in e.source],
+                "level_db": spec.source_level(k),
             }
-            for e in spec.events
+            for k, e in enumerate(spec.events)
         ],
         "chain": [
             {"skill": c.skill, "target": c.target, "event": int(c.event), "target_kind": target_kind(c.target, spec.plan)}
