@@ -14,6 +14,7 @@ import io
 import json
 import os
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -21,18 +22,15 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 from PIL import Image
+from support.lerobot_env import HERE, VENV_PYTHON
 from typer.testing import CliRunner
 
 from echo_data.cli import app
-from test_dataset_synth import build_synth
-
-HERE = Path(__file__).parent
-VENV_PYTHON = Path(os.environ.get("ECHO_LEROBOT_PYTHON", HERE.parent / ".venv-lerobot" / "bin" / "python"))
 
 
 @pytest.fixture(scope="module")
-def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return build_synth(tmp_path_factory.mktemp("lerobot") / "synth", {"train": 4, "test": 2})
+def ds(synth_dataset: Callable[[dict[str, int]], Path]) -> Path:
+    return synth_dataset({"train": 4, "test": 2})
 
 
 def _echo_rows(ds: Path) -> list[dict]:
