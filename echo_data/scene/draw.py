@@ -22,9 +22,11 @@ from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
 from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.scene.floorplan import FloorPlan, Rect, Vec3
-from echo_data.scene.generate import GenerationError, door_swing_zone, front_zone, generate_floorplan, place_object
+from echo_data.scene.furniture import front_zone, place_object
+from echo_data.scene.generate import generate_floorplan
 from echo_data.scene.nav import NavGrid, interaction_pose
 from echo_data.scene.objects import instance_scale
+from echo_data.scene.structure import GenerationError, door_swing_zone
 from echo_data.target import Target
 
 START_MIN_DISTANCE = 2.0  # m from the first target's sound source

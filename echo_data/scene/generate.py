@@ -30,27 +30,21 @@ from echo_data.scene.floorplan import (
     Room,
 )
 from echo_data.scene.furniture import (
-    EDGE_MARGIN,
-    FRONT_REACH,
     FURNITURE_SPECS,
     ROOM_FURNITURE,
     SINK_ROOMS,
-    UPHOLSTERY,
     _make_faucet,
     _place_furniture,
     _room_connected,
-    front_zone,
     place_object,
 )
 from echo_data.scene.layouts import Layout, draw_family, draw_layout
 from echo_data.scene.objects import instance_scale
-from echo_data.scene.soft_furnishings import CURTAIN_MATERIALS, RUG_MATERIALS, _furnish
+from echo_data.scene.soft_furnishings import _furnish
 from echo_data.scene.structure import (
     DOOR_CLEARANCE_DEPTH,
     DOOR_CLEARANCE_SIDE,
     DOOR_HINGE_SIDE_ROOM,
-    DOORBELL_BESIDE,
-    DOORBELL_Z,
     DOORWAY_HEIGHT,
     INTERIOR_BELL_PROBABILITY,
     GenerationError,
@@ -69,11 +63,7 @@ from echo_data.scene.structure import (
 )
 from echo_data.scene.surfaces import room_floor
 
-__all__ = [  # the generator's public face (the stages own the rest)
-    "CURTAIN_MATERIALS", "DOORBELL_BESIDE", "DOORBELL_Z", "EDGE_MARGIN", "FRONT_REACH", "RUG_MATERIALS", "UPHOLSTERY",
-    "GenerationError", "door_operation_zone", "door_swing_zone", "front_zone", "generate_floorplan",
-    "generate_floorplan_from_seed", "place_object",
-]
+__all__ = ["GenerationError", "generate_floorplan", "generate_floorplan_from_seed"]  # the stages own the rest
 
 
 # ------------------------------------------------------------------------------ main
