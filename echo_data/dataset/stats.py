@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from echo_data.dataset.schema import STATE
+from echo_data.dataset.schema import ACTION_EXECUTED, STATE
 
 SKETCH_POINTS = 101  # quantiles at 0, 0.01, ..., 1 per channel
 IMAGE_STRIDE = 4
@@ -129,12 +129,15 @@ def episode_feature_values(
     state: np.ndarray,
     images: dict[str, tuple[str, np.ndarray]],
     arrays: dict[str, np.ndarray],
+    executed: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """The (n_values, channels) matrices summarised per feature, in the units loaders return:
     action/state per dimension; RGB per channel in [0, 1]; depth in metres; spectrograms per ear.
     Images are summarised from every IMAGE_STRIDE-th pixel in each direction (normalisation
     statistics do not need every pixel, and full frames would cost more than rendering them)."""
     out = {"action": action.reshape(len(action), -1), STATE: state.reshape(len(state), -1)}
+    if executed is not None:
+        out[ACTION_EXECUTED] = executed.reshape(len(executed), -1)
     for col, (kind, stack) in images.items():
         sub = stack[:, ::IMAGE_STRIDE, ::IMAGE_STRIDE]
         if kind == "rgb":
