@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from echo_data import seeds
 from echo_data.scene.floorplan import FloorPlan, Vec3
 
 SPLIT_KEYS = {"train": 0, "val": 1, "test": 2}
@@ -45,7 +46,7 @@ def fresh_sound_seed(seed: int, event: int) -> int:
     """Seed of the fresh training sound instance of event `event` of the episode draw `seed`
     (`sounds.fresh_train_instances`): a stream of its own, so the option changes the voices and
     nothing else of the episode (same plan, start and events as without it)."""
-    ss = np.random.SeedSequence([int(seed), int(event), 0xF8E5])
+    ss = np.random.SeedSequence([int(seed), int(event), seeds.FRESH_SOUND])
     return int(ss.generate_state(1, dtype=np.uint64)[0])
 
 

@@ -15,7 +15,7 @@ import pytest
 import soundfile as sf
 import typer
 import yaml
-from test_dataset_synth import null_library, synth_generate, synth_recipe
+from support.synth import null_library, synth_generate, synth_recipe
 from typer.testing import CliRunner
 
 from echo_data.app.build import BuildError, OutputError, build

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import soundfile as sf
-from test_dataset_synth import build_synth, damageable_copy, null_library, synth_generate, synth_recipe
+from support.synth import build_synth, damageable_copy, null_library, synth_generate, synth_recipe
 
 import echo_data.dataset.encode as encode_mod
 from echo_data.app.build import BuildError, build

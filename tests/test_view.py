@@ -9,6 +9,7 @@ import json
 import math
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -26,12 +27,11 @@ from echo_data.viz.frames import CAPTION_TOP, DEPTH_RANGE_M, HEIGHT, KEY_TOP, PA
 from echo_data.viz.listening import TARGET_PEAK_DBFS, TARGET_RMS_DBFS, listening
 from echo_data.viz.recording import _grid_step
 from echo_data.viz.topdown import TopDownMap
-from test_dataset_synth import build_synth
 
 
 @pytest.fixture(scope="module")
-def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return build_synth(tmp_path_factory.mktemp("view") / "synth", {"train": 2, "test": 1})
+def ds(synth_dataset: Callable[[dict[str, int]], Path]) -> Path:
+    return synth_dataset({"train": 2, "test": 1})
 
 
 def test_view_writes_video_with_binaural_sound(ds: Path, tmp_path: Path) -> None:
