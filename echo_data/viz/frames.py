@@ -70,16 +70,19 @@ def _map_key(d: ImageDraw.ImageDraw, topdown: TopDownMap, x0: int) -> None:
     """The map's legend (robot, each source category, a silenced source) and a 1 m scale bar."""
     from echo_data.viz import palette
 
-    x: float = x0 + 8
-    y = KEY_TOP + 4
-    entries = [("robot", palette.ROBOT, True)] + [(c, palette.source(c), True) for c in dict.fromkeys(c for c, _ in topdown.events)] + [("silenced", palette.SILENT, False)]
-    for name, colour, filled in entries:
-        d.ellipse([x, y + 1, x + 8, y + 9], fill=colour if filled else None, outline=colour if not filled else (0, 0, 0), width=2 if not filled else 1)
-        d.text((x + 11, y), name, fill=WHITE)
-        x += 11 + int(d.textlength(name)) + 10
     bar = topdown.scale  # pixels per metre of the map panel
     d.line([(x0 + 8, KEY_TOP + 22), (x0 + 8 + bar, KEY_TOP + 22)], fill=WHITE, width=3)
     d.text((x0 + 14 + bar, KEY_TOP + 17), "1 m", fill=WHITE)
+    entries = [("robot", palette.ROBOT, True)] + [(c, palette.source(c), True) for c in dict.fromkeys(c for c, _ in topdown.events)] + [("silenced", palette.SILENT, False)]
+    x: float = x0 + 8
+    y = KEY_TOP + 4
+    for name, colour, filled in entries:
+        width = 11 + int(d.textlength(name)) + 10
+        if x + width > x0 + PANEL and y == KEY_TOP + 4:  # many categories: go on right of the scale bar
+            x, y = x0 + 40 + bar, KEY_TOP + 17
+        d.ellipse([x, y + 1, x + 8, y + 9], fill=colour if filled else None, outline=colour if not filled else (0, 0, 0), width=2 if not filled else 1)
+        d.text((x + 11, y), name, fill=WHITE)
+        x += width
 
 
 class EpisodeFrames:
