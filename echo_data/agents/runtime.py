@@ -64,7 +64,7 @@ class EpisodeRun:
     setting: str
     seed: int
     true_chain: list[dict[str, str]]
-    planned_chain: Any
+    planned_chain: list[dict[str, str]] | None  # None: the planner's answer was not a chain (see `failure`)
     plan_correct: bool
     outcomes: list[SkillOutcome] = field(default_factory=list)
     navigate: list[NavigateRecord] = field(default_factory=list)
@@ -95,22 +95,28 @@ def true_chain(spec: EpisodeSpec) -> list[dict[str, str]]:
     return [{"skill": c.skill, "target": target_kind(c.target, spec.plan)} for c in spec.chain]
 
 
-def normalise_plan(plan: Any) -> list[dict[str, str]] | None:
-    """A planner's answer (a list of {"skill", "target"} or its JSON text) -> list, or None if malformed."""
+class PlanError(ValueError):
+    """A planner's answer that is not a skill chain; the message says what is wrong with it."""
+
+
+def normalise_plan(plan: Any) -> list[dict[str, str]]:
+    """A planner's answer (a list or tuple of {"skill", "target"} strings, or its JSON text) as plain
+    JSON-able lists and strings; anything else raises `PlanError` saying why, so a planner's
+    arrays, generators or objects never reach the results file."""
     import json
 
     if isinstance(plan, str):
         try:
             plan = json.loads(plan)
         except ValueError:
-            return None
+            raise PlanError("not JSON text") from None
     if not isinstance(plan, (list, tuple)):
-        return None
+        raise PlanError(f"expected a list of {{'skill', 'target'}}, got {type(plan).__name__}")
     out = []
-    for c in plan:
+    for i, c in enumerate(plan):
         if not isinstance(c, dict) or not isinstance(c.get("skill"), str) or not isinstance(c.get("target"), str):
-            return None
-        out.append({"skill": c["skill"], "target": c["target"]})
+            raise PlanError(f"item {i}: expected {{'skill': str, 'target': str}}, got {type(c).__name__}")
+        out.append({"skill": str(c["skill"]), "target": str(c["target"])})
     return out
 
 
@@ -153,11 +159,14 @@ def run_episode(
     truth = true_chain(spec)
     if callable(getattr(planner, "reset", None)):
         planner.reset({**info, "true_chain": truth, "spec_object": spec})
-    raw = planner.plan(first_obs)
-    planned = normalise_plan(raw)
-    run = EpisodeRun(spec.episode_id, spec.setting, spec.seed, truth, planned if planned is not None else raw, planned == truth)
+    try:
+        planned: list[dict[str, str]] | None = normalise_plan(planner.plan(first_obs))
+        malformed = ""
+    except PlanError as e:
+        planned, malformed = None, str(e)
+    run = EpisodeRun(spec.episode_id, spec.setting, spec.seed, truth, planned, planned == truth)
     if not run.plan_correct:
-        run.failure = "plan wrong" if planned is not None else "plan malformed"
+        run.failure = "plan wrong" if planned is not None else f"plan malformed: {malformed}"
         return run
     obs = first_obs
     flags = [False] * len(spec.chain)

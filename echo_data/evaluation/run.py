@@ -13,6 +13,7 @@ the same either way.
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from collections.abc import Callable
@@ -131,7 +132,7 @@ def evaluate_episode(job: EvalJob, index: int) -> dict[str, Any]:
     if video is not None and video.frames:
         rec["video"] = video.write(Path(job.video_dir) / f"{spec.episode_id}.mp4")  # type: ignore[arg-type]
     rec["seconds"] = time.perf_counter() - t0
-    return rec
+    return json.loads(json.dumps(rec))  # the record as a results file holds it (and as a resumed run reads it back)
 
 
 class _VideoRecorder:
@@ -168,17 +169,23 @@ def _init_worker() -> None:
     os.environ.setdefault("LP_NUM_THREADS", "1")
 
 
-def run_episodes(job: EvalJob, n: int, workers: int = 1, progress: Callable[[dict[str, Any]], None] | None = None) -> list[dict[str, Any]]:
-    """Episodes 0..n-1 of the split, on `workers` processes; records ordered by index."""
-    out: dict[int, dict[str, Any]] = {}
-    if workers <= 1:
-        for i in range(n):
+def run_episodes(
+    job: EvalJob, n: int, workers: int = 1, progress: Callable[[dict[str, Any]], None] | None = None, done: dict[int, dict[str, Any]] | None = None,
+) -> list[dict[str, Any]]:
+    """Episodes 0..n-1 of the split, on `workers` processes; records ordered by index.
+
+    `done`: records already finished (a resumed evaluation): those episodes are not run again.
+    `progress` is called with each newly finished record as it completes."""
+    out = {i: r for i, r in (done or {}).items() if i < n}
+    todo = [i for i in range(n) if i not in out]
+    if workers <= 1 or len(todo) <= 1:
+        for i in todo:
             out[i] = evaluate_episode(job, i)
             if progress:
                 progress(out[i])
     else:
-        with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_init_worker) as pool:
-            futs = {pool.submit(evaluate_episode, job, i): i for i in range(n)}
+        with ProcessPoolExecutor(min(workers, len(todo)), mp_context=get_context("spawn"), initializer=_init_worker) as pool:
+            futs = {pool.submit(evaluate_episode, job, i): i for i in todo}
             for f in as_completed(futs):
                 out[futs[f]] = f.result()
                 if progress:
@@ -196,8 +203,11 @@ def evaluate(
     workers: int = 1,
     video_dir: Path | None = None,
     progress: Callable[[dict[str, Any]], None] | None = None,
+    done: dict[int, dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
-    """The results document: metrics per setting, per-episode outcomes, what was evaluated."""
+    """The results document: metrics per setting, per-episode outcomes, what was evaluated.
+
+    `done`: records of episodes already finished (`evaluation.journal`), not run again."""
     from echo_data.agents.loading import identity, load_planner, load_policy
     from echo_data.dataset.manifest import versions
     from echo_data.evaluation.metrics import by_setting
@@ -207,7 +217,7 @@ def evaluate(
         policy = tuple(policy)
     job = EvalJob(recipe, str(recipe_path.parent) if recipe_path else None, split, policy, planner, str(video_dir) if video_dir else None)
     t0 = time.perf_counter()
-    episodes = run_episodes(job, n, workers, progress)
+    episodes = run_episodes(job, n, workers, progress, done)
     scored = [e for e in episodes if "skipped" not in e]
     return {
         "recipe": {"name": recipe.name, "path": str(recipe_path) if recipe_path else None, "content_hash": recipe.content_hash()},
