@@ -93,13 +93,20 @@ def export_cmd(
 ) -> None:
     """Write the dataset in another library's format (LeRobot v3.0), next to the original."""
     from echo_data.dataset.lerobot import ExportError, export_lerobot
+    from echo_data.dataset.manifest import ManifestError
+    from echo_data.dataset.validate import DamagedDataset, check_whole
+    from echo_data.targets import TargetError, check_folder, write_failed
 
     if fmt != "lerobot":
         raise _fail(f"--format {fmt}: unknown format (use lerobot)", 2)
     try:
+        check_folder(out, "--out")
+        check_whole(path)
         info = export_lerobot(path, out, overwrite=overwrite)
-    except ExportError as e:
+    except (ExportError, TargetError, ManifestError, DamagedDataset) as e:
         raise _fail(str(e), 2) from None
+    except OSError as e:
+        raise _fail(write_failed("--out", out, e), 2) from None
     typer.echo(f"{out}: LeRobot {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
 
 
@@ -112,15 +119,19 @@ def view_cmd(
     """Write an MP4 of one episode: head RGB, depth, top-down map, scrolling binaural spectrogram,
     the active skill as a caption, and the episode's binaural sound."""
     from echo_data.dataset.manifest import ManifestError
+    from echo_data.dataset.validate import DamagedDataset, check_whole
+    from echo_data.targets import TargetError, check_file, write_failed
     from echo_data.view import ViewError, render_episode_video
 
     target = out if out is not None else Path(f"{split}-{episode:06d}.mp4")
-    if target.exists() and target.is_dir():
-        raise _fail(f"--out {target}: is a folder", 2)
     try:
+        check_file(target, "--out")
+        check_whole(path, split, episode)
         summary = render_episode_video(path, episode, target, split=split)
-    except (ManifestError, ViewError) as e:
+    except (ManifestError, ViewError, TargetError, DamagedDataset) as e:
         raise _fail(str(e), 2) from None
+    except OSError as e:
+        raise _fail(write_failed("--out", target, e), 2) from None
     typer.echo(f"wrote {summary['path']}: {summary['frames']} frames, {summary['seconds']:.1f} s with binaural sound")
 
 

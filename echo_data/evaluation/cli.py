@@ -39,20 +39,19 @@ def format_tables(doc: dict[str, Any]) -> str:
 
 def _check_targets(json_out: Path | None, video: Path | None, resume: bool) -> str:
     """Why `--json`/`--video`/`--resume` cannot be used ("" when they can): checked before the first episode."""
-    from echo_data.dataset.build import OutputError, check_output_path
+    from echo_data.targets import TargetError, check_file, check_folder
 
     if resume and json_out is None:
         return "--resume: continues the evaluation recorded next to --json; give --json"
-    if json_out is not None:
-        if json_out.is_dir():
-            return f"--json {json_out}: is a folder"
-        if not json_out.parent.is_dir():
-            return f"--json {json_out}: folder {json_out.parent} does not exist"
-    if video is not None:
-        try:
-            check_output_path(video)
-        except OutputError as e:
-            return f"--video {e}"
+    if json_out is not None and not json_out.parent.is_dir():
+        return f"--json {json_out}: folder {json_out.parent} does not exist"
+    try:
+        if json_out is not None:
+            check_file(json_out, "--json")
+        if video is not None:
+            check_folder(video, "--video")
+    except TargetError as e:
+        return str(e)
     return ""
 
 

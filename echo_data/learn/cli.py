@@ -8,6 +8,8 @@ from typing import Annotated
 
 import typer
 
+from echo_data.targets import write_failed
+
 train_app = typer.Typer(add_completion=False, no_args_is_help=True, help="Train reference policies on a dataset (needs the torch extra).")
 
 _Dataset = Annotated[Path, typer.Argument(metavar="DATASET", help="Dataset folder (out/<name>).")]
@@ -26,10 +28,22 @@ def _fail(message: str) -> typer.Exit:
 
 
 def _errors() -> tuple[type[Exception], ...]:
+    from echo_data.dataset.manifest import ManifestError
+    from echo_data.dataset.validate import DamagedDataset
     from echo_data.learn.features import FeatureError
     from echo_data.learn.runs import RunError
+    from echo_data.targets import TargetError
 
-    return (FeatureError, RunError)
+    return (FeatureError, RunError, TargetError, ManifestError, DamagedDataset)
+
+
+def _check(dataset: Path, folder: Path) -> None:
+    """Before any training: the run folder can be written and the dataset's files are whole."""
+    from echo_data.dataset.validate import check_whole
+    from echo_data.targets import check_folder
+
+    check_folder(folder, "--out")
+    check_whole(dataset)
 
 
 def _need_torch() -> None:
@@ -74,6 +88,7 @@ def bc_cmd(
                        audio_form=audio_form)
         if epochs is not None:
             cfg.epochs = epochs
+        _check(dataset, folder)
         if dagger:
             from echo_data.learn.dagger import run_dagger
 
@@ -83,6 +98,8 @@ def bc_cmd(
             summary = train_bc(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)
     except _errors() as e:
         raise _fail(str(e)) from None
+    except OSError as e:
+        raise _fail(write_failed("--out", folder, e)) from None
     typer.echo(json.dumps(summary, indent=1))
 
 
@@ -117,7 +134,10 @@ def planner_cmd(
                             val_by=val_by, select=select, augment=augment)
         if epochs is not None:
             cfg.epochs = epochs
+        _check(dataset, folder)
         report = train_planner(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)
     except _errors() as e:
         raise _fail(str(e)) from None
+    except OSError as e:
+        raise _fail(write_failed("--out", folder, e)) from None
     typer.echo(json.dumps(report, indent=1))
