@@ -41,9 +41,9 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
     try:
         obs, info = env.reset(options={"spec": spec})
         run = run_episode(env, obs, info, OraclePlanner(), policy, on_step=recorder, max_steps=recipe.outputs.max_frames)
-        if recorder.steps:  # the last stored step ends the episode; its flags are the outcomes so far
+        if recorder.steps:  # the last stored step ends the episode
             recorder.steps[-1].done = True
-            recorder.steps[-1].skill_success = tuple(o.success for o in run.outcomes) + (False,) * (len(spec.chain) - len(run.outcomes))
+            recorder.steps[-1].skill_success = success_flags(env)
         ro = Rollout(recorder.steps, run.outcomes, list(env.resolved_step), len(spec.chain), list(env.door_changes), truncated_at=run.truncated_at)
         if env.track is not None and recorder.steps:
             ro.audio, ro.audio_offsets = env.episode_audio()
@@ -55,12 +55,22 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
         env.close()
 
 
+def success_flags(env: EchoDataEnv) -> tuple[bool, ...]:
+    """The environment's success tests now, per chain entry (latched, in order: `info["skills"][k]["done"]`)."""
+    return tuple(k < env.progress for k in range(len(env.episode.chain)))
+
+
 def _stack(xs: list[np.ndarray]) -> np.ndarray | None:
     return np.stack(xs) if xs else None
 
 
 class _Recorder:
-    """Turns each (observation, action) the runtime is about to apply into a StepRecord."""
+    """Turns each (observation, action) the runtime is about to apply into a StepRecord.
+
+    A row's `skill_success` is what the environment's success tests say after the row's action
+    (the `info` that `step(action)` returns), so the flags and the `done` row agree with a replay:
+    they are filled in when the next row arrives (nothing happens in between) or, for the last
+    row, by `simulate`."""
 
     def __init__(self, control_hz: int) -> None:
         self.control_hz = control_hz
@@ -73,6 +83,8 @@ class _Recorder:
 
         x, y, z, yaw = env.ear_pose()
         frame = len(self.steps)
+        if self.steps:
+            self.steps[-1].skill_success = success_flags(env)
         self.steps.append(StepRecord(
             frame_index=frame,
             timestamp=frame / self.control_hz,
@@ -86,7 +98,6 @@ class _Recorder:
             ear_position=(x, y, z),
             ear_yaw=yaw,
             sounding=tuple(env.sounding),
-            skill_success=flags,
             camera_poses=env.world.robot.camera_poses(),
         ))
         if SPECTROGRAM in obs:

@@ -5,12 +5,18 @@ under evaluation:
 1. the planner answers with a skill chain in the planner export's JSON
    (`[{"skill": "Navigate", "target": "phone"}, ...]`); the plan is right when it equals the
    episode's true chain exactly, order included;
-2. with a right plan, each skill of the chain runs until its success test holds (policies that
-   end themselves, like the scripted experts, run until they return and are then tested) or its
-   step budget from the recipe runs out; a failed skill ends the episode.
+2. with a right plan, each skill of the chain runs until its success test holds or its step
+   budget from the recipe runs out; a failed skill ends the episode. Success is the
+   environment's own evaluation: its in-order, latched progress (`EchoDataEnv.progress`), the
+   same flags the dataset's `skill_success` column records. Policies that end themselves (the
+   scripted experts) run until they return: after a skill's test first holds, an expert still
+   lets go, backs off and tucks the arm, which the next skill starts from, so those steps
+   belong to the skill (the step rows say so: `skill_success` of that skill is already true).
+   The last skill ends where its test first holds: the environment then terminates the
+   episode and refuses further steps.
 
-A non-finite action ends the episode as failed with that reason; an action of the wrong shape
-is the policy's bug and raises `AgentActionError`.
+A non-finite action ends the episode as failed with that reason; an action that is not 12 real
+numbers (wrong shape, complex, not numbers) is the policy's bug and raises `AgentActionError`.
 
 `max_steps` cuts an episode after its first `max_steps` control steps (the recipe's
 `outputs.max_frames`, for data that needs only the first seconds): the policy acts exactly as it
@@ -29,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from echo_data.episode import EpisodeSpec, SkillCall
-from echo_data.records import ACTION_DIM, SkillOutcome
+from echo_data.records import SkillOutcome
 
 if TYPE_CHECKING:
     from echo_data.envs.env import EchoDataEnv
@@ -152,7 +158,7 @@ def run_episode(
     applied (the build records its rows there). `max_steps`: cut the episode after that many
     control steps (see the module docstring).
     """
-    from echo_data.envs.env import skill_budget
+    from echo_data.envs.env import EnvInputError, as_action, skill_budget
 
     env = getattr(env, "unwrapped", env)  # gymnasium wrappers around an EchoDataEnv
     spec: EpisodeSpec = env.episode
@@ -169,7 +175,9 @@ def run_episode(
         run.failure = "plan wrong" if planned is not None else f"plan malformed: {malformed}"
         return run
     obs = first_obs
-    flags = [False] * len(spec.chain)
+
+    def flags() -> tuple[bool, ...]:  # the environment's latched success tests, per chain entry
+        return tuple(j < env.progress for j in range(len(spec.chain)))
 
     def cut() -> bool:
         return max_steps is not None and env.steps >= max_steps
@@ -190,8 +198,9 @@ def run_episode(
         path = 0.0
         n = 0
         reason = ""
+        ended = False
         while True:
-            if not ends_itself and env.skill_success(call):
+            if not ends_itself and env.progress > k:
                 break
             action = policy.act(obs)
             if action is None:  # the policy ended the skill itself
@@ -202,31 +211,35 @@ def run_episode(
             if n >= budget:
                 reason = "timeout"
                 break
-            a = np.asarray(action, dtype=np.float32)
-            if a.shape != (ACTION_DIM,):
-                raise AgentActionError(f"policy action: expected shape ({ACTION_DIM},), got {a.shape} at step {env.steps}")
+            try:
+                a = as_action(action)
+            except EnvInputError as e:
+                raise AgentActionError(f"policy {e} at step {env.steps}") from None
             if on_step is not None:
-                on_step(env, obs, a, k, call, tuple(flags))
+                on_step(env, obs, a, k, call, flags())
             x0, y0, _ = env.world.robot.base_pose()
-            obs, _, _, _, step_info = env.step(a)
+            obs, _, terminated, truncated, step_info = env.step(a)
             n += 1
             if step_info.get("failure"):
                 reason = step_info["failure"]
                 break
             x1, y1, _ = env.world.robot.base_pose()
             path += math.hypot(x1 - x0, y1 - y0)
-        if (reason == "timeout" or run.truncated_at is not None) and ends_itself and callable(getattr(policy, "close", None)):
+            if terminated or truncated:  # the chain is done (or past the episode's budget): no step follows
+                ended = True
+                reason = "" if terminated else "episode step limit"
+                break
+        if (reason or ended or run.truncated_at is not None) and ends_itself and callable(getattr(policy, "close", None)):
             policy.close()
         if run.truncated_at is not None:  # the skill running at the cut has no outcome
             break
-        ok = not reason and env.skill_success(call)
+        ok = not reason and env.progress > k
         if not ok and not reason:
             expert = getattr(policy, "outcome", None)
             reason = getattr(expert, "reason", "") or "success test false"
         run.outcomes.append(SkillOutcome(call.skill, call.target, ok, "" if ok else reason, n))
         if call.skill == "Navigate":
             run.navigate.append(NavigateRecord(k, ok, path, expert_len))
-        flags[k] = ok
         if not ok:
             run.failure = f"{call.skill}({call.target}): {reason}"
             break
