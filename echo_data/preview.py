@@ -54,7 +54,7 @@ def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: object) -> np.nda
     from echo_data.acoustics.noise import NoiseFloor
     from echo_data.acoustics.room import AcousticScene
     from echo_data.acoustics.stream import SourceTrack, render_track
-    from echo_data.pipeline import event_waveform
+    from echo_data.app.pipeline import event_waveform
 
     cfg = recipe.acoustics
     fs = cfg.sample_rate
@@ -150,7 +150,7 @@ def write_preview(recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path,
     """Sample episode `index` with the recipe's seed replaced by `seed`; simulate; write the files."""
     import soundfile as sf
 
-    from echo_data.pipeline import simulate
+    from echo_data.app.pipeline import simulate
     from echo_data.scene.sampling import sample_episode
     from echo_data.scene.topdown import draw_topdown
     from echo_data.sounds import SoundLibrary

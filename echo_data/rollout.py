@@ -1,7 +1,7 @@
 """What a recorded episode run holds (`Rollout`) and a digest that tells two runs apart.
 
 Episodes are run by `echo_data.agents.runtime.run_episode` in the environment
-(`echo_data.pipeline.simulate` records the experts' runs as `Rollout`s).
+(`echo_data.app.pipeline.simulate` records the experts' runs as `Rollout`s).
 """
 
 from __future__ import annotations

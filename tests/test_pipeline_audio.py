@@ -10,9 +10,9 @@ import pytest
 from echo_data.acoustics.hrtf import Hrtf
 from echo_data.acoustics.levels import P_REF, ClippingError, full_scale_pa
 from echo_data.acoustics.noise import NoiseFloor
-from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
+from echo_data.app.pipeline import PRE_ROLL_SECONDS, render_episode_audio, step_samples
 from echo_data.envs.audio import epoch_window
-from echo_data.pipeline import PRE_ROLL_SECONDS, render_episode_audio, step_samples
+from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_DIM, STATE_DIM, StepRecord
 from echo_data.rollout import Rollout

@@ -18,7 +18,7 @@ _CHILD = r"""
 import json, sys
 from echo_data.recipe import recipe_from_mapping
 from echo_data.episode import EpisodeSpec
-from echo_data.pipeline import simulate
+from echo_data.app.pipeline import simulate
 from echo_data.rollout import records_digest
 d = json.load(open(sys.argv[1]))
 recipe = recipe_from_mapping(d["recipe"])
@@ -36,7 +36,7 @@ def small_camera_recipe(path: Path) -> Recipe:
 
 @pytest.mark.slow
 def test_same_spec_gives_identical_records(tmp_path: Path) -> None:
-    from echo_data.pipeline import simulate
+    from echo_data.app.pipeline import simulate
     from echo_data.rollout import records_digest
     from echo_data.scene.sampling import sample_episode
     from echo_data.sounds import SoundLibrary

@@ -1,6 +1,6 @@
 """The output folder of one build: staged episodes, shards in order, the manifest, meta files.
 
-Only the build's own process writes (`echo_data.dataset.build` orchestrates; workers only
+Only the build's own process writes (`echo_data.app.build` orchestrates; workers only
 encode). Each finished episode is staged under `.work/` (its rows as Arrow IPC, then a JSON
 commit marker) and its WAV under audio/; once every episode of a shard is staged and the
 shards before it in its split are written, the shard is written and the manifest rewritten.

@@ -44,7 +44,7 @@ def _init_worker() -> None:
 
 def run_trial_episode(recipe: Recipe, recipe_dir: str | None, index: int, observe: bool) -> TrialEpisode:
     """Sample and simulate episode `index` of the train split; never raises for expert failures."""
-    from echo_data.pipeline import simulate
+    from echo_data.app.pipeline import simulate
     from echo_data.scene.sampling import SamplingError, sample_episode
     from echo_data.sounds import SoundLibrary
 

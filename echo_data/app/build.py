@@ -1,7 +1,7 @@
 """`echo-data build`: episodes -> shards, with workers, resume and kill-safety (the orchestration).
 
-Episodes are computed anywhere (see `echo_data.executors`): a worker samples, simulates and
-hears one episode (`echo_data.pipeline`) and encodes it (`echo_data.dataset.encode`); this
+Episodes are computed anywhere (see `echo_data.app.executors`): a worker samples, simulates and
+hears one episode (`echo_data.app.pipeline`) and encodes it (`echo_data.dataset.encode`); this
 process alone writes, through `echo_data.dataset.writer.DatasetWriter` (staging, shards in
 order, manifest, meta), whose files are all replaced atomically (`echo_data.dataset.storage`).
 A kill therefore loses at most the episodes in flight, and a resume verifies shards by sha256,
@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from echo_data.app.executors import ExecutorError, make_executor
 from echo_data.dataset.encode import EncodedEpisode
 from echo_data.dataset.lock import LOCK_NAME, BuildLock, BuildLockedError
 from echo_data.dataset.manifest import (
@@ -36,7 +37,6 @@ from echo_data.dataset.manifest import (
 from echo_data.dataset.schema import StepLayout
 from echo_data.dataset.writer import DatasetWriter
 from echo_data.episode import attempt_draws
-from echo_data.executors import ExecutorError, make_executor
 from echo_data.pcm import ClippingError
 from echo_data.recipe import Recipe
 from echo_data.records import EpisodeResult
@@ -256,7 +256,7 @@ def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, m
 
 def _default_generate() -> Generate:
     try:
-        from echo_data.pipeline import generate_episode
+        from echo_data.app.pipeline import generate_episode
     except ImportError as e:
         raise BuildError(f"the episode pipeline is not available: {e}") from None
     return generate_episode
@@ -278,7 +278,7 @@ def build(
     """Build (or resume) the dataset of `recipe` in the directory `out`.
 
     `generate(recipe, split, index, library, recipe_dir, attempt=0) -> EpisodeResult` defaults
-    to `echo_data.pipeline.generate_episode`; `make_library(recipe, recipe_dir)` defaults to the
+    to `echo_data.app.pipeline.generate_episode`; `make_library(recipe, recipe_dir)` defaults to the
     recipe's `SoundLibrary`; `address` is a Ray cluster's (with executor "ray"). Raises
     `OutputError` (bad input, nothing written) or `BuildError`.
     """

@@ -31,7 +31,7 @@ def build_cmd(
     progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Show a progress bar.")] = True,
 ) -> None:
     """Build the dataset of a recipe: Parquet + WAV shards, manifest, stats, planner export."""
-    from echo_data.dataset.build import BuildError, OutputError, build
+    from echo_data.app.build import BuildError, OutputError, build
     from echo_data.recipe import RecipeError, load_recipe
 
     if resume and overwrite:
