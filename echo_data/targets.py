@@ -17,7 +17,7 @@ class TargetError(ValueError):
 
 def check_folder(path: Path, option: str) -> None:
     """`path` can be a folder we write into (absent, or a folder, somewhere writable)."""
-    from echo_data.dataset.build import OutputError, check_output_path
+    from echo_data.app.build import OutputError, check_output_path
 
     try:
         check_output_path(path)

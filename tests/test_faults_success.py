@@ -20,7 +20,7 @@ from echo_data.envs import EchoDataEnv
 
 @pytest.mark.slow
 def test_replay_ends_on_the_recorded_step_with_the_recorded_flags(tmp_path: Path) -> None:
-    from echo_data.dataset.build import build
+    from echo_data.app.build import build
 
     recipe = tiny_recipe()
     out = tmp_path / "ds"
