@@ -23,7 +23,7 @@ import pyarrow.parquet as pq
 
 from echo_data.dataset import stats as stats_mod
 from echo_data.dataset.encode import planner_wav_bytes
-from echo_data.dataset.manifest import ManifestError, load_manifest, plan_shards, totals
+from echo_data.dataset.manifest import ManifestError, load_manifest, new_manifest, plan_shards, totals
 from echo_data.dataset.schema import EPISODE_FIELDS, MEL, SHARD_META_KEY, SPECTROGRAM, StepLayout, column_to_numpy
 from echo_data.dataset.shards import read_shard_meta
 from echo_data.dataset.storage import canonical_json, sha256_file
@@ -294,8 +294,10 @@ def _entry_problems(file: str, entry: dict[str, Any], rows: list[dict[str, Any]]
 
 def _manifest_problems(manifest: dict[str, Any], recipe: Recipe) -> list[str]:
     """Totals (counts, success rate, skills, rejections, failed attempts) are a function of the
-    shard entries: an edited total no longer matches them."""
-    problems = []
+    shard entries: an edited total no longer matches them. Keys the build never writes are
+    named (a hand edit or another tool's: a reader would silently ignore them)."""
+    known = set(new_manifest(recipe, manifest.get("limit"), StepLayout.from_recipe(recipe), 1, "local")) | set(totals([]))
+    problems = [f"manifest.json: unknown key {k!r}" for k in sorted(set(manifest) - known)]
     try:
         want = totals(manifest.get("shards", []))
     except Exception as e:

@@ -65,9 +65,10 @@ def run_evaluate(
     (`evaluation.journal`); `resume` runs only the episodes not recorded there."""
     from tqdm import tqdm
 
-    from echo_data.agents.compose import is_composite
-    from echo_data.agents.loading import AgentLoadError, identity, load_planner, load_policy
+    from echo_data.agents.compose import is_composite, spec_name
+    from echo_data.agents.loading import AgentLoadError, check_observations, identity, load_planner, load_policy
     from echo_data.agents.runtime import AgentActionError
+    from echo_data.envs.env import observation_space
     from echo_data.evaluation.journal import Journal, JournalError, journal_path
     from echo_data.evaluation.run import evaluate
 
@@ -82,8 +83,11 @@ def run_evaluate(
     if not isinstance(policy, str) and not is_composite(policy):
         policy = policy[0]  # one plain policy: as before
     try:
-        key = {"recipe": recipe.content_hash(), "split": split, "policy": identity(load_policy(policy), policy),
-               "planner": identity(load_planner(planner), planner), "video": video is not None}
+        pol, plan = load_policy(policy), load_planner(planner)
+        known = tuple(observation_space(recipe).spaces)
+        check_observations(pol, f"policy {spec_name(policy)!r}", known)
+        check_observations(plan, f"planner {planner!r}", known)
+        key = {"recipe": recipe.content_hash(), "split": split, "policy": identity(pol, policy), "planner": identity(plan, planner), "video": video is not None}
     except AgentLoadError as e:
         return _fail(str(e))
     journal = None

@@ -37,6 +37,15 @@ def _errors() -> tuple[type[Exception], ...]:
     return (FeatureError, RunError, TargetError, ManifestError, DamagedDataset)
 
 
+def _not_applying(ctx: typer.Context, needs: dict[str, tuple[bool, str]]) -> None:
+    """Refuse an option given on the command line where it has no effect (it would be stored in
+    the run's config as if it had mattered): `needs` maps a parameter to (applies, why not)."""
+    for name, (applies, why) in needs.items():
+        source = ctx.get_parameter_source(name)  # typer vendors its own click: match the enum by name
+        if not applies and source is not None and source.name == "COMMANDLINE":
+            raise _fail(f"--{name.replace('_', '-')}: does not apply {why}")
+
+
 def _check(dataset: Path, folder: Path) -> None:
     """Before any training: the run folder can be written and the dataset's files are whole."""
     from echo_data.dataset.validate import check_whole
@@ -55,6 +64,7 @@ def _need_torch() -> None:
 
 @train_app.command("bc")
 def bc_cmd(
+    ctx: typer.Context,
     dataset: _Dataset,
     skill: Annotated[str, typer.Option("--skill", help="Skill whose step rows are cloned (Navigate, Pick, Place, OpenDoor, CloseSink).")],
     inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, depth, state (velocities left out), state_raw (all 25), target.")] = "audio,depth,state",
@@ -83,6 +93,8 @@ def bc_cmd(
 
     try:
         names = parse_inputs(inputs, BC_INPUTS)
+        _not_applying(ctx, {"audio_form": ("audio" in names, "without audio in --inputs"),
+                            "dagger_episodes": (dagger > 0, "without --dagger"), "dagger_steps": (dagger > 0, "without --dagger")})
         folder = out or Path("runs") / f"bc-{skill}-{'-'.join(names)}"
         cfg = BCConfig(str(dataset), skill, names, seed=seed, chunk=chunk, execute=execute, batch_size=batch_size, lr=lr, max_steps=max_steps, threads=threads,
                        audio_form=audio_form)
@@ -105,6 +117,7 @@ def bc_cmd(
 
 @train_app.command("planner")
 def planner_cmd(
+    ctx: typer.Context,
     dataset: _Dataset,
     inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, image (first head RGB frame).")] = "audio",
     audio: Annotated[str, typer.Option("--audio", help="Audio feature: mel (64 bands x 101 frames) or spectrogram (SoundSpaces 65 x 26).")] = "mel",
@@ -129,6 +142,7 @@ def planner_cmd(
 
     try:
         names = parse_inputs(inputs, PLANNER_INPUTS)
+        _not_applying(ctx, {"audio": ("audio" in names, "without audio in --inputs"), "augment": ("audio" in names, "without audio in --inputs")})
         folder = out or Path("runs") / f"planner-{'-'.join(names)}"
         cfg = PlannerConfig(str(dataset), names, seed=seed, audio=audio, max_steps=max_steps, threads=threads, train_frames=train_frames, train_episodes=train_episodes,
                             val_by=val_by, select=select, augment=augment)
