@@ -105,7 +105,7 @@ def preview(
     out: Path = typer.Option(Path("preview"), "--out", help="Folder for the pictures and sound."),
 ) -> None:
     """Write one episode's spec, top-down plan, first head frame, a contact sheet of head frames every 2 s, heard audio and acoustic map."""
-    from echo_data.app.build import OutputError, check_output_path
+    from echo_data.outputs import OutputError, check_output_path
     from echo_data.preview import write_preview
 
     recipe = _load(recipe_path)

@@ -7,13 +7,13 @@ under evaluation:
    episode's true chain exactly, order included;
 2. with a right plan, each skill of the chain runs until its success test holds or its step
    budget from the recipe runs out; a failed skill ends the episode. Success is the
-   environment's own evaluation: its in-order, latched progress (`EchoDataEnv.progress`), the
-   same flags the dataset's `skill_success` column records. Policies that end themselves (the
-   scripted experts) run until they return: after a skill's test first holds, an expert still
-   lets go, backs off and tucks the arm, which the next skill starts from, so those steps
-   belong to the skill (the step rows say so: `skill_success` of that skill is already true).
-   The last skill ends where its test first holds: the environment then terminates the
-   episode and refuses further steps.
+   environment's one evaluation per step (`info["skills"]`; the dataset's `skill_success`
+   column records its in-order latched form, `done`). Policies that end themselves (the
+   scripted experts) run until they return and are then tested: after a skill's test first
+   holds, an expert still lets go, backs off and tucks the arm, which the next skill starts
+   from, so those steps belong to the skill (the step rows say so: that skill's
+   `skill_success` flag is already true). The last skill ends where its test first holds: the
+   environment then terminates the episode and refuses further steps.
 
 A non-finite action ends the episode as failed with that reason; an action that is not 12 real
 numbers (wrong shape, complex, not numbers) is the policy's bug and raises `AgentActionError`.
@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from echo_data.episode import EpisodeSpec, SkillCall
+from echo_data.protocols import Planner, Policy
 from echo_data.records import SkillOutcome
 
 if TYPE_CHECKING:
@@ -131,7 +132,7 @@ def _expert_path_length(env: EchoDataEnv, call: SkillCall) -> float:
     from echo_data.scene.nav import interaction_pose
     from echo_data.skills.navigate import START_SNAP
 
-    grid = env._nav_grid()
+    grid = env.nav_grid()
     world = env.world
     x, y, _ = world.robot.base_pose()
     try:
@@ -145,26 +146,34 @@ def _expert_path_length(env: EchoDataEnv, call: SkillCall) -> float:
     return float(sum(math.dist(a, b) for a, b in zip(pts, pts[1:])))
 
 
+def succeeded(info: dict[str, Any], k: int) -> bool:
+    """Chain skill k's success test as the environment evaluated it at its last step (`info["skills"]`)."""
+    return bool(info["skills"][k]["success"])
+
+
 StepHook = Callable[["EchoDataEnv", dict[str, np.ndarray], np.ndarray, int, SkillCall, tuple[bool, ...]], None]
 
 
 def run_episode(
-    env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any], planner: Any, policy: Any,
+    env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any], planner: Planner, policy: Policy,
     on_step: StepHook | None = None, max_steps: int | None = None,
 ) -> EpisodeRun:
     """Run one episode already reset in `env` (its first observation and info) with a planner and a skill policy.
 
+    Success is read from the environment's `info["skills"]` (one evaluation per step).
     `on_step(env, obs, action, skill_index, call, skill_flags)` is called before each action is
     applied (the build records its rows there). `max_steps`: cut the episode after that many
     control steps (see the module docstring).
     """
-    from echo_data.envs.env import EnvInputError, as_action, skill_budget
+    from echo_data.envs.env import EnvInputError, as_action
+    from echo_data.skills.registry import skill_budget
 
     env = getattr(env, "unwrapped", env)  # gymnasium wrappers around an EchoDataEnv
     spec: EpisodeSpec = env.episode
     truth = true_chain(spec)
-    if callable(getattr(planner, "reset", None)):
-        planner.reset({**info, "true_chain": truth, "spec_object": spec})
+    reset_planner = getattr(planner, "reset", None)  # optional (echo_data.protocols)
+    if callable(reset_planner):
+        reset_planner({**info, "true_chain": truth, "spec_object": spec})
     try:
         planned: list[dict[str, str]] | None = normalise_plan(planner.plan(first_obs))
         malformed = ""
@@ -176,8 +185,8 @@ def run_episode(
         return run
     obs = first_obs
 
-    def flags() -> tuple[bool, ...]:  # the environment's latched success tests, per chain entry
-        return tuple(j < env.progress for j in range(len(spec.chain)))
+    def flags() -> tuple[bool, ...]:  # the environment's latched success tests now, per chain entry
+        return tuple(bool(s["done"]) for s in info["skills"])
 
     def cut() -> bool:
         return max_steps is not None and env.steps >= max_steps
@@ -200,7 +209,7 @@ def run_episode(
         reason = ""
         ended = False
         while True:
-            if not ends_itself and env.progress > k:
+            if not ends_itself and succeeded(info, k):
                 break
             action = policy.act(obs)
             if action is None:  # the policy ended the skill itself
@@ -218,10 +227,10 @@ def run_episode(
             if on_step is not None:
                 on_step(env, obs, a, k, call, flags())
             x0, y0, _ = env.world.robot.base_pose()
-            obs, _, terminated, truncated, step_info = env.step(a)
+            obs, _, terminated, truncated, info = env.step(a)
             n += 1
-            if step_info.get("failure"):
-                reason = step_info["failure"]
+            if info.get("failure"):
+                reason = info["failure"]
                 break
             x1, y1, _ = env.world.robot.base_pose()
             path += math.hypot(x1 - x0, y1 - y0)
@@ -229,11 +238,12 @@ def run_episode(
                 ended = True
                 reason = "" if terminated else "episode step limit"
                 break
-        if (reason or ended or run.truncated_at is not None) and ends_itself and callable(getattr(policy, "close", None)):
-            policy.close()
+        close = getattr(policy, "close", None)  # optional (echo_data.protocols)
+        if (reason or ended or run.truncated_at is not None) and ends_itself and callable(close):
+            close()
         if run.truncated_at is not None:  # the skill running at the cut has no outcome
             break
-        ok = not reason and env.progress > k
+        ok = not reason and succeeded(info, k)
         if not ok and not reason:
             expert = getattr(policy, "outcome", None)
             reason = getattr(expert, "reason", "") or "success test false"

@@ -12,9 +12,7 @@ build -> writer -> shards (`echo_data.dataset.shards`) / manifest -> storage.
 from __future__ import annotations
 
 import errno
-import os
 import shutil
-import tempfile
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -37,16 +35,14 @@ from echo_data.dataset.manifest import (
 from echo_data.dataset.schema import StepLayout
 from echo_data.dataset.writer import DatasetWriter
 from echo_data.episode import attempt_draws
+from echo_data.outputs import OutputError, check_output_path
 from echo_data.pcm import ClippingError
+from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.records import EpisodeResult
 
 BuildMode = Literal["new", "resume", "overwrite"]
 Generate = Callable[..., EpisodeResult]
-
-
-class OutputError(ValueError):
-    """Bad input for a build (output path, mode, recipe mismatch): exit 2, nothing written."""
 
 
 class OutputWriteError(OutputError):
@@ -98,7 +94,7 @@ class _Job:
     recipe_dir: Path
     layout: StepLayout
     generate: Generate
-    make_library: Callable[[Recipe, Path], Any] | None
+    make_library: Callable[[Recipe, Path], SoundLibrary] | None
 
 
 @dataclass
@@ -121,7 +117,7 @@ def _init_job(job: _Job) -> None:
     _JOB, _LIBRARY = job, _UNSET
 
 
-def default_library(recipe: Recipe, recipe_dir: Path) -> Any:
+def default_library(recipe: Recipe, recipe_dir: Path) -> SoundLibrary:
     """The recipe's sound library (built once per worker)."""
     try:
         from echo_data.sounds import SoundLibrary
@@ -196,25 +192,6 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
 # ---------------------------------------------------------------- output checks
 
 
-def check_output_path(out: Path) -> None:
-    """Refuse an output that is a file or lies somewhere not writable (nothing is left behind)."""
-    p = Path(out).absolute()
-    try:
-        too_long = [part for part in p.parts if len(os.fsencode(part)) > 255]
-        if too_long or len(os.fsencode(str(p))) >= 4096:
-            raise OutputError(f"{out}: path too long (at most 255 bytes per folder name, 4095 in all)")
-        if p.exists() and not p.is_dir():
-            raise OutputError(f"{out}: exists and is not a directory")
-        anc = p
-        while not anc.exists():
-            anc = anc.parent
-        if not anc.is_dir():
-            raise OutputError(f"{out}: {anc} is a file, not a directory")
-        os.rmdir(tempfile.mkdtemp(prefix=".echo-data-probe-", dir=anc))
-    except OSError as e:
-        raise OutputError(f"{out}: not writable ({e.strerror or e})") from None
-
-
 def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, mode: str, workers: int, executor: str) -> dict[str, Any]:
     """Create, refuse, replace or reopen the output according to `mode`; return its manifest."""
     has_content = out.is_dir() and any(p.name != LOCK_NAME for p in out.iterdir())
@@ -272,7 +249,7 @@ def build(
     executor: Literal["local", "ray"] = "local",
     generate: Generate | None = None,
     progress: bool = True,
-    make_library: Callable[[Recipe, Path], Any] | None = None,
+    make_library: Callable[[Recipe, Path], SoundLibrary] | None = None,
     address: str | None = None,
 ) -> BuildSummary:
     """Build (or resume) the dataset of `recipe` in the directory `out`.
@@ -354,7 +331,7 @@ def _build_locked(
     executor: str,
     gen: Generate,
     progress: bool,
-    make_library: Callable[[Recipe, Path], Any] | None,
+    make_library: Callable[[Recipe, Path], SoundLibrary] | None,
     layout: StepLayout,
     plans: dict[str, ShardPlans],
     t0: float,

@@ -85,29 +85,40 @@ def info_cmd(
     typer.echo(json.dumps(d, indent=1, sort_keys=True) if as_json else format_info(d))
 
 
+# Export formats: name -> (module, function). A function takes (source dataset, output folder,
+# overwrite=) and returns the export's info (`codebase_version`, `total_episodes`, `total_frames`,
+# `splits`); it raises an error with one line for bad input. docs/adding_an_export_format.md.
+EXPORT_FORMATS: dict[str, tuple[str, str]] = {
+    "lerobot": ("echo_data.dataset.lerobot", "export_lerobot"),
+}
+
+
 def export_cmd(
     path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder of the exported dataset.")],
-    fmt: Annotated[str, typer.Option("--format", help="Target format: lerobot (LeRobot codebase v3.0).")] = "lerobot",
+    fmt: Annotated[str, typer.Option("--format", help=f"Target format: {', '.join(EXPORT_FORMATS)} (lerobot: LeRobot codebase v3.0).")] = "lerobot",
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing export.")] = False,
 ) -> None:
     """Write the dataset in another library's format (LeRobot v3.0), next to the original."""
-    from echo_data.dataset.lerobot import ExportError, export_lerobot
+    import importlib
+
     from echo_data.dataset.manifest import ManifestError
     from echo_data.dataset.validate import DamagedDataset, check_whole
     from echo_data.targets import TargetError, check_folder, write_failed
 
-    if fmt != "lerobot":
-        raise _fail(f"--format {fmt}: unknown format (use lerobot)", 2)
+    if fmt not in EXPORT_FORMATS:
+        raise _fail(f"--format {fmt}: unknown format (use {' or '.join(EXPORT_FORMATS)})", 2)
+    module, name = EXPORT_FORMATS[fmt]
+    mod = importlib.import_module(module)
     try:
         check_folder(out, "--out")
         check_whole(path)
-        info = export_lerobot(path, out, overwrite=overwrite)
-    except (ExportError, TargetError, ManifestError, DamagedDataset) as e:
+        info = getattr(mod, name)(path, out, overwrite=overwrite)
+    except (mod.ExportError, TargetError, ManifestError, DamagedDataset) as e:
         raise _fail(str(e), 2) from None
     except OSError as e:
         raise _fail(write_failed("--out", out, e), 2) from None
-    typer.echo(f"{out}: LeRobot {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
+    typer.echo(f"{out}: {fmt} {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
 
 
 def view_cmd(
