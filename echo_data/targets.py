@@ -27,9 +27,14 @@ def check_folder(path: Path, option: str) -> None:
 
 def check_file(path: Path, option: str) -> None:
     """`path` can be a file we write (not a folder; its folder absent or writable)."""
+    from echo_data.app.build import OutputError, check_output_path
+
     if path.is_dir():
         raise TargetError(f"{option} {path}: is a folder")
-    check_folder(path.parent, option)
+    try:
+        check_output_path(path.parent)
+    except OutputError as e:
+        raise TargetError(f"{option} {path}: cannot be written there ({e})") from None
 
 
 def write_failed(option: str, path: Path, e: OSError) -> str:

@@ -91,7 +91,7 @@ def test_records_are_written_as_episodes_finish_and_resume_refuses_another_evalu
     _one_error_line(r, "--resume", "--json")
 
 
-@pytest.mark.parametrize("target, says", [("folder", "is a folder"), ("readonly", "cannot write")])
+@pytest.mark.parametrize("target, says", [("folder", "is a folder"), ("readonly", "not writable")])
 def test_json_target_is_checked_before_the_first_episode(target: str, says: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import echo_data.evaluation.run as run_mod
 
@@ -109,7 +109,7 @@ def test_json_target_is_checked_before_the_first_episode(target: str, says: str,
             ro = Path("/sys")
         out = ro / "r.json"
     r = _evaluate("--json", str(out))
-    _one_error_line(r, "--json" if target == "folder" else str(out.parent), says)
+    _one_error_line(r, "--json", str(out), says)
     assert ran == []
 
 

@@ -236,7 +236,7 @@ def run_episode(
             path += math.hypot(x1 - x0, y1 - y0)
             if terminated or truncated:  # the chain is done (or past the episode's budget): no step follows
                 ended = True
-                reason = "" if terminated else "episode step limit"
+                reason = "" if terminated else "timeout" if n >= budget else "episode step limit"
                 break
         close = getattr(policy, "close", None)  # optional (echo_data.protocols)
         if (reason or ended or run.truncated_at is not None) and ends_itself and callable(close):
