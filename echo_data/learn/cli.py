@@ -52,7 +52,8 @@ def _check(dataset: Path, folder: Path) -> None:
     from echo_data.targets import check_folder
 
     check_folder(folder, "--out")
-    check_whole(dataset)
+    if (dataset / "manifest.json").is_file():  # no dataset at all: training's own message says so
+        check_whole(dataset)
 
 
 def _need_torch() -> None:
