@@ -90,30 +90,35 @@ def info_cmd(
 # `splits`); it raises an error with one line for bad input. docs/adding_an_export_format.md.
 EXPORT_FORMATS: dict[str, tuple[str, str]] = {
     "lerobot": ("echo_data.dataset.lerobot", "export_lerobot"),
+    "robomimic": ("echo_data.dataset.robomimic", "export_robomimic"),
+    "zarr": ("echo_data.dataset.zarr_export", "export_zarr"),
 }
 
 
 def export_cmd(
     path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder of the exported dataset.")],
-    fmt: Annotated[str, typer.Option("--format", help=f"Target format: {', '.join(EXPORT_FORMATS)} (lerobot: LeRobot codebase v3.0).")] = "lerobot",
+    out: Annotated[Path, typer.Option("--out", "-o", help="Export: a folder (lerobot, zarr) or an .hdf5 file (robomimic).")],
+    fmt: Annotated[str, typer.Option("--format", help=f"Target format: {', '.join(EXPORT_FORMATS)} (LeRobot v3.0, robomimic HDF5, Diffusion Policy Zarr).")] = "lerobot",
+    video: Annotated[list[str] | None, typer.Option("--video", help="lerobot: store this camera as an MP4 video feature (rgb; depth stays PNG).")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing export.")] = False,
 ) -> None:
-    """Write the dataset in another library's format (LeRobot v3.0), next to the original."""
+    """Write the dataset in another library's format (LeRobot v3.0, robomimic HDF5, Zarr), next to the original."""
     import importlib
 
     from echo_data.dataset.manifest import ManifestError
     from echo_data.dataset.validate import DamagedDataset, check_whole
-    from echo_data.targets import TargetError, check_folder, write_failed
+    from echo_data.targets import TargetError, check_file, check_folder, write_failed
 
     if fmt not in EXPORT_FORMATS:
-        raise _fail(f"--format {fmt}: unknown format (use {' or '.join(EXPORT_FORMATS)})", 2)
+        raise _fail(f"--format {fmt}: unknown format (use {', '.join(EXPORT_FORMATS)})", 2)
+    if video and fmt != "lerobot":
+        raise _fail(f"--video: only the lerobot format stores videos, not {fmt}", 2)
     module, name = EXPORT_FORMATS[fmt]
     mod = importlib.import_module(module)
     try:
-        check_folder(out, "--out")
+        (check_folder if out.is_dir() or not out.suffix else check_file)(out, "--out")  # robomimic writes one .hdf5 file
         check_whole(path)
-        info = getattr(mod, name)(path, out, overwrite=overwrite)
+        info = getattr(mod, name)(path, out, overwrite=overwrite, **({"video": tuple(video)} if video else {}))
     except (mod.ExportError, TargetError, ManifestError, DamagedDataset) as e:
         raise _fail(str(e), 2) from None
     except OSError as e:
