@@ -22,7 +22,7 @@ def _fail(message: str, code: int) -> typer.Exit:
 def build_cmd(
     recipe: Annotated[Path, typer.Argument(help="Recipe YAML file.")],
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Dataset folder (default: out/<recipe name>).")] = None,
-    workers: Annotated[int, typer.Option("--workers", "-w", help="Parallel episode workers.")] = 1,
+    workers: Annotated[int | None, typer.Option("--workers", "-w", help="Parallel episode workers (default: the usable CPU cores).")] = None,
     limit: Annotated[int | None, typer.Option("--limit", help="At most N episodes per split (quick runs).")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted build.")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing dataset.")] = False,
@@ -41,6 +41,10 @@ def build_cmd(
     except RecipeError as e:
         raise _fail(str(e), 2) from None
     mode = "resume" if resume else "overwrite" if overwrite else "new"
+    if workers is None:
+        from echo_data.app.executors import default_workers
+
+        workers = default_workers()
     try:
         summary = build(r, recipe, out if out is not None else Path("out") / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress, address=address)  # type: ignore[arg-type]
     except OutputError as e:

@@ -16,7 +16,7 @@ import pyarrow.parquet as pq
 import yaml
 
 from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.schema import IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE, StepLayout
+from echo_data.dataset.schema import ACTION_EXECUTED, IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE, StepLayout
 from echo_data.dataset.storage import atomic_write_bytes
 from echo_data.episode import SPLIT_KEYS
 
@@ -36,7 +36,8 @@ COLUMN_NOTES = {
     "setting": "object_relocation, state_transition or multi_event",
     "skill": "the active skill (Navigate, Pick, Place, OpenDoor, CloseSink)",
     "skill_index": "position of the active skill in the episode's chain",
-    "action": "base vx, vy (m/s, robot frame), wz (rad/s), torso (m), 7 arm joint targets (rad), gripper opening (m)",
+    "action": "base vx, vy (m/s, robot frame), wz (rad/s), torso (m), 7 arm joint targets (rad), gripper opening (m); the controller's own command at the step (the label to clone)",
+    ACTION_EXECUTED: "the action the robot executed: `action` plus the experts' DART noise (equal to `action` when the recipe's experts.action_noise is 0); replay these",
     STATE: "base x, y, yaw (world), torso, 7 arm joints, gripper, their velocities, holding (0/1)",
     IMAGE_COLUMNS["head_rgb"]: "head camera colour, PNG",
     IMAGE_COLUMNS["head_depth"]: "head camera depth along the optical axis, 16-bit PNG, millimetres (0 = nothing hit)",

@@ -40,6 +40,7 @@ import pyarrow.parquet as pq
 from echo_data.dataset.episode_arrays import ExportError, check_source, column_values, decode_images
 from echo_data.dataset.schema import (
     ACTION,
+    ACTION_EXECUTED,
     CAMERA_POSES,
     CHAIN_SLOTS,
     IMAGE_COLUMNS,
@@ -76,7 +77,7 @@ TASKS = {
 
 def _names(layout: StepLayout) -> dict[str, list[str]]:
     """Element names of the vector features (LeRobot's `names`)."""
-    names: dict[str, list[str]] = {ACTION: list(ACTION_NAMES), STATE: list(STATE_NAMES)}
+    names: dict[str, list[str]] = {ACTION: list(ACTION_NAMES), ACTION_EXECUTED: list(ACTION_NAMES), STATE: list(STATE_NAMES)}
     names.update({col: [f"T{r}{c}" for r in range(4) for c in range(4)] for col in CAMERA_POSES.values()})
     names["skill_success"] = [f"chain_{k}" for k in range(CHAIN_SLOTS)]
     return names

@@ -19,12 +19,13 @@ import numpy as np
 from scipy import ndimage
 
 from echo_data.categories import RELOCATION_CATEGORIES, STATE_CATEGORIES
-from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, attempt_draws
+from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, attempt_draws, fresh_sound_seed
 from echo_data.recipe import Recipe
 from echo_data.scene.floorplan import FloorPlan, Rect, Vec3
 from echo_data.scene.generate import GenerationError, door_swing_zone, front_zone, generate_floorplan, place_object
 from echo_data.scene.nav import NavGrid, interaction_pose
 from echo_data.scene.objects import instance_scale
+from echo_data.sounds.synth import fresh_id
 from echo_data.target import Target
 
 START_MIN_DISTANCE = 2.0  # m from the first target's sound source
@@ -58,6 +59,8 @@ class _Reject(Exception):
 class _Library(Protocol):
     def instances(self, category: str | None = None, split: str | None = None) -> list: ...
 
+    def get(self, instance_id: str) -> Any: ...
+
 
 def _weighted(rng: np.random.Generator, names: list[str], weights: Mapping[Any, float]) -> str:
     """One of `names` by `weights` (missing = 0); uniform if every weight is zero."""
@@ -67,13 +70,18 @@ def _weighted(rng: np.random.Generator, names: list[str], weights: Mapping[Any, 
     return names[int(rng.choice(len(names), p=w / w.sum()))]
 
 
-def _sound_id(library: _Library, category: str, split: str, rng: np.random.Generator) -> str:
-    """A sound instance of `category` from `split` (val uses train sounds)."""
+def _sound_id(library: _Library, category: str, split: str, rng: np.random.Generator, fresh_seed: int | None = None) -> str:
+    """A sound instance of `category` from `split` (val uses train sounds). With `fresh_seed`
+    (`sounds.fresh_train_instances`), a draw of a built-in train instance becomes the fresh
+    instance of that seed; the draw itself is unchanged, so user files keep their share."""
     sound_split = "train" if split == "val" else split
     ids = sorted(s.id for s in library.instances(category, sound_split))
     if not ids:
         raise SamplingError(f"the sound library has no {sound_split!r} sounds of category {category!r}", {})
-    return ids[int(rng.integers(len(ids)))]
+    pick = ids[int(rng.integers(len(ids)))]
+    if fresh_seed is not None and sound_split == "train" and library.get(pick).builtin:
+        return fresh_id(category, fresh_seed)
+    return pick
 
 
 # ------------------------------------------------------------------------------ geometry checks
@@ -254,7 +262,8 @@ def _attempt(recipe: Recipe, split: str, index: int, attempt: int, seed: int, li
     prio: list[str] = list(recipe.events.priority)
     events.sort(key=lambda e: prio.index(e[0]))
     sound_events = tuple(
-        SoundEvent(category=c, sound_id=_sound_id(library, c, split, rng), target=t, source=(float(s[0]), float(s[1]), float(s[2])), priority=k)
+        SoundEvent(category=c, sound_id=_sound_id(library, c, split, rng, fresh_sound_seed(seed, k) if recipe.sounds.fresh_train_instances else None),
+                   target=t, source=(float(s[0]), float(s[1]), float(s[2])), priority=k)
         for k, (c, t, s) in enumerate(events)
     )
 
