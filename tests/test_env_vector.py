@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-from test_env_replay import tiny_recipe
+from support.recipes import tiny_recipe
 
 import echo_data.envs  # noqa: F401  (registers the ids)
 from echo_data.envs.env import BINAURAL, SPECTROGRAM

@@ -109,6 +109,10 @@ def export_cmd(
     """Write the dataset in another library's format (LeRobot v3.0, robomimic HDF5, Zarr), next to the original."""
     import importlib
 
+    from echo_data.dataset.manifest import ManifestError
+    from echo_data.dataset.validate import DamagedDataset, check_whole
+    from echo_data.targets import TargetError, check_file, check_folder, write_failed
+
     if fmt not in EXPORT_FORMATS:
         raise _fail(f"--format {fmt}: unknown format (use {', '.join(EXPORT_FORMATS)})", 2)
     if video and fmt != "lerobot":
@@ -116,9 +120,13 @@ def export_cmd(
     module, name = EXPORT_FORMATS[fmt]
     mod = importlib.import_module(module)
     try:
+        (check_folder if out.is_dir() or not out.suffix else check_file)(out, "--out")  # robomimic writes one .hdf5 file
+        check_whole(path)
         info = getattr(mod, name)(path, out, overwrite=overwrite, **({"video": tuple(video)} if video else {}))
-    except mod.ExportError as e:
+    except (mod.ExportError, TargetError, ManifestError, DamagedDataset) as e:
         raise _fail(str(e), 2) from None
+    except OSError as e:
+        raise _fail(write_failed("--out", out, e), 2) from None
     typer.echo(f"{out}: {fmt} {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
 
 
@@ -132,23 +140,33 @@ def view_cmd(
     """Write an MP4 of one episode (head RGB, head and wrist depth, top-down map, scrolling binaural
     spectrogram, the active skill, the sound at a stated listening gain) and/or a Rerun recording."""
     from echo_data.dataset.manifest import ManifestError
+    from echo_data.dataset.validate import DamagedDataset, check_whole
+    from echo_data.targets import TargetError, check_file, write_failed
     from echo_data.view import ViewError, render_episode_video
     from echo_data.viz.recording import RecordingTargetError, check_rerun_target, write_recording
 
     target = out if out is not None else (Path(f"{split}-{episode:06d}.mp4") if rerun is None else None)
-    if target is not None and target.exists() and target.is_dir():
-        raise _fail(f"--out {target}: is a folder", 2)
+    writing: tuple[str, Path] | None = None  # the option and file being written when an OSError comes
     try:
+        if target is not None:
+            check_file(target, "--out")
         if rerun is not None:
             check_rerun_target(rerun)
+        check_whole(path, split, episode)
         if target is not None:
+            writing = ("--out", target)
             summary = render_episode_video(path, episode, target, split=split)
             typer.echo(f"wrote {summary['path']}: {summary['frames']} frames, {summary['seconds']:.1f} s with binaural sound ({summary['listening']})")
         if rerun is not None:
+            writing = ("--rerun", rerun)
             rec = write_recording(path, episode, rerun, split=split)
             typer.echo(f"wrote {rec['path']}: {rec['steps']} steps, cameras {', '.join(rec['cameras'])} (open it with `rerun {rec['path']}`)")
-    except (ManifestError, ViewError, RecordingTargetError) as e:
+    except (ManifestError, ViewError, RecordingTargetError, TargetError, DamagedDataset) as e:
         raise _fail(str(e), 2) from None
+    except OSError as e:
+        if writing is None:
+            raise
+        raise _fail(write_failed(writing[0], writing[1], e), 2) from None
 
 
 def register(app: typer.Typer) -> None:

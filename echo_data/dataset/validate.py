@@ -23,7 +23,7 @@ import pyarrow.parquet as pq
 
 from echo_data.dataset import stats as stats_mod
 from echo_data.dataset.encode import planner_binaural_wav_bytes, planner_wav_bytes
-from echo_data.dataset.manifest import ManifestError, load_manifest, plan_shards, totals
+from echo_data.dataset.manifest import ManifestError, load_manifest, new_manifest, plan_shards, totals
 from echo_data.dataset.planner import MEDIA, media_path
 from echo_data.dataset.schema import EPISODE_FIELDS, MEL, SHARD_META_KEY, SPECTROGRAM, StepLayout, column_to_numpy
 from echo_data.dataset.shards import read_shard_meta
@@ -88,17 +88,69 @@ def _feature_problems(eid: str, audio: np.ndarray, offsets: np.ndarray, stored: 
     return problems
 
 
+_WAV_MISSING = "{episode_id}: missing {audio_path}"
+_WAV_CHANGED = "{episode_id}: {audio_path} does not match its sha256 (truncated or modified)"
+
+
+def shard_damage(out: Path, file: str, entry: dict[str, Any] | None) -> str | None:
+    """A shard missing or changed since the manifest recorded it (None when whole)."""
+    path = out / file
+    if not path.is_file():
+        return f"{file}: missing"
+    if entry is not None and sha256_file(path) != entry["sha256"]:
+        return f"{file}: sha256 differs from the manifest"
+    return None
+
+
+def first_damage(out: Path, split: str | None = None, episode: int | None = None) -> str | None:
+    """The first shard or WAV that a reader of the dataset would trip on (missing, truncated,
+    modified: validate's own file checks), limited to one split or one episode of it; None when
+    they are whole. `export`, `view` and `train` call it before reading, so damage is one line
+    naming the file instead of a traceback from Arrow or libsndfile. Raises `ManifestError`
+    for a folder that is no dataset."""
+    manifest = load_manifest(out)
+    try:
+        records = pq.read_table(out / "meta" / "episodes.parquet").to_pylist()
+    except Exception as e:
+        return f"meta/episodes.parquet: unreadable ({type(e).__name__})"
+    chosen = [r for r in records if (split is None or r["split"] == split) and (episode is None or r["episode_index"] == episode)]
+    listed = {Path(e["file"]).name: e for e in manifest.get("shards", [])}
+    for name in sorted({r["shard"] for r in chosen}):
+        entry = listed.get(name)
+        damage = shard_damage(out, entry["file"] if entry else f"data/{name}", entry)
+        if damage:
+            return damage
+    for r in chosen:
+        path = out / r["audio_path"]
+        if not path.is_file():
+            return _WAV_MISSING.format(**r)
+        if sha256_file(path) != r["audio_sha256"]:
+            return _WAV_CHANGED.format(**r)
+    return None
+
+
+class DamagedDataset(ValueError):
+    """A dataset whose shards or WAVs are not what its manifest recorded: one line naming the file."""
+
+
+def check_whole(out: Path, split: str | None = None, episode: int | None = None) -> None:
+    """Raise `DamagedDataset` naming the first damaged file (`first_damage`), or `ManifestError`."""
+    damage = first_damage(out, split, episode)
+    if damage:
+        raise DamagedDataset(f"{out}: damaged: {damage} (`echo-data validate {out}` lists every problem)")
+
+
 def _audio_problems(out: Path, row: dict[str, Any], offsets: np.ndarray, sample_rate: int, stored: dict[str, np.ndarray] | None = None) -> list[str]:
     import soundfile as sf
 
     path = out / row["audio_path"]
     eid = row["episode_id"]
     if not path.is_file():
-        return [f"{eid}: missing {row['audio_path']}"]
+        return [_WAV_MISSING.format(**row)]
     data = path.read_bytes()
     problems = []
     if hashlib.sha256(data).hexdigest() != row["audio_sha256"]:
-        problems.append(f"{eid}: {row['audio_path']} does not match its sha256 (truncated or modified)")
+        problems.append(_WAV_CHANGED.format(**row))
     try:
         import io
 
@@ -147,11 +199,11 @@ def validate(out: Path) -> list[str]:
             entry = listed.pop(plan.file, None)
             if entry is None:
                 problems.append(f"{plan.file}: not in the manifest")
+            damage = shard_damage(out, plan.file, entry)
+            if damage:
+                problems.append(damage)
             if not path.is_file():
-                problems.append(f"{plan.file}: missing")
                 continue
-            if entry is not None and sha256_file(path) != entry["sha256"]:
-                problems.append(f"{plan.file}: sha256 differs from the manifest")
             try:
                 pf = pq.ParquetFile(path)
                 table = pf.read()
@@ -243,8 +295,10 @@ def _entry_problems(file: str, entry: dict[str, Any], rows: list[dict[str, Any]]
 
 def _manifest_problems(manifest: dict[str, Any], recipe: Recipe) -> list[str]:
     """Totals (counts, success rate, skills, rejections, failed attempts) are a function of the
-    shard entries: an edited total no longer matches them."""
-    problems = []
+    shard entries: an edited total no longer matches them. Keys the build never writes are
+    named (a hand edit or another tool's: a reader would silently ignore them)."""
+    known = set(new_manifest(recipe, manifest.get("limit"), StepLayout.from_recipe(recipe), 1, "local")) | set(totals([]))
+    problems = [f"manifest.json: unknown key {k!r}" for k in sorted(set(manifest) - known)]
     try:
         want = totals(manifest.get("shards", []))
     except Exception as e:

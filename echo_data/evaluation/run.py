@@ -13,6 +13,7 @@ the same either way.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -129,7 +130,7 @@ def evaluate_episode(job: EvalJob, index: int) -> dict[str, Any]:
     if video is not None and video.frames:
         rec["video"] = video.write(Path(job.video_dir) / f"{spec.episode_id}.mp4")  # type: ignore[arg-type]
     rec["seconds"] = time.perf_counter() - t0
-    return rec
+    return json.loads(json.dumps(rec))  # the record as a results file holds it (and as a resumed run reads it back)
 
 
 class _VideoRecorder:
@@ -187,19 +188,26 @@ def _evaluate_index(index: int) -> dict[str, Any]:
     return evaluate_episode(_JOB["job"], index)
 
 
-def run_episodes(job: EvalJob, n: int, workers: int = 1, progress: Callable[[dict[str, Any]], None] | None = None) -> list[dict[str, Any]]:
-    """Episodes 0..n-1 of the split, on `workers` processes (the build's pool); records ordered by index."""
+def run_episodes(
+    job: EvalJob, n: int, workers: int = 1, progress: Callable[[dict[str, Any]], None] | None = None, done: dict[int, dict[str, Any]] | None = None,
+) -> list[dict[str, Any]]:
+    """Episodes 0..n-1 of the split, on `workers` processes (the build's pool); records ordered by index.
+
+    `done`: records already finished (a resumed evaluation): those episodes are not run again.
+    `progress` is called with each newly finished record as it completes."""
     from echo_data.app.executors import make_executor
 
-    out: dict[int, dict[str, Any]] = {}
-    pool = make_executor("local", workers, _set_job, (job,))
+    out = {i: r for i, r in (done or {}).items() if i < n}
+    todo = [i for i in range(n) if i not in out]
+    pool = make_executor("local", max(1, min(workers, len(todo))), _set_job, (job,)) if todo else None
     try:
-        for rec in pool.imap_unordered(_evaluate_index, range(n)):
+        for rec in pool.imap_unordered(_evaluate_index, todo) if pool is not None else ():
             out[rec["index"]] = rec
             if progress:
                 progress(rec)
     finally:
-        pool.close()
+        if pool is not None:
+            pool.close()
     return [out[i] for i in range(n)]
 
 
@@ -213,8 +221,11 @@ def evaluate(
     workers: int = 1,
     video_dir: Path | None = None,
     progress: Callable[[dict[str, Any]], None] | None = None,
+    done: dict[int, dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
-    """The results document: metrics per setting, per-episode outcomes, what was evaluated."""
+    """The results document: metrics per setting, per-episode outcomes, what was evaluated.
+
+    `done`: records of episodes already finished (`evaluation.journal`), not run again."""
     from echo_data.agents.loading import identity, load_planner, load_policy
     from echo_data.dataset.manifest import versions
     from echo_data.evaluation.metrics import by_setting
@@ -224,7 +235,7 @@ def evaluate(
         policy = tuple(policy)
     job = EvalJob(recipe, str(recipe_path.parent) if recipe_path else None, split, policy, planner, str(video_dir) if video_dir else None)
     t0 = time.perf_counter()
-    episodes = run_episodes(job, n, workers, progress)
+    episodes = run_episodes(job, n, workers, progress, done)
     scored = [e for e in episodes if "skipped" not in e]
     return {
         "recipe": {"name": recipe.name, "path": str(recipe_path) if recipe_path else None, "content_hash": recipe.content_hash()},

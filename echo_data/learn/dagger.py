@@ -171,6 +171,8 @@ def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_st
     if cfg.chunk != 1:
         raise DaggerError("--dagger: the expert labels one action per state; use --chunk 1")
     _, n_train = recipe_of(Path(cfg.dataset))
+    if episodes_per_round > n_train:
+        raise DaggerError(f"--dagger-episodes {episodes_per_round}: the train split of {cfg.dataset} has {n_train} episodes")
     summary = train_bc(cfg, out, resume=resume, overwrite=not resume, progress=progress)
     agg: Rollouts | None = None
     log = ["round,episodes,rows_added,rows_aggregated,learner_success,learner_expert_gap,best_val_loss"]

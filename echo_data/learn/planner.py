@@ -340,6 +340,8 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     spec = FeatureSpec.from_dict(cfg.features)
     root = Path(cfg.dataset)
     meta = episode_rows(root, "train")
+    if cfg.train_episodes is not None and cfg.train_episodes > len(meta):
+        raise runs.RunError(f"--train-episodes {cfg.train_episodes}: the train split of {root} has {len(meta)} episodes")
     chosen = subset([r["episode_index"] for r in meta], cfg.train_episodes, cfg.seed)
     held: list[str] = []
     if cfg.val_by == "sounds":
