@@ -17,7 +17,7 @@ import shutil
 import tempfile
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -215,7 +215,9 @@ def check_output_path(out: Path) -> None:
         raise OutputError(f"{out}: not writable ({e.strerror or e})") from None
 
 
-def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, mode: str, workers: int, executor: str) -> dict[str, Any]:
+def _prepare(
+    out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, mode: str, workers: int, executor: str, only: Sequence[str] | None
+) -> dict[str, Any]:
     """Create, refuse, replace or reopen the output according to `mode`; return its manifest."""
     has_content = out.is_dir() and any(p.name != LOCK_NAME for p in out.iterdir())
     if has_content and mode == "new":
@@ -232,6 +234,8 @@ def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, m
             )
         if manifest.get("limit") != limit:
             raise OutputError(f"{out} was built with --limit {manifest.get('limit')}, not {limit}; pass the same --limit or --overwrite")
+        if manifest.get("only_splits") != (None if only is None else list(plan_shards(recipe, limit, only))):
+            raise OutputError(f"{out} was built with --split {manifest.get('only_splits') or 'all'}, not {only or 'all'}; pass the same --split or --overwrite")
         manifest["build"].update({"workers": workers, "executor": executor})
         manifest["build"]["resumes"] = manifest["build"].get("resumes", 0) + 1
         return manifest
@@ -246,7 +250,7 @@ def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, m
             else:
                 child.unlink()
     out.mkdir(parents=True, exist_ok=True)
-    manifest = new_manifest(recipe, limit, layout, workers, executor)
+    manifest = new_manifest(recipe, limit, layout, workers, executor, only)
     write_manifest(out, manifest)
     return manifest
 
@@ -274,12 +278,14 @@ def build(
     progress: bool = True,
     make_library: Callable[[Recipe, Path], Any] | None = None,
     address: str | None = None,
+    only: Sequence[str] | None = None,
 ) -> BuildSummary:
     """Build (or resume) the dataset of `recipe` in the directory `out`.
 
     `generate(recipe, split, index, library, recipe_dir, attempt=0) -> EpisodeResult` defaults
     to `echo_data.pipeline.generate_episode`; `make_library(recipe, recipe_dir)` defaults to the
-    recipe's `SoundLibrary`; `address` is a Ray cluster's (with executor "ray"). Raises
+    recipe's `SoundLibrary`; `address` is a Ray cluster's (with executor "ray"); `only` names the
+    splits to build (default: all). Raises
     `OutputError` (bad input, nothing written) or `BuildError`.
     """
     t0 = time.monotonic()
@@ -300,8 +306,10 @@ def build(
         raise OutputError(f"unknown executor {executor!r} (use local or ray)")
     if address and executor != "ray":
         raise OutputError("--address names a Ray cluster: use it with --executor ray")
+    if only is not None and (not only or set(only) - set(recipe.splits)):
+        raise OutputError(f"--split {','.join(only)}: the recipe's splits are {', '.join(recipe.splits)}")
     layout = StepLayout.from_recipe(recipe)
-    plans = plan_shards(recipe, limit)
+    plans = plan_shards(recipe, limit, only)
     gen = generate or _default_generate()
     # Read the sound library once before anything is written: an unreadable user WAV is bad
     # input (exit 2, nothing written), not a crash inside a worker halfway through the build.
@@ -320,7 +328,7 @@ def build(
     except OSError as e:
         raise OutputError(f"{out}: cannot create the build lock ({e.strerror or e})") from None
     try:
-        return _build_locked(recipe, recipe_path, out, workers, limit, mode, executor, gen, progress, make_library, layout, plans, t0, address)
+        return _build_locked(recipe, recipe_path, out, workers, limit, mode, executor, gen, progress, make_library, layout, plans, t0, address, only)
     except OSError as e:
         if e.errno not in _OUTPUT_ERRNOS:
             raise
@@ -359,6 +367,7 @@ def _build_locked(
     plans: dict[str, ShardPlans],
     t0: float,
     address: str | None,
+    only: Sequence[str] | None,
 ) -> BuildSummary:
     """The build proper, run while this process holds the folder's build lock."""
     job = _Job(recipe, Path(recipe_path).resolve().parent, layout, gen, make_library)
@@ -370,7 +379,7 @@ def _build_locked(
 
     bar = None
     try:
-        manifest = _prepare(out, recipe, limit, layout, mode, workers, executor)
+        manifest = _prepare(out, recipe, limit, layout, mode, workers, executor, only)
         writer = DatasetWriter(out, recipe, layout, manifest, plans)
         writer.verify_shards()
         writer.remove_leftovers()
