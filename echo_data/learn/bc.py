@@ -49,6 +49,7 @@ class BCConfig:
     max_steps: int | None = None  # stop (and checkpoint) after this many optimiser steps
     recurrent: bool = False  # a GRU over the steps of a segment (models.BCRNN)
     seq_batch: int = 4  # segments per optimiser step when recurrent
+    shift: int = 0  # training images shifted by up to this many pixels (random-shift augmentation); 0 = off
     # Filled in by train_bc:
     features: dict[str, Any] = field(default_factory=dict)
     audio_shape: list[int] | None = None
@@ -134,19 +135,45 @@ class _Units:
         val = np.array([is_val[self.spans[s][0]] for s in seg], dtype=bool)
         return seg[~val], seg[val]
 
-    def forward(self, units: np.ndarray) -> tuple[Any, np.ndarray, np.ndarray]:
+    def forward(self, units: np.ndarray, shift: int = 0, seed: int = 0) -> tuple[Any, np.ndarray, np.ndarray]:
         torch, inputs = self.torch, self.rows.inputs
+        rng = np.random.default_rng([seed, len(units), *units.tolist()])  # from the batch itself: a resumed run draws alike
         if not self.recurrent:
             t = torch.from_numpy(units)
-            return self.model({k: v[t] for k, v in inputs.items()}), units, np.ones(len(units), dtype=bool)
+            x = {k: _shifted(v[t], shift, rng) if k in IMAGE_INPUTS else v[t] for k, v in inputs.items()}
+            return self.model(x), units, np.ones(len(units), dtype=bool)
         spans = [self.spans[int(s)] for s in units]
         length = max(c for _, c in spans)
         steps = np.arange(length)
         real = steps[None, :] < np.array([c for _, c in spans])[:, None]
         ix = np.array([f + np.minimum(steps, c - 1) for f, c in spans])  # padded with each segment's last row
         t = torch.from_numpy(ix.reshape(-1))
-        pred, _ = self.model({k: v[t].view(len(spans), length, *v.shape[1:]) for k, v in inputs.items()})
+        x = {k: v[t].view(len(spans), length, *v.shape[1:]) for k, v in inputs.items()}
+        x = {k: _shifted(v, shift, rng) if k in IMAGE_INPUTS else v for k, v in x.items()}
+        pred, _ = self.model(x)
         return pred.reshape(-1, *pred.shape[2:]), ix.reshape(-1), real.reshape(-1)
+
+
+IMAGE_INPUTS = ("depth", "wrist_depth", "rgb", "image")
+
+
+def _shifted(x: Any, shift: int, rng: np.random.Generator) -> Any:
+    """Random-shift augmentation (DrQ, Kostrikov et al. 2020; RAD, Laskin et al. 2020): pad each
+    image by `shift` pixels (edge values repeated) and crop back at a random offset, one offset
+    per sample (per segment for sequences: the camera is off by a constant). Why: with tens of
+    demonstrations a CNN otherwise keys on exact pixel positions of one room."""
+    if shift <= 0:
+        return x
+    import torch
+    import torch.nn.functional as F
+
+    c, h, w = x.shape[-3:]
+    parts = []
+    for sample in x:  # (C, H, W), or (T, C, H, W) for a segment
+        dy, dx = (int(v) for v in rng.integers(0, 2 * shift + 1, size=2))
+        padded = F.pad(sample.reshape(-1, c, h, w), (shift, shift, shift, shift), mode="replicate")
+        parts.append(padded[..., dy : dy + h, dx : dx + w].reshape(sample.shape))
+    return torch.stack(parts)
 
 
 def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = False, progress: bool = True, extra: Any = None) -> dict[str, Any]:
@@ -188,7 +215,7 @@ def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = F
     tr_units, va_units = units.split(is_val)
 
     def loss_fn(ix: np.ndarray) -> Any:
-        pred, at, real = units.forward(ix)
+        pred, at, real = units.forward(ix, cfg.shift, cfg.seed)
         return _masked_mse(pred, target[at], valid[at] * torch.from_numpy(real)[:, None])
 
     def validate() -> dict[str, float]:

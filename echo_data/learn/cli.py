@@ -56,6 +56,7 @@ def bc_cmd(
     threads: _Threads = 1,
     gru: Annotated[bool, typer.Option("--gru/--no-gru", help="A GRU over the steps of a skill (BC-RNN), trained on whole segments; its state resets at each skill's start.")] = False,
     seq_batch: Annotated[int, typer.Option("--seq-batch", min=1, help="With --gru: segments per optimiser step.")] = 4,
+    shift: Annotated[int, typer.Option("--shift", min=0, help="Random-shift augmentation of training images: up to N pixels (0 = off).")] = 0,
     resume: _Resume = False,
     overwrite: _Overwrite = False,
     progress: _Progress = True,
@@ -73,7 +74,7 @@ def bc_cmd(
         names = parse_inputs(inputs, BC_INPUTS)
         folder = out or Path("runs") / f"bc-{skill}-{'-'.join(names)}"
         cfg = BCConfig(str(dataset), skill, names, seed=seed, chunk=chunk, execute=execute, batch_size=batch_size, lr=lr, max_steps=max_steps, threads=threads,
-                       audio_form=audio_form, recurrent=gru, seq_batch=seq_batch)
+                       audio_form=audio_form, recurrent=gru, seq_batch=seq_batch, shift=shift)
         if epochs is not None:
             cfg.epochs = epochs
         if dagger:
