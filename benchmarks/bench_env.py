@@ -59,7 +59,7 @@ def main() -> None:
 
     from echo_data.acoustics.features import step_features
     from echo_data.envs import EchoDataEnv
-    from echo_data.pipeline import simulate
+    from echo_data.app.pipeline import simulate
     from echo_data.recipe import load_recipe
     from echo_data.scene.sampling import sample_episode
     from echo_data.sounds import SoundLibrary

@@ -55,8 +55,8 @@ def main() -> None:
 
     from echo_data.dataset.schema import StepLayout
     from echo_data.dataset.encode import encode_episode
-    from echo_data.pipeline import generate_episode
-    from echo_data.pipeline import simulate
+    from echo_data.app.pipeline import generate_episode
+    from echo_data.app.pipeline import simulate
     from echo_data.scene.sampling import sample_episode
     from echo_data.sounds import SoundLibrary
     from echo_data.world import World

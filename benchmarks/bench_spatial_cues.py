@@ -50,7 +50,7 @@ from echo_data.acoustics.noise import NoiseFloor  # noqa: E402
 from echo_data.acoustics.room import AcousticScene  # noqa: E402
 from echo_data.acoustics.stream import SourceTrack, render_track  # noqa: E402
 from echo_data.acoustics.types import BAND_CENTERS  # noqa: E402
-from echo_data.pipeline import PRE_ROLL_SECONDS, event_waveform, render_episode_audio, simulate, step_samples  # noqa: E402
+from echo_data.app.pipeline import PRE_ROLL_SECONDS, event_waveform, render_episode_audio, simulate, step_samples  # noqa: E402
 from echo_data.recipe import load_recipe  # noqa: E402
 from echo_data.records import EpisodeResult  # noqa: E402
 from echo_data.scene.sampling import sample_episode  # noqa: E402

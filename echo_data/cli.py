@@ -9,8 +9,8 @@ from typing import TYPE_CHECKING
 import typer
 
 if TYPE_CHECKING:
+    from echo_data.app.trial import TrialEpisode
     from echo_data.recipe import Recipe
-    from echo_data.trial import TrialEpisode
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Training data for sound-triggered mobile manipulation.")
 
@@ -73,7 +73,7 @@ def trial(
     """Run N episodes without writing a dataset; report success per episode and per skill."""
     from dataclasses import asdict
 
-    from echo_data.trial import run_trial
+    from echo_data.app.trial import run_trial
 
     recipe = _load(recipe_path)
     if seed is not None:
@@ -105,7 +105,7 @@ def preview(
     out: Path = typer.Option(Path("preview"), "--out", help="Folder for the pictures and sound."),
 ) -> None:
     """Write one episode's spec, top-down plan, first head frame, a contact sheet of head frames every 2 s, heard audio and acoustic map."""
-    from echo_data.dataset.build import OutputError, check_output_path
+    from echo_data.outputs import OutputError, check_output_path
     from echo_data.preview import write_preview
 
     recipe = _load(recipe_path)
@@ -147,8 +147,8 @@ def evaluate(
     raise typer.Exit(code)
 
 
-# Dataset commands (build, validate, info) live in echo_data.dataset.commands.
-from echo_data.dataset.commands import register as _register_dataset_commands  # noqa: E402
+# Dataset commands (build, validate, info) live in echo_data.app.commands.
+from echo_data.app.commands import register as _register_dataset_commands  # noqa: E402
 
 _register_dataset_commands(app)
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from echo_data.episode import EpisodeSpec
+from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 
 HEARD_SECONDS = 2.0
@@ -46,7 +47,7 @@ def contact_sheet(frames: list[np.ndarray], times: list[float], out: Path, colum
     sheet.save(out)
 
 
-def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: object) -> np.ndarray:
+def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: SoundLibrary) -> np.ndarray:
     """Binaural audio at the start pose for the first HEARD_SECONDS, every source sounding,
     calibrated as the dataset's WAVs (levels, noise floor, full scale)."""
     from echo_data.acoustics.hrtf import Hrtf
@@ -54,7 +55,7 @@ def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: object) -> np.nda
     from echo_data.acoustics.noise import NoiseFloor
     from echo_data.acoustics.room import AcousticScene
     from echo_data.acoustics.stream import SourceTrack, render_track
-    from echo_data.pipeline import event_waveform
+    from echo_data.app.pipeline import event_waveform
 
     cfg = recipe.acoustics
     fs = cfg.sample_rate
@@ -70,25 +71,6 @@ def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: object) -> np.nda
     track = render_track(AcousticScene(spec.plan, cfg), srcs, poses, hop, cfg, hrtf=hrtf)[: int(HEARD_SECONDS * fs)].astype(np.float64)
     track += NoiseFloor(fs, cfg.noise_floor_dba, spec.plan.seed, hrtf).render(0, len(track))
     return to_full_scale(track, cfg.full_scale_db_spl, what="preview")
-
-
-def draw_spectrogram(x2: np.ndarray, fs: int, out: Path, title: str) -> None:
-    import librosa
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    for ch, (ax, name) in enumerate(zip(axes, ("left ear", "right ear"))):
-        s = librosa.amplitude_to_db(np.abs(librosa.stft(x2[:, ch], n_fft=512, hop_length=160, win_length=400)), ref=1.0, top_db=80)
-        im = ax.imshow(s, origin="lower", aspect="auto", extent=[0, len(x2) / fs, 0, fs / 2000], vmin=s.max() - 80, vmax=s.max(), cmap="magma")
-        ax.set_ylabel(f"{name}\nkHz")
-    axes[-1].set_xlabel("time (s)")
-    fig.suptitle(title)
-    fig.colorbar(im, ax=axes, label="dB")
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
 
 
 def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float = 0.25) -> None:
@@ -150,10 +132,11 @@ def write_preview(recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path,
     """Sample episode `index` with the recipe's seed replaced by `seed`; simulate; write the files."""
     import soundfile as sf
 
-    from echo_data.pipeline import simulate
+    from echo_data.app.pipeline import simulate
     from echo_data.scene.sampling import sample_episode
-    from echo_data.scene.topdown import draw_topdown
     from echo_data.sounds import SoundLibrary
+    from echo_data.viz.spectrogram import save_spectrogram
+    from echo_data.viz.topdown import draw_topdown
 
     recipe = recipe.model_copy(update={"seed": seed})
     library = SoundLibrary.from_recipe(recipe, recipe_dir)
@@ -172,7 +155,7 @@ def write_preview(recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path,
     heard = heard_at_start(spec, recipe, library)
     sf.write(out / "heard.wav", heard, fs, subtype="PCM_16")
     cats = " + ".join(ev.category for ev in spec.events)
-    draw_spectrogram(heard, fs, out / "spectrogram.png", f"heard at start: {cats}")
+    save_spectrogram(heard, fs, out / "spectrogram.png", f"heard at start: {cats}")
     draw_acoustic_map(spec, recipe, out / "acoustic_map.png")
     return {
         "episode_id": spec.episode_id,

@@ -72,9 +72,10 @@ class SkillOutcome:
 
 @dataclass
 class EpisodeResult:
-    """A finished rollout with its audio, ready for the dataset writer.
+    """A finished rollout (the experts' or any agent's run in the environment) with what it
+    heard, ready for the dataset writer.
 
-    Audio arrays are aligned with `steps`.
+    Audio arrays are aligned with `steps`; `success` is every skill of the chain succeeding, in order.
     """
 
     spec: EpisodeSpec
@@ -86,6 +87,10 @@ class EpisodeResult:
     spectrogram: np.ndarray | None = None  # (n_steps, 65, 26, 2) float32, SoundSpaces-style
     mel: np.ndarray | None = None  # (n_steps, n_mels, 101, 2) float32 log-mel of the last 1 s
     rejected: dict[str, int] = field(default_factory=dict)  # sampling rejections on the way
+    resolved_frame: list[int | None] = field(default_factory=list)  # per event: frame at which its sound stops
+    # (frame, hinge angles of every door) after each successful OpenDoor: the acoustics
+    # switch to the opened geometry from that frame on.
+    door_changes: list[tuple[int, dict[int, float]]] = field(default_factory=list)
     # Set when the recipe's `outputs.max_frames` cut the episode after this many steps: the steps
     # are the whole episode's first ones, `success` and the outcomes are as they stood at the cut.
     truncated_at: int | None = None
@@ -94,3 +99,18 @@ class EpisodeResult:
     def complete(self) -> bool:
         """Worth storing: the chain succeeded, or the episode ran cleanly up to the recipe's cut."""
         return self.success or self.truncated_at is not None
+
+
+def records_digest(steps: list[StepRecord]) -> str:
+    """sha256 over every field of every step record: equal digests mean bit-identical rollouts."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for s in steps:
+        h.update(f"{s.frame_index}|{s.timestamp!r}|{s.skill}|{s.skill_index}|{s.ear_position!r}|{s.ear_yaw!r}|{s.sounding}|{s.skill_success}|{s.done}".encode())
+        for arr in (s.action, s.state, s.head_rgb, s.head_depth, s.wrist_depth):
+            if arr is not None:
+                a = np.ascontiguousarray(arr)
+                h.update(f"{a.dtype}{a.shape}".encode())
+                h.update(a.tobytes())
+    return h.hexdigest()

@@ -50,7 +50,7 @@ def main() -> None:
     from echo_data.scene.build import build_scene
     from echo_data.scene.generate import generate_floorplan_from_seed
     from echo_data.scene.lighting import add_lights
-    from echo_data.scene.topdown import draw_topdown
+    from echo_data.viz.topdown import draw_topdown
     from echo_data.world import keep_render_alive
 
     base = load_recipe(sys.argv[1] if len(sys.argv) > 1 else ROOT / "recipes" / "multi_event.yaml")

@@ -15,12 +15,12 @@ import pytest
 import soundfile as sf
 import typer
 import yaml
+from test_dataset_synth import null_library, synth_generate, synth_recipe
 from typer.testing import CliRunner
 
-from echo_data.dataset.build import BuildError, OutputError, build
-from echo_data.dataset.commands import register
+from echo_data.app.build import BuildError, OutputError, build
+from echo_data.app.commands import register
 from echo_data.dataset.validate import validate
-from test_dataset_synth import null_library, synth_generate, synth_recipe
 
 RECIPE_PATH = Path(__file__)  # only its directory matters to the synthetic generator
 

@@ -13,19 +13,19 @@ import time
 from pathlib import Path
 
 import pytest
-
-import echo_data.dataset.build as build_mod
-import echo_data.dataset.writer as writer_mod
-from echo_data.dataset.build import build
-from echo_data.dataset.validate import validate
 from test_dataset_synth import null_library, synth_generate, synth_recipe
+
+import echo_data.app.build as build_mod
+import echo_data.dataset.writer as writer_mod
+from echo_data.app.build import build
+from echo_data.dataset.validate import validate
 
 TESTS = Path(__file__).resolve().parent
 SCRIPT = """
 import sys
 sys.path.insert(0, {tests!r})
 from pathlib import Path
-from echo_data.dataset.build import build
+from echo_data.app.build import build
 from test_dataset_synth import null_library, slow_generate, synth_recipe
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """A synthetic episode generator with the real shapes, for fast tests of the dataset side.
 
-It stands in for `echo_data.pipeline.generate_episode` only in tests (injected into `build`):
+It stands in for `echo_data.app.pipeline.generate_episode` only in tests (injected into `build`):
 deterministic per (split, index, attempt), with expert failures and sampling errors on some
 first attempts so retries and the manifest's failure records are exercised.
 """
@@ -137,7 +137,7 @@ def test_synthetic_episode_is_deterministic_and_well_shaped() -> None:
 
 def build_synth(out: Path, splits: dict[str, int]) -> Path:
     """A built synthetic dataset at `out` (for loader, card, export and view tests)."""
-    from echo_data.dataset.build import build
+    from echo_data.app.build import build
 
     build(synth_recipe(splits=splits), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
     return out

@@ -145,11 +145,11 @@ class _Env:
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         self.steps += 1
-        return {}, 0.0, False, False, {}
+        return {}, 0.0, False, False, self.info()
 
-    def skill_success(self, call: SkillCall) -> bool:
-        k = list(self.episode.chain).index(call)
-        return self.steps >= self.done_at[k]
+    def info(self) -> dict:
+        """The environment's info: each chain skill's success test at this step."""
+        return {"skills": [{"success": self.steps >= self.done_at[k]} for k in range(len(self.episode.chain))]}
 
 
 class _Planner:
@@ -184,6 +184,6 @@ CHAIN = [SkillCall("OpenDoor", "door:0", 0), SkillCall("CloseSink", "faucet:0", 
 def test_run_episode_cuts_after_max_steps(max_steps: int | None, steps: int, outcomes: list[bool], truncated_at: int | None) -> None:
     env = _Env(CHAIN, {0: 5, 1: 9})
     seen: list[int] = []
-    run = run_episode(env, {}, {}, _Planner(), _Policy(), on_step=lambda e, *a: seen.append(e.steps), max_steps=max_steps)
+    run = run_episode(env, {}, env.info(), _Planner(), _Policy(), on_step=lambda e, *a: seen.append(e.steps), max_steps=max_steps)
     assert (run.steps, [o.success for o in run.outcomes], run.truncated_at) == (steps, outcomes, truncated_at)
     assert seen == list(range(steps)) and run.failure == "" and run.success == (truncated_at is None)

@@ -7,12 +7,12 @@ from pathlib import Path
 
 import pytest
 import typer
+from test_dataset_synth import build_synth, damageable_copy
 from typer.testing import CliRunner
 
-from echo_data.dataset.commands import register
+from echo_data.app.commands import register
 from echo_data.dataset.info import info
 from echo_data.dataset.validate import validate
-from test_dataset_synth import build_synth, damageable_copy
 
 
 @pytest.fixture(scope="module")

@@ -17,8 +17,8 @@ import pytest
 import soundfile as sf
 from PIL import Image
 
-from echo_data.dataset.schema import STATE, StepLayout, column_to_numpy
 from echo_data.dataset.encode import encode_wav
+from echo_data.dataset.schema import STATE, StepLayout, column_to_numpy
 from echo_data.envs import EchoDataEnv, observation_space
 from echo_data.envs.env import BINAURAL
 from echo_data.recipe import CameraConfig, load_recipe
@@ -60,7 +60,7 @@ def _decode(png: bytes) -> np.ndarray:
 def test_replaying_a_dataset_episode_reproduces_its_rows(tmp_path: Path) -> None:
     import pyarrow.compute as pc
 
-    from echo_data.dataset.build import build
+    from echo_data.app.build import build
 
     recipe = tiny_recipe()
     out = tmp_path / "ds"

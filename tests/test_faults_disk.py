@@ -10,12 +10,12 @@ import uuid
 from pathlib import Path
 
 import pytest
-
-import echo_data.dataset.writer as writer_mod
-from echo_data.dataset.build import OutputError, OutputWriteError, build
-from echo_data.dataset.validate import validate
 from test_dataset_kill import _digests
 from test_dataset_synth import null_library, synth_generate, synth_recipe
+
+import echo_data.dataset.writer as writer_mod
+from echo_data.app.build import OutputError, OutputWriteError, build
+from echo_data.dataset.validate import validate
 
 TESTS = Path(__file__).resolve().parent
 

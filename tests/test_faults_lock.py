@@ -9,17 +9,18 @@ import sys
 import time
 from pathlib import Path
 
-from echo_data.dataset.build import OutputError, build
+from test_dataset_synth import null_library, synth_generate, synth_recipe
+
+from echo_data.app.build import OutputError, build
 from echo_data.dataset.lock import LOCK_NAME, BuildLock
 from echo_data.dataset.validate import validate
-from test_dataset_synth import null_library, synth_generate, synth_recipe
 
 TESTS = Path(__file__).resolve().parent
 SCRIPT = """
 import sys
 sys.path.insert(0, {tests!r})
 from pathlib import Path
-from echo_data.dataset.build import OutputError, build
+from echo_data.app.build import OutputError, build
 from test_dataset_synth import null_library, synth_generate, synth_recipe
 
 def slow(*a, **k):

@@ -21,11 +21,11 @@ from pathlib import Path
 
 import pytest
 import ray  # noqa: F401  (the test extra installs it: a missing one fails, never skips)
-
-from echo_data.dataset.build import build
-from echo_data.dataset.validate import validate
 from test_dataset_kill import _digests
 from test_dataset_synth import null_library, synth_generate, synth_recipe
+
+from echo_data.app.build import build
+from echo_data.dataset.validate import validate
 
 pytestmark = pytest.mark.slow
 
@@ -125,7 +125,7 @@ sys.path.insert(0, {tests!r})
 from pathlib import Path
 import ray
 import echo_data.dataset.writer as writer_mod
-from echo_data.dataset.build import build
+from echo_data.app.build import build
 from test_dataset_synth import null_library, slow_generate, synth_recipe
 
 log = open(sys.argv[2], "a")
@@ -177,7 +177,7 @@ def test_raylet_killed_mid_build_gives_the_local_bytes(cluster: Cluster, tmp_pat
 
 
 def test_bad_address_is_one_line_exit_2_nothing_written(tmp_path: Path) -> None:
-    from echo_data.dataset.build import OutputError
+    from echo_data.app.build import OutputError
 
     port = _free_port()
     with pytest.raises(OutputError, match=rf"--address 127.0.0.1:{port}: cannot join the Ray cluster"):

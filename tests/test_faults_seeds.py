@@ -11,13 +11,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from test_dataset_synth import synth_generate
 
-from echo_data.dataset.build import build, default_library
+from echo_data.app.build import build, default_library
 from echo_data.episode import attempt_draws, episode_seed
 from echo_data.recipe import load_recipe
 from echo_data.records import EpisodeResult, SkillOutcome
 from echo_data.scene.sampling import sample_episode
-from test_dataset_synth import synth_generate
 
 RECIPES = Path(__file__).resolve().parent.parent / "recipes"
 

@@ -7,17 +7,17 @@ from __future__ import annotations
 import io
 import json
 import shutil
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import pytest
 import soundfile as sf
+from test_dataset_synth import build_synth, damageable_copy, null_library, synth_generate, synth_recipe
 
 import echo_data.dataset.encode as encode_mod
-from echo_data.dataset.build import BuildError, build
+from echo_data.app.build import BuildError, build
 from echo_data.dataset.validate import validate
-from test_dataset_synth import build_synth, damageable_copy, null_library, synth_generate, synth_recipe
 
 TESTS = Path(__file__).resolve().parent
 

@@ -355,7 +355,7 @@ def test_dagger_labeller_answers_as_the_expert_from_its_start(ds: Path) -> None:
         spec = env.sample_spec("train", 0)
         env.reset(options={"spec": spec})
         call = spec.chain[0]
-        label = NavigateLabeller(env.world, call.target, env._nav_grid())(np.zeros(3, np.float32))
+        label = NavigateLabeller(env.world, call.target, env.nav_grid())(np.zeros(3, np.float32))
         expert = EXPERTS["Navigate"](env.world, call, spec)
         first = np.asarray(next(expert), np.float32)
         expert.close()

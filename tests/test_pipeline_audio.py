@@ -10,12 +10,11 @@ import pytest
 from echo_data.acoustics.hrtf import Hrtf
 from echo_data.acoustics.levels import P_REF, ClippingError, full_scale_pa
 from echo_data.acoustics.noise import NoiseFloor
-from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
+from echo_data.app.pipeline import PRE_ROLL_SECONDS, render_episode_audio, step_samples
 from echo_data.envs.audio import epoch_window
-from echo_data.pipeline import PRE_ROLL_SECONDS, render_episode_audio, step_samples
+from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
 from echo_data.recipe import Recipe
-from echo_data.records import ACTION_DIM, STATE_DIM, StepRecord
-from echo_data.rollout import Rollout
+from echo_data.records import ACTION_DIM, STATE_DIM, EpisodeResult, StepRecord
 from echo_data.scene.generate import generate_floorplan
 from echo_data.sounds import SoundLibrary
 
@@ -51,7 +50,7 @@ def _spec_and_rollout(recipe: Recipe, n_steps: int, resolved: int | None, door_c
         for i in range(n_steps)
     ]
     changes = [] if door_change is None else [(door_change, {door.index: math.radians(90)})]
-    return spec, Rollout(steps, [], [resolved], 1, changes), lib
+    return spec, EpisodeResult(spec, steps, [], False, resolved_frame=[resolved], door_changes=changes), lib
 
 
 @pytest.fixture(scope="module")

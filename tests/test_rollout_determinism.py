@@ -18,8 +18,8 @@ _CHILD = r"""
 import json, sys
 from echo_data.recipe import recipe_from_mapping
 from echo_data.episode import EpisodeSpec
-from echo_data.pipeline import simulate
-from echo_data.rollout import records_digest
+from echo_data.app.pipeline import simulate
+from echo_data.records import records_digest
 d = json.load(open(sys.argv[1]))
 recipe = recipe_from_mapping(d["recipe"])
 spec = EpisodeSpec.from_dict(d["spec"])
@@ -36,8 +36,8 @@ def small_camera_recipe(path: Path) -> Recipe:
 
 @pytest.mark.slow
 def test_same_spec_gives_identical_records(tmp_path: Path) -> None:
-    from echo_data.pipeline import simulate
-    from echo_data.rollout import records_digest
+    from echo_data.app.pipeline import simulate
+    from echo_data.records import records_digest
     from echo_data.scene.sampling import sample_episode
     from echo_data.sounds import SoundLibrary
 
@@ -60,8 +60,7 @@ def test_same_spec_gives_identical_records(tmp_path: Path) -> None:
 def test_digest_sees_a_one_pixel_change() -> None:
     import numpy as np
 
-    from echo_data.records import ACTION_DIM, STATE_DIM, StepRecord
-    from echo_data.rollout import records_digest
+    from echo_data.records import ACTION_DIM, STATE_DIM, StepRecord, records_digest
 
     img = np.zeros((4, 4, 3), np.uint8)
     rec = StepRecord(0, 0.0, "Navigate", 0, np.zeros(ACTION_DIM, np.float32), np.zeros(STATE_DIM, np.float32), img, None, None, (0.0, 0.0, 1.2), 0.0, (True,))

@@ -13,8 +13,8 @@ from echo_data.recipe import Recipe
 from echo_data.scene.build import SceneHandles, build_scene
 from echo_data.scene.generate import generate_floorplan
 from echo_data.scene.sampling import sample_episode
-from echo_data.scene.topdown import draw_topdown
 from echo_data.sounds.library import SoundLibrary
+from echo_data.viz.topdown import draw_topdown
 
 RECIPE = Recipe(name="t", scene={"rooms": (3, 4), "door_probability": 1.0}, objects={"distractors": (3, 4)})
 

@@ -24,6 +24,7 @@ import numpy as np
 from scipy.signal import resample_poly
 from scipy.spatial import cKDTree
 
+from echo_data import seeds
 from echo_data.acoustics.types import SPEED_OF_SOUND
 
 KEMAR_NPZ = Path(__file__).resolve().parents[2] / "assets" / "hrtf" / "mit_kemar.npz"
@@ -97,7 +98,7 @@ class Hrtf:
         diffuse field. One gain for both ears sets the mean ear energy to 1 (the level of the
         tail is preserved; a realisation keeps its own small broadband left/right imbalance).
         """
-        rng = np.random.default_rng(np.random.SeedSequence([int(seed) % (1 << 63), 0xD1FF]))
+        rng = seeds.derived_rng(seeds.DIFFUSE_NOISE, int(seed) % (1 << 63))
         z = rng.uniform(-1.0, 1.0, _DIFFUSE_WAVES)
         phi = rng.uniform(0.0, 2 * np.pi, _DIFFUSE_WAVES)
         signs = rng.choice(np.array([-1.0, 1.0]), size=_DIFFUSE_WAVES)

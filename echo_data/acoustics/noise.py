@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from echo_data import seeds
 from echo_data.acoustics.hrtf import Hrtf
 from echo_data.acoustics.levels import P_REF
 
@@ -63,7 +64,7 @@ class NoiseFloor:
 
     def _block(self, k: int) -> np.ndarray:
         """Windowed block k (n, 2), covering samples [(k - 1) * hop, (k - 1) * hop + n)."""
-        rng = np.random.default_rng(np.random.SeedSequence([self.seed, k + (1 << 40), 0x0F10]))
+        rng = seeds.derived_rng(seeds.NOISE_FLOOR, self.seed, k + (1 << 40))
         x1 = np.fft.rfft(rng.standard_normal(self.n))
         x2 = np.fft.rfft(rng.standard_normal(self.n))
         left = np.fft.irfft(self.amp * x1, self.n)

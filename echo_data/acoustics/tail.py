@@ -41,6 +41,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from echo_data import seeds
 from echo_data.acoustics.geometry import RoomBox
 from echo_data.acoustics.materials import BANDS, absorption, air_absorption, per_floor_area
 from echo_data.acoustics.types import SPEED_OF_SOUND
@@ -175,7 +176,7 @@ class NoiseBank:
 
     def __init__(self, fs: int, length: int, seed: int):
         n = 1 << int(math.ceil(math.log2(4 * length + 1)))
-        rng = np.random.default_rng(np.random.SeedSequence([seed % (1 << 32), 0x7A11]))
+        rng = seeds.derived_rng(seeds.TAIL_NOISE, seed % (1 << 32))
         masks = band_masks(n, fs, power=True)
         white = rng.standard_normal((len(BANDS), n))
         self.bands = np.fft.irfft(np.fft.rfft(white, axis=1) * masks, n=n, axis=1)

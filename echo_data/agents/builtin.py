@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from echo_data.dataset.schema import STATE
 from echo_data.records import ACTION_DIM
 
 
@@ -21,7 +22,7 @@ class OracleSkills:
 
     name = "oracle"
     ends_itself = True  # the expert says when the skill is over (act returns None)
-    observations = ("observation.state",)  # experts read the world, not the observation
+    observations = (STATE,)  # experts read the world, not the observation
 
     def __init__(self, experts: Any = None) -> None:
         if experts is None:
@@ -57,7 +58,7 @@ class RandomSkills:
 
     name = "random"
     ends_itself = False
-    observations = ("observation.state",)
+    observations = (STATE,)
 
     def __init__(self) -> None:
         from echo_data.envs.env import action_space
@@ -78,13 +79,13 @@ class StillSkills:
 
     name = "still"
     ends_itself = False
-    observations = ("observation.state",)
+    observations = (STATE,)
 
     def reset(self, info: dict[str, Any]) -> None:
         pass
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        s = np.asarray(obs["observation.state"], dtype=np.float32)
+        s = np.asarray(obs[STATE], dtype=np.float32)
         a = np.zeros(ACTION_DIM, dtype=np.float32)
         a[3:12] = s[3:12]  # torso, 7 arm joints, gripper opening: hold where they are
         return a

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from echo_data.agents.builtin import BUILTIN_PLANNERS, BUILTIN_POLICIES
+from echo_data.protocols import Planner, Policy
 
 CHECKPOINT_FILE = "agent.json"
 
@@ -70,7 +71,7 @@ def _load(target: str, builtins: dict[str, Any], what: str, methods: tuple[str, 
     return agent
 
 
-def load_policy(target: str | Sequence[str]) -> Any:
+def load_policy(target: str | Sequence[str]) -> Policy:
     """A low-level skill policy: `reset(info)`, `act(obs) -> action | None`.
 
     A list of specs (`["Navigate=runs/nav", "oracle"]`) gives one policy per skill
@@ -91,7 +92,7 @@ def load_policy(target: str | Sequence[str]) -> Any:
     return SkillDispatch({s: loaded[t] for s, t in by_skill.items()}, loaded[fallback], {**by_skill, "*": fallback})
 
 
-def load_planner(target: str) -> Any:
+def load_planner(target: str) -> Planner:
     """A high-level planner: `plan(first_obs) -> [{"skill": ..., "target": ...}, ...]` (optional `reset(info)`)."""
     return _load(target, BUILTIN_PLANNERS, "planner", ("plan",))
 

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from echo_data.episode import EpisodeSpec, SkillCall
+from echo_data.protocols import Planner, Policy
 from echo_data.records import ACTION_DIM, SkillOutcome
 
 if TYPE_CHECKING:
@@ -119,7 +120,7 @@ def _expert_path_length(env: EchoDataEnv, call: SkillCall) -> float:
     from echo_data.scene.nav import interaction_pose
     from echo_data.skills.navigate import START_SNAP
 
-    grid = env._nav_grid()
+    grid = env.nav_grid()
     world = env.world
     x, y, _ = world.robot.base_pose()
     try:
@@ -133,26 +134,33 @@ def _expert_path_length(env: EchoDataEnv, call: SkillCall) -> float:
     return float(sum(math.dist(a, b) for a, b in zip(pts, pts[1:])))
 
 
+def succeeded(info: dict[str, Any], k: int) -> bool:
+    """Chain skill k's success test as the environment evaluated it at its last step (`info["skills"]`)."""
+    return bool(info["skills"][k]["success"])
+
+
 StepHook = Callable[["EchoDataEnv", dict[str, np.ndarray], np.ndarray, int, SkillCall, tuple[bool, ...]], None]
 
 
 def run_episode(
-    env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any], planner: Any, policy: Any,
+    env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any], planner: Planner, policy: Policy,
     on_step: StepHook | None = None, max_steps: int | None = None,
 ) -> EpisodeRun:
     """Run one episode already reset in `env` (its first observation and info) with a planner and a skill policy.
 
+    Success is read from the environment's `info["skills"]` (one evaluation per step).
     `on_step(env, obs, action, skill_index, call, skill_flags)` is called before each action is
     applied (the build records its rows there). `max_steps`: cut the episode after that many
     control steps (see the module docstring).
     """
-    from echo_data.envs.env import skill_budget
+    from echo_data.skills.registry import skill_budget
 
     env = getattr(env, "unwrapped", env)  # gymnasium wrappers around an EchoDataEnv
     spec: EpisodeSpec = env.episode
     truth = true_chain(spec)
-    if callable(getattr(planner, "reset", None)):
-        planner.reset({**info, "true_chain": truth, "spec_object": spec})
+    reset_planner = getattr(planner, "reset", None)  # optional (echo_data.protocols)
+    if callable(reset_planner):
+        reset_planner({**info, "true_chain": truth, "spec_object": spec})
     raw = planner.plan(first_obs)
     planned = normalise_plan(raw)
     run = EpisodeRun(spec.episode_id, spec.setting, spec.seed, truth, planned if planned is not None else raw, planned == truth)
@@ -182,7 +190,7 @@ def run_episode(
         n = 0
         reason = ""
         while True:
-            if not ends_itself and env.skill_success(call):
+            if not ends_itself and succeeded(info, k):
                 break
             action = policy.act(obs)
             if action is None:  # the policy ended the skill itself
@@ -199,18 +207,19 @@ def run_episode(
             if on_step is not None:
                 on_step(env, obs, a, k, call, tuple(flags))
             x0, y0, _ = env.world.robot.base_pose()
-            obs, _, _, _, step_info = env.step(a)
+            obs, _, _, _, info = env.step(a)
             n += 1
-            if step_info.get("failure"):
-                reason = step_info["failure"]
+            if info.get("failure"):
+                reason = info["failure"]
                 break
             x1, y1, _ = env.world.robot.base_pose()
             path += math.hypot(x1 - x0, y1 - y0)
-        if (reason == "timeout" or run.truncated_at is not None) and ends_itself and callable(getattr(policy, "close", None)):
-            policy.close()
+        close = getattr(policy, "close", None)  # optional (echo_data.protocols)
+        if (reason == "timeout" or run.truncated_at is not None) and ends_itself and callable(close):
+            close()
         if run.truncated_at is not None:  # the skill running at the cut has no outcome
             break
-        ok = not reason and env.skill_success(call)
+        ok = not reason and succeeded(info, k)
         if not ok and not reason:
             expert = getattr(policy, "outcome", None)
             reason = getattr(expert, "reason", "") or "success test false"

@@ -16,7 +16,7 @@ import pyarrow.parquet as pq
 import yaml
 
 from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.schema import StepLayout
+from echo_data.dataset.schema import IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE, StepLayout
 from echo_data.dataset.storage import atomic_write_bytes
 from echo_data.episode import SPLIT_KEYS
 
@@ -37,12 +37,12 @@ COLUMN_NOTES = {
     "skill": "the active skill (Navigate, Pick, Place, OpenDoor, CloseSink)",
     "skill_index": "position of the active skill in the episode's chain",
     "action": "base vx, vy (m/s, robot frame), wz (rad/s), torso (m), 7 arm joint targets (rad), gripper opening (m)",
-    "observation.state": "base x, y, yaw (world), torso, 7 arm joints, gripper, their velocities, holding (0/1)",
-    "observation.images.head_rgb": "head camera colour, PNG",
-    "observation.images.head_depth": "head camera depth along the optical axis, 16-bit PNG, millimetres (0 = nothing hit)",
-    "observation.images.wrist_depth": "wrist camera depth, 16-bit PNG, millimetres",
-    "observation.audio.spectrogram": "SoundSpaces-style log1p magnitude STFT of the last 1 s, per ear (0 = left)",
-    "observation.audio.mel": "log-mel spectrogram of the last 1 s, per ear",
+    STATE: "base x, y, yaw (world), torso, 7 arm joints, gripper, their velocities, holding (0/1)",
+    IMAGE_COLUMNS["head_rgb"]: "head camera colour, PNG",
+    IMAGE_COLUMNS["head_depth"]: "head camera depth along the optical axis, 16-bit PNG, millimetres (0 = nothing hit)",
+    IMAGE_COLUMNS["wrist_depth"]: "wrist camera depth, 16-bit PNG, millimetres",
+    SPECTROGRAM: "SoundSpaces-style log1p magnitude STFT of the last 1 s, per ear (0 = left)",
+    MEL: "log-mel spectrogram of the last 1 s, per ear",
     "camera_pose.head": "head camera-to-world 4x4 (row-major, OpenCV axes: x right, y down, z forward)",
     "camera_pose.wrist": "wrist camera-to-world 4x4 (row-major, OpenCV axes)",
     "audio_path": "the episode's binaural WAV, relative to the dataset folder",

@@ -152,14 +152,9 @@ def _spec_row(spec: Any) -> dict[str, Any]:
 def target_kind(target: str, plan: Any) -> str:
     """What a listener would call a scene target: "phone_0" -> phone, "door:1" -> door,
     "faucet:0" -> sink, "furniture:3" -> its kind (table, counter, ...)."""
-    if target.startswith("door:"):
-        return "door"
-    if target.startswith("faucet:"):
-        return "sink"
-    if target.startswith("furniture:"):
-        i = int(target.split(":", 1)[1])
-        return next((f.kind for f in getattr(plan, "furniture", ()) if f.index == i), "furniture")
-    return next((o.category for o in getattr(plan, "objects", ()) if o.name == target), target.rsplit("_", 1)[0])
+    from echo_data.target import Target
+
+    return Target.parse(target).spoken(plan)
 
 
 def _check_stack(name: str, arr: np.ndarray | None, n: int, shape: tuple[int, ...]) -> np.ndarray:

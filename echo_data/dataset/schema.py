@@ -31,13 +31,14 @@ PARQUET_COMPRESSION_LEVEL = 3
 # partial statistics, so a shard is self-describing and meta/ can be rebuilt from data/.
 SHARD_META_KEY = "echo_data"
 
-IMAGE_COLUMNS = {
-    "head_rgb": "observation.images.head_rgb",
-    "head_depth": "observation.images.head_depth",
-    "wrist_depth": "observation.images.wrist_depth",
-}
-SPECTROGRAM = "observation.audio.spectrogram"
-MEL = "observation.audio.mel"
+# The observation-key vocabulary: the environment, the agents, the evaluation and every
+# file of a dataset name observations with these keys and no others.
+IMAGE_PREFIX = "observation.images."
+AUDIO_PREFIX = "observation.audio."
+IMAGE_COLUMNS = {name: IMAGE_PREFIX + name for name in ("head_rgb", "head_depth", "wrist_depth")}
+SPECTROGRAM = AUDIO_PREFIX + "spectrogram"
+MEL = AUDIO_PREFIX + "mel"
+BINAURAL = AUDIO_PREFIX + "binaural"  # the raw block of one step: observed, never stored
 ACTION = "action"
 STATE = "observation.state"
 # Per-step world pose of each camera: row-major 4x4 camera-to-world matrix, OpenCV axes

@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from echo_data.dataset.schema import STATE
+
 SKETCH_POINTS = 101  # quantiles at 0, 0.01, ..., 1 per channel
 IMAGE_STRIDE = 4
 REPORTED_QUANTILES = {"q01": 0.01, "q10": 0.10, "q50": 0.50, "q90": 0.90, "q99": 0.99}
@@ -132,7 +134,7 @@ def episode_feature_values(
     action/state per dimension; RGB per channel in [0, 1]; depth in metres; spectrograms per ear.
     Images are summarised from every IMAGE_STRIDE-th pixel in each direction (normalisation
     statistics do not need every pixel, and full frames would cost more than rendering them)."""
-    out = {"action": action.reshape(len(action), -1), "observation.state": state.reshape(len(state), -1)}
+    out = {"action": action.reshape(len(action), -1), STATE: state.reshape(len(state), -1)}
     for col, (kind, stack) in images.items():
         sub = stack[:, ::IMAGE_STRIDE, ::IMAGE_STRIDE]
         if kind == "rgb":

@@ -1,6 +1,6 @@
 """The output folder of one build: staged episodes, shards in order, the manifest, meta files.
 
-Only the build's own process writes (`echo_data.dataset.build` orchestrates; workers only
+Only the build's own process writes (`echo_data.app.build` orchestrates; workers only
 encode). Each finished episode is staged under `.work/` (its rows as Arrow IPC, then a JSON
 commit marker) and its WAV under audio/; once every episode of a shard is staged and the
 shards before it in its split are written, the shard is written and the manifest rewritten.
@@ -20,7 +20,7 @@ import pyarrow as pa
 from echo_data.dataset import stats as stats_mod
 from echo_data.dataset.encode import EncodedEpisode
 from echo_data.dataset.manifest import ShardPlan, ShardPlans, write_manifest
-from echo_data.dataset.schema import EPISODE_FIELDS, FORMAT_VERSION, StepLayout
+from echo_data.dataset.schema import EPISODE_FIELDS, FORMAT_VERSION, STATE, StepLayout
 from echo_data.dataset.shards import read_shard_meta, write_shard
 from echo_data.dataset.storage import atomic_write_bytes, atomic_write_json, atomic_write_parquet, sha256_file
 from echo_data.recipe import Recipe
@@ -189,7 +189,7 @@ class DatasetWriter:
             "audio_path": "audio/{split}/{episode_id}.wav",
             "episode_index": "per split: equals the episode's index in its split; `index` counts frames per split",
             "stats_split": "train" if "train" in self.plans else "all",
-            "names": {"action": list(ACTION_NAMES), "observation.state": list(STATE_NAMES)},
+            "names": {"action": list(ACTION_NAMES), STATE: list(STATE_NAMES)},
             "features": self.layout.hf_features(),
             "cameras": camera_infos(self.recipe, self.layout),
         }

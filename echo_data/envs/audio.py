@@ -4,7 +4,7 @@
 control period with the acoustics' streaming renderer (`echo_data.acoustics.stream`: the same
 `RirCache` lattice, overlap-save blocks, whole-step crossfades between cached RIRs and 20 ms stop
 fades), knowing nothing of later poses. It is the only way an episode track is made: the build
-(through the environment), `echo_data.pipeline.render_episode_audio` and the environment all use
+(through the environment), `echo_data.app.pipeline.render_episode_audio` and the environment all use
 it, and a test checks it block for block against the offline `render_track`.
 
 Episode-level rules live here too:

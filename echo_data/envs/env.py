@@ -27,22 +27,17 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from echo_data.dataset.schema import BINAURAL, MEL, SPECTROGRAM, STATE
 from echo_data.episode import EpisodeSpec, SkillCall
+from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_DIM, STATE_DIM
+from echo_data.skills.registry import SKILLS, Situation, carried_object, skill_budget
+from echo_data.target import Target
 
 if TYPE_CHECKING:
     from echo_data.world import World
 
-STATE = "observation.state"
-BINAURAL = "observation.audio.binaural"
-SPECTROGRAM = "observation.audio.spectrogram"
-MEL = "observation.audio.mel"
-# The skill whose success resolves an event (and silences its sound): a ringing phone is
-# resolved when it is picked up, a doorbell when the door is open, a running faucet when closed.
-RESOLVING_SKILLS = ("Pick", "OpenDoor", "CloseSink")
-# Extra steps granted beyond a skill's own limit before it is called stuck.
-GUARD_STEPS = 20
 SHIPPED_RECIPES = Path(__file__).resolve().parents[2] / "recipes"
 
 
@@ -60,12 +55,6 @@ def resolve_recipe(recipe: Recipe | str | Path) -> tuple[Recipe, Path | None]:
     if not p.suffix and not p.exists():
         p = SHIPPED_RECIPES / f"{recipe}.yaml"
     return load_recipe(p), p.resolve().parent
-
-
-def skill_budget(recipe: Recipe, skill: str) -> int:
-    """Control steps a skill may take: its recipe limit (Place also drives: plus Navigate's) plus a guard."""
-    ms: dict[str, int] = {str(k): v for k, v in recipe.robot.max_steps.items()}
-    return ms[skill] + (ms["Navigate"] if skill == "Place" else 0) + GUARD_STEPS
 
 
 def action_space() -> spaces.Box:
@@ -113,7 +102,7 @@ class EchoDataEnv(gym.Env):
         split: str = "test",
         images: bool = True,
         audio: bool = True,
-        library: Any = None,
+        library: SoundLibrary | None = None,
         recipe_dir: str | Path | None = None,
         render_mode: str | None = None,
     ) -> None:
@@ -150,7 +139,7 @@ class EchoDataEnv(gym.Env):
 
     # ------------------------------------------------------------------ episode
     @property
-    def library(self) -> Any:
+    def library(self) -> SoundLibrary:
         if self._library is None:
             from echo_data.sounds import SoundLibrary
 
@@ -198,8 +187,10 @@ class EchoDataEnv(gym.Env):
         self.steps = 0
         self.failure = ""
         self._grids: dict[tuple, Any] = {}
-        self._resolver = {call.event: k for k, call in enumerate(spec.chain) if call.skill in RESOLVING_SKILLS}
+        self._resolver = {call.event: k for k, call in enumerate(spec.chain) if SKILLS[call.skill].resolves_event}
         self.max_episode_steps = sum(skill_budget(self.recipe, c.skill) for c in spec.chain)
+        self._situation = Situation(spec, self.nav_grid)
+        self.success_flags = self._evaluate()
         self.track = None
         block = None
         if self.audio:
@@ -222,6 +213,7 @@ class EchoDataEnv(gym.Env):
         pose = self.ear_pose()  # the head during this control period
         self.world.step(a)
         self.steps += 1
+        self.success_flags = self._evaluate()  # the one evaluation of this step: events, progress, reward, info
         newly = self._update_events()
         block = None
         if self.track is not None:
@@ -245,7 +237,7 @@ class EchoDataEnv(gym.Env):
         """Events whose resolving skill's success test holds now (latched): they stop sounding."""
         newly = []
         for e, k in self._resolver.items():
-            if self.sounding[e] and self.skill_success(self.episode.chain[k]):
+            if self.sounding[e] and self.success_flags[k]:
                 self.sounding[e] = False
                 self.resolved_step[e] = self.steps
                 newly.append(e)
@@ -253,12 +245,12 @@ class EchoDataEnv(gym.Env):
 
     def _advance(self) -> None:
         chain = self.episode.chain
-        while self.progress < len(chain) and self.skill_success(chain[self.progress]):
+        while self.progress < len(chain) and self.success_flags[self.progress]:
             call = chain[self.progress]
             if call.skill == "Place":  # the object rests on its goal now (a later Pick lifts it from there)
-                name = self._held_object(call)
+                name = carried_object(self.episode, call)
                 if name is not None:
-                    self.world.receptacles[name] = int(call.target.partition(":")[2])
+                    self.world.receptacles[name] = Target.parse(call.target).index
             self.progress += 1
 
     # ------------------------------------------------------------------ observations
@@ -300,7 +292,7 @@ class EchoDataEnv(gym.Env):
                 for e, ev in enumerate(spec.events)
             ],
             "skills": [
-                {"skill": c.skill, "target": c.target, "event": c.event, "success": self.skill_success(c), "done": k < self.progress}
+                {"skill": c.skill, "target": c.target, "event": c.event, "success": self.success_flags[k], "done": k < self.progress}
                 for k, c in enumerate(spec.chain)
             ],
             "active_skill": spec.chain[self.progress].skill if self.progress < len(spec.chain) else None,
@@ -314,33 +306,16 @@ class EchoDataEnv(gym.Env):
         return info
 
     # ------------------------------------------------------------------ success tests
+    def _evaluate(self) -> list[bool]:
+        """Every chain skill's success test on the current state, once (`echo_data.skills.registry`)."""
+        return [SKILLS[c.skill].success(self.world, c, self._situation) for c in self.episode.chain]
+
     def skill_success(self, call: SkillCall) -> bool:
-        """The success test of `call` on the current state (the tests of `echo_data.skills.success`)."""
-        from echo_data.skills import success as S
+        """The success test of `call` on the current state, evaluated now (the runtime reads
+        `info["skills"]`, which holds the step's one evaluation)."""
+        return SKILLS[call.skill].success(self.world, call, self._situation)
 
-        w = self.world
-        kind, _, idx = call.target.partition(":")
-        if call.skill == "Navigate":
-            return S.navigate_success(w, call.target, grid=self._nav_grid())
-        if call.skill == "Pick":
-            return S.pick_success(w, call.target)
-        if call.skill == "Place":
-            name = self._held_object(call)
-            return name is not None and S.place_success(w, name, int(idx))
-        if call.skill == "OpenDoor":
-            return S.door_open_success(w, int(idx))
-        if call.skill == "CloseSink":
-            return S.sink_closed_success(w, int(idx))
-        return False
-
-    def _held_object(self, call: SkillCall) -> str | None:
-        """The object a Place call carries: the Pick target of the same event."""
-        for c in self.episode.chain:
-            if c.event == call.event and c.skill == "Pick":
-                return c.target
-        return None
-
-    def _nav_grid(self) -> Any:
+    def nav_grid(self) -> Any:
         """Navigation grid at the doors' current angles (cached per angle to 1 mrad, ~1 mm at a door's edge)."""
         from echo_data.scene.nav import NavGrid
 

@@ -13,19 +13,17 @@ the same either way.
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from echo_data.dataset.schema import AUDIO_PREFIX, IMAGE_PREFIX
 from echo_data.recipe import Recipe
 
-IMAGE_PREFIX = "observation.images."
-AUDIO_PREFIX = "observation.audio."
 SAMPLING_RETRIES = 3
 
 
@@ -135,54 +133,71 @@ def evaluate_episode(job: EvalJob, index: int) -> dict[str, Any]:
 
 
 class _VideoRecorder:
-    """Collects one composed frame per step (head camera, top-down path, spectrogram strip)."""
+    """Keeps what each step's video frame shows (head camera, pose, which sources sound); the
+    frames are composed at the end, when the whole track is known (`echo_data.viz.frames`)."""
 
     def __init__(self, env: Any) -> None:
-        from echo_data.evaluation.video import TopDown
-
         self.env = env
-        self.top = TopDown(env.episode)
-        self.frames: list[Any] = []
-        self.path: list[tuple[float, float]] = []
+        self.steps: list[tuple[Any, Any, tuple[float, float], float, tuple[bool, ...], str]] = []
+
+    @property
+    def frames(self) -> int:
+        return len(self.steps)
 
     def __call__(self, env: Any, obs: dict, action: Any, k: int, call: Any, flags: tuple[bool, ...]) -> None:
-        from echo_data.evaluation.video import compose
+        from echo_data.dataset.schema import IMAGE_COLUMNS
 
         x, y, yaw = env.world.robot.base_pose()
-        self.path.append((x, y))
-        self.frames.append(compose(obs, self.top.draw(self.path, yaw, env.sounding), f"{call.skill}({call.target})"))
+        depth = obs.get(IMAGE_COLUMNS["head_depth"])
+        depth_m = None if depth is None else np.asarray(depth, dtype=np.float64) / 1000.0
+        self.steps.append((obs.get(IMAGE_COLUMNS["head_rgb"]), depth_m, (x, y), yaw, tuple(env.sounding), f"{call.skill}({call.target})"))
 
     def write(self, path: Path) -> str:
         from echo_data.media import write_mp4
+        from echo_data.viz.frames import PANEL, EpisodeFrames
+        from echo_data.viz.topdown import TopDownMap
 
         track, offsets = self.env.episode_audio()
-        hop = self.env.track.hop
+        hop, fs = self.env.track.hop, self.env.track.fs
         start = int(offsets[0])
-        audio = track[start : start + len(self.frames) * hop]
+        audio = track[start : start + len(self.steps) * hop]
+        episode = self.env.episode
+        video = EpisodeFrames(TopDownMap(episode.plan, episode.events, size=PANEL), track, fs)
+        path_xy = [s[2] for s in self.steps]
+        frames = (
+            video.frame(rgb, depth, path_xy[: t + 1], yaw, start + t * hop, f"{episode.episode_id}  t={t / self.env.recipe.robot.control_hz:.1f}s  {caption}", sounding)
+            for t, (rgb, depth, _, yaw, sounding, caption) in enumerate(self.steps)
+        )
         path.parent.mkdir(parents=True, exist_ok=True)
-        write_mp4(path, self.frames, fps=float(self.env.recipe.robot.control_hz), audio=audio, sample_rate=self.env.track.fs)
+        write_mp4(path, frames, fps=float(self.env.recipe.robot.control_hz), audio=audio, sample_rate=fs)
         return str(path)
 
 
-def _init_worker() -> None:
-    os.environ.setdefault("LP_NUM_THREADS", "1")
+_JOB: dict[str, EvalJob] = {}
+
+
+def _set_job(job: EvalJob) -> None:
+    """Worker setup: the job every task of this evaluation shares (sent once per worker)."""
+    _JOB["job"] = job
+
+
+def _evaluate_index(index: int) -> dict[str, Any]:
+    return evaluate_episode(_JOB["job"], index)
 
 
 def run_episodes(job: EvalJob, n: int, workers: int = 1, progress: Callable[[dict[str, Any]], None] | None = None) -> list[dict[str, Any]]:
-    """Episodes 0..n-1 of the split, on `workers` processes; records ordered by index."""
+    """Episodes 0..n-1 of the split, on `workers` processes (the build's pool); records ordered by index."""
+    from echo_data.app.executors import make_executor
+
     out: dict[int, dict[str, Any]] = {}
-    if workers <= 1:
-        for i in range(n):
-            out[i] = evaluate_episode(job, i)
+    pool = make_executor("local", workers, _set_job, (job,))
+    try:
+        for rec in pool.imap_unordered(_evaluate_index, range(n)):
+            out[rec["index"]] = rec
             if progress:
-                progress(out[i])
-    else:
-        with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_init_worker) as pool:
-            futs = {pool.submit(evaluate_episode, job, i): i for i in range(n)}
-            for f in as_completed(futs):
-                out[futs[f]] = f.result()
-                if progress:
-                    progress(out[futs[f]])
+                progress(rec)
+    finally:
+        pool.close()
     return [out[i] for i in range(n)]
 
 

@@ -91,11 +91,12 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
     """Roll the policy in `run` on train episodes `episodes`, label every visited state."""
     import torch
 
-    from echo_data.agents.runtime import true_chain
-    from echo_data.envs.env import EchoDataEnv, skill_budget
+    from echo_data.agents.runtime import succeeded, true_chain
+    from echo_data.envs.env import EchoDataEnv
     from echo_data.evaluation.run import needs
     from echo_data.learn.policy import BCPolicy
     from echo_data.scene.sampling import SamplingError
+    from echo_data.skills.registry import skill_budget
 
     policy = BCPolicy.from_run(run)
     recipe, _ = recipe_of(dataset)
@@ -120,11 +121,11 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
             call = spec.chain[0]
             policy.reset({"skill": call.skill, "target": call.target, "target_kind": true_chain(spec)[0]["target"], "skill_index": 0,
                           "event": call.event, "spec_object": spec, "world": env.world})
-            label = NavigateLabeller(env.world, call.target, env._nav_grid())
+            label = NavigateLabeller(env.world, call.target, env.nav_grid())
             budget = skill_budget(recipe, "Navigate") if max_steps is None else max_steps
             last = np.zeros(3, dtype=np.float32)
             for _ in range(budget):
-                if env.skill_success(call):
+                if succeeded(info, 0):
                     break
                 y = label(last)
                 if y is None:
@@ -134,11 +135,11 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
                 a = policy.act(obs)
                 labels.append(y)
                 gaps.append(float(np.abs(a[[0, 2]] - y[[0, 2]]).mean()))
-                obs, _, _, _, step_info = env.step(a)
+                obs, _, _, _, info = env.step(a)
                 last = a[:3]
-                if step_info.get("failure"):
+                if info.get("failure"):
                     break
-            success.append(bool(env.skill_success(call)))
+            success.append(succeeded(info, 0))
     finally:
         env.close()
     inputs = {k: torch.cat(v) for k, v in parts.items()}

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import pyarrow.parquet as pq
 
+from echo_data import seeds
 from echo_data.learn import runs
 from echo_data.learn.data import Shards, prepare_rows, split_episodes
 from echo_data.learn.features import FeatureSpec, feature_spec
@@ -119,7 +120,7 @@ def split_by_sounds(rows: list[dict[str, Any]], fraction: float, seed: int) -> t
         for e in r["events"]:
             by_cat.setdefault(e["category"], set()).add(e["sound_id"])
     held: set[str] = set()
-    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x50D5]))
+    rng = seeds.derived_rng(seeds.HELD_OUT_SOUNDS, seed)
     for cat in sorted(by_cat):
         ids = sorted(by_cat[cat])
         if len(ids) >= 2:
@@ -176,7 +177,7 @@ def subset(indices: list[int], n: int | None, seed: int) -> set[int]:
     """The first `n` episodes of a permutation drawn from `seed` (all when `n` is None): a size
     that mixes the settings (episode indices run setting by setting), nested across sizes so a
     learning curve adds episodes to the same set."""
-    order = np.random.default_rng(np.random.SeedSequence([seed, 0x5EB5E7])).permutation(sorted(indices))
+    order = seeds.derived_rng(seeds.SUBSET, seed).permutation(sorted(indices))
     return {int(i) for i in order[: len(order) if n is None else n]}
 
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from echo_data import seeds
 from echo_data.recipe import Recipe
 from echo_data.scene.floorplan import (
     Door,
@@ -808,7 +809,7 @@ def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int, family: s
         objects=(),
         wall_height=sc.wall_height,
         extra=_layout_extra(layout, entrance.index, len(opened)),
-        furnishings=_furnish(rooms, pieces, doorways, furniture, t, sc.wall_height, np.random.default_rng([seed, 0x50F7])),
+        furnishings=_furnish(rooms, pieces, doorways, furniture, t, sc.wall_height, seeds.derived_rng(seeds.FURNISHINGS, seed)),
     )
     lo, hi = recipe.objects.distractors
     shapes = list(recipe.objects.distractor_shapes)
@@ -833,7 +834,7 @@ def _room_surfaces(rooms: list[Room], layout: Layout, wet_floors: tuple[str, ...
         floor = first.floor_material if out[b].kind == first.kind else out[b].floor_material
         out[b] = dataclasses.replace(out[b], wall_material=first.wall_material, ceiling_material=first.ceiling_material, floor_material=floor)
     if wet_floors is not None:
-        rng = np.random.default_rng([seed, 0x3E7F])
+        rng = seeds.derived_rng(seeds.WET_FLOORS, seed)
         out = [dataclasses.replace(r, floor_material=room_floor(r.floor_material, r.kind, wet_floors, int(rng.integers(1 << 30)))) for r in out]
     return out
 

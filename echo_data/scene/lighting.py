@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from echo_data import seeds
 from echo_data.scene.floorplan import FloorPlan
 
 if TYPE_CHECKING:
@@ -45,7 +46,7 @@ def add_lights(scene: sapien.Scene, plan: FloorPlan, flat: bool = False) -> None
         scene.add_directional_light([0.3, 0.4, -1.0], [0.7, 0.7, 0.65], shadow=False)
         scene.add_directional_light([-0.4, -0.2, -1.0], [0.25, 0.25, 0.3], shadow=False)
         return
-    rng = np.random.default_rng([plan.seed, 0x11647])
+    rng = seeds.derived_rng(seeds.LIGHTING, plan.seed)
     scene.set_ambient_light([float(rng.uniform(*AMBIENT))] * 3)
     az = rng.uniform(0.0, 2.0 * np.pi)
     el = np.radians(rng.uniform(*SUN_ELEVATION_DEG))

@@ -18,6 +18,7 @@ from scipy.sparse import csgraph
 
 from echo_data.scene.door_handle import HANDLE_BAR, handle_xy
 from echo_data.scene.floorplan import Door, FloorPlan, Furniture, Rect
+from echo_data.target import Target
 
 # Extra clearance (m) the planner prefers beyond the robot radius: paths keep it where they
 # can (path cost, shortcut test) so that a follower's tracking error does not touch walls.
@@ -343,11 +344,11 @@ def _face_axes(f: Furniture, yaw: float) -> tuple[tuple[float, float], tuple[flo
 
 def target_point(plan: FloorPlan, target: str, door_angles: dict[int, float] | None = None) -> tuple[float, float]:
     """The xy the robot must face for a target: object centre, door handle, faucet lever, furniture centre."""
-    kind, _, idx = target.partition(":")
-    if not idx:
-        o = plan.object_by_name(target)
+    t = Target.parse(target)
+    kind, i = t.kind, t.index
+    if kind == "object":
+        o = plan.object_by_name(t.name)
         return (o.position[0], o.position[1])
-    i = int(idx)
     if kind == "door":
         door = plan.doors[i]
         q = (door_angles or {}).get(i, door.angle)
@@ -414,10 +415,11 @@ def interaction_pose(
         grid = NavGrid.from_plan(plan, door_angles=door_angles)
     r = grid.robot_radius
     look = target_point(plan, target, door_angles)
-    kind, _, idx = target.partition(":")
+    t = Target.parse(target)
+    kind, idx = t.kind, t.index
     pose: tuple[float, float, float] | None = None
-    if not idx:
-        f = plan.furniture[plan.object_by_name(target).receptacle]
+    if kind == "object":
+        f = plan.furniture[plan.object_by_name(t.name).receptacle]
         # The front first; the sides only when nothing in front is free and within reach.
         for yaw in (f.yaw, f.yaw + math.pi / 2, f.yaw - math.pi / 2):
             cands = _face_candidates(f, yaw, look, OBJECT_STANDOFF, r)
@@ -426,15 +428,15 @@ def interaction_pose(
             if pose is not None:
                 break
     elif kind == "furniture":
-        f = plan.furniture[int(idx)]
+        f = plan.furniture[idx]
         pose = _first_free(grid, _face_candidates(f, f.yaw, f.center, 0.0, r), look)
     elif kind == "faucet":
-        fc = plan.faucets[int(idx)]
+        fc = plan.faucets[idx]
         f = plan.furniture[fc.furniture]
         pivot = (fc.pivot[0], fc.pivot[1])
         pose = _first_free(grid, _face_candidates(f, f.yaw, pivot, FAUCET_STANDOFF, r), look)
     elif kind == "door":
-        door = plan.doors[int(idx)]
+        door = plan.doors[idx]
         pose = _first_free(grid, _door_candidates(door), look)
     else:
         raise ValueError(f"unknown navigation target {target!r}")

@@ -25,6 +25,7 @@ from echo_data.scene.floorplan import FloorPlan, Rect, Vec3
 from echo_data.scene.generate import GenerationError, door_swing_zone, front_zone, generate_floorplan, place_object
 from echo_data.scene.nav import NavGrid, interaction_pose
 from echo_data.scene.objects import instance_scale
+from echo_data.target import Target
 
 START_MIN_DISTANCE = 2.0  # m from the first target's sound source
 START_ROOM_MARGIN = 0.4  # m from the room's wall centre lines
@@ -203,11 +204,11 @@ def _attempt(recipe: Recipe, split: str, index: int, attempt: int, seed: int, li
     if state_cat == "doorbell":
         belled = [d.index for d in plan.doors if d.doorbell is not None]
         door_i = belled[int(rng.integers(len(belled)))]
-        state_target = f"door:{door_i}"
+        state_target = str(Target.door(door_i))
         if not region_free(plan, door_frontal_region(plan, door_i), plan.doors[door_i].swing_room, ignore_door=door_i):
             raise _Reject("no_frontal_region")
     elif state_cat == "sink":
-        state_target = "faucet:0"
+        state_target = str(Target.faucet(0))
         sink = plan.furniture[plan.faucets[0].furniture]
         if not region_free(plan, sink_frontal_region(plan, 0), sink.room):
             raise _Reject("no_frontal_region")
@@ -217,7 +218,7 @@ def _attempt(recipe: Recipe, split: str, index: int, attempt: int, seed: int, li
         except ValueError:
             raise _Reject("no_interaction_pose") from None
         home = _component_of(labels, grid, (sx, sy))
-    stand = {f.index: _stand_component(plan, grid, labels, f"furniture:{f.index}") for f in plan.furniture if f.receptacle}
+    stand = {f.index: _stand_component(plan, grid, labels, str(Target.furniture(f.index))) for f in plan.furniture if f.receptacle}
     if state_target is None:
         # relocation only: the region with the most receptacles (ties: the larger region)
         sizes = np.bincount(labels.ravel())
@@ -243,12 +244,12 @@ def _attempt(recipe: Recipe, split: str, index: int, attempt: int, seed: int, li
         obj = plan.object_by_name(name)
         events.append((reloc_cat, name, obj.position))
     if state_cat == "doorbell" and state_target is not None:
-        door_i = int(state_target.split(":")[1])
+        door_i = Target.parse(state_target).index
         bell = plan.doors[door_i].doorbell
         assert bell is not None  # the door was drawn among those with a bell
         events.append(("doorbell", state_target, bell))
     elif state_cat == "sink":
-        events.append(("sink", "faucet:0", plan.faucets[0].spout))
+        events.append(("sink", str(Target.faucet(0)), plan.faucets[0].spout))
 
     prio: list[str] = list(recipe.events.priority)
     events.sort(key=lambda e: prio.index(e[0]))
@@ -279,7 +280,7 @@ def _attempt(recipe: Recipe, split: str, index: int, attempt: int, seed: int, li
         if ev.category in RELOCATION_CATEGORIES:
             obj = plan.object_by_name(ev.target)
             goal = _place_goal(plan, grid, obj.receptacle, obj.category, receptacles, ev.target)
-            chain += [SkillCall("Navigate", ev.target, k), SkillCall("Pick", ev.target, k), SkillCall("Place", f"furniture:{goal}", k)]
+            chain += [SkillCall("Navigate", ev.target, k), SkillCall("Pick", ev.target, k), SkillCall("Place", str(Target.furniture(goal)), k)]
         elif ev.category == "doorbell":
             chain += [SkillCall("Navigate", ev.target, k), SkillCall("OpenDoor", ev.target, k)]
         else:
@@ -323,7 +324,7 @@ def _place_goal(plan: FloorPlan, grid: NavGrid, source: int, category: str, rece
         if place_object(plan, category, "_probe", probe_rng, sounding=False, receptacles=[i], scale=scale) is None:
             continue
         try:
-            gx, gy, _ = interaction_pose(plan, f"furniture:{i}", grid=grid)
+            gx, gy, _ = interaction_pose(plan, str(Target.furniture(i)), grid=grid)
         except ValueError:
             continue
         if grid.plan_path((px, py), (gx, gy)) is not None:
@@ -343,7 +344,7 @@ def _check_paths(plan: FloorPlan, grid: NavGrid, start: tuple[float, float, floa
         if call.skill in ("Pick", "CloseSink"):
             continue
         if call.skill == "OpenDoor":
-            i = int(call.target.split(":")[1])
+            i = Target.parse(call.target).index
             door_angles[i] = plan.doors[i].open_threshold
             grid = NavGrid.from_plan(plan, robot_radius=grid.robot_radius, resolution=grid.resolution, door_angles=door_angles)
             # the robot ends beside the opened leaf; continue from the nearest free spot

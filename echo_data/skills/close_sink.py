@@ -36,6 +36,7 @@ from echo_data.skills.reach import (
     untuck_waypoints,
 )
 from echo_data.skills.success import sink_closed_success
+from echo_data.target import Target
 
 if TYPE_CHECKING:
     from echo_data.episode import EpisodeSpec, SkillCall
@@ -171,7 +172,7 @@ def close_sink(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np
     skill, target = call.skill, call.target
     robot = world.robot
     max_steps = int(robot.cfg.max_steps["CloseSink"])
-    i = int(target.partition(":")[2])
+    i = Target.parse(target).index
     faucet: Faucet = world.plan.faucets[i]
     cabinet: Furniture = world.plan.furniture[faucet.furniture]
     art = world.handles.faucets[i]

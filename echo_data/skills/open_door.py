@@ -42,6 +42,7 @@ from echo_data.skills.reach import (
     wrap,
 )
 from echo_data.skills.success import DOOR_REST_QVEL, door_open_success
+from echo_data.target import Target
 
 if TYPE_CHECKING:
     from echo_data.episode import EpisodeSpec, SkillCall
@@ -154,7 +155,7 @@ def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.
     robot = world.robot
     max_steps = int(robot.cfg.max_steps["OpenDoor"])
     dt = 1.0 / robot.cfg.control_hz
-    i = int(target.partition(":")[2])
+    i = Target.parse(target).index
     door: Door = world.plan.doors[i]
     art = world.handles.doors[i]
     leaf = art.links[1]

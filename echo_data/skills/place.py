@@ -25,6 +25,7 @@ from echo_data.scene.objects import object_size
 from echo_data.skills import arm
 from echo_data.skills.budget import Budget, SkillFailed
 from echo_data.skills.success import object_bottom, place_success
+from echo_data.target import Target
 
 if TYPE_CHECKING:
     from echo_data.episode import EpisodeSpec, SkillCall
@@ -96,10 +97,13 @@ def place(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndar
     # arm work Place's own.
     drive_budget = Budget(int(robot.cfg.max_steps["Navigate"]))
     budget = Budget(int(robot.cfg.max_steps["Place"]))
-    kind, _, idx = str(call.target).partition(":")
-    if kind != "furniture" or not idx:
+    try:
+        tgt = Target.parse(call.target)
+    except ValueError:
+        tgt = Target.object("")
+    if tgt.kind != "furniture":
         return SkillOutcome(call.skill, call.target, False, "bad target", 0)
-    goal = int(idx)
+    goal = tgt.index
     name = held_object(world, call, spec)
     if name is None or robot.holding != name:
         return SkillOutcome(call.skill, call.target, False, "not holding", 0)
@@ -122,7 +126,7 @@ def _drive(world: World, goal: int, budget: Budget) -> Generator[np.ndarray, Non
 
     grid = current_grid(world)
     try:
-        pose = interaction_pose(world.plan, f"furniture:{goal}", door_angles=door_angles(world) or None, grid=grid)
+        pose = interaction_pose(world.plan, str(Target.furniture(goal)), door_angles=door_angles(world) or None, grid=grid)
     except ValueError:
         raise SkillFailed("no_path") from None
     name = world.robot.holding

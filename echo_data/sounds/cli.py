@@ -75,7 +75,7 @@ def export_sounds(
 
     lib = _library(recipe)
     items = _select(lib, category, split)
-    from echo_data.dataset.build import OutputError, check_output_path
+    from echo_data.outputs import OutputError, check_output_path
 
     try:
         check_output_path(out_dir)

@@ -32,7 +32,7 @@ def build_cmd(
     progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Show a progress bar.")] = True,
 ) -> None:
     """Build the dataset of a recipe: Parquet + WAV shards, manifest, stats, planner export."""
-    from echo_data.dataset.build import BuildError, OutputError, build
+    from echo_data.app.build import BuildError, OutputError, build
     from echo_data.recipe import RecipeError, load_recipe
 
     if resume and overwrite:
@@ -86,22 +86,32 @@ def info_cmd(
     typer.echo(json.dumps(d, indent=1, sort_keys=True) if as_json else format_info(d))
 
 
+# Export formats: name -> (module, function). A function takes (source dataset, output folder,
+# overwrite=) and returns the export's info (`codebase_version`, `total_episodes`, `total_frames`,
+# `splits`); it raises an error with one line for bad input. docs/adding_an_export_format.md.
+EXPORT_FORMATS: dict[str, tuple[str, str]] = {
+    "lerobot": ("echo_data.dataset.lerobot", "export_lerobot"),
+}
+
+
 def export_cmd(
     path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder of the exported dataset.")],
-    fmt: Annotated[str, typer.Option("--format", help="Target format: lerobot (LeRobot codebase v3.0).")] = "lerobot",
+    fmt: Annotated[str, typer.Option("--format", help=f"Target format: {', '.join(EXPORT_FORMATS)} (lerobot: LeRobot codebase v3.0).")] = "lerobot",
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing export.")] = False,
 ) -> None:
     """Write the dataset in another library's format (LeRobot v3.0), next to the original."""
-    from echo_data.dataset.lerobot import ExportError, export_lerobot
+    import importlib
 
-    if fmt != "lerobot":
-        raise _fail(f"--format {fmt}: unknown format (use lerobot)", 2)
+    if fmt not in EXPORT_FORMATS:
+        raise _fail(f"--format {fmt}: unknown format (use {' or '.join(EXPORT_FORMATS)})", 2)
+    module, name = EXPORT_FORMATS[fmt]
+    mod = importlib.import_module(module)
     try:
-        info = export_lerobot(path, out, overwrite=overwrite)
-    except ExportError as e:
+        info = getattr(mod, name)(path, out, overwrite=overwrite)
+    except mod.ExportError as e:
         raise _fail(str(e), 2) from None
-    typer.echo(f"{out}: LeRobot {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
+    typer.echo(f"{out}: {fmt} {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
 
 
 def view_cmd(

@@ -1,7 +1,7 @@
 """`echo-data build`: episodes -> shards, with workers, resume and kill-safety (the orchestration).
 
-Episodes are computed anywhere (see `echo_data.executors`): a worker samples, simulates and
-hears one episode (`echo_data.pipeline`) and encodes it (`echo_data.dataset.encode`); this
+Episodes are computed anywhere (see `echo_data.app.executors`): a worker samples, simulates and
+hears one episode (`echo_data.app.pipeline`) and encodes it (`echo_data.dataset.encode`); this
 process alone writes, through `echo_data.dataset.writer.DatasetWriter` (staging, shards in
 order, manifest, meta), whose files are all replaced atomically (`echo_data.dataset.storage`).
 A kill therefore loses at most the episodes in flight, and a resume verifies shards by sha256,
@@ -12,9 +12,7 @@ build -> writer -> shards (`echo_data.dataset.shards`) / manifest -> storage.
 from __future__ import annotations
 
 import errno
-import os
 import shutil
-import tempfile
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -22,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from echo_data.app.executors import ExecutorError, make_executor
 from echo_data.dataset.encode import EncodedEpisode
 from echo_data.dataset.lock import LOCK_NAME, BuildLock, BuildLockedError
 from echo_data.dataset.manifest import (
@@ -36,17 +35,14 @@ from echo_data.dataset.manifest import (
 from echo_data.dataset.schema import StepLayout
 from echo_data.dataset.writer import DatasetWriter
 from echo_data.episode import attempt_draws
-from echo_data.executors import ExecutorError, make_executor
+from echo_data.outputs import OutputError, check_output_path
 from echo_data.pcm import ClippingError
+from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.records import EpisodeResult
 
 BuildMode = Literal["new", "resume", "overwrite"]
 Generate = Callable[..., EpisodeResult]
-
-
-class OutputError(ValueError):
-    """Bad input for a build (output path, mode, recipe mismatch): exit 2, nothing written."""
 
 
 class OutputWriteError(OutputError):
@@ -98,7 +94,7 @@ class _Job:
     recipe_dir: Path
     layout: StepLayout
     generate: Generate
-    make_library: Callable[[Recipe, Path], Any] | None
+    make_library: Callable[[Recipe, Path], SoundLibrary] | None
 
 
 @dataclass
@@ -121,7 +117,7 @@ def _init_job(job: _Job) -> None:
     _JOB, _LIBRARY = job, _UNSET
 
 
-def default_library(recipe: Recipe, recipe_dir: Path) -> Any:
+def default_library(recipe: Recipe, recipe_dir: Path) -> SoundLibrary:
     """The recipe's sound library (built once per worker)."""
     try:
         from echo_data.sounds import SoundLibrary
@@ -196,25 +192,6 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
 # ---------------------------------------------------------------- output checks
 
 
-def check_output_path(out: Path) -> None:
-    """Refuse an output that is a file or lies somewhere not writable (nothing is left behind)."""
-    p = Path(out).absolute()
-    try:
-        too_long = [part for part in p.parts if len(os.fsencode(part)) > 255]
-        if too_long or len(os.fsencode(str(p))) >= 4096:
-            raise OutputError(f"{out}: path too long (at most 255 bytes per folder name, 4095 in all)")
-        if p.exists() and not p.is_dir():
-            raise OutputError(f"{out}: exists and is not a directory")
-        anc = p
-        while not anc.exists():
-            anc = anc.parent
-        if not anc.is_dir():
-            raise OutputError(f"{out}: {anc} is a file, not a directory")
-        os.rmdir(tempfile.mkdtemp(prefix=".echo-data-probe-", dir=anc))
-    except OSError as e:
-        raise OutputError(f"{out}: not writable ({e.strerror or e})") from None
-
-
 def _prepare(
     out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, mode: str, workers: int, executor: str, only: Sequence[str] | None
 ) -> dict[str, Any]:
@@ -260,7 +237,7 @@ def _prepare(
 
 def _default_generate() -> Generate:
     try:
-        from echo_data.pipeline import generate_episode
+        from echo_data.app.pipeline import generate_episode
     except ImportError as e:
         raise BuildError(f"the episode pipeline is not available: {e}") from None
     return generate_episode
@@ -276,14 +253,14 @@ def build(
     executor: Literal["local", "ray"] = "local",
     generate: Generate | None = None,
     progress: bool = True,
-    make_library: Callable[[Recipe, Path], Any] | None = None,
+    make_library: Callable[[Recipe, Path], SoundLibrary] | None = None,
     address: str | None = None,
     only: Sequence[str] | None = None,
 ) -> BuildSummary:
     """Build (or resume) the dataset of `recipe` in the directory `out`.
 
     `generate(recipe, split, index, library, recipe_dir, attempt=0) -> EpisodeResult` defaults
-    to `echo_data.pipeline.generate_episode`; `make_library(recipe, recipe_dir)` defaults to the
+    to `echo_data.app.pipeline.generate_episode`; `make_library(recipe, recipe_dir)` defaults to the
     recipe's `SoundLibrary`; `address` is a Ray cluster's (with executor "ray"); `only` names the
     splits to build (default: all). Raises
     `OutputError` (bad input, nothing written) or `BuildError`.
@@ -362,7 +339,7 @@ def _build_locked(
     executor: str,
     gen: Generate,
     progress: bool,
-    make_library: Callable[[Recipe, Path], Any] | None,
+    make_library: Callable[[Recipe, Path], SoundLibrary] | None,
     layout: StepLayout,
     plans: dict[str, ShardPlans],
     t0: float,

@@ -17,19 +17,18 @@ from echo_data.envs.audio import PRE_ROLL_SECONDS, event_waveform, step_samples 
 from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.recipe import Recipe
 from echo_data.records import EpisodeResult, StepRecord
-from echo_data.rollout import Rollout
 
 if TYPE_CHECKING:
     from echo_data.envs.env import EchoDataEnv
     from echo_data.sounds.library import SoundLibrary
 
 
-def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: SoundLibrary | None = None) -> Rollout:
+def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: SoundLibrary | None = None) -> EpisodeResult:
     """Run `spec`'s chain with the scripted experts acting in the environment; record every step.
 
     `observe`: render the cameras. With a sound `library` the robot also hears (online audio,
-    per-step features) and the rollout carries the finished episode track. The recipe's
-    `outputs.max_frames` cuts the run after that many steps (`Rollout.truncated_at`).
+    per-step features) and the result carries the finished episode track. The recipe's
+    `outputs.max_frames` cuts the run after that many steps (`EpisodeResult.truncated_at`).
     """
     from echo_data.agents.builtin import OraclePlanner, OracleSkills
     from echo_data.agents.runtime import run_episode
@@ -44,7 +43,11 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
         if recorder.steps:  # the last stored step ends the episode; its flags are the outcomes so far
             recorder.steps[-1].done = True
             recorder.steps[-1].skill_success = tuple(o.success for o in run.outcomes) + (False,) * (len(spec.chain) - len(run.outcomes))
-        ro = Rollout(recorder.steps, run.outcomes, list(env.resolved_step), len(spec.chain), list(env.door_changes), truncated_at=run.truncated_at)
+        success = len(run.outcomes) == len(spec.chain) and all(o.success for o in run.outcomes)
+        ro = EpisodeResult(
+            spec, recorder.steps, run.outcomes, success,
+            resolved_frame=list(env.resolved_step), door_changes=list(env.door_changes), truncated_at=run.truncated_at,
+        )
         if env.track is not None and recorder.steps:
             ro.audio, ro.audio_offsets = env.episode_audio()
             ro.spectrogram = _stack(recorder.spectrogram)
@@ -95,7 +98,7 @@ class _Recorder:
             self.mel.append(obs[MEL])
 
 
-def render_episode_audio(spec: EpisodeSpec, rollout: Rollout, recipe: Recipe, library: SoundLibrary) -> tuple[np.ndarray, np.ndarray]:
+def render_episode_audio(spec: EpisodeSpec, rollout: EpisodeResult, recipe: Recipe, library: SoundLibrary) -> tuple[np.ndarray, np.ndarray]:
     """The binaural track of a recorded rollout (its ear poses, stops and door changes) and each
     step's sample offset: the same `OnlineTrack` the environment hears with, fed after the fact."""
     from echo_data.envs.audio import OnlineTrack
@@ -134,14 +137,6 @@ def generate_episode(
     from echo_data.scene.sampling import sample_episode
 
     spec, rejected = sample_episode(recipe, split, index, library, attempt=attempt)
-    rollout = simulate(spec, recipe, observe=True, library=library)
-    result = EpisodeResult(
-        spec=spec, steps=rollout.steps, outcomes=rollout.outcomes, success=rollout.success, rejected=rejected, truncated_at=rollout.truncated_at,
-    )
-    if not result.complete or not rollout.steps:
-        return result
-    result.audio = rollout.audio
-    result.audio_offsets = rollout.audio_offsets
-    result.spectrogram = rollout.spectrogram
-    result.mel = rollout.mel
+    result = simulate(spec, recipe, observe=True, library=library)
+    result.rejected = rejected
     return result

@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-import os
 import time
 from collections import Counter
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
@@ -38,13 +35,9 @@ class TrialReport:
     per_setting: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
-def _init_worker() -> None:
-    os.environ.setdefault("LP_NUM_THREADS", "1")
-
-
 def run_trial_episode(recipe: Recipe, recipe_dir: str | None, index: int, observe: bool) -> TrialEpisode:
     """Sample and simulate episode `index` of the train split; never raises for expert failures."""
-    from echo_data.pipeline import simulate
+    from echo_data.app.pipeline import simulate
     from echo_data.scene.sampling import SamplingError, sample_episode
     from echo_data.sounds import SoundLibrary
 
@@ -94,22 +87,28 @@ def summarise(eps: list[TrialEpisode]) -> TrialReport:
     return rep
 
 
+def _no_setup() -> None:
+    """Trial workers need nothing beyond the pool's own setup (one renderer thread)."""
+
+
+def _trial_task(task: tuple[Recipe, str | None, int, bool]) -> TrialEpisode:
+    return run_trial_episode(*task)
+
+
 def run_trial(
     recipe: Recipe, recipe_dir: Path | None, n: int, workers: int = 1, observe: bool = True, progress: Any = None
 ) -> TrialReport:
-    """Run episodes 0..n-1 of the train split on `workers` processes."""
-    eps: list[TrialEpisode] = []
+    """Run episodes 0..n-1 of the train split on `workers` processes (the build's pool)."""
+    from echo_data.app.executors import make_executor
+
     rd = str(recipe_dir) if recipe_dir else None
-    if workers <= 1:
-        for i in range(n):
-            eps.append(run_trial_episode(recipe, rd, i, observe))
+    pool = make_executor("local", workers, _no_setup, ())
+    eps: list[TrialEpisode] = []
+    try:
+        for e in pool.imap_unordered(_trial_task, [(recipe, rd, i, observe) for i in range(n)]):
+            eps.append(e)
             if progress:
-                progress(eps[-1])
-    else:
-        with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_init_worker) as pool:
-            futs = [pool.submit(run_trial_episode, recipe, rd, i, observe) for i in range(n)]
-            for f in futs:
-                eps.append(f.result())
-                if progress:
-                    progress(eps[-1])
-    return summarise(eps)
+                progress(e)
+    finally:
+        pool.close()
+    return summarise(sorted(eps, key=lambda e: e.index))
