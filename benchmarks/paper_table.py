@@ -112,12 +112,15 @@ def evaluate(recipe: Path, row: dict[str, Any], runs: Path, n: int, workers: int
     args = ["evaluate", str(recipe), "--split", "test", "-n", str(n), *(f"--policy={p}" for p in pol), "--policy", "oracle",
             "--planner", row["planner"], "--workers", str(workers), "--json", str(out)]
     _, seconds = cli(*args)
-    doc = json.loads(out.read_text())
+    return scored(json.loads(out.read_text()), "echo-data " + " ".join(rel(Path(a)) if Path(a).exists() else a for a in args), seconds)
+
+
+def scored(doc: dict[str, Any], command: str, seconds: float) -> dict[str, Any]:
+    """A row's entry from `echo-data evaluate --json`'s document: metrics, per-skill success, the command."""
     metrics = doc["metrics"].get("all") or next(iter(doc["metrics"].values()), {})
-    res = {"command": "echo-data " + " ".join(rel(Path(a)) if Path(a).exists() else a for a in args), "wall_seconds": round(seconds, 1),
-           "metrics": {k: metrics[k] for k in ("episodes", "task_planning", "skill_completion", "progressive", "navigate_success") if k in metrics}}
-    res["skills"] = {s: skill_success(doc["episodes"], s) for s in SKILLS}
-    return res
+    return {"command": command, "wall_seconds": round(seconds, 1),
+            "metrics": {k: metrics[k] for k in ("episodes", "task_planning", "skill_completion", "progressive", "navigate_success") if k in metrics},
+            "skills": {s: skill_success(doc["episodes"], s) for s in SKILLS}}
 
 
 def cell(p: dict[str, Any] | None) -> str:
