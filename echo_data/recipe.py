@@ -175,6 +175,11 @@ class SoundsConfig(_Strict):
     builtin: bool = True
     folders: dict[Category, str] = Field(default_factory=dict)
     folder_test_fraction: float = Field(0.3, ge=0.0, lt=1.0)
+    # Each event of a train (or val) episode that would play a built-in train instance plays a
+    # fresh synthesised one instead, drawn from the episode's seed (`episode.fresh_sound_seed`):
+    # thousands of training voices instead of 77, so a learner hears the category, not the voices.
+    # Test episodes keep the library's held-out test instances.
+    fresh_train_instances: bool = False
 
 
 class EventsConfig(_Strict):
@@ -282,6 +287,16 @@ class OutputsConfig(_Strict):
     max_frames: int | None = Field(None, ge=1, le=100_000)
 
 
+class ExpertsConfig(_Strict):
+    """How the scripted experts demonstrate."""
+
+    # DART (Laskey et al. 2017): the executed action is the expert's plus zero-mean Gaussian noise
+    # of `action_noise` times the per-dimension standard deviations of
+    # `echo_data.agents.dart.NOISE_STD` (units there); the `action` column keeps the expert's own
+    # command from the perturbed state, `action.executed` what the robot did. 0 = no noise.
+    action_noise: float = Field(0.0, ge=0.0, le=4.0)
+
+
 class Recipe(_Strict):
     """A whole, validated recipe."""
 
@@ -304,6 +319,7 @@ class Recipe(_Strict):
     robot: RobotConfig = RobotConfig()
     acoustics: AcousticsConfig = AcousticsConfig()
     outputs: OutputsConfig = OutputsConfig()
+    experts: ExpertsConfig = ExpertsConfig()
 
     @field_validator("splits")
     @classmethod
@@ -389,6 +405,10 @@ class Recipe(_Strict):
         data = self.model_dump(mode="json")
         if data["outputs"]["max_frames"] is None:  # whole episodes: the hash recipes had before the key existed
             del data["outputs"]["max_frames"]
+        if data["experts"] == ExpertsConfig().model_dump(mode="json"):  # noiseless experts: as before the key existed
+            del data["experts"]
+        if not data["sounds"]["fresh_train_instances"]:  # library voices only: as before the key existed
+            del data["sounds"]["fresh_train_instances"]
         blob = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(blob.encode()).hexdigest()
 
@@ -487,6 +507,8 @@ def _check_sound_folders(recipe: Recipe, source: str) -> None:
         p = (base / folder) if not Path(folder).is_absolute() else Path(folder)
         if not p.is_dir():
             raise RecipeError(f"{source}: sounds.folders.{cat}: not a readable folder: {folder}")
+    if recipe.sounds.fresh_train_instances and not recipe.sounds.builtin:
+        raise RecipeError(f"{source}: sounds.fresh_train_instances: needs builtin: true (fresh instances come from the built-in synthesiser)")
     if not recipe.sounds.builtin and not recipe.sounds.folders:
         raise RecipeError(f"{source}: sounds: builtin is false and no folders are given")
 

@@ -45,7 +45,7 @@ class StepRecord:
     timestamp: float  # seconds since episode start = frame_index / control_hz
     skill: str
     skill_index: int  # index into EpisodeSpec.chain
-    action: np.ndarray  # float32 (ACTION_DIM,)
+    action: np.ndarray  # float32 (ACTION_DIM,): the controller's own action (the label to clone)
     state: np.ndarray  # float32 (STATE_DIM,)
     head_rgb: np.ndarray | None  # uint8 (H, W, 3)
     head_depth: np.ndarray | None  # uint16 (H, W) millimetres
@@ -57,6 +57,14 @@ class StepRecord:
     done: bool = False
     # camera name ("head", "wrist") -> 4x4 camera-to-world, OpenCV axes (echo_data.camera)
     camera_poses: dict[str, np.ndarray] = field(default_factory=dict)
+    # float32 (ACTION_DIM,) the robot executed, when it differs from `action` (DART noise,
+    # echo_data.agents.dart); None: the action itself was executed
+    executed: np.ndarray | None = None
+
+    @property
+    def action_executed(self) -> np.ndarray:
+        """What the robot was sent at this step (replaying these reproduces the episode)."""
+        return self.action if self.executed is None else self.executed
 
 
 @dataclass
@@ -108,7 +116,7 @@ def records_digest(steps: list[StepRecord]) -> str:
     h = hashlib.sha256()
     for s in steps:
         h.update(f"{s.frame_index}|{s.timestamp!r}|{s.skill}|{s.skill_index}|{s.ear_position!r}|{s.ear_yaw!r}|{s.sounding}|{s.skill_success}|{s.done}".encode())
-        for arr in (s.action, s.state, s.head_rgb, s.head_depth, s.wrist_depth):
+        for arr in (s.action, s.executed, s.state, s.head_rgb, s.head_depth, s.wrist_depth):
             if arr is not None:
                 a = np.ascontiguousarray(arr)
                 h.update(f"{a.dtype}{a.shape}".encode())

@@ -130,7 +130,7 @@ class World:
         self.steps += 1
 
     def _gripper_closed(self) -> bool:
-        return float(self.robot.last_action()[11]) < GRIP_CLOSED
+        return float(self.robot.applied_action()[11]) < GRIP_CLOSED  # the drives' command, noise included
 
     def _grasp_door(self) -> None:
         """Hold a door leaf both fingers press on (see the module docstring)."""

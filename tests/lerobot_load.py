@@ -33,6 +33,10 @@ arrays["window.observation.state"] = w["observation.state"].numpy()[None]
 arrays["window.action"] = w["action"].numpy()[None]
 arrays["window.pad"] = np.concatenate([w["observation.state_is_pad"].numpy(), w["action_is_pad"].numpy()])[None]
 np.savez(out, **arrays)
+# the train split as `splits` names it (LeRobot casts the rows to the schema of info.json's feature order)
+lo, hi = map(int, meta.info["splits"]["train"].split(":"))
+train = LeRobotDataset("echo-data/export", root=root, episodes=list(range(lo, hi)))
+train_episodes = sorted({int(x) for x in train.hf_dataset["episode_index"]})
 episodes = meta.episodes.to_list()
 print(
     json.dumps(
@@ -45,6 +49,8 @@ print(
             "splits": meta.info["splits"],
             "tasks": list(meta.tasks.index),
             "stats_keys": sorted(meta.stats),
+            "train_episodes": train_episodes,
+            "train_len": len(train),
             "strings": strings,
             "episodes": [{k: e[k] for k in ("episode_index", "split", "episode_id", "audio_path", "dataset_from_index", "dataset_to_index", "tasks")} for e in episodes],
             "dtypes": {k: str(v.dtype) for k, v in arrays.items()},

@@ -6,11 +6,11 @@ from pathlib import Path
 
 import pytest
 import yaml
+from support.synth import build_synth
 from typer.testing import CliRunner
 
 from echo_data.cli import app
 from echo_data.dataset.manifest import load_manifest
-from test_dataset_synth import build_synth
 
 
 @pytest.fixture(scope="module")
@@ -38,11 +38,22 @@ def test_card_front_matter_matches_the_manifest(ds: Path) -> None:
     assert m["recipe_hash"] in text and "`camera_pose.head`" in text and "| `skill_success` | bool[5] |" in text
 
 
-def test_hf_datasets_reads_the_card_configs(ds: Path) -> None:
+def test_hf_datasets_reads_the_card_configs(ds: Path, caplog: pytest.LogCaptureFixture) -> None:
     import datasets  # the test extra installs it: a missing one fails, never skips
-    d = datasets.load_dataset(str(ds))
+    with caplog.at_level("WARNING"):
+        d = datasets.load_dataset(str(ds))
     m = load_manifest(ds)
     assert {k: len(v) for k, v in d.items()} == m["counts"]["steps"]
+    assert not [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]  # e.g. "splits field in YAML is malformed"
+    front = _front((ds / "README.md").read_text())
+    sizes = {s["name"]: s["num_bytes"] for s in front["dataset_info"]["splits"]}
+    assert sizes == {s: sum(e["bytes"] for e in m["shards"] if e["split"] == s) for s in sizes} and all(sizes.values())
+
+
+def test_card_cites_and_links(ds: Path) -> None:
+    text = (ds / "README.md").read_text()
+    assert "## Citation" in text and "@inproceedings{" in text and "Sound-Triggered Mobile Manipulation" in text
+    assert "## Links" in text and "`synth`" in text and "--format lerobot|robomimic|zarr" in text
 
 
 def test_info_refreshes_the_card(ds: Path) -> None:

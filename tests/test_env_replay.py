@@ -16,22 +16,14 @@ import pyarrow.parquet as pq
 import pytest
 import soundfile as sf
 from PIL import Image
+from support.recipes import tiny_recipe
 
 from echo_data.dataset.encode import encode_wav
-from echo_data.dataset.schema import STATE, StepLayout, column_to_numpy
+from echo_data.dataset.schema import ACTION, ACTION_EXECUTED, STATE, StepLayout, column_to_numpy
 from echo_data.envs import EchoDataEnv, observation_space
 from echo_data.envs.env import BINAURAL
-from echo_data.recipe import CameraConfig, load_recipe
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def tiny_recipe(setting: str = "quickstart"):
-    r = load_recipe(ROOT / "recipes" / f"{setting}.yaml")
-    cam = CameraConfig(width=32, height=32)
-    robot = r.robot.model_copy(update={"head_camera": cam, "wrist_camera": cam.model_copy(update={"rgb": False})})
-    comp = {"object_relocation": {"test": 1}, "state_transition": {"test": 1}, "multi_event": {"test": 1}}
-    return r.model_copy(update={"robot": robot, "composition": comp, "splits": {"test": 3}})
 
 
 def test_observation_space_is_the_dataset_schema() -> None:
@@ -57,12 +49,15 @@ def _decode(png: bytes) -> np.ndarray:
 
 
 @pytest.mark.slow
-def test_replaying_a_dataset_episode_reproduces_its_rows(tmp_path: Path) -> None:
+@pytest.mark.parametrize("action_noise", [0.0, 1.0])
+def test_replaying_a_dataset_episode_reproduces_its_rows(tmp_path: Path, action_noise: float) -> None:
+    """Replaying `action.executed` reproduces the episode, with and without the experts' DART noise."""
     import pyarrow.compute as pc
 
     from echo_data.app.build import build
 
     recipe = tiny_recipe()
+    recipe = recipe.model_copy(update={"experts": recipe.experts.model_copy(update={"action_noise": action_noise})})
     out = tmp_path / "ds"
     build(recipe, ROOT / "recipes" / "quickstart.yaml", out, progress=False)
     episodes = pq.read_table(out / "meta" / "episodes.parquet").to_pylist()
@@ -75,7 +70,11 @@ def test_replaying_a_dataset_episode_reproduces_its_rows(tmp_path: Path) -> None
         retry = ep["attempt"] // recipe.max_attempts_per_episode
         obs, info = env.reset(options={"split": "test", "index": ep["episode_index"], "attempt": retry})
         assert info["episode_id"] == ep["episode_id"]
-        actions = np.array(rows["action"].to_pylist(), np.float32)
+        actions = np.array(rows[ACTION_EXECUTED].to_pylist(), np.float32)
+        labels = np.array(rows[ACTION].to_pylist(), np.float32)
+        noisy = np.any(labels != actions, axis=1)
+        # without noise the robot executed its labels; with noise most steps were perturbed
+        assert (noisy.mean() > 0.5) if action_noise else not noisy.any(), f"{ep['episode_id']}: {noisy.mean():.2f} perturbed"
         states = np.array(rows[STATE].to_pylist(), np.float32)
         arrays = {col: column_to_numpy(rows[col], shape) for col, shape in layout.arrays.items()}
         images = {col: [_decode(v["bytes"]) for v in rows[col].to_pylist()] for col in layout.images}

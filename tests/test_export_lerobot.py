@@ -1,19 +1,20 @@
 """`echo-data export --format lerobot`: LeRobot's own loader reads the export, frame for frame.
 
 The loading side runs in a separate virtual environment with the `lerobot-dataset` package
-(LeRobot's standalone dataset library, import `ledataset`), made by scripts/setup_lerobot.sh
-(CI runs it from scripts/setup.sh): its pins (datasets<4.2, huggingface-hub<0.36, numpy 2,
-pyarrow 26) clash with ours. That environment gets `torchvision.transforms.ToTensor` from
-tests/lerobot_shim (the registry's torchvision wheels are CUDA builds that do not import beside
-the CPU torch wheel); nothing else of torchvision is reached for image features.
+(LeRobot's standalone dataset library, import `ledataset`) and `lerobot-doctor`, made by
+scripts/setup_lerobot.sh (CI runs it from scripts/setup.sh): its pins (datasets<4.2,
+huggingface-hub<0.36, numpy 2, pyarrow 26) clash with ours. Its torchvision is the CPU stand-in
+that script installs (the registry's torchvision wheels are CUDA builds that do not import beside
+the CPU torch wheel).
 """
 
 from __future__ import annotations
 
 import io
 import json
-import os
+import shutil
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -21,18 +22,15 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 from PIL import Image
+from support.lerobot_env import HERE, VENV_PYTHON, lerobot_env, run_lerobot
 from typer.testing import CliRunner
 
 from echo_data.cli import app
-from test_dataset_synth import build_synth
-
-HERE = Path(__file__).parent
-VENV_PYTHON = Path(os.environ.get("ECHO_LEROBOT_PYTHON", HERE.parent / ".venv-lerobot" / "bin" / "python"))
 
 
 @pytest.fixture(scope="module")
-def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return build_synth(tmp_path_factory.mktemp("lerobot") / "synth", {"train": 4, "test": 2})
+def ds(synth_dataset: Callable[[dict[str, int]], Path]) -> Path:
+    return synth_dataset({"train": 4, "test": 2})
 
 
 def _echo_rows(ds: Path) -> list[dict]:
@@ -51,14 +49,24 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
     info = json.loads((out / "meta" / "info.json").read_text())
     assert info["codebase_version"] == "v3.0" and info["splits"] == {"train": "0:4", "test": "4:6"}
     assert (out / "data" / "chunk-000" / "file-000.parquet").is_file() and info["video_path"] is None
-    assert info["features"]["observation.images.head_depth"]["shape"] == [16, 24, 1]
+    assert info["features"]["observation.depth.head"]["shape"] == [16, 24, 1]
+    data = pq.read_schema(out / "data" / "chunk-000" / "file-000.parquet")
+    assert list(info["features"]) == data.names  # listed in column order
+    assert info["features"]["observation.audio.spectrogram"]["shape"] == [65 * 26 * 2]
     assert info["echo_data"]["cameras"]["head"]["K"][0][2] == 12.0
     eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
     assert [e["episode_index"] for e in eps] == list(range(6))
     assert eps[1]["dataset_from_index"] == eps[0]["dataset_to_index"] and eps[-1]["dataset_to_index"] == info["total_frames"]
     assert all((out / e["audio_path"]).is_file() for e in eps)
+    # per-episode statistics as LeRobot writes them, from that episode's own frames
+    rows = _echo_rows(ds)
+    first = np.array([r["observation.state"] for r in rows[: eps[0]["length"]]])
+    np.testing.assert_allclose(eps[0]["stats/observation.state/max"], first.max(axis=0), rtol=1e-6)
+    np.testing.assert_allclose(eps[0]["stats/observation.state/mean"], first.mean(axis=0), rtol=1e-5)
+    assert eps[0]["stats/index/count"] == [eps[0]["length"]] and np.shape(eps[0]["stats/observation.images.head_rgb/mean"]) == (3, 1, 1)
     card = (out / "README.md").read_text()
     assert yaml.safe_load(card.split("---\n")[1])["configs"][0]["data_files"] == "data/*/*.parquet" and "## Features" in card
+    assert "across the whole export" in card and "within its split" not in card
     again = CliRunner().invoke(app, ["export", str(ds), "--out", str(out)])
     assert again.exit_code == 2 and "already exists" in again.output
     assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out), "--overwrite"]).exit_code == 0
@@ -68,25 +76,22 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
 
 
 def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    if not VENV_PYTHON.is_file():
-        if os.environ.get("CI"):
-            pytest.fail(f"{VENV_PYTHON} missing: scripts/setup_lerobot.sh makes it")
-        pytest.skip(f"no LeRobot environment at {VENV_PYTHON} (bash scripts/setup_lerobot.sh)")
+    lerobot_env(tmp_path)
     out = tmp_path / "le"
     monkeypatch.setattr("echo_data.dataset.lerobot.DATA_FILES_SIZE_IN_MB", 0.05)  # several data files
     assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out)]).exit_code == 0
     n_files = len(list((out / "data" / "chunk-000").glob("file-*.parquet")))
     assert 1 < n_files <= 6
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
-    env.update(PYTHONPATH=str(HERE / "lerobot_shim"), HF_HUB_OFFLINE="1", HF_DATASETS_OFFLINE="1", HF_HOME=str(tmp_path / "hf"))
     npz = tmp_path / "frames.npz"
-    p = subprocess.run([str(VENV_PYTHON), str(HERE / "lerobot_load.py"), str(out), str(npz)], capture_output=True, text=True, env=env, timeout=300)
+    p = run_lerobot([str(HERE / "lerobot_load.py"), str(out), str(npz)], tmp_path)
     assert p.returncode == 0, p.stderr[-3000:]
     got = json.loads(p.stdout.strip().splitlines()[-1])
     frames = np.load(npz)
     rows = _echo_rows(ds)
     assert got["len"] == len(rows) and got["num_episodes"] == 6 and got["video_keys"] == []
     assert got["splits"] == {"train": "0:4", "test": "4:6"}
+    assert got["train_episodes"] == [0, 1, 2, 3] and got["train_len"] == sum(r["split"] == "train" for r in rows)
+    assert "observation.depth.head" in got["stats_keys"]
     assert frames["index"].tolist() == list(range(len(rows)))
     ids = [e["episode_id"] for e in got["episodes"]]
     eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
@@ -103,11 +108,55 @@ def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path, monkeypatch:
         for col in ("action", "observation.state", "camera_pose.head", "camera_pose.wrist"):
             np.testing.assert_array_equal(frames[col][i], np.array(row[col], np.float32))
         for col in ("observation.audio.spectrogram", "observation.audio.mel"):
-            np.testing.assert_array_equal(frames[col][i], np.array(row[col], np.float32))
+            np.testing.assert_array_equal(frames[col][i], np.array(row[col], np.float32).ravel())
         assert frames["skill_success"][i].tolist() == row["skill_success"] and bool(frames["done"][i]) == row["done"]
         assert int(frames["audio_offset"][i]) == row["audio_offset"] and got["strings"]["audio_path"][i] == row["audio_path"]
         assert got["strings"]["skill"][i] == row["skill"] and got["strings"]["task"][i] == got["tasks"][row["task_index"]]
         rgb = np.asarray(Image.open(io.BytesIO(row["observation.images.head_rgb"]["bytes"])))
         np.testing.assert_allclose(frames["observation.images.head_rgb"][i], rgb.transpose(2, 0, 1) / 255.0, rtol=1e-6)
         depth = np.asarray(Image.open(io.BytesIO(row["observation.images.head_depth"]["bytes"])))
-        np.testing.assert_array_equal(frames["observation.images.head_depth"][i][0], depth)  # millimetres
+        np.testing.assert_array_equal(frames["observation.depth.head"][i][0], depth)  # millimetres
+
+
+def test_video_export_decodes_and_lerobot_tools_accept_it(ds: Path, tmp_path: Path) -> None:
+    """--video rgb: head RGB as an MP4 that LeRobotDataset decodes (close to the PNG frames:
+    H.264 is lossy), depth still exact PNG; LeRobot's aggregate_datasets merges two exports and
+    lerobot-doctor reports no failure."""
+    out = tmp_path / "lev"
+    r = CliRunner().invoke(app, ["export", str(ds), "--out", str(out), "--video", "rgb"])
+    assert r.exit_code == 0, r.output
+    info = json.loads((out / "meta" / "info.json").read_text())
+    assert info["features"]["observation.images.head_rgb"]["dtype"] == "video" and info["video_path"]
+    assert "observation.images.head_rgb" not in pq.read_schema(out / "data" / "chunk-000" / "file-000.parquet").names
+    bad = CliRunner().invoke(app, ["export", str(ds), "--out", str(tmp_path / "d"), "--video", "depth"])
+    assert bad.exit_code == 2 and "--video depth" in bad.output and not (tmp_path / "d").exists()
+    npz = tmp_path / "frames.npz"
+    p = run_lerobot([str(HERE / "lerobot_load.py"), str(out), str(npz)], tmp_path)
+    assert p.returncode == 0, p.stderr[-3000:]
+    got = json.loads(p.stdout.strip().splitlines()[-1])
+    assert got["video_keys"] == ["observation.images.head_rgb"]
+    frames = np.load(npz)
+    rows = _echo_rows(ds)
+    pngs = np.stack([np.asarray(Image.open(io.BytesIO(r["observation.images.head_rgb"]["bytes"]))).transpose(2, 0, 1) / 255.0 for r in rows])
+    for i, row in enumerate(rows):
+        same_episode = [k for k, r in enumerate(rows) if (r["split"], r["episode_index"]) == (row["split"], row["episode_index"])]
+        err = [np.abs(frames["observation.images.head_rgb"][i] - pngs[k]).mean() for k in same_episode]
+        assert same_episode[int(np.argmin(err))] == i and min(err) < 0.25, err  # the right frame (H.264 is lossy on noise)
+        depth = np.asarray(Image.open(io.BytesIO(row["observation.images.head_depth"]["bytes"])))
+        np.testing.assert_array_equal(frames["observation.depth.head"][i][0], depth)
+    twin = tmp_path / "lev2"
+    shutil.copytree(out, twin)
+    merged = tmp_path / "merged"
+    code = (
+        "import sys; from pathlib import Path; from ledataset.datasets.aggregate import aggregate_datasets\n"
+        "from ledataset.datasets.lerobot_dataset import LeRobotDataset\n"
+        "aggregate_datasets(repo_ids=['a', 'b'], aggr_repo_id='ab', roots=[Path(sys.argv[1]), Path(sys.argv[2])], aggr_root=Path(sys.argv[3]))\n"
+        "d = LeRobotDataset('ab', root=sys.argv[3]); print(len(d), d.num_episodes, tuple(d[len(d) - 1]['observation.images.head_rgb'].shape))\n"
+    )
+    p = run_lerobot(["-c", code, str(out), str(twin), str(merged)], tmp_path)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert p.stdout.split()[-5:] == [str(2 * len(rows)), "12", "(3,", "16,", "24)"]
+    doctor = VENV_PYTHON.parent / "lerobot-doctor"
+    p = subprocess.run([str(doctor), "check", str(out), "--json"], capture_output=True, text=True, env=lerobot_env(tmp_path), timeout=300)
+    report = json.loads(p.stdout[p.stdout.index("{") :])
+    assert report["overall_severity"] != "FAIL" and all(c["severity"] != "FAIL" for c in report["checks"]), p.stdout[-2000:]

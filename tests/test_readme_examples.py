@@ -1,7 +1,7 @@
 """The README's loading examples run as written, on a small dataset at out/quickstart.
 
-datasets and torch examples run here; the LeRobot one in LeRobot's own environment (see
-tests/test_export_lerobot.py); the LLaMA-Factory training YAML is checked the way LLaMA-Factory
+datasets, torch, robomimic and zarr examples run here (after the export the README names); the
+LeRobot one in LeRobot's own environment (see tests/test_export_lerobot.py); the LLaMA-Factory training YAML is checked the way LLaMA-Factory
 reads it: `dataset_dir`/dataset_info.json names the dataset, whose sharegpt records have one
 `<audio>` / `<image>` tag per media file and media paths that exist under `dataset_dir`.
 """
@@ -9,18 +9,16 @@ reads it: `dataset_dir`/dataset_info.json names the dataset, whose sharegpt reco
 from __future__ import annotations
 
 import json
-import os
 import re
-import subprocess
 from pathlib import Path
 
 import pytest
 import yaml
+from support.lerobot_env import HERE, run_lerobot
+from support.synth import build_synth
 from typer.testing import CliRunner
 
 from echo_data.cli import app
-from test_dataset_synth import build_synth
-from test_export_lerobot import HERE, VENV_PYTHON
 
 README = (HERE.parent / "README.md").read_text()
 EXAMPLES = dict(re.findall(r"<!-- example: (\w+) -->\n```\w+\n(.*?)```", README, flags=re.S))
@@ -39,31 +37,33 @@ def _code(name: str) -> str:
 
 
 def test_all_four_examples_are_there() -> None:
-    assert set(EXAMPLES) == {"datasets", "torch", "lerobot", "llamafactory"}
+    assert set(EXAMPLES) == {"datasets", "torch", "lerobot", "robomimic", "zarr", "llamafactory"}
 
 
-@pytest.mark.parametrize("name", ["datasets", "torch"])
+@pytest.mark.parametrize("name", ["datasets", "torch", "robomimic", "zarr"])
 def test_python_example_runs(name: str, workdir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(workdir)
+    if name in ("robomimic", "zarr"):
+        target = {"robomimic": "out/quickstart.hdf5", "zarr": "out/quickstart.zarr"}[name]
+        r = CliRunner().invoke(app, ["export", "out/quickstart", "--format", name, "--out", target, "--overwrite"])
+        assert r.exit_code == 0, r.output
     scope: dict = {}
     exec(compile(_code(name), f"README:{name}", "exec"), scope)
     if name == "datasets":
         assert scope["heard"].shape == (32000, 2)
+    elif name == "robomimic":
+        assert scope["item"]["actions"].shape == (10, 12)
+    elif name == "zarr":
+        assert scope["first"].shape == (scope["ends"][0], 12) and scope["rgb"].dtype.name == "uint8"
     else:
         assert scope["batch"]["action"].shape[1] == 12 and len(scope["seqs"]) == len(scope["steps"])
 
 
 def test_lerobot_example_runs(workdir: Path, tmp_path: Path) -> None:
-    if not VENV_PYTHON.is_file():
-        if os.environ.get("CI"):
-            pytest.fail(f"{VENV_PYTHON} missing: scripts/setup_lerobot.sh makes it")
-        pytest.skip(f"no LeRobot environment at {VENV_PYTHON}")
     r = CliRunner().invoke(app, ["export", str(workdir / "out" / "quickstart"), "--out", str(workdir / "out" / "quickstart-lerobot"), "--overwrite"])
     assert r.exit_code == 0, r.output
-    code = _code("lerobot") + "\nassert len(train) == 3 and frame['action'].shape == (12,) and len(next(iter(loader))['index']) > 0\nprint('ok')\n"
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
-    env.update(PYTHONPATH=str(HERE / "lerobot_shim"), HF_HUB_OFFLINE="1", HF_HOME=str(tmp_path / "hf"))
-    p = subprocess.run([str(VENV_PYTHON), "-c", code], cwd=workdir, capture_output=True, text=True, env=env, timeout=300)
+    code = _code("lerobot") + "\nassert train.num_episodes == 3 and frame['action'].shape == (12,) and len(next(iter(loader))['index']) > 0\nprint('ok')\n"
+    p = run_lerobot(["-c", code], tmp_path, cwd=workdir)
     assert p.returncode == 0 and p.stdout.strip().endswith("ok"), p.stderr[-2000:]
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import pyarrow.parquet as pq
@@ -10,12 +11,11 @@ from typer.testing import CliRunner
 
 from echo_data.cli import app
 from echo_data.media import probe_mp4
-from test_dataset_synth import build_synth
 
 
 @pytest.fixture(scope="module")
-def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return build_synth(tmp_path_factory.mktemp("view") / "synth", {"train": 2, "test": 1})
+def ds(synth_dataset: Callable[[dict[str, int]], Path]) -> Path:
+    return synth_dataset({"train": 2, "test": 1})
 
 
 def test_view_writes_video_with_binaural_sound(ds: Path, tmp_path: Path) -> None:

@@ -40,6 +40,11 @@ class AgentActionError(ValueError):
     """A policy returned something that is not an action of the dataset's shape."""
 
 
+class StopEpisode(Exception):
+    """Raised by an `on_step` hook to end the episode before that action is applied (like a
+    `max_steps` cut: the running skill gets no outcome, `truncated_at` records where)."""
+
+
 @dataclass
 class NavigateRecord:
     """One Navigate skill as SPL needs it: success, the agent's path, the expert's planned path."""
@@ -144,14 +149,15 @@ StepHook = Callable[["EchoDataEnv", dict[str, np.ndarray], np.ndarray, int, Skil
 
 def run_episode(
     env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any], planner: Planner, policy: Policy,
-    on_step: StepHook | None = None, max_steps: int | None = None,
+    on_step: StepHook | None = None, max_steps: int | None = None, skills: int | None = None,
 ) -> EpisodeRun:
     """Run one episode already reset in `env` (its first observation and info) with a planner and a skill policy.
 
     Success is read from the environment's `info["skills"]` (one evaluation per step).
     `on_step(env, obs, action, skill_index, call, skill_flags)` is called before each action is
-    applied (the build records its rows there). `max_steps`: cut the episode after that many
-    control steps (see the module docstring).
+    applied (the build records its rows there; DAgger labels there); it may raise `StopEpisode`.
+    `max_steps`: cut the episode after that many control steps (see the module docstring);
+    `skills`: run only the chain's first `skills` skills.
     """
     from echo_data.skills.registry import skill_budget
 
@@ -173,7 +179,7 @@ def run_episode(
     def cut() -> bool:
         return max_steps is not None and env.steps >= max_steps
 
-    for k, call in enumerate(spec.chain):
+    for k, call in enumerate(spec.chain[:skills]):
         if cut():  # the previous skill ended exactly at the cut and more of the chain remains
             run.truncated_at = env.steps
             break
@@ -205,7 +211,11 @@ def run_episode(
             if a.shape != (ACTION_DIM,):
                 raise AgentActionError(f"policy action: expected shape ({ACTION_DIM},), got {a.shape} at step {env.steps}")
             if on_step is not None:
-                on_step(env, obs, a, k, call, tuple(flags))
+                try:
+                    on_step(env, obs, a, k, call, tuple(flags))
+                except StopEpisode:
+                    run.truncated_at = env.steps
+                    break
             x0, y0, _ = env.world.robot.base_pose()
             obs, _, _, _, info = env.step(a)
             n += 1

@@ -30,6 +30,7 @@ from echo_data.dataset.manifest import (
     load_manifest,
     new_manifest,
     plan_shards,
+    split_sizes,
     write_manifest,
 )
 from echo_data.dataset.schema import StepLayout
@@ -235,6 +236,30 @@ def _prepare(
 # ---------------------------------------------------------------- parent side
 
 
+class _Rate:
+    """Steps/s of this run and the projected time left for the whole recipe (every split at
+    full size, not just this run's --limit), from the episodes finished so far."""
+
+    def __init__(self, recipe_todo: int) -> None:
+        self.t0 = time.monotonic()
+        self.recipe_todo = recipe_todo
+        self.episodes = self.steps = 0
+
+    def add(self, steps: int) -> None:
+        self.episodes += 1
+        self.steps += steps
+
+    def __str__(self) -> str:
+        dt = max(time.monotonic() - self.t0, 1e-9)
+        left = (self.recipe_todo - self.episodes) * dt / max(self.episodes, 1)
+        return f"{self.steps / dt:.0f} steps/s, whole recipe {_duration(left)} left"
+
+
+def _duration(seconds: float) -> str:
+    s = int(round(max(seconds, 0.0)))
+    return f"{s // 3600}h{s % 3600 // 60:02d}m" if s >= 3600 else f"{s // 60}m{s % 60:02d}s"
+
+
 def _default_generate() -> Generate:
     try:
         from echo_data.app.pipeline import generate_episode
@@ -373,6 +398,7 @@ def _build_locked(
             if not writer.stored(split, i)
         )
         bar = tqdm(total=total, initial=reused, unit="ep", desc=f"build {recipe.name}", disable=not progress, dynamic_ncols=True)
+        rate = _Rate(sum(split_sizes(recipe, None).values()) - reused)
         attempts = successes = 0
         for res in ex.imap_unordered(_run_episode, todo):
             if isinstance(res, FailedEpisode) and res.error:
@@ -387,7 +413,8 @@ def _build_locked(
             attempts += 1 + len(res.failures)
             successes += 1
             bar.update(1)
-            bar.set_postfix_str(f"success {successes / attempts:.0%}", refresh=False)
+            rate.add(int(res.episode["n_steps"]))
+            bar.set_postfix_str(f"success {successes / attempts:.0%}, {rate}", refresh=False)
             writer.flush(res.split)
     except BuildError:
         raise

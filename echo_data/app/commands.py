@@ -22,7 +22,7 @@ def _fail(message: str, code: int) -> typer.Exit:
 def build_cmd(
     recipe: Annotated[Path, typer.Argument(help="Recipe YAML file.")],
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Dataset folder (default: out/<recipe name>).")] = None,
-    workers: Annotated[int, typer.Option("--workers", "-w", help="Parallel episode workers.")] = 1,
+    workers: Annotated[int | None, typer.Option("--workers", "-w", help="Parallel episode workers (default: the usable CPU cores).")] = None,
     limit: Annotated[int | None, typer.Option("--limit", help="At most N episodes per split (quick runs).")] = None,
     split: Annotated[list[str] | None, typer.Option("--split", help="Build only this split (repeat for several; default all). Evaluation needs no built test split.")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted build.")] = False,
@@ -42,6 +42,10 @@ def build_cmd(
     except RecipeError as e:
         raise _fail(str(e), 2) from None
     mode = "resume" if resume else "overwrite" if overwrite else "new"
+    if workers is None:
+        from echo_data.app.executors import default_workers
+
+        workers = default_workers()
     try:
         summary = build(r, recipe, out if out is not None else Path("out") / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress, address=address, only=split or None)  # type: ignore[arg-type]
     except OutputError as e:
@@ -91,24 +95,29 @@ def info_cmd(
 # `splits`); it raises an error with one line for bad input. docs/adding_an_export_format.md.
 EXPORT_FORMATS: dict[str, tuple[str, str]] = {
     "lerobot": ("echo_data.dataset.lerobot", "export_lerobot"),
+    "robomimic": ("echo_data.dataset.robomimic", "export_robomimic"),
+    "zarr": ("echo_data.dataset.zarr_export", "export_zarr"),
 }
 
 
 def export_cmd(
     path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder of the exported dataset.")],
-    fmt: Annotated[str, typer.Option("--format", help=f"Target format: {', '.join(EXPORT_FORMATS)} (lerobot: LeRobot codebase v3.0).")] = "lerobot",
+    out: Annotated[Path, typer.Option("--out", "-o", help="Export: a folder (lerobot, zarr) or an .hdf5 file (robomimic).")],
+    fmt: Annotated[str, typer.Option("--format", help=f"Target format: {', '.join(EXPORT_FORMATS)} (LeRobot v3.0, robomimic HDF5, Diffusion Policy Zarr).")] = "lerobot",
+    video: Annotated[list[str] | None, typer.Option("--video", help="lerobot: store this camera as an MP4 video feature (rgb; depth stays PNG).")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing export.")] = False,
 ) -> None:
-    """Write the dataset in another library's format (LeRobot v3.0), next to the original."""
+    """Write the dataset in another library's format (LeRobot v3.0, robomimic HDF5, Zarr), next to the original."""
     import importlib
 
     if fmt not in EXPORT_FORMATS:
-        raise _fail(f"--format {fmt}: unknown format (use {' or '.join(EXPORT_FORMATS)})", 2)
+        raise _fail(f"--format {fmt}: unknown format (use {', '.join(EXPORT_FORMATS)})", 2)
+    if video and fmt != "lerobot":
+        raise _fail(f"--video: only the lerobot format stores videos, not {fmt}", 2)
     module, name = EXPORT_FORMATS[fmt]
     mod = importlib.import_module(module)
     try:
-        info = getattr(mod, name)(path, out, overwrite=overwrite)
+        info = getattr(mod, name)(path, out, overwrite=overwrite, **({"video": tuple(video)} if video else {}))
     except mod.ExportError as e:
         raise _fail(str(e), 2) from None
     typer.echo(f"{out}: {fmt} {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")

@@ -19,6 +19,7 @@ from echo_data.recipe import Recipe
 from echo_data.records import EpisodeResult, StepRecord
 
 if TYPE_CHECKING:
+    from echo_data.agents.dart import NoisyExperts
     from echo_data.envs.env import EchoDataEnv
     from echo_data.sounds.library import SoundLibrary
 
@@ -31,12 +32,14 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
     `outputs.max_frames` cuts the run after that many steps (`EpisodeResult.truncated_at`).
     """
     from echo_data.agents.builtin import OraclePlanner, OracleSkills
+    from echo_data.agents.dart import NoisyExperts
     from echo_data.agents.runtime import run_episode
     from echo_data.envs.env import EchoDataEnv
 
     env = EchoDataEnv(recipe, split=spec.split, images=observe, audio=library is not None, library=library)
-    recorder = _Recorder(recipe.robot.control_hz)
-    policy = OracleSkills()
+    dart = NoisyExperts(recipe.experts.action_noise, spec.seed) if recipe.experts.action_noise > 0 else None
+    policy = dart or OracleSkills()  # with DART the experts execute noisy actions and label their own
+    recorder = _Recorder(recipe.robot.control_hz, dart)
     try:
         obs, info = env.reset(options={"spec": spec})
         run = run_episode(env, obs, info, OraclePlanner(), policy, on_step=recorder, max_steps=recipe.outputs.max_frames)
@@ -63,10 +66,14 @@ def _stack(xs: list[np.ndarray]) -> np.ndarray | None:
 
 
 class _Recorder:
-    """Turns each (observation, action) the runtime is about to apply into a StepRecord."""
+    """Turns each (observation, action) the runtime is about to apply into a StepRecord.
 
-    def __init__(self, control_hz: int) -> None:
+    With DART noise (`dart`) the record's `action` is the expert's own and `executed` the noisy
+    action the runtime applies."""
+
+    def __init__(self, control_hz: int, dart: NoisyExperts | None = None) -> None:
         self.control_hz = control_hz
+        self.dart = dart
         self.steps: list[StepRecord] = []
         self.spectrogram: list[np.ndarray] = []
         self.mel: list[np.ndarray] = []
@@ -76,6 +83,9 @@ class _Recorder:
 
         x, y, z, yaw = env.ear_pose()
         frame = len(self.steps)
+        executed = None
+        if self.dart is not None and self.dart.label is not None and not np.array_equal(self.dart.label, action):
+            action, executed = self.dart.label, action
         self.steps.append(StepRecord(
             frame_index=frame,
             timestamp=frame / self.control_hz,
@@ -91,6 +101,7 @@ class _Recorder:
             sounding=tuple(env.sounding),
             skill_success=flags,
             camera_poses=env.world.robot.camera_poses(),
+            executed=executed,
         ))
         if SPECTROGRAM in obs:
             self.spectrogram.append(obs[SPECTROGRAM])

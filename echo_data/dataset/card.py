@@ -16,7 +16,7 @@ import pyarrow.parquet as pq
 import yaml
 
 from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.schema import IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE, StepLayout
+from echo_data.dataset.schema import ACTION_EXECUTED, IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE, StepLayout
 from echo_data.dataset.storage import atomic_write_bytes
 from echo_data.episode import SPLIT_KEYS
 
@@ -36,7 +36,8 @@ COLUMN_NOTES = {
     "setting": "object_relocation, state_transition or multi_event",
     "skill": "the active skill (Navigate, Pick, Place, OpenDoor, CloseSink)",
     "skill_index": "position of the active skill in the episode's chain",
-    "action": "base vx, vy (m/s, robot frame), wz (rad/s), torso (m), 7 arm joint targets (rad), gripper opening (m)",
+    "action": "base vx, vy (m/s, robot frame), wz (rad/s), torso (m), 7 arm joint targets (rad), gripper opening (m); the controller's own command at the step (the label to clone)",
+    ACTION_EXECUTED: "the action the robot executed: `action` plus the experts' DART noise (equal to `action` when the recipe's experts.action_noise is 0); replay these",
     STATE: "base x, y, yaw (world), torso, 7 arm joints, gripper, their velocities, holding (0/1)",
     IMAGE_COLUMNS["head_rgb"]: "head camera colour, PNG",
     IMAGE_COLUMNS["head_depth"]: "head camera depth along the optical axis, 16-bit PNG, millimetres (0 = nothing hit)",
@@ -80,6 +81,9 @@ def card_text(out: Path) -> str:
     steps = {s: counts["steps"].get(s, 0) for s in splits}
     eps = {s: counts["episodes"].get(s, 0) for s in splits}
     recipe = m["recipe"]
+    # Hugging Face warns that `dataset_info.splits` is malformed without num_bytes: the split's
+    # Parquet bytes (its shards' sizes in the manifest), the size `load_dataset` downloads.
+    split_bytes = {s: sum(int(e["bytes"]) for e in m["shards"] if e["split"] == s) for s in splits}
     front = {
         "license": LICENSE,
         "task_categories": ["robotics"],
@@ -87,7 +91,11 @@ def card_text(out: Path) -> str:
         "size_categories": [size_category(sum(steps.values()))],
         "pretty_name": f"echo-data {m['name']}",
         "configs": [{"config_name": "default", "data_files": [{"split": s, "path": f"data/{s}-*.parquet"} for s in splits]}],
-        "dataset_info": {"splits": [{"name": s, "num_examples": steps[s]} for s in splits]},
+        "dataset_info": {
+            "splits": [{"name": s, "num_bytes": split_bytes[s], "num_examples": steps[s]} for s in splits],
+            "download_size": sum(split_bytes.values()),
+            "dataset_size": sum(split_bytes.values()),
+        },
     }
     sounds: dict[str, set[str]] = {}
     categories: dict[str, int] = {}
@@ -181,10 +189,42 @@ def card_text(out: Path) -> str:
         "",
         f"LeRobot (v3.0): `echo-data export {path} --format lerobot --out {path}-lerobot`, then "
         f'`LeRobotDataset("echo-data/{m["name"]}", root="{path}-lerobot")`. '
+        f"robomimic / Diffusion Policy: `--format robomimic` (one HDF5) or `--format zarr` (replay buffer). "
         f"LLaMA-Factory: `dataset_dir={path}/planner` (sharegpt with `<audio><image>`).",
         "",
+        *links_and_citation(m["name"]),
     ]
     return "\n".join(lines)
+
+
+# The paper whose task and settings echo-data reproduces (shared/seed), and the tool itself.
+CITATION = """@inproceedings{ju2026instruction,
+  title     = {From Instruction to Event: Sound-Triggered Mobile Manipulation},
+  author    = {Ju, Hao and Huang, Shaofei and Li, Hongyu and Ding, Zihan and Liu, Si and Wang, Meng and Zheng, Zhedong},
+  booktitle = {Proceedings of the 34th ACM International Conference on Multimedia (ACM MM '26)},
+  year      = {2026}
+}"""
+
+
+def links_and_citation(name: str) -> list[str]:
+    """The card's Links (the recipe that made the data, the formats it is read in) and Citation."""
+    return [
+        "## Links",
+        "",
+        f"- Recipe: `{name}` (echo-data's own recipes are `recipes/<name>.yaml`); the resolved copy, with every default, "
+        "is `recipe` in manifest.json: `echo-data build` of it rebuilds these bytes.",
+        "- Formats: Hugging Face `datasets` Parquet (this folder), LeRobot v3.0, robomimic HDF5 and Diffusion Policy Zarr "
+        "(`echo-data export --format lerobot|robomimic|zarr`), Rerun recordings (`echo-data view --rerun`).",
+        "",
+        "## Citation",
+        "",
+        "The task, settings and skill chain follow:",
+        "",
+        "```bibtex",
+        CITATION,
+        "```",
+        "",
+    ]
 
 
 def _truncation_lines(recipe: dict[str, Any], counts: dict[str, Any]) -> list[str]:
@@ -227,3 +267,72 @@ def write_card(out: Path) -> Path:
     path = Path(out) / CARD
     atomic_write_bytes(path, card_text(Path(out)).encode())
     return path
+
+
+# How the LeRobot export numbers and reshapes what the dataset's card describes per split.
+EXPORT_NOTES = {
+    "episode_index": "episode number across the whole export (train first, then val, test: `splits` in meta/info.json gives each split's range)",
+    "index": "frame number across the whole export",
+    "observation.audio.spectrogram": "SoundSpaces-style log1p magnitude STFT of the last 1 s, flattened row-major from (frequency, time, ear)",
+    "observation.audio.mel": "log-mel spectrogram of the last 1 s, flattened row-major from (frequency, time, ear)",
+    "observation.depth.head": COLUMN_NOTES["observation.images.head_depth"],
+    "observation.depth.wrist": COLUMN_NOTES["observation.images.wrist_depth"],
+    "observation.images.head_rgb": "head camera colour (PNG image, or H.264 video with `--video rgb`)",
+}
+# lerobot-doctor's warnings on an export, and why they are expected.
+DOCTOR_NOTES = [
+    "`camera_pose.*` dims 12-15 constant: the last row of a 4x4 rigid transform is always (0, 0, 0, 1).",
+    "`audio_sample_rate` constant: one sample rate per dataset.",
+    "`action` torso / gripper dims static or at their maximum: the experts hold the torso and keep the gripper open while driving.",
+    "Spectrogram / `done` / `skill_success` outliers: sound onsets are loud against the noise floor; `done` and late chain slots are rare by design.",
+    "`audio_path` not in stats.json: strings have no statistics.",
+]
+
+
+def export_card(info: dict[str, Any], src_card: Path) -> str:
+    """README.md of a LeRobot export: LeRobot-style front matter, the export's own numbering and
+    features, why lerobot-doctor warns, then the source card's other sections."""
+    front = {
+        "license": LICENSE,
+        "task_categories": ["robotics"],
+        "tags": ["LeRobot", "echo-data", "binaural-audio"],
+        "size_categories": [size_category(info["total_frames"])],
+        "configs": [{"config_name": "default", "data_files": "data/*/*.parquet"}],
+    }
+    body = src_card.read_text().split("---\n", 2)[-1] if src_card.is_file() else ""
+    kept = [sec for sec in body.split("\n## ")[1:] if sec.split("\n", 1)[0] not in ("Features", "Loading")]
+    feats = info["features"]
+    lines = [
+        "---",
+        yaml.safe_dump(front, sort_keys=False).rstrip(),
+        "---",
+        "",
+        f"# LeRobot {info['codebase_version']} export of echo-data {info['echo_data']['source']}",
+        "",
+        f"{info['total_episodes']} episodes, {info['total_frames']} frames at {info['fps']} Hz. Episodes are numbered across "
+        f"the whole export, train first: `splits` {info['splits']} are episode ranges, so "
+        "`LeRobotDataset(repo_id, root=..., episodes=list(range(*map(int, info['splits']['train'].split(':')))))` is the train split. "
+        "`index` counts frames across the export. The episode WAVs are under audio/ (`audio_path`; `echo_data` in meta/info.json).",
+        "",
+        "## Features",
+        "",
+        "| feature | dtype | shape | meaning |",
+        "| --- | --- | --- | --- |",
+        *[f"| `{k}` | {f['dtype']} | {f['shape']} | {EXPORT_NOTES.get(k, COLUMN_NOTES.get(k, ''))} |" for k, f in feats.items()],
+        "",
+        "## lerobot-doctor",
+        "",
+        "`lerobot-doctor check` reports no failure; its warnings and why they are expected:",
+        "",
+        *[f"- {n}" for n in DOCTOR_NOTES],
+        "",
+        "## Loading",
+        "",
+        "```python",
+        "from ledataset.datasets.lerobot_dataset import LeRobotDataset  # or lerobot.datasets.lerobot_dataset",
+        f'ds = LeRobotDataset("echo-data/{info["echo_data"]["source"]}", root=".")',
+        "```",
+        "",
+        *["## " + sec.rstrip() + "\n" for sec in kept],
+    ]
+    return "\n".join(lines)

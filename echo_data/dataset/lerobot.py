@@ -1,21 +1,28 @@
 """`echo-data export --format lerobot`: an echo-data dataset as a LeRobot (codebase v3.0) dataset.
 
 LeRobot v3.0 keeps many episodes per Parquet file under `data/chunk-XXX/file-XXX.parquet`,
-episode records under `meta/episodes/chunk-XXX/file-XXX.parquet`, the task strings in
-`meta/tasks.parquet` (index = task, column `task_index`), normalisation statistics in
-`meta/stats.json` and the schema in `meta/info.json`. Episodes are numbered across the whole
-dataset (train first, then val, test), `index` counts frames over the whole dataset, and the
-echo-data splits become LeRobot's `splits` ("start:end" episode ranges).
+episode records (with per-episode `stats/*`) under `meta/episodes/chunk-XXX/file-XXX.parquet`,
+the task strings in `meta/tasks.parquet` (index = task, column `task_index`), normalisation
+statistics in `meta/stats.json` and the schema in `meta/info.json` (features listed in the data
+files' column order: LeRobot casts the Parquet rows to the schema it builds from that list when
+it selects episodes). Episodes are numbered across the whole export (train first, then val,
+test), `index` counts frames over the whole export, and the echo-data splits become LeRobot's
+`splits` ("start:end" episode ranges).
 
-Cameras are image features (PNG bytes in the Parquet rows, as echo-data stores them), not
-MP4 videos: depth is 16-bit millimetres, which 8-bit yuv420p H.264 cannot hold without loss;
-the PNG bytes are copied as they are (the frames a LeRobot user reads are the exact frames of
-the echo-data rows); and image features decode with PIL alone, with no video decoder.
+Cameras are image features (PNG bytes in the Parquet rows, copied as they are) unless
+`video=("rgb",)`: then head RGB is an H.264 MP4 video feature (one file per episode,
+`echo_data.media.write_mp4`) that LeRobot's video tooling and visualisers read. Depth always stays
+16-bit PNG (8-bit yuv420p video cannot hold millimetres) and is exported as
+`observation.depth.{head,wrist}`: LeRobot checks that the statistics of every feature whose name
+contains "image" have three channels, which a depth image does not have.
 
 Audio: LeRobot has no audio feature. Each frame carries the echo-data audio columns
-(`observation.audio.spectrogram` / `.mel` of the last second, `audio_path`, `audio_sample_rate`,
-`audio_offset`); the episode WAVs are copied to `audio/{split}/{episode_id}.wav` (the path the
-rows name, relative to the export root) and the episode records name them too.
+(`observation.audio.spectrogram` / `.mel` of the last second, flattened to one vector each:
+LeRobot's tools turn features of more than one dimension into `datasets` Array2D/3D columns that
+pandas cannot concatenate, which breaks `aggregate_datasets`; the original shapes are in
+`info.json` `echo_data.audio.shapes`), `audio_path`, `audio_sample_rate`, `audio_offset`; the
+episode WAVs are copied to `audio/{split}/{episode_id}.wav` (the path the rows name, relative to
+the export root) and the episode records name them too.
 """
 
 from __future__ import annotations
@@ -30,18 +37,21 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from echo_data.dataset.manifest import ManifestError, load_manifest
+from echo_data.dataset.episode_arrays import ExportError, check_source, column_values, decode_images
 from echo_data.dataset.schema import (
     ACTION,
+    ACTION_EXECUTED,
     CAMERA_POSES,
     CHAIN_SLOTS,
+    IMAGE_COLUMNS,
     PARQUET_COMPRESSION,
     ROW_GROUP_ROWS,
     STATE,
     StepLayout,
 )
 from echo_data.dataset.shards import conform
-from echo_data.dataset.storage import atomic_write_json, canonical_json, fsync_dir
+from echo_data.dataset.stats import episode_feature_values, finalize, merge, summarize
+from echo_data.dataset.storage import atomic_write_bytes, canonical_json, fsync_dir
 from echo_data.episode import SPLIT_KEYS
 from echo_data.recipe import SETTINGS
 from echo_data.records import ACTION_NAMES, STATE_NAMES
@@ -49,9 +59,14 @@ from echo_data.records import ACTION_NAMES, STATE_NAMES
 CODEBASE_VERSION = "v3.0"
 CHUNKS_SIZE = 1000  # files per chunk folder (LeRobot's default)
 DATA_FILES_SIZE_IN_MB = 100  # a data file is closed once its rows reach this size
+VIDEO_FILES_SIZE_IN_MB = 200  # LeRobot's default (one MP4 per episode here stays far below it)
 DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
+VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
 EPISODES_PATH = "meta/episodes/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 ROBOT_TYPE = "echo_data_fetchlike"
+VIDEO_CAMERAS = {"rgb": IMAGE_COLUMNS["head_rgb"]}  # --video choices -> the column stored as MP4
+# Export names of the depth images (see the module docstring).
+RENAMED = {IMAGE_COLUMNS["head_depth"]: "observation.depth.head", IMAGE_COLUMNS["wrist_depth"]: "observation.depth.wrist"}
 # The natural-language task of each setting (LeRobot's `task`; index = echo-data's task_index).
 TASKS = {
     "object_relocation": "Find the sounding object, pick it up and put it where it belongs.",
@@ -60,24 +75,27 @@ TASKS = {
 }
 
 
-class ExportError(ValueError):
-    """Bad input for an export (not a complete dataset, output exists): exit 2, nothing written."""
-
-
 def _names(layout: StepLayout) -> dict[str, list[str]]:
     """Element names of the vector features (LeRobot's `names`)."""
-    names: dict[str, list[str]] = {ACTION: list(ACTION_NAMES), STATE: list(STATE_NAMES)}
+    names: dict[str, list[str]] = {ACTION: list(ACTION_NAMES), ACTION_EXECUTED: list(ACTION_NAMES), STATE: list(STATE_NAMES)}
     names.update({col: [f"T{r}{c}" for r in range(4) for c in range(4)] for col in CAMERA_POSES.values()})
     names["skill_success"] = [f"chain_{k}" for k in range(CHAIN_SLOTS)]
-    names.update({col: ["frequency", "time", "ear"] for col in layout.arrays})
     return names
 
 
-def lerobot_features(layout: StepLayout) -> dict[str, dict[str, Any]]:
-    """meta/info.json `features`: every step column with dtype, shape and names, in row order,
-    derived from the step schema's Hugging Face features (so new columns export too)."""
+def export_name(col: str) -> str:
+    """The LeRobot feature name of an echo-data column."""
+    return RENAMED.get(col, col)
+
+
+def lerobot_features(layout: StepLayout, video: tuple[str, ...] = ()) -> dict[str, dict[str, Any]]:
+    """meta/info.json `features`: every step column with dtype, shape and names, in the export's
+    column order (video features last: they are not data columns), derived from the step
+    schema's Hugging Face features (so new columns export too)."""
     names = _names(layout)
+    videos = {VIDEO_CAMERAS[v] for v in video}
     feats: dict[str, dict[str, Any]] = {}
+    moved: dict[str, dict[str, Any]] = {}
     for col, f in layout.hf_features().items():
         kind = f["_type"]
         if kind == "Value":
@@ -85,54 +103,121 @@ def lerobot_features(layout: StepLayout) -> dict[str, dict[str, Any]]:
         elif kind == "List" and "length" in f:
             feats[col] = {"dtype": f["feature"]["dtype"], "shape": [f["length"]], "names": names.get(col)}
         elif kind == "Array3D":
-            feats[col] = {"dtype": f["dtype"], "shape": list(f["shape"]), "names": names.get(col)}
+            feats[col] = {"dtype": f["dtype"], "shape": [int(np.prod(f["shape"]))], "names": None}
         elif kind == "Image":
             img_kind, h, w = layout.images[col]
-            feats[col] = {
+            ch = 3 if img_kind == "rgb" else 1
+            if col in videos:
+                moved[col] = {
+                    "dtype": "video",
+                    "shape": [h, w, 3],
+                    "names": ["height", "width", "channels"],
+                    "info": {
+                        "video.height": h, "video.width": w, "video.codec": "h264", "video.pix_fmt": "yuv420p",
+                        "video.is_depth_map": False, "video.fps": layout.fps, "video.channels": 3, "has_audio": False,
+                    },
+                }
+                continue
+            feats[export_name(col)] = {
                 "dtype": "image",
-                "shape": [h, w, 3 if img_kind == "rgb" else 1],
+                "shape": [h, w, ch],
                 "names": ["height", "width", "channels"],
                 "info": {"format": "PNG", "unit": "8-bit RGB" if img_kind == "rgb" else "16-bit depth, millimetres along the optical axis, 0 = nothing hit"},
             }
         else:  # LeRobot features have fixed shapes
             raise ExportError(f"column {col!r} ({kind} without a fixed length) has no LeRobot feature")
-    return feats
+    return {**feats, **moved}
 
 
-def lerobot_stats(stats: dict[str, dict[str, list[float]]], layout: StepLayout) -> dict[str, dict[str, Any]]:
-    """echo-data meta/stats.json -> LeRobot's: image statistics shaped (C, 1, 1) and in the units
-    LeRobot returns (RGB in [0, 1] as in echo-data; depth in millimetres, as its 16-bit PNGs decode)."""
-    out: dict[str, dict[str, Any]] = {}
-    for col, st in stats.items():
-        if col in layout.images:
-            scale = 1.0 if layout.images[col][0] == "rgb" else 1000.0
-            out[col] = {k: (v if k == "count" else [[[x * scale]] for x in v]) for k, v in st.items()}
-        else:
-            out[col] = dict(st)
+def _hf_features(layout: StepLayout, video: tuple[str, ...]) -> dict[str, Any]:
+    """The `huggingface` schema metadata of the export's data files (what `datasets` reads)."""
+    videos = {VIDEO_CAMERAS[v] for v in video}
+    out: dict[str, Any] = {}
+    for col, f in layout.hf_features().items():
+        if col in videos:
+            continue
+        if f["_type"] == "Array3D":
+            f = {"feature": {"dtype": f["dtype"], "_type": "Value"}, "length": int(np.prod(f["shape"])), "_type": "List"}
+        out[export_name(col)] = f
     return out
 
 
-def _check_source(src: Path) -> dict[str, Any]:
-    try:
-        manifest = load_manifest(src)
-    except ManifestError as e:
-        raise ExportError(str(e)) from None
-    if not manifest.get("complete"):
-        raise ExportError(f"{src}: the build is not complete (finish it with `echo-data build --resume`)")
-    return manifest
+def _export_rows(rows: pa.Table, layout: StepLayout, video: tuple[str, ...], hf: dict[str, Any]) -> pa.Table:
+    """Step rows of one episode in the export's columns: depth renamed, audio flattened, video cameras dropped."""
+    videos = {VIDEO_CAMERAS[v] for v in video}
+    arrays, fields = [], []
+    for col in rows.column_names:
+        if col in videos:
+            continue
+        data = rows.column(col).combine_chunks()
+        if col in layout.arrays:
+            flat = column_values(rows.column(col), rows.num_rows).astype(np.float32).ravel()
+            data = pa.FixedSizeListArray.from_arrays(pa.array(flat), int(np.prod(layout.arrays[col])))
+        arrays.append(data)
+        fields.append(pa.field(export_name(col), data.type))
+    schema = pa.schema(fields, metadata={"huggingface": json.dumps({"info": {"features": hf}})})
+    return pa.Table.from_arrays(arrays, schema=schema)
 
 
-def _data_files(src: Path, dst: Path, manifest: dict[str, Any], layout: StepLayout) -> tuple[list[dict[str, Any]], dict[str, str]]:
+def episode_summaries(rows: pa.Table, layout: StepLayout, features: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Mergeable summaries (echo_data.dataset.stats) of one episode's numeric features, by export
+    name, in LeRobot's units: RGB per channel in [0, 1], depth per channel in millimetres (as its
+    16-bit PNGs decode), vectors per element, the flattened audio as one value over all bins."""
+    n = rows.num_rows
+    out: dict[str, dict[str, Any]] = {}
+    for col in rows.column_names:
+        name = export_name(col)
+        feat = features.get(name)
+        if feat is None or feat["dtype"] == "string":
+            continue
+        if col in layout.images:
+            kind = layout.images[col][0]
+            values = episode_feature_values(np.zeros((n, 0)), np.zeros((n, 0)), {col: (kind, decode_images(rows.column(col)))}, {})[col]
+            if kind == "depth":
+                values = values * 1000.0
+        elif col in layout.arrays:
+            values = column_values(rows.column(col), n).reshape(-1, 1)
+        else:
+            values = column_values(rows.column(col), n).astype(np.float64).reshape(n, -1)
+        out[name] = summarize(values, n)
+    return out
+
+
+def lerobot_stats(summary: dict[str, Any], feature: dict[str, Any]) -> dict[str, Any]:
+    """A summary -> LeRobot's record (min/max/mean/std/count/q01..q99): images shaped (C, 1, 1)."""
+    st = finalize(summary)
+    if feature["dtype"] in ("image", "video"):
+        return {k: (v if k == "count" else [[[x]] for x in v]) for k, v in st.items()}
+    return dict(st)
+
+
+def _flat_stats(stats: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """Per-episode statistics as LeRobot stores them in meta/episodes: `stats/{feature}/{stat}`."""
+    return {f"stats/{k}/{s}": v for k, st in stats.items() for s, v in st.items()}
+
+
+def _write_video(path: Path, rows: pa.Table, col: str, fps: float) -> None:
+    from echo_data.media import write_mp4
+
+    write_mp4(path, (f for f in decode_images(rows.column(col))), fps)
+
+
+def _data_files(
+    src: Path, dst: Path, manifest: dict[str, Any], layout: StepLayout, video: tuple[str, ...], features: dict[str, dict[str, Any]]
+) -> tuple[list[dict[str, Any]], dict[str, str], dict[str, dict[str, Any]]]:
     """Step rows regrouped into LeRobot data files under `dst` (each written as soon as it is
-    full, so memory holds one file's rows), one record per episode, and the splits."""
-    schema = layout.schema()
+    full, so memory holds one file's rows), one record per episode, the splits, and the merged
+    summaries of the train episodes (meta/stats.json, as echo-data's own stats: train only)."""
+    hf = _hf_features(layout, video)
     n_files = 0
     pending: list[pa.Table] = []
     pending_bytes = 0
     episodes: list[dict[str, Any]] = []
     splits: dict[str, str] = {}
+    train: list[dict[str, dict[str, Any]]] = []
     ep_meta = {(r["split"], r["episode_index"]): r for r in pq.read_table(src / "meta" / "episodes.parquet").to_pylist()}
     n_ep = n_rows = 0
+    stats_splits = [s for s in manifest["splits"] if s == "train"] or list(manifest["splits"])
 
     def close() -> None:
         nonlocal pending, pending_bytes, n_files
@@ -144,7 +229,7 @@ def _data_files(src: Path, dst: Path, manifest: dict[str, Any], layout: StepLayo
     for split in sorted(manifest["splits"], key=SPLIT_KEYS.__getitem__):
         first_ep = n_ep
         for shard in (e for e in manifest["shards"] if e["split"] == split):
-            table = pq.read_table(src / shard["file"])
+            table = conform(pq.read_table(src / shard["file"]), layout.schema())
             ep = table.column("episode_index").to_numpy()
             bounds = np.flatnonzero(np.diff(ep)) + 1
             for lo, hi in zip(np.concatenate([[0], bounds]), np.concatenate([bounds, [len(ep)]])):
@@ -154,61 +239,53 @@ def _data_files(src: Path, dst: Path, manifest: dict[str, Any], layout: StepLayo
                 for col, values in (("episode_index", np.full(length, n_ep)), ("index", np.arange(n_rows, n_rows + length))):
                     i = rows.schema.get_field_index(col)
                     rows = rows.set_column(i, col, pa.array(values.astype(np.int64)))
-                if pending and pending_bytes + rows.nbytes > DATA_FILES_SIZE_IN_MB * 2**20:
+                summaries = episode_summaries(rows, layout, features)
+                if split in stats_splits:
+                    train.append(summaries)
+                out_rows = _export_rows(rows, layout, video, hf)
+                if pending and pending_bytes + out_rows.nbytes > DATA_FILES_SIZE_IN_MB * 2**20:
                     close()
-                pending.append(conform(rows, schema))
-                pending_bytes += rows.nbytes
+                pending.append(out_rows)
+                pending_bytes += out_rows.nbytes
                 k = n_files
-                episodes.append(
-                    {
-                        "episode_index": n_ep,
-                        "tasks": [TASKS[row["setting"]]],
-                        "length": length,
-                        "data/chunk_index": k // CHUNKS_SIZE,
-                        "data/file_index": k % CHUNKS_SIZE,
-                        "dataset_from_index": n_rows,
-                        "dataset_to_index": n_rows + length,
-                        "meta/episodes/chunk_index": 0,
-                        "meta/episodes/file_index": 0,
-                        "split": split,
-                        "episode_id": row["episode_id"],
-                        "setting": row["setting"],
-                        "seed": row["seed"],
-                        "success": row["success"],
-                        "truncated": row.get("truncated_at") is not None,  # cut by outputs.max_frames after `length` frames
-                        "audio_path": row["audio_path"],
-                        "audio_sample_rate": int(manifest["audio"]["sample_rate"]),
-                        "audio_samples": row["audio_samples"],
-                        "audio_first_offset": int(rows.column("audio_offset")[0].as_py()),
-                    }
-                )
+                record: dict[str, Any] = {
+                    "episode_index": n_ep,
+                    "tasks": [TASKS[row["setting"]]],
+                    "length": length,
+                    "data/chunk_index": k // CHUNKS_SIZE,
+                    "data/file_index": k % CHUNKS_SIZE,
+                    "dataset_from_index": n_rows,
+                    "dataset_to_index": n_rows + length,
+                }
+                for v in video:  # one MP4 per episode: file index = episode index
+                    key = VIDEO_CAMERAS[v]
+                    _write_video(dst / VIDEO_PATH.format(video_key=key, chunk_index=n_ep // CHUNKS_SIZE, file_index=n_ep % CHUNKS_SIZE), rows, key, layout.fps)
+                    record.update({
+                        f"videos/{key}/chunk_index": n_ep // CHUNKS_SIZE, f"videos/{key}/file_index": n_ep % CHUNKS_SIZE,
+                        f"videos/{key}/from_timestamp": 0.0, f"videos/{key}/to_timestamp": length / layout.fps,
+                    })
+                record.update({
+                    "meta/episodes/chunk_index": 0,
+                    "meta/episodes/file_index": 0,
+                    "split": split,
+                    "episode_id": row["episode_id"],
+                    "setting": row["setting"],
+                    "seed": row["seed"],
+                    "success": row["success"],
+                    "truncated": row.get("truncated_at") is not None,  # cut by outputs.max_frames after `length` frames
+                    "audio_path": row["audio_path"],
+                    "audio_sample_rate": int(manifest["audio"]["sample_rate"]),
+                    "audio_samples": row["audio_samples"],
+                    "audio_first_offset": int(rows.column("audio_offset")[0].as_py()),
+                    **_flat_stats({k: lerobot_stats(s, features[k]) for k, s in summaries.items()}),
+                })
+                episodes.append(record)
                 n_ep += 1
                 n_rows += length
         splits[split] = f"{first_ep}:{n_ep}"
     close()
-    return episodes, splits
-
-
-def _card(info: dict[str, Any], src_card: Path) -> str:
-    """README.md of the export: LeRobot-style front matter, then the source dataset's card body."""
-    import yaml
-
-    from echo_data.dataset.card import LICENSE, size_category
-
-    front = {
-        "license": LICENSE,
-        "task_categories": ["robotics"],
-        "tags": ["LeRobot", "echo-data", "binaural-audio"],
-        "size_categories": [size_category(info["total_frames"])],
-        "configs": [{"config_name": "default", "data_files": "data/*/*.parquet"}],
-    }
-    body = src_card.read_text().split("---\n", 2)[-1] if src_card.is_file() else ""
-    return (
-        "---\n" + yaml.safe_dump(front, sort_keys=False) + "---\n\n"
-        f"LeRobot {info['codebase_version']} export of an echo-data dataset: {info['total_episodes']} episodes, "
-        f"{info['total_frames']} frames, splits {info['splits']} (episode ranges). Cameras are image features; "
-        "the episode WAVs are under audio/ (see `echo_data` in meta/info.json). The original card follows.\n" + body
-    )
+    merged = {k: merge([t[k] for t in train]) for k in train[0]} if train else {}
+    return episodes, splits, merged
 
 
 def _write_parquet(path: Path, table: pa.Table, row_group: int) -> None:
@@ -216,33 +293,42 @@ def _write_parquet(path: Path, table: pa.Table, row_group: int) -> None:
     pq.write_table(table, path, compression=PARQUET_COMPRESSION, row_group_size=row_group, store_schema=True)
 
 
-def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False) -> dict[str, Any]:
+def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False, video: tuple[str, ...] = ()) -> dict[str, Any]:
     """Write the LeRobot v3.0 dataset of the echo-data dataset `src` to `out`; return meta/info.json.
 
-    Everything is written to a temporary sibling folder first and renamed into place, so `out`
-    is either absent, the old export or the whole new one. Raises `ExportError` on bad input."""
+    `video` names cameras stored as MP4 video features (only "rgb": head RGB). Everything is
+    written to a temporary sibling folder first and renamed into place, so `out` is either
+    absent, the old export or the whole new one. Raises `ExportError` on bad input."""
     try:
         import pandas as pd
     except ImportError:
         raise ExportError("the LeRobot export needs pandas: pip install pandas") from None
     src, out = Path(src), Path(out)
-    manifest = _check_source(src)
+    manifest = check_source(src)
     if out.exists() and not (overwrite and out.is_dir()):
         raise ExportError(f"{out} already exists" + ("; use --overwrite to replace it" if out.is_dir() else " and is not a folder"))
     if out.resolve() == src.resolve() or src.resolve() in out.resolve().parents:
         raise ExportError(f"--out {out} lies inside the source dataset {src}")
     layout = StepLayout.from_dict(manifest["layout"])
+    for v in video:
+        if v not in VIDEO_CAMERAS:
+            raise ExportError(f"--video {v}: unknown camera (choose from {', '.join(VIDEO_CAMERAS)}; depth stays PNG)")
+        if VIDEO_CAMERAS[v] not in layout.images:
+            raise ExportError(f"--video {v}: {src} has no {VIDEO_CAMERAS[v]} column")
+        _, h, w = layout.images[VIDEO_CAMERAS[v]]
+        if h % 2 or w % 2:
+            raise ExportError(f"--video {v}: {w} x {h} images; H.264 in yuv420p needs even sides")
+    features = lerobot_features(layout, video)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
     shutil.rmtree(tmp, ignore_errors=True)
     try:
-        episodes, splits = _data_files(src, tmp, manifest, layout)
+        episodes, splits, merged = _data_files(src, tmp, manifest, layout, video, features)
         _write_parquet(tmp / EPISODES_PATH.format(chunk_index=0, file_index=0), pa.Table.from_pylist(episodes), 4096)
         tasks = pd.DataFrame({"task_index": np.arange(len(SETTINGS), dtype=np.int64)}, index=pd.Index([TASKS[s] for s in SETTINGS], name="task"))
         (tmp / "meta").mkdir(parents=True, exist_ok=True)
         tasks.to_parquet(tmp / "meta" / "tasks.parquet")
-        stats = lerobot_stats(json.loads((src / "meta" / "stats.json").read_text()), layout)
-        atomic_write_json(tmp / "meta" / "stats.json", stats)
+        atomic_write_bytes(tmp / "meta" / "stats.json", canonical_json({k: lerobot_stats(s, features[k]) for k, s in merged.items()}))
         src_info = json.loads((src / "meta" / "info.json").read_text())
         info = {
             "codebase_version": CODEBASE_VERSION,
@@ -252,30 +338,36 @@ def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False) ->
             "total_tasks": len(SETTINGS),
             "chunks_size": CHUNKS_SIZE,
             "data_files_size_in_mb": DATA_FILES_SIZE_IN_MB,
-            "video_files_size_in_mb": 200,
+            "video_files_size_in_mb": VIDEO_FILES_SIZE_IN_MB,
             "fps": layout.fps,
             "splits": splits,
             "data_path": DATA_PATH,
-            "video_path": None,
-            "features": lerobot_features(layout),
+            "video_path": VIDEO_PATH if video else None,
+            "features": features,
             "echo_data": {
                 "source": manifest["name"],
                 "recipe_hash": manifest["recipe_hash"],
                 "format": manifest["format"],
                 "cameras": src_info.get("cameras", {}),
+                "renamed": {v: k for k, v in RENAMED.items() if k in layout.images},
                 "audio": {
                     "sample_rate": layout.sample_rate,
                     "channels": 2,
                     "channel_0": "left",
                     "path": "audio/{split}/{episode_id}.wav (each row's audio_path; episode records' audio_path)",
                     "offset": "audio_offset: the sample at which the row's observation was taken",
+                    "shapes": {col: list(shape) for col, shape in layout.arrays.items()},
+                    "flattened": "row-major (frequency, time, ear): reshape a frame's vector to `shapes`",
                 },
-                "stats_split": src_info.get("stats_split", "train"),
-                "cameras_as": "image features (PNG), not videos: 16-bit depth does not survive 8-bit video",
+                "stats_split": "train" if "train" in manifest["splits"] else "all",
+                "cameras_as": ("head RGB as H.264 video; " if video else "") + "depth as 16-bit PNG image features: 8-bit video would lose millimetres",
             },
         }
-        atomic_write_json(tmp / "meta" / "info.json", info)
-        (tmp / "README.md").write_text(_card(info, src / "README.md"))
+        # column order, not sorted: LeRobot builds its Arrow schema from this order
+        atomic_write_bytes(tmp / "meta" / "info.json", (json.dumps(info, indent=4) + "\n").encode())
+        from echo_data.dataset.card import export_card
+
+        (tmp / "README.md").write_text(export_card(info, src / "README.md"))
         for e in episodes:
             dst = tmp / e["audio_path"]
             dst.parent.mkdir(parents=True, exist_ok=True)

@@ -20,7 +20,7 @@ from echo_data.recipe import SETTINGS, Recipe
 from echo_data.records import ACTION_DIM, STATE_DIM
 
 # echo-data/2: fixed-length `skill_success`, per-step `audio_path` / `audio_sample_rate`, per-step
-# camera poses (`camera_pose.head` / `camera_pose.wrist`).
+# camera poses (`camera_pose.head` / `camera_pose.wrist`), `action.executed`.
 FORMAT_VERSION = "echo-data/2"
 # Rows per Parquet row group: fixed so shard bytes never depend on how a build ran; small
 # enough that random access from a DataLoader decodes little more than it needs.
@@ -40,6 +40,9 @@ SPECTROGRAM = AUDIO_PREFIX + "spectrogram"
 MEL = AUDIO_PREFIX + "mel"
 BINAURAL = AUDIO_PREFIX + "binaural"  # the raw block of one step: observed, never stored
 ACTION = "action"
+# What the robot executed at the step: `action` plus the experts' DART noise (`experts.action_noise`;
+# equal to `action` without noise). Replaying these reproduces the episode; `action` is the label.
+ACTION_EXECUTED = "action.executed"
 STATE = "observation.state"
 # Per-step world pose of each camera: row-major 4x4 camera-to-world matrix, OpenCV axes
 # (x right, y down, z forward = the depth axis), flattened to 16 float32.
@@ -133,6 +136,7 @@ class StepLayout:
             "skill": v("string"),
             "skill_index": v("int64"),
             ACTION: {"feature": v("float32"), "length": ACTION_DIM, "_type": "List"},
+            ACTION_EXECUTED: {"feature": v("float32"), "length": ACTION_DIM, "_type": "List"},
             STATE: {"feature": v("float32"), "length": STATE_DIM, "_type": "List"},
         }
         for col in self.images:
@@ -160,6 +164,7 @@ class StepLayout:
             pa.field("skill", pa.string()),
             pa.field("skill_index", pa.int64()),
             pa.field(ACTION, pa.list_(pa.float32(), ACTION_DIM)),
+            pa.field(ACTION_EXECUTED, pa.list_(pa.float32(), ACTION_DIM)),
             pa.field(STATE, pa.list_(pa.float32(), STATE_DIM)),
         ]
         fields += [pa.field(col, IMAGE_TYPE) for col in self.images]
@@ -262,6 +267,7 @@ EPISODE_FIELDS = pa.schema(
                         ("priority", pa.int64()),
                         ("target", pa.string()),
                         ("source", pa.list_(pa.float64(), 3)),
+                        ("level_db", pa.float64()),  # source level, dB SPL at 1 m
                     ]
                 )
             ),

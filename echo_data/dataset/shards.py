@@ -18,6 +18,7 @@ import pyarrow.parquet as pq
 
 from echo_data.dataset.schema import (
     ACTION,
+    ACTION_EXECUTED,
     PARQUET_COMPRESSION,
     PARQUET_COMPRESSION_LEVEL,
     ROW_GROUP_ROWS,
@@ -71,7 +72,7 @@ def write_shard(
     metadata[SHARD_META_KEY.encode()] = json.dumps(shard_meta, sort_keys=True, separators=(",", ":")).encode()
     table = conform(table, schema.with_metadata(metadata))
     leaf = ".list.element"  # Parquet leaf paths of the float lists (1 level for vectors, 3 for arrays)
-    floats = [ACTION + leaf, STATE + leaf] + [col + leaf * 3 for col in layout.arrays]
+    floats = [ACTION + leaf, ACTION_EXECUTED + leaf, STATE + leaf] + [col + leaf * 3 for col in layout.arrays]
     with atomic_path(path) as tmp, pq.ParquetWriter(
         tmp,
         table.schema,

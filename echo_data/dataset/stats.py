@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from echo_data.dataset.schema import STATE
+from echo_data.dataset.schema import ACTION_EXECUTED, STATE
 
 SKETCH_POINTS = 101  # quantiles at 0, 0.01, ..., 1 per channel
 IMAGE_STRIDE = 4
@@ -28,10 +28,14 @@ def summarize(values: np.ndarray, frames: int) -> dict[str, Any]:
     if x.ndim != 2 or x.shape[0] == 0:
         raise ValueError(f"summarize expects a non-empty (n, channels) array, got shape {x.shape}")
     n = x.shape[0]
-    mean = x.mean(axis=0, dtype=np.float64)
+    # One transposed copy, then every reduction runs along contiguous memory: reducing over the
+    # rows of an (n, C) array walks it C values at a time and cost more than rendering the episode.
+    xt = np.ascontiguousarray(x.T)  # (C, n)
+    mean = xt.sum(axis=1, dtype=np.float64) / n
     m2 = np.zeros_like(mean)
     for start in range(0, n, 1 << 18):  # bounded float64 temporaries
-        m2 += ((x[start : start + (1 << 18)].astype(np.float64) - mean) ** 2).sum(axis=0)
+        d = xt[:, start : start + (1 << 18)].astype(np.float64) - mean[:, None]
+        m2 += np.einsum("ij,ij->i", d, d)
     stride = max(1, n // _MAX_SKETCH_VALUES)
     ordered = np.sort(x[::stride], axis=0).astype(np.float64)
     pos = np.linspace(0.0, len(ordered) - 1, SKETCH_POINTS)
@@ -44,8 +48,8 @@ def summarize(values: np.ndarray, frames: int) -> dict[str, Any]:
         "n": int(n),
         "mean": mean.tolist(),
         "m2": m2.tolist(),
-        "min": x.min(axis=0).astype(np.float64).tolist(),
-        "max": x.max(axis=0).astype(np.float64).tolist(),
+        "min": xt.min(axis=1).astype(np.float64).tolist(),
+        "max": xt.max(axis=1).astype(np.float64).tolist(),
         "sketch": sketch.T.tolist(),  # (C, 101)
     }
 
@@ -129,12 +133,15 @@ def episode_feature_values(
     state: np.ndarray,
     images: dict[str, tuple[str, np.ndarray]],
     arrays: dict[str, np.ndarray],
+    executed: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """The (n_values, channels) matrices summarised per feature, in the units loaders return:
     action/state per dimension; RGB per channel in [0, 1]; depth in metres; spectrograms per ear.
     Images are summarised from every IMAGE_STRIDE-th pixel in each direction (normalisation
     statistics do not need every pixel, and full frames would cost more than rendering them)."""
     out = {"action": action.reshape(len(action), -1), STATE: state.reshape(len(state), -1)}
+    if executed is not None:
+        out[ACTION_EXECUTED] = executed.reshape(len(executed), -1)
     for col, (kind, stack) in images.items():
         sub = stack[:, ::IMAGE_STRIDE, ::IMAGE_STRIDE]
         if kind == "rgb":

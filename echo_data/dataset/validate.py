@@ -22,8 +22,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset import stats as stats_mod
-from echo_data.dataset.encode import planner_wav_bytes
+from echo_data.dataset.encode import planner_binaural_wav_bytes, planner_wav_bytes
 from echo_data.dataset.manifest import ManifestError, load_manifest, plan_shards, totals
+from echo_data.dataset.planner import MEDIA, media_path
 from echo_data.dataset.schema import EPISODE_FIELDS, MEL, SHARD_META_KEY, SPECTROGRAM, StepLayout, column_to_numpy
 from echo_data.dataset.shards import read_shard_meta
 from echo_data.dataset.storage import canonical_json, sha256_file
@@ -305,23 +306,24 @@ def _derived_problems(out: Path, recipe: Recipe, layout: StepLayout, manifest: d
 
 
 def _planner_media_problems(out: Path, layout: StepLayout, rows: list[dict[str, Any]]) -> list[str]:
-    """Each planner WAV must be the clip its episode WAV gives (catches truncation and edits)."""
+    """Each planner WAV (mono and binaural) must be the clip its episode WAV gives (catches truncation and edits)."""
     import soundfile as sf
 
     problems = []
     for r in rows:
-        rel = f"planner/audio/{r['split']}/{r['episode_id']}.wav"
-        path = out / rel
-        if not path.is_file():
-            problems.append(f"{rel}: missing")
-            continue
+        rels = {kind: "planner/" + media_path(kind, r["split"], r["episode_id"]) for kind in ("audio", "audio_binaural")}
+        for rel in rels.values():
+            if not (out / rel).is_file():
+                problems.append(f"{rel}: missing")
         try:
             audio, _ = sf.read(str(out / r["audio_path"]), dtype="int16", always_2d=True)
-            want = planner_wav_bytes(dequantise(audio), layout.sample_rate)
+            track = dequantise(audio)
+            want = {"audio": planner_wav_bytes(track, layout.sample_rate), "audio_binaural": planner_binaural_wav_bytes(track, layout.sample_rate)}
         except Exception:
             continue  # the episode WAV's own problem is reported already
-        if path.read_bytes() != want:
-            problems.append(f"{rel}: differs from the clip of {r['audio_path']} (truncated or modified)")
+        for kind, rel in rels.items():
+            if (out / rel).is_file() and (out / rel).read_bytes() != want[kind]:
+                problems.append(f"{rel}: differs from the clip of {r['audio_path']} (truncated or modified)")
     return problems
 
 
@@ -330,10 +332,9 @@ def _stray_problems(out: Path, recipe: Recipe, manifest: dict[str, Any], rows: l
     expected = {e["file"] for e in manifest.get("shards", [])}
     expected |= {r["audio_path"] for r in rows}
     if recipe.outputs.planner_export:
-        expected |= {f"planner/audio/{r['split']}/{r['episode_id']}.wav" for r in rows}
-        expected |= {f"planner/images/{r['split']}/{r['episode_id']}.png" for r in rows}
+        expected |= {"planner/" + media_path(kind, r["split"], r["episode_id"]) for kind in MEDIA for r in rows}
     problems = []
-    for folder in ("data", "audio", "planner/audio", "planner/images"):
+    for folder in ("data", "audio", *(f"planner/{f}" for f, _ in MEDIA.values())):
         for path in sorted((out / folder).rglob("*")) if (out / folder).is_dir() else []:
             rel = path.relative_to(out).as_posix()
             if path.is_file() and rel not in expected and not path.name.startswith("."):

@@ -20,7 +20,7 @@ import pyarrow as pa
 from echo_data.dataset import stats as stats_mod
 from echo_data.dataset.encode import EncodedEpisode
 from echo_data.dataset.manifest import ShardPlan, ShardPlans, write_manifest
-from echo_data.dataset.schema import EPISODE_FIELDS, FORMAT_VERSION, STATE, StepLayout
+from echo_data.dataset.schema import ACTION_EXECUTED, EPISODE_FIELDS, FORMAT_VERSION, STATE, StepLayout
 from echo_data.dataset.shards import read_shard_meta, write_shard
 from echo_data.dataset.storage import atomic_write_bytes, atomic_write_json, atomic_write_parquet, sha256_file
 from echo_data.recipe import Recipe
@@ -72,9 +72,13 @@ class DatasetWriter:
         """Media first, rows next, the JSON commit marker last (each atomic)."""
         atomic_write_bytes(self.out / enc.episode["audio_path"], enc.wav)
         if self.recipe.outputs.planner_export:
-            atomic_write_bytes(self.out / "planner" / "audio" / enc.split / f"{enc.episode_id}.wav", enc.planner_wav or b"")
+            from echo_data.dataset.planner import media_path
+
+            planner = self.out / "planner"
+            atomic_write_bytes(planner / media_path("audio", enc.split, enc.episode_id), enc.planner_wav or b"")
+            atomic_write_bytes(planner / media_path("audio_binaural", enc.split, enc.episode_id), enc.planner_binaural_wav or b"")
             if enc.planner_png is not None:
-                atomic_write_bytes(self.out / "planner" / "images" / enc.split / f"{enc.episode_id}.png", enc.planner_png)
+                atomic_write_bytes(planner / media_path("image", enc.split, enc.episode_id), enc.planner_png)
         atomic_write_bytes(self.work(enc.split, enc.index, "arrow"), enc.table_ipc)
         atomic_write_json(self.work(enc.split, enc.index, "json"), enc.meta())
 
@@ -189,7 +193,7 @@ class DatasetWriter:
             "audio_path": "audio/{split}/{episode_id}.wav",
             "episode_index": "per split: equals the episode's index in its split; `index` counts frames per split",
             "stats_split": "train" if "train" in self.plans else "all",
-            "names": {"action": list(ACTION_NAMES), STATE: list(STATE_NAMES)},
+            "names": {"action": list(ACTION_NAMES), ACTION_EXECUTED: list(ACTION_NAMES), STATE: list(STATE_NAMES)},
             "features": self.layout.hf_features(),
             "cameras": camera_infos(self.recipe, self.layout),
         }

@@ -269,15 +269,12 @@ class EchoDataEnv(gym.Env):
                     obs[col] = pics[key]
         obs[STATE] = self.world.robot.state().astype(np.float32)
         if self.track is not None:
-            from echo_data.acoustics.features import step_features
-
             obs[BINAURAL] = np.asarray(block, dtype=np.float32)
-            fs = self.track.fs
-            spec, mel = step_features(self.track.last_second(), np.array([fs]), fs, self.recipe.acoustics.mel_bands)
+            spec, mel = self.track.features()
             if SPECTROGRAM in self.observation_space.spaces:
-                obs[SPECTROGRAM] = spec[0]
+                obs[SPECTROGRAM] = spec
             if MEL in self.observation_space.spaces:
-                obs[MEL] = mel[0]
+                obs[MEL] = mel
         return obs
 
     def _info(self, reset: bool = False) -> dict[str, Any]:

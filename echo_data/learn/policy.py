@@ -117,6 +117,7 @@ class PlannerModel:
         cfg, self.model, self.spec = _load(self.checkpoint, PlannerConfig, build_model)
         self.categories = cfg.categories
         self.templates = cfg.templates
+        self.sets = cfg.event_sets if cfg.decode == "sets" else None  # the decoder chosen on validation
         self.observations = tuple(self.spec.columns)
 
     @classmethod
@@ -131,7 +132,7 @@ class PlannerModel:
 
         with torch.no_grad():
             logits, scores = self.model(prepare(single(first_obs, self.spec), self.spec))
-        return decode(logits[0].numpy(), scores[0].numpy(), self.categories)
+        return decode(logits[0].numpy(), scores[0].numpy(), self.categories, self.sets)
 
     def plan(self, first_obs: Mapping[str, Any]) -> list[dict[str, str]]:
         from echo_data.learn.planner import chain_of

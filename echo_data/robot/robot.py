@@ -115,6 +115,7 @@ class Robot:
             )
             j.set_drive_properties(gains[0], gains[1], gains[2], "force")
             j.set_friction(0.0)
+        self._intent: np.ndarray | None = None  # see intend()
         self._action = self.rest_action_for(np.zeros(3), 0.0, self.tuck_qpos, GRIPPER_OPEN)
         q = np.zeros(len(names))
         q[self.head_indices] = (HEAD_PAN, HEAD_TILT)
@@ -206,8 +207,9 @@ class Robot:
         jyaw.set_drive_velocity_target(wz)
 
     # ------------------------------------------------------------------ actions
-    def apply(self, action: np.ndarray) -> None:
-        """Set drive targets from one action (see module doc); base speed is clipped."""
+    @staticmethod
+    def clip_action(action: np.ndarray) -> np.ndarray:
+        """The action as the drives take it (float64): base speed, torso and gripper clipped to their ranges."""
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         if a.shape != (ACTION_DIM,):
             raise ValueError(f"action must have {ACTION_DIM} values, got {a.shape}")
@@ -218,7 +220,13 @@ class Robot:
         a[2] = np.clip(a[2], -MAX_BASE_TURN, MAX_BASE_TURN)
         a[3] = np.clip(a[3], *U.TORSO_RANGE)
         a[11] = np.clip(a[11], GRIPPER_CLOSED, GRIPPER_OPEN)
+        return a
+
+    def apply(self, action: np.ndarray) -> None:
+        """Set drive targets from one action (see module doc); base speed is clipped."""
+        a = self.clip_action(action)
         self._action = a
+        self._intent = None
         joints = self.articulation.active_joints
         joints[self.torso_index].set_drive_target(a[3])
         for i, v in zip(self.arm_indices, a[4:11]):
@@ -242,12 +250,24 @@ class Robot:
 
     def rest_action(self) -> np.ndarray:
         """Hold everything where it is commanded now, with zero base velocity."""
-        a = self._action.astype(np.float32).copy()
+        a = self.last_action()
         a[:3] = 0.0
         return a
 
     def last_action(self) -> np.ndarray:
+        """The command being followed: the last applied action, or the controller's own command
+        that noise perturbed (`intend`), so an expert continues from what it meant, not from the noise."""
+        a = self._action if self._intent is None else self._intent
+        return a.astype(np.float32).copy()
+
+    def applied_action(self) -> np.ndarray:
+        """The action the drives hold now, as clipped (what physics follows, noise included)."""
         return self._action.astype(np.float32).copy()
+
+    def intend(self, action: np.ndarray) -> None:
+        """Record the controller's own command for the last applied action (DART: the applied one
+        was this plus noise). Read only through `last_action`/`rest_action`; physics never sees it."""
+        self._intent = self.clip_action(action)
 
     # ------------------------------------------------------------------ proprioception
     def torso(self) -> float:

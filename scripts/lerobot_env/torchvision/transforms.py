@@ -1,4 +1,4 @@
-"""`ToTensor` as torchvision defines it: PIL image -> (C, H, W) tensor; 8-bit images become
+"""`torchvision.transforms.ToTensor` as torchvision defines it: PIL image -> (C, H, W) tensor; 8-bit images become
 float32 in [0, 1], 16-bit ("I;16") images stay integers (int16), as torchvision returns them."""
 
 from __future__ import annotations

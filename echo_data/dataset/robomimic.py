@@ -1,0 +1,130 @@
+"""`echo-data export --format robomimic`: one HDF5 file in robomimic's dataset layout.
+
+robomimic (and LIBERO, ManiSkill's demo tools) read demonstrations as
+`data/demo_N/{actions (T, A), rewards (T,), dones (T,), obs/<key> (T, ...), next_obs/<key>}`, with
+`data` attributes `total` (frames) and `env_args` (JSON: env_name, type, env_kwargs), each demo's
+`num_samples`, and filter keys `mask/<name>` (arrays of demo names; robomimic trains on
+`mask/train` and validates on `mask/valid`). Here demo N is the N-th stored episode, train first;
+echo-data's val split is `mask/valid` and its test split `mask/test` (never train or tune on it).
+
+Observations (`obs/`): `state` (25), `head_rgb` (H, W, 3) uint8, `head_depth` / `wrist_depth`
+(H, W, 1) uint16 millimetres, `spectrogram` and `mel` of the last second (F, time, ear),
+`camera_pose_head` / `camera_pose_wrist` (4, 4). `next_obs/<key>` are HDF5 virtual datasets over
+`obs/<key>` shifted by one step (the last step repeats), so they cost no space. Rewards are sparse:
+1 on an episode's last step when it succeeded. Each demo's attributes carry its echo-data id,
+split, setting, seed, and `audio_path`: the episode's binaural WAV, relative to the source dataset
+folder named in `data` attribute `source_dataset`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from echo_data.dataset.episode_arrays import EpisodeArrays, check_out_file, check_source, iter_episodes
+from echo_data.dataset.episode_arrays import ExportError as ExportError  # the CLI catches `module.ExportError`
+from echo_data.dataset.schema import ACTION, CAMERA_POSES, IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE, StepLayout
+
+# echo-data column -> robomimic observation key
+OBS_KEYS = {
+    STATE: "state",
+    IMAGE_COLUMNS["head_rgb"]: "head_rgb",
+    IMAGE_COLUMNS["head_depth"]: "head_depth",
+    IMAGE_COLUMNS["wrist_depth"]: "wrist_depth",
+    SPECTROGRAM: "spectrogram",
+    MEL: "mel",
+    CAMERA_POSES["head"]: "camera_pose_head",
+    CAMERA_POSES["wrist"]: "camera_pose_wrist",
+}
+MASKS = {"train": "train", "val": "valid", "test": "test"}
+COMPRESSION = "lzf"  # fast, built into h5py: images and spectrograms compress, readers need nothing extra
+
+
+def _obs(ep: EpisodeArrays) -> dict[str, np.ndarray]:
+    out = {}
+    for col, key in OBS_KEYS.items():
+        if col in ep.columns:
+            x = ep.columns[col]
+            if col in (IMAGE_COLUMNS["head_depth"], IMAGE_COLUMNS["wrist_depth"]):
+                x = x[..., None]  # robomimic's depth modality is (H, W, 1)
+            elif col in CAMERA_POSES.values():
+                x = x.reshape(len(x), 4, 4)
+            out[key] = x
+    return out
+
+
+def _write_demo(data: Any, name: str, ep: EpisodeArrays) -> None:
+    import h5py
+
+    g = data.create_group(name)
+    n = ep.length
+    g.create_dataset("actions", data=ep.columns[ACTION].astype(np.float32))
+    rewards = np.zeros(n, np.float32)
+    rewards[-1] = float(bool(ep.record["success"]))
+    g.create_dataset("rewards", data=rewards)
+    g.create_dataset("dones", data=ep.columns["done"].astype(np.int64))
+    obs = g.create_group("obs")
+    nxt = g.create_group("next_obs")
+    for key, x in _obs(ep).items():
+        big = x[0].size > 64
+        d = obs.create_dataset(key, data=x, chunks=x.shape if big else None, compression=COMPRESSION if big else None)
+        layout = h5py.VirtualLayout(shape=x.shape, dtype=x.dtype)
+        source = h5py.VirtualSource(".", d.name, shape=x.shape, dtype=x.dtype)  # "." = this file, whatever its name
+        if n > 1:
+            layout[: n - 1] = source[1:]
+        layout[n - 1] = source[n - 1]
+        nxt.create_virtual_dataset(key, layout)
+    g.attrs.update(
+        num_samples=n,
+        episode_id=ep.record["episode_id"],
+        split=ep.split,
+        setting=ep.record["setting"],
+        seed=int(ep.record["seed"]),
+        success=bool(ep.record["success"]),
+        audio_path=ep.record["audio_path"],
+        audio_sample_rate=int(ep.columns["audio_sample_rate"][0]),
+        audio_offsets=ep.columns["audio_offset"].astype(np.int64),
+        skills=json.dumps(ep.strings.get("skill", [])),
+    )
+
+
+def export_robomimic(src: str | Path, out: str | Path, overwrite: bool = False) -> dict[str, Any]:
+    """Write the robomimic HDF5 of the echo-data dataset `src` to the file `out` (written to a
+    temporary name, then renamed); return a summary. Raises ExportError on bad input."""
+    import h5py
+
+    src, out = Path(src), Path(out)
+    manifest = check_source(src)
+    check_out_file(src, out, overwrite)
+    layout = StepLayout.from_dict(manifest["layout"])
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
+    masks: dict[str, list[str]] = {}
+    total = 0
+    try:
+        with h5py.File(tmp, "w") as f:
+            data = f.create_group("data")
+            for i, ep in enumerate(iter_episodes(src, manifest)):
+                _write_demo(data, f"demo_{i}", ep)
+                masks.setdefault(MASKS[ep.split], []).append(f"demo_{i}")
+                total += ep.length
+            env_kwargs = {"recipe": manifest["name"], "recipe_hash": manifest["recipe_hash"], "control_hz": layout.fps, "sample_rate": layout.sample_rate}
+            data.attrs.update(
+                total=total,
+                env_args=json.dumps({"env_name": "EchoData", "type": 4, "env_kwargs": env_kwargs}),  # type 4: not a robomimic-built env
+                source_dataset=f"out/{manifest['name']}",
+                echo_data_format=manifest["format"],
+                obs_keys=json.dumps(sorted(set(OBS_KEYS.values()) & set(data["demo_0"]["obs"].keys())) if len(data) else "[]"),
+            )
+            mask = f.create_group("mask")
+            for name, demos in masks.items():
+                mask.create_dataset(name, data=np.array(demos, dtype="S"))
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return {"codebase_version": "robomimic HDF5", "total_episodes": sum(len(v) for v in masks.values()), "total_frames": total, "splits": {k: len(v) for k, v in masks.items()}}

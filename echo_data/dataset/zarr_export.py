@@ -1,0 +1,104 @@
+"""`echo-data export --format zarr`: a Diffusion Policy replay buffer (one Zarr folder).
+
+Diffusion Policy's `ReplayBuffer` reads `data/<key>` arrays that concatenate every episode's steps
+along axis 0 and `meta/episode_ends` (int64, the exclusive end row of each episode). The store is
+written in Zarr format 2, which both Diffusion Policy's zarr 2 and zarr 3 open. Episodes are in
+train, val, test order; `meta/episode_split` (int8: 0 train, 1 val, 2 test) says which split each
+belongs to (Diffusion Policy draws its validation episodes by a ratio: mask the test ones out).
+
+Arrays: `action` (N, 12), `state` (N, 25), `head_rgb` (N, H, W, 3) uint8, `head_depth` /
+`wrist_depth` (N, H, W) uint16 millimetres, `spectrogram`, `mel` (N, F, time, ear), `camera_pose_head`
+/ `camera_pose_wrist` (N, 4, 4), `timestamp`, `frame_index`, `skill_index`, `audio_offset`, `done`,
+`skill_success`. Chunks along axis 0 hold `chunk_steps` rows: the median episode length, so one
+chunk is about one episode (a regular chunk grid cannot follow each episode's own length); the other
+axes are whole. The root attributes list each episode's id, split, setting and WAV (`audio_path`,
+relative to the source dataset folder `source_dataset`).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow.parquet as pq
+
+from echo_data.dataset.episode_arrays import ExportError, check_source, iter_episodes
+from echo_data.dataset.robomimic import OBS_KEYS
+from echo_data.dataset.schema import ACTION, CAMERA_POSES
+from echo_data.episode import SPLIT_KEYS
+
+SPLIT_CODES = {"train": 0, "val": 1, "test": 2}
+EXTRA = ("timestamp", "frame_index", "skill_index", "audio_offset", "done", "skill_success")
+KEYS = {ACTION: "action", **OBS_KEYS, **{c: c for c in EXTRA}}
+
+
+def _as_stored(col: str, x: np.ndarray) -> np.ndarray:
+    if col in CAMERA_POSES.values():
+        return x.reshape(len(x), 4, 4)
+    return x
+
+
+def export_zarr(src: str | Path, out: str | Path, overwrite: bool = False) -> dict[str, Any]:
+    """Write the replay buffer of the echo-data dataset `src` to the folder `out` (built in a
+    temporary sibling, then renamed); return a summary. Raises ExportError on bad input."""
+    import zarr
+
+    src, out = Path(src), Path(out)
+    manifest = check_source(src)
+    if out.exists() and not (overwrite and out.is_dir()):
+        raise ExportError(f"{out} already exists" + ("; use --overwrite to replace it" if out.is_dir() else " and is not a folder"))
+    if out.resolve() == src.resolve() or src.resolve() in out.resolve().parents:
+        raise ExportError(f"--out {out} lies inside the source dataset {src}")
+    lengths = pq.read_table(src / "meta" / "episodes.parquet", columns=["n_steps"]).column("n_steps").to_numpy()
+    chunk_steps = max(1, int(np.median(lengths)))
+    total = int(lengths.sum())
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        root = zarr.open_group(str(tmp), mode="w", zarr_format=2)
+        data = root.create_group("data")
+        arrays: dict[str, Any] = {}
+        ends: list[int] = []
+        splits: list[int] = []
+        episodes: list[dict[str, Any]] = []
+        row = 0
+        for ep in iter_episodes(src, manifest):
+            n = ep.length
+            for col, key in KEYS.items():
+                if col not in ep.columns:
+                    continue
+                x = _as_stored(col, ep.columns[col])
+                if key not in arrays:
+                    arrays[key] = data.create_array(key, shape=(total, *x.shape[1:]), dtype=x.dtype, chunks=(chunk_steps, *x.shape[1:]))
+                arrays[key][row : row + n] = x
+            row += n
+            ends.append(row)
+            splits.append(SPLIT_CODES[ep.split])
+            episodes.append({k: ep.record[k] for k in ("episode_id", "setting", "seed", "success", "audio_path")} | {"split": ep.split})
+        meta = root.create_group("meta")
+        meta.create_array("episode_ends", data=np.asarray(ends, np.int64), chunks=(max(len(ends), 1),))
+        meta.create_array("episode_split", data=np.asarray(splits, np.int8), chunks=(max(len(splits), 1),))
+        root.attrs.update(
+            {
+                "source_dataset": f"out/{manifest['name']}",
+                "echo_data_format": manifest["format"],
+                "recipe_hash": manifest["recipe_hash"],
+                "fps": manifest["layout"]["fps"],
+                "chunk_steps": chunk_steps,
+                "split_codes": SPLIT_CODES,
+                "units": {"head_depth": "uint16 millimetres", "wrist_depth": "uint16 millimetres", "head_rgb": "uint8 RGB",
+                          "camera_pose_head": "camera-to-world, OpenCV axes"},
+                "episodes": episodes,
+            }
+        )
+        if out.exists():
+            shutil.rmtree(out)
+        os.replace(tmp, out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    counts = {s: splits.count(c) for s, c in sorted(SPLIT_CODES.items(), key=lambda kv: SPLIT_KEYS[kv[0]]) if splits.count(c)}
+    return {"codebase_version": "Diffusion Policy replay buffer (Zarr format 2)", "total_episodes": len(ends), "total_frames": row, "splits": counts}

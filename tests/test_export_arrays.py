@@ -1,0 +1,93 @@
+"""`echo-data export --format robomimic` and `--format zarr`: read back with the consumers' own
+readers (robomimic's SequenceDataset; zarr alone) and compared with echo-data's rows."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+import zarr
+from PIL import Image
+from support.synth import build_synth
+from typer.testing import CliRunner
+
+from echo_data.cli import app
+
+
+@pytest.fixture(scope="module")
+def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return build_synth(tmp_path_factory.mktemp("arrays") / "synth", {"train": 3, "test": 2})
+
+
+def _rows(ds: Path) -> list[dict]:
+    rows = []
+    for split in ("train", "test"):
+        for f in sorted((ds / "data").glob(f"{split}-*.parquet")):
+            rows += [dict(r, split=split) for r in pq.read_table(f).to_pylist()]
+    return rows
+
+
+def _png(cell: dict) -> np.ndarray:
+    return np.asarray(Image.open(io.BytesIO(cell["bytes"])))
+
+
+def test_robomimic_sequence_dataset_reads_the_export(ds: Path, tmp_path: Path) -> None:
+    import robomimic.utils.obs_utils as obs_utils
+    from robomimic.utils.dataset import SequenceDataset
+
+    out = tmp_path / "demo.hdf5"
+    r = CliRunner().invoke(app, ["export", str(ds), "--format", "robomimic", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    rows = _rows(ds)
+    with h5py.File(out, "r") as f:
+        assert [n.decode() for n in f["mask/train"][:]] == ["demo_0", "demo_1", "demo_2"] and len(f["mask/test"]) == 2
+        assert f["data"].attrs["total"] == len(rows) and json.loads(f["data"].attrs["env_args"])["env_name"] == "EchoData"
+        d0 = f["data/demo_0"]
+        n0 = int(d0.attrs["num_samples"])
+        assert d0.attrs["audio_path"] == rows[0]["audio_path"] and (ds / d0.attrs["audio_path"]).is_file()
+        np.testing.assert_array_equal(d0["next_obs/state"][: n0 - 1], d0["obs/state"][1:])  # virtual, shifted by one
+        assert d0["dones"][-1] == 1 and d0["rewards"][-1] == 1.0 and d0["rewards"][:-1].sum() == 0
+    obs_utils.initialize_obs_utils_with_obs_specs({"obs": {"low_dim": ["state", "spectrogram"], "rgb": ["head_rgb"], "depth": ["head_depth"]}})
+    seq = SequenceDataset(
+        hdf5_path=str(out), obs_keys=("state", "spectrogram", "head_rgb", "head_depth"), dataset_keys=("actions", "rewards", "dones"),
+        seq_length=1, hdf5_cache_mode="low_dim", hdf5_use_swmr=False, filter_by_attribute="train", load_next_obs=True,
+    )
+    n_train = sum(r["split"] == "train" for r in rows)
+    assert len(seq) == n_train
+    for i in (0, n_train - 1):
+        item = seq[i]
+        np.testing.assert_array_equal(item["actions"][0], np.array(rows[i]["action"], np.float32))
+        np.testing.assert_array_equal(item["obs"]["state"][0], np.array(rows[i]["observation.state"], np.float32))
+        np.testing.assert_array_equal(item["obs"]["spectrogram"][0], np.array(rows[i]["observation.audio.spectrogram"], np.float32))
+        # images as stored (robomimic's ObsUtils.process_obs makes them channel-first floats for its models)
+        np.testing.assert_array_equal(item["obs"]["head_rgb"][0], _png(rows[i]["observation.images.head_rgb"]))
+        np.testing.assert_array_equal(item["obs"]["head_depth"][0][..., 0], _png(rows[i]["observation.images.head_depth"]))
+    again = CliRunner().invoke(app, ["export", str(ds), "--format", "robomimic", "--out", str(out)])
+    assert again.exit_code == 2 and "already exists" in again.output
+
+
+def test_zarr_replay_buffer_reads_back(ds: Path, tmp_path: Path) -> None:
+    out = tmp_path / "replay.zarr"
+    r = CliRunner().invoke(app, ["export", str(ds), "--format", "zarr", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    rows = _rows(ds)
+    root = zarr.open_group(str(out), mode="r")
+    ends = root["meta/episode_ends"][:]
+    lengths = [sum(1 for x in rows if (x["split"], x["episode_index"]) == key) for key in dict.fromkeys((x["split"], x["episode_index"]) for x in rows)]
+    assert ends.tolist() == np.cumsum(lengths).tolist() and root["meta/episode_split"][:].tolist() == [0, 0, 0, 2, 2]
+    assert root["data/head_rgb"].chunks[0] == root.attrs["chunk_steps"] == int(np.median(lengths))
+    np.testing.assert_array_equal(root["data/action"][:], np.array([x["action"] for x in rows], np.float32))
+    np.testing.assert_array_equal(root["data/state"][:], np.array([x["observation.state"] for x in rows], np.float32))
+    np.testing.assert_array_equal(root["data/mel"][:], np.array([x["observation.audio.mel"] for x in rows], np.float32))
+    np.testing.assert_array_equal(root["data/head_depth"][:], np.stack([_png(x["observation.images.head_depth"]) for x in rows]))
+    np.testing.assert_array_equal(root["data/head_rgb"][:], np.stack([_png(x["observation.images.head_rgb"]) for x in rows]))
+    np.testing.assert_array_equal(root["data/camera_pose_head"][:].reshape(len(rows), 16), np.array([x["camera_pose.head"] for x in rows], np.float32))
+    assert root["data/done"][:].tolist() == [x["done"] for x in rows]
+    assert [e["audio_path"] for e in root.attrs["episodes"]][0] == rows[0]["audio_path"]
+    bad = CliRunner().invoke(app, ["export", str(ds), "--format", "zarr", "--out", str(tmp_path / "z"), "--video", "rgb"])
+    assert bad.exit_code == 2 and not (tmp_path / "z").exists()
