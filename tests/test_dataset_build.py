@@ -197,6 +197,25 @@ def test_limit_is_recorded_and_overwrite_replaces(tmp_path: Path) -> None:
     assert validate(out) == []
 
 
+def test_split_builds_only_the_named_split_and_is_recorded(tmp_path: Path) -> None:
+    out = tmp_path / "synth"
+    _build(out, only=["train"])
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["only_splits"] == ["train"] and m["counts"]["episodes"] == {"train": synth_recipe().splits["train"]}
+    assert all(p.name.startswith("train-") for p in (out / "data").iterdir())
+    assert validate(out) == []
+    with pytest.raises(OutputError, match="--split"):
+        _build(out, mode="resume", only=["test"])
+    with pytest.raises(OutputError, match="--split"):
+        _build(out, mode="resume")  # all splits is another dataset
+    with pytest.raises(OutputError, match="--split val"):
+        _build(tmp_path / "other", only=["val"])
+    assert not (tmp_path / "other").exists()
+    full = tmp_path / "full"
+    _build(full)  # the train split's bytes do not depend on whether the test split was built
+    assert {k: v for k, v in _digests(full).items() if "train-" in k} == {k: v for k, v in _digests(out).items() if "train-" in k}
+
+
 def always_fails(recipe, split, index, library, recipe_dir, attempt=0):  # noqa: ANN001, ANN201
     ep = synth_generate(recipe, split, 0, library, recipe_dir, attempt=1)
     ep.success = False

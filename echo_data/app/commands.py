@@ -24,6 +24,7 @@ def build_cmd(
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Dataset folder (default: out/<recipe name>).")] = None,
     workers: Annotated[int | None, typer.Option("--workers", "-w", help="Parallel episode workers (default: the usable CPU cores).")] = None,
     limit: Annotated[int | None, typer.Option("--limit", help="At most N episodes per split (quick runs).")] = None,
+    split: Annotated[list[str] | None, typer.Option("--split", help="Build only this split (repeat for several; default all). Evaluation needs no built test split.")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted build.")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing dataset.")] = False,
     executor: Annotated[str, typer.Option("--executor", help="local (process pool) or ray.")] = "local",
@@ -46,7 +47,7 @@ def build_cmd(
 
         workers = default_workers()
     try:
-        summary = build(r, recipe, out if out is not None else Path("out") / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress, address=address)  # type: ignore[arg-type]
+        summary = build(r, recipe, out if out is not None else Path("out") / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress, address=address, only=split or None)  # type: ignore[arg-type]
     except OutputError as e:
         raise _fail(str(e), 2) from None
     except BuildError as e:

@@ -192,7 +192,7 @@ def validate(out: Path) -> list[str]:
     want = layout.schema()
     listed = {e["file"]: e for e in manifest.get("shards", [])}
     all_rows: list[dict[str, Any]] = []
-    for plans in plan_shards(recipe, manifest.get("limit")).values():
+    for plans in plan_shards(recipe, manifest.get("limit"), manifest.get("only_splits")).values():
         next_index = 0
         for plan in plans:
             path = out / plan.file
@@ -346,7 +346,7 @@ def _derived_problems(out: Path, recipe: Recipe, layout: StepLayout, manifest: d
         expected["meta/stats.json"] = stats_mod.dataset_stats(metas)
     except Exception as e:
         problems.append(f"meta/stats.json: cannot be rebuilt from the shards ({type(e).__name__}: {e})")
-    plans = plan_shards(recipe, manifest.get("limit"))
+    plans = plan_shards(recipe, manifest.get("limit"), manifest.get("only_splits"))
     expected["meta/info.json"] = DatasetWriter(out, recipe, layout, manifest, plans).info_json()
     if recipe.outputs.planner_export:
         expected.update(planner_files(out, recipe, rows))

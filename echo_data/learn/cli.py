@@ -68,7 +68,7 @@ def bc_cmd(
     ctx: typer.Context,
     dataset: _Dataset,
     skill: Annotated[str, typer.Option("--skill", help="Skill whose step rows are cloned (Navigate, Pick, Place, OpenDoor, CloseSink).")],
-    inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, depth, state (velocities left out), state_raw (all 25), target.")] = "audio,depth,state",
+    inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, depth (head), wrist_depth, rgb (head), state (velocities left out), state_raw (all 25), target (the goal position: the paper's * rows), kind (the chain's target kind, one-hot).")] = "audio,depth,state",
     epochs: _Epochs = None,
     seed: _Seed = 0,
     out: Annotated[Path | None, typer.Option("--out", help="Run folder (default runs/bc-<skill>-<inputs>).")] = None,
@@ -79,6 +79,9 @@ def bc_cmd(
     lr: Annotated[float, typer.Option("--lr", min=0.0)] = 1e-3,
     max_steps: _MaxSteps = None,
     threads: _Threads = 1,
+    gru: Annotated[bool, typer.Option("--gru/--no-gru", help="A GRU over the steps of a skill (BC-RNN), trained on whole segments; its state resets at each skill's start.")] = False,
+    seq_batch: Annotated[int, typer.Option("--seq-batch", min=1, help="With --gru: segments per optimiser step.")] = 4,
+    shift: Annotated[int, typer.Option("--shift", min=0, help="Random-shift augmentation of training images: up to N pixels (0 = off).")] = 0,
     resume: _Resume = False,
     overwrite: _Overwrite = False,
     progress: _Progress = True,
@@ -98,7 +101,7 @@ def bc_cmd(
                             "dagger_episodes": (dagger > 0, "without --dagger"), "dagger_steps": (dagger > 0, "without --dagger")})
         folder = out or Path("runs") / f"bc-{skill}-{'-'.join(names)}"
         cfg = BCConfig(str(dataset), skill, names, seed=seed, chunk=chunk, execute=execute, batch_size=batch_size, lr=lr, max_steps=max_steps, threads=threads,
-                       audio_form=audio_form)
+                       audio_form=audio_form, recurrent=gru, seq_batch=seq_batch, shift=shift)
         if epochs is not None:
             cfg.epochs = epochs
         _check(dataset, folder)
