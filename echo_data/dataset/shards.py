@@ -36,7 +36,9 @@ def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
     columns = []
     for f in schema:
         chunks = []
-        for chunk in table.column(f.name).chunks:
+        # a shard written before `action.executed` existed had no executed noise: it is the label
+        name = ACTION if f.name == ACTION_EXECUTED and f.name not in table.column_names else f.name
+        for chunk in table.column(name).chunks:
             if isinstance(f.type, pa.BaseExtensionType):
                 if isinstance(chunk.type, pa.BaseExtensionType):
                     chunk = chunk.storage

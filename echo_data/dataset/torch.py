@@ -22,7 +22,7 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.schema import ACTION, CHAIN_SLOTS, POSE_DIM, STATE, StepLayout, column_to_numpy
+from echo_data.dataset.schema import ACTION, ACTION_EXECUTED, CHAIN_SLOTS, POSE_DIM, STATE, StepLayout, column_to_numpy
 from echo_data.records import ACTION_DIM, STATE_DIM
 
 _INDEX_COLUMNS = ["episode_index", "frame_index", "setting", "skill"]
@@ -64,6 +64,9 @@ class _Shards:
         if split not in manifest["splits"]:
             raise ValueError(f"{root}: no split {split!r} (has {', '.join(manifest['splits'])})")
         self.all_columns = [f.name for f in self.layout.schema()]
+        if self.files:  # a dataset built before a column existed (e.g. action.executed) offers what it has
+            present = set(pq.read_schema(self.files[0]).names)
+            self.all_columns = [c for c in self.all_columns if c in present]
         self._pid: int | None = None
         self._open: dict[int, tuple[pq.ParquetFile, np.ndarray]] = {}
         self._decoded: OrderedDict[tuple[int, int, tuple[str, ...]], dict[str, Any]] = OrderedDict()
@@ -130,7 +133,7 @@ class _Shards:
 
     def shape(self, col: str) -> tuple[int, ...]:
         """Per-row shape of a fixed-shape list column."""
-        if col == ACTION:
+        if col in (ACTION, ACTION_EXECUTED):
             return (ACTION_DIM,)
         if col == STATE:
             return (STATE_DIM,)

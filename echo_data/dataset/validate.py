@@ -297,7 +297,7 @@ def _manifest_problems(manifest: dict[str, Any], recipe: Recipe) -> list[str]:
     """Totals (counts, success rate, skills, rejections, failed attempts) are a function of the
     shard entries: an edited total no longer matches them. Keys the build never writes are
     named (a hand edit or another tool's: a reader would silently ignore them)."""
-    known = set(new_manifest(recipe, manifest.get("limit"), StepLayout.from_recipe(recipe), 1, "local")) | set(totals([]))
+    known = set(new_manifest(recipe, manifest.get("limit"), StepLayout.from_recipe(recipe), 1, "local", manifest.get("only_splits"))) | set(totals([]))
     problems = [f"manifest.json: unknown key {k!r}" for k in sorted(set(manifest) - known)]
     try:
         want = totals(manifest.get("shards", []))
