@@ -211,6 +211,14 @@ def run_episodes(
     return [out[i] for i in range(n)]
 
 
+def _shown_path(path: Path) -> str:
+    """A path as results name it: relative to the working folder when inside it, so a results
+    JSON written in a checkout carries no path of the machine it ran on."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
 def evaluate(
     recipe: Recipe,
     recipe_path: Path | None,
@@ -238,7 +246,7 @@ def evaluate(
     episodes = run_episodes(job, n, workers, progress, done)
     scored = [e for e in episodes if "skipped" not in e]
     return {
-        "recipe": {"name": recipe.name, "path": str(recipe_path) if recipe_path else None, "content_hash": recipe.content_hash()},
+        "recipe": {"name": recipe.name, "path": _shown_path(recipe_path) if recipe_path else None, "content_hash": recipe.content_hash()},
         "split": split,
         "n": n,
         "policy": identity(pol, policy),
