@@ -61,10 +61,11 @@ def collect(recipe_path: Path, seeds: list[int], views: int, mono: bool) -> tupl
     import sapien
 
     from echo_data.recipe import load_recipe
+    from echo_data.scene.bodies import build_object
     from echo_data.scene.build import build_statics
     from echo_data.scene.generate import generate_floorplan_from_seed
     from echo_data.scene.lighting import add_lights
-    from echo_data.scene.objects import DISTRACTOR_CATEGORIES, build_object, instance_scale, object_size
+    from echo_data.scene.objects import DISTRACTOR_CATEGORIES, instance_scale, object_size
     from echo_data.world import keep_render_alive
 
     recipe = load_recipe(recipe_path)

@@ -10,6 +10,9 @@ its test scores (docs/learners.md).
 Usage (build ~10 min with 2 workers; each row 4-15 min on one core):
   python benchmarks/planner_table.py --data data/planner_audio --runs runs/planner
   python benchmarks/planner_table.py ... --rows "audio" "audio|--val-by sounds --select accuracy --augment --epochs 15"
+Fresh training voices (`recipes/planner_fresh.yaml`, docs/learners.md):
+  python benchmarks/planner_table.py --recipe recipes/planner_fresh.yaml --data out/planner_fresh --runs runs/planner_fresh \
+      --out benchmarks/results/planner_fresh.json --rows "audio|--select accuracy --epochs 20" "audio|--select accuracy --augment --epochs 20"
 `--reuse` collects run folders whose eval.json was written by the same arguments instead of
 training them again.
 """
@@ -18,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import shlex
 from pathlib import Path
@@ -34,6 +38,12 @@ ROWS = (
 
 def _name(row: str) -> str:
     return "planner-" + re.sub(r"[^a-z0-9]+", "-", row.replace("--", "")).strip("-")
+
+
+def _rel(path: str | Path) -> str:
+    """A path as the results JSON records it: relative to the checkout when inside it (no machine paths)."""
+    p = Path(os.path.abspath(path))  # not resolve(): a symlinked data folder keeps its name in the checkout
+    return p.relative_to(ROOT).as_posix() if p.is_relative_to(ROOT) else str(path)
 
 
 def _validation_max(run: Path) -> dict:
@@ -58,7 +68,7 @@ def main() -> None:
 
     data, runs, out = Path(a.data), Path(a.runs), Path(a.out)
     runs.mkdir(parents=True, exist_ok=True)
-    doc: dict = {"recipe": a.recipe, "data": str(data), "commit": _commit(), "commands": [], "rows": []}
+    doc: dict = {"recipe": _rel(a.recipe), "data": _rel(data), "commit": _commit(), "commands": [], "rows": []}
     manifest = data / "manifest.json"
     if not (manifest.is_file() and json.loads(manifest.read_text()).get("complete")):
         build = ["build", a.recipe, "--out", str(data), "--workers", str(a.workers), "--no-progress", "--resume" if data.exists() else "--overwrite"]
@@ -77,8 +87,9 @@ def main() -> None:
             text, secs = cli(*args, "--overwrite")
             report = json.loads(text)
             (run / "command.txt").write_text(command)
-        doc["rows"].append({"inputs": inputs, "flags": flags, "run": str(run), "trained_in": report["run"], "wall_seconds": secs, "train_seconds": report["seconds"],
+        doc["rows"].append({"inputs": inputs, "flags": flags, "run": _rel(run), "trained_in": _rel(report["run"]), "wall_seconds": secs, "train_seconds": report["seconds"],
                             "episodes": report["episodes"], "best": report.get("best"), **_validation_max(run),
+                            "val_episodes_hearing_fitted_sounds": report.get("val_episodes_hearing_fitted_sounds"),
                             "test_sounds_heard_in_training": report["test_sounds_heard_in_training"], "test": report["test"]})
         t = report["test"]
         print(f"{row:60s} single {t['single_event']['events_in_order']['correct']}/{t['single_event']['events_in_order']['n']} "

@@ -139,11 +139,12 @@ def evaluate(
     workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
     json_out: Path | None = typer.Option(None, "--json", help="Write the results (metrics, per-episode outcomes) here."),
     video: Path | None = typer.Option(None, "--video", help="Write one MP4 per episode (picture + binaural sound) into this folder."),
+    resume: bool = typer.Option(False, "--resume", help="Continue an interrupted evaluation from the episodes recorded next to --json (OUT.episodes.jsonl)."),
 ) -> None:
     """Run a policy closed-loop on a split and report the paper's metrics with 95 % intervals."""
     from echo_data.evaluation.cli import run_evaluate
 
-    code = run_evaluate(_load(recipe_path), recipe_path, split, n, tuple(policy), planner, workers, json_out, video)
+    code = run_evaluate(_load(recipe_path), recipe_path, split, n, tuple(policy), planner, workers, json_out, video, resume)
     raise typer.Exit(code)
 
 

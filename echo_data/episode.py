@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from echo_data import seeds
 from echo_data.scene.floorplan import FloorPlan, Vec3
 
 SPLIT_KEYS = {"train": 0, "val": 1, "test": 2}
@@ -41,6 +42,14 @@ def attempt_draws(recipe_seed: int, split: str, index: int, attempt: int, budget
     return [(k, episode_seed(recipe_seed, split, index, k)) for k in range(attempt * budget, (attempt + 1) * budget)]
 
 
+def fresh_sound_seed(seed: int, event: int) -> int:
+    """Seed of the fresh training sound instance of event `event` of the episode draw `seed`
+    (`sounds.fresh_train_instances`): a stream of its own, so the option changes the voices and
+    nothing else of the episode (same plan, start and events as without it)."""
+    ss = np.random.SeedSequence([int(seed), int(event), seeds.FRESH_SOUND])
+    return int(ss.generate_state(1, dtype=np.uint64)[0])
+
+
 @dataclass(frozen=True)
 class SoundEvent:
     """One sounding event: what sounds, where, and what resolves it."""
@@ -50,6 +59,7 @@ class SoundEvent:
     target: str  # object name ("phone_0"), "door:<i>" or "faucet:<i>"
     source: Vec3  # where the sound comes from (object centre, doorbell button, faucet spout)
     priority: int  # 0 is resolved first
+    level_db: float | None = None  # source level, dB SPL at 1 m; None: drawn by the spec (acoustics.levels.source_level_db)
 
 
 @dataclass(frozen=True)
@@ -73,6 +83,23 @@ class EpisodeSpec:
     start: tuple[float, float, float]  # base x, y, yaw
     events: tuple[SoundEvent, ...]  # in priority order
     chain: tuple[SkillCall, ...]
+
+    def __post_init__(self) -> None:
+        # Every event carries its source level: the one drawn from (plan seed, event) unless given.
+        from echo_data.acoustics.levels import source_level_db
+
+        if any(ev.level_db is None for ev in self.events):
+            events = tuple(
+                ev if ev.level_db is not None else dataclasses.replace(ev, level_db=source_level_db(ev.category, self.plan.seed, e))
+                for e, ev in enumerate(self.events)
+            )
+            object.__setattr__(self, "events", events)
+
+    def source_level(self, e: int) -> float:
+        """Event `e`'s source level, dB SPL at 1 m."""
+        level = self.events[e].level_db
+        assert level is not None  # filled in __post_init__
+        return float(level)
 
     def to_dict(self) -> dict[str, Any]:
         return {**dataclasses.asdict(self), "plan": self.plan.to_dict()}  # the plan writes itself (FloorPlan.to_dict)

@@ -48,29 +48,15 @@ def contact_sheet(frames: list[np.ndarray], times: list[float], out: Path, colum
 
 
 def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: SoundLibrary) -> np.ndarray:
-    """Binaural audio at the start pose for the first HEARD_SECONDS, every source sounding,
-    calibrated as the dataset's WAVs (levels, noise floor, full scale)."""
-    from echo_data.acoustics.hrtf import Hrtf
-    from echo_data.acoustics.levels import to_full_scale
-    from echo_data.acoustics.noise import NoiseFloor
-    from echo_data.acoustics.room import AcousticScene
-    from echo_data.acoustics.stream import SourceTrack, render_track
-    from echo_data.app.pipeline import event_waveform
+    """Binaural audio at the start pose for the first HEARD_SECONDS, every source sounding: the
+    episode's own renderer (`OnlineTrack`: levels, noise floor, full scale, as written)."""
+    from echo_data.envs.audio import OnlineTrack
 
-    cfg = recipe.acoustics
-    fs = cfg.sample_rate
-    hop = fs // recipe.robot.control_hz
-    n = int(HEARD_SECONDS * recipe.robot.control_hz)
     x, y, yaw = spec.start
-    poses = np.tile(np.array([[x, y, cfg.ear_height, yaw]]), (n, 1))
-    srcs = [
-        SourceTrack(position=ev.source, waveform=event_waveform(spec, e, library, fs, HEARD_SECONDS + cfg.rir_seconds), stop_sample=None)
-        for e, ev in enumerate(spec.events)
-    ]
-    hrtf = Hrtf.load(cfg.hrtf, fs)
-    track = render_track(AcousticScene(spec.plan, cfg), srcs, poses, hop, cfg, hrtf=hrtf)[: int(HEARD_SECONDS * fs)].astype(np.float64)
-    track += NoiseFloor(fs, cfg.noise_floor_dba, spec.plan.seed, hrtf).render(0, len(track))
-    return to_full_scale(track, cfg.full_scale_db_spl, what="preview")
+    track = OnlineTrack(spec, recipe, library)
+    pose = (x, y, recipe.acoustics.ear_height, yaw)
+    n = int(round(HEARD_SECONDS * recipe.robot.control_hz))
+    return np.concatenate([track.step(pose) for _ in range(n)])
 
 
 def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float = 0.25) -> None:
@@ -83,7 +69,6 @@ def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float 
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
-    from echo_data.acoustics.levels import source_level_db
     from echo_data.acoustics.materials import per_floor_area
     from echo_data.acoustics.room import AcousticScene, omni_rir
 
@@ -94,7 +79,7 @@ def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float 
     ys = np.arange(b.ymin + step / 2, b.ymax, step)
     ev = spec.events[0]
     src = ev.source
-    l1m = source_level_db(ev.category, spec.plan.seed, 0)
+    l1m = spec.source_level(0)
     level = np.full((len(ys), len(xs)), np.nan)
     for j, y in enumerate(ys):
         for i, x in enumerate(xs):

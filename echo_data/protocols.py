@@ -34,4 +34,6 @@ class SoundLibrary(Protocol):
 
     def instances(self, category: str | None = None, split: str | None = None) -> list[Any]: ...
 
+    def get(self, instance_id: str) -> Any: ...  # also a fresh training instance's id (sounds.fresh_train_instances)
+
     def waveform(self, instance_id: str, sample_rate: int = 16000, seconds: float | None = None) -> np.ndarray: ...

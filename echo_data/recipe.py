@@ -175,6 +175,11 @@ class SoundsConfig(_Strict):
     builtin: bool = True
     folders: dict[Category, str] = Field(default_factory=dict)
     folder_test_fraction: float = Field(0.3, ge=0.0, lt=1.0)
+    # Each event of a train (or val) episode that would play a built-in train instance plays a
+    # fresh synthesised one instead, drawn from the episode's seed (`episode.fresh_sound_seed`):
+    # thousands of training voices instead of 77, so a learner hears the category, not the voices.
+    # Test episodes keep the library's held-out test instances.
+    fresh_train_instances: bool = False
 
 
 class EventsConfig(_Strict):
@@ -402,6 +407,8 @@ class Recipe(_Strict):
             del data["outputs"]["max_frames"]
         if data["experts"] == ExpertsConfig().model_dump(mode="json"):  # noiseless experts: as before the key existed
             del data["experts"]
+        if not data["sounds"]["fresh_train_instances"]:  # library voices only: as before the key existed
+            del data["sounds"]["fresh_train_instances"]
         blob = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(blob.encode()).hexdigest()
 
@@ -500,6 +507,8 @@ def _check_sound_folders(recipe: Recipe, source: str) -> None:
         p = (base / folder) if not Path(folder).is_absolute() else Path(folder)
         if not p.is_dir():
             raise RecipeError(f"{source}: sounds.folders.{cat}: not a readable folder: {folder}")
+    if recipe.sounds.fresh_train_instances and not recipe.sounds.builtin:
+        raise RecipeError(f"{source}: sounds.fresh_train_instances: needs builtin: true (fresh instances come from the built-in synthesiser)")
     if not recipe.sounds.builtin and not recipe.sounds.folders:
         raise RecipeError(f"{source}: sounds: builtin is false and no folders are given")
 

@@ -53,7 +53,7 @@ class StepRecord:
     ear_position: tuple[float, float, float]  # head centre in world (for audio)
     ear_yaw: float  # head yaw in world (rad)
     sounding: tuple[bool, ...]  # per event: still playing at this step
-    skill_success: tuple[bool, ...] = field(default_factory=tuple)  # per chain entry, so far
+    skill_success: tuple[bool, ...] = field(default_factory=tuple)  # per chain entry: the env's latched tests after this step's action
     done: bool = False
     # camera name ("head", "wrist") -> 4x4 camera-to-world, OpenCV axes (echo_data.camera)
     camera_poses: dict[str, np.ndarray] = field(default_factory=dict)

@@ -20,6 +20,7 @@ DIFFUSE_NOISE = 0xD1FF  # acoustics/hrtf: diffuse-field binaural noise (keys: se
 NOISE_FLOOR = 0x0F10  # acoustics/noise: noise-floor blocks (keys: seed, block + 2^40)
 HELD_OUT_SOUNDS = 0x50D5  # learn/planner: sounds held out of training (keys: seed)
 SUBSET = 0x5EB5E7  # learn/planner: nested training subsets (keys: seed)
+FRESH_SOUND = 0xF8E5  # episode.fresh_sound_seed: a train event's fresh sound instance (keys: draw seed, event)
 ACTION_NOISE = 0xDA27  # agents/dart: the experts' DART action noise (keys: episode seed)
 
 

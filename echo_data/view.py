@@ -1,10 +1,11 @@
 """`echo-data view`: one stored episode as an MP4 to watch and listen to.
 
-Each video frame is one control step: head RGB, head depth, a top-down map (walls, furniture,
-the sound sources, the robot's path so far and its heading), the binaural spectrogram scrolling
-past a cursor at the step, and the active skill as a caption. The sound track is the episode's
-binaural WAV from the first step on, so picture and sound stay in step (frame t is at
-t / fps seconds, the sample at `audio_offset` of step t). The frames are `echo_data.viz.frames`'
+Each video frame is one control step: head RGB, head depth, wrist depth, a top-down map (walls,
+furniture, the sound sources, the robot's path so far and its heading), the binaural spectrogram
+scrolling past a cursor at the step, and the active skill as a caption. The sound track is the
+episode's binaural WAV from the first step on, so picture and sound stay in step (frame t is at
+t / fps seconds, the sample at `audio_offset` of step t), raised by the playback gain of
+`echo_data.viz.listening` that the frame states (the WAV itself stays calibrated). The frames are `echo_data.viz.frames`'
 (shared with `evaluate --video`); encoding is `echo_data.media.write_mp4`.
 """
 
@@ -19,9 +20,11 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 from PIL import Image
 
+from echo_data.camera import DEPTH_UNIT_M
 from echo_data.dataset.manifest import load_manifest
 from echo_data.dataset.schema import IMAGE_COLUMNS, STATE
 from echo_data.viz.frames import PANEL, EpisodeFrames
+from echo_data.viz.listening import listening
 from echo_data.viz.topdown import TopDownMap
 
 
@@ -43,7 +46,7 @@ def episode_rows(root: Path, split: str, index: int) -> tuple[dict[str, Any], li
     return ep, table.to_pylist()
 
 
-def _plan(manifest: dict[str, Any], scene_seed: int) -> Any:
+def episode_plan(manifest: dict[str, Any], scene_seed: int) -> Any:
     """The episode's apartment, regenerated from the recipe and its scene seed (None if impossible)."""
     try:
         from echo_data.recipe import Recipe
@@ -63,7 +66,7 @@ def render_episode_video(root: str | Path, index: int, out: str | Path, split: s
     root, out = Path(root), Path(out)
     manifest = load_manifest(root)
     ep, rows = episode_rows(root, split, index)
-    rgb_col, depth_col = IMAGE_COLUMNS["head_rgb"], IMAGE_COLUMNS["head_depth"]
+    rgb_col, depth_col, wrist_col = IMAGE_COLUMNS["head_rgb"], IMAGE_COLUMNS["head_depth"], IMAGE_COLUMNS["wrist_depth"]
     if not rows or rgb_col not in rows[0]:
         raise ViewError(f"{root}: {split} episode {index} has no {rgb_col} column to show")
     fps = int(manifest["layout"]["fps"])
@@ -74,17 +77,33 @@ def render_episode_video(root: str | Path, index: int, out: str | Path, split: s
     track = np.pad(track, ((0, len(rows) * hop - len(track)), (0, 0)))
     state = np.array([r[STATE] for r in rows], dtype=np.float64)
     chain = ep["chain"]
-    topdown = TopDownMap(_plan(manifest, ep["scene_seed"]), ep["events"], size=PANEL, extent=[tuple(p) for p in state[:, :2]])
-    video = EpisodeFrames(topdown, audio, sr)
+    topdown = TopDownMap(episode_plan(manifest, ep["scene_seed"]), ep["events"], size=PANEL, extent=[tuple(p) for p in state[:, :2]])
+    level = listening(track, float(manifest["audio"]["full_scale_db_spl"]))
+    video = EpisodeFrames(topdown, audio, sr, sound_note=level.note())
 
     def frames() -> Any:
         for t, row in enumerate(rows):
             rgb = np.asarray(Image.open(io.BytesIO(row[rgb_col]["bytes"])).convert("RGB"))
-            depth = np.asarray(Image.open(io.BytesIO(row[depth_col]["bytes"]))).astype(np.float64) / 1000.0 if depth_col in row else None
+            depth, wrist = (_depth_m(row, col) for col in (depth_col, wrist_col))
             k = int(row["skill_index"])
             target = chain[k]["target_kind"] if k < len(chain) else ""
-            caption = f"{ep['episode_id']}  t={row['timestamp']:.1f}s  skill {k + 1}/{len(chain)}: {row['skill']} {target}   (spectrogram: left ear above right)"
-            yield video.frame(rgb, depth, [tuple(p) for p in state[: t + 1, :2]], state[t, 2], int(row["audio_offset"]), caption)
+            caption = f"{ep['episode_id']}  t={row['timestamp']:.1f}s  skill {k + 1}/{len(chain)}: {row['skill']} {target}"
+            yield video.frame(rgb, depth, [tuple(p) for p in state[: t + 1, :2]], state[t, 2], int(row["audio_offset"]), caption, wrist_depth_m=wrist)
 
-    write_mp4(out, frames(), fps, audio=track, sample_rate=sr)
-    return {"path": str(out), "frames": len(rows), "seconds": len(rows) / fps, "episode_id": ep["episode_id"], "events": [e["category"] for e in ep["events"]]}
+    write_mp4(out, frames(), fps, audio=level.apply(track), sample_rate=sr)
+    return {
+        "path": str(out),
+        "frames": len(rows),
+        "seconds": len(rows) / fps,
+        "episode_id": ep["episode_id"],
+        "events": [e["category"] for e in ep["events"]],
+        "gain_db": level.gain_db,
+        "listening": f"played {level.gain_db:+.0f} dB; stored peak {level.peak_dbfs:.1f} dBFS, RMS {level.rms_dbfs:.1f} dBFS",
+    }
+
+
+def _depth_m(row: dict[str, Any], col: str) -> np.ndarray | None:
+    """A stored depth image (16-bit PNG of millimetres) in metres, None where not stored."""
+    if col not in row:
+        return None
+    return np.asarray(Image.open(io.BytesIO(row[col]["bytes"]))).astype(np.float64) * DEPTH_UNIT_M

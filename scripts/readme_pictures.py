@@ -43,9 +43,10 @@ def _closeups(plan) -> list[np.ndarray]:
     """Three instances each of phone, alarm clock and furby on a wooden table by a painted wall."""
     import sapien
 
+    from echo_data.scene.bodies import build_object
     from echo_data.scene.build import add_visual_box
     from echo_data.scene.lighting import add_lights
-    from echo_data.scene.objects import build_object, object_size
+    from echo_data.scene.objects import object_size
     from echo_data.scene.surfaces import furniture_look, surface_look
 
     out = []

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_acoustics_room_plans import shoebox_plan
+from support.room_plans import shoebox_plan
 
 from echo_data.acoustics.binaural import binaural_irs
 from echo_data.acoustics.hrtf import Hrtf

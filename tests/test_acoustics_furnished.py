@@ -17,8 +17,7 @@ from __future__ import annotations
 import numpy as np
 import pyroomacoustics as pra
 import pytest
-from test_acoustics_room_plans import H, T, row_plan
-from test_acoustics_room_tail import _t30
+from support.room_plans import H, T, band_t30, row_plan
 
 from echo_data.acoustics.room import AcousticScene, omni_rir
 from echo_data.acoustics.survey import room_t30s
@@ -68,16 +67,16 @@ def test_furnished_shoebox_t30_matches_eyring() -> None:
     scene, *_, eyring = _furnished_shoebox()
     h = omni_rir(scene.response((1.2, 2.6, 1.1), (3.9, 1.8, 1.3)))
     for b, fc in enumerate((250.0, 500.0, 1000.0, 2000.0, 4000.0), start=1):
-        assert _t30(h, fc) == pytest.approx(eyring[b], rel=0.2), (fc, _t30(h, fc), eyring[b])
+        assert band_t30(h, fc) == pytest.approx(eyring[b], rel=0.2), (fc, band_t30(h, fc), eyring[b])
     bare = AcousticScene(row_plan((sx + T,), sy + T, wall="plasterboard", floor="linoleum_on_concrete"), CFG)
     h_bare = omni_rir(bare.response((1.2, 2.6, 1.1), (3.9, 1.8, 1.3)))
-    assert _t30(h_bare, 1000.0) > 1.8 * _t30(h, 1000.0)  # the furnishings at least halve the ring
+    assert band_t30(h_bare, 1000.0) > 1.8 * band_t30(h, 1000.0)  # the furnishings at least halve the ring
 
 
 @pytest.mark.slow
 def test_generated_homes_ring_like_measured_furnished_homes() -> None:
     # T30 by this file's own Schroeder fit (not the product's)
-    kinds, t30 = room_t30s(load_recipe(RECIPE), range(50), CFG, (500.0, 1000.0, 2000.0, 4000.0), t30=lambda h, fs, fc: _t30(h, fc))
+    kinds, t30 = room_t30s(load_recipe(RECIPE), range(50), CFG, (500.0, 1000.0, 2000.0, 4000.0), t30=lambda h, fs, fc: band_t30(h, fc))
     soft = np.isin(kinds, FURNISHED)
     mid = t30[:, :2].mean(axis=1)
     assert soft.sum() >= 50

@@ -5,7 +5,7 @@ neighbour's late energy is rendered from points across the opening."""
 from __future__ import annotations
 
 import numpy as np
-from test_acoustics_room_plans import row_plan
+from support.room_plans import row_plan
 
 from echo_data.acoustics.binaural import binaural_irs
 from echo_data.acoustics.hrtf import Hrtf

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from test_acoustics_room_plans import row_plan
+from support.room_plans import row_plan
 
 from echo_data.acoustics.room import AcousticScene, omni_rir
 from echo_data.acoustics.types import SPEED_OF_SOUND

@@ -6,8 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pyroomacoustics as pra
 import pytest
-from scipy import signal
-from test_acoustics_room_plans import H, row_plan, shoebox_plan
+from support.room_plans import H, band_t30, row_plan, shoebox_plan
 
 from echo_data.acoustics.room import AcousticScene, omni_rir
 from echo_data.acoustics.types import BAND_CENTERS, SPEED_OF_SOUND
@@ -36,19 +35,6 @@ def _expected_t60(sx: float, sy: float, wall: str, floor: str, ceiling: str) -> 
     return sabine, eyring
 
 
-def _t30(h: np.ndarray, fc: float) -> float:
-    """T30 of an octave band from the Schroeder integral (-5 … -35 dB, extrapolated to 60 dB)."""
-    sos = signal.butter(3, [fc / np.sqrt(2), min(fc * np.sqrt(2), 0.45 * FS)], btype="band", fs=FS, output="sos")
-    x = signal.sosfiltfilt(sos, h.astype(np.float64))
-    edc = np.cumsum((x**2)[::-1])[::-1]
-    edc_db = 10 * np.log10(edc / edc[0] + 1e-30)
-    i5, i35 = int(np.argmax(edc_db <= -5)), int(np.argmax(edc_db <= -35))
-    assert i35 > i5 > 0
-    t = np.arange(len(x)) / FS
-    slope = np.polyfit(t[i5:i35], edc_db[i5:i35], 1)[0]
-    return -60.0 / slope
-
-
 @pytest.mark.parametrize(
     "room",
     [
@@ -63,7 +49,7 @@ def test_band_t30_matches_sabine_eyring(room) -> None:
     sabine, eyring = _expected_t60(sx, sy, wall, floor, ceiling)
     for src, rcv in (((1.2, 1.0, 1.1), (sx - 1.3, sy - 0.9, 1.5)), ((sx / 2, 0.8, 1.6), (0.9, sy - 1.2, 1.2))):
         h = omni_rir(scene.response(tuple(lo + src), tuple(lo + rcv)))
-        t30 = np.asarray([_t30(h, fc) for fc in BAND_CENTERS[:6]])
+        t30 = np.asarray([band_t30(h, fc) for fc in BAND_CENTERS[:6]])
         for b in range(6):
             lo_t, hi_t = min(sabine[b], eyring[b]), max(sabine[b], eyring[b])
             assert 0.75 * lo_t <= t30[b] <= 1.25 * hi_t, (BAND_CENTERS[b], t30[b], sabine[b], eyring[b])

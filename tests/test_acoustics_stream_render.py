@@ -246,8 +246,9 @@ def test_turning_in_place_in_one_degree_steps_changes_cues_smoothly():
     the RIR each step is rendered with changes its ILD by at most 0.6 dB and its ITD by at most
     20 µs per step (a source 1.5 m away in the horizontal plane: the physical ITD changes by
     up to ~9 µs per degree)."""
+    from support.room_plans import shoebox_plan
+
     from echo_data.acoustics.room import AcousticScene
-    from test_acoustics_room_plans import shoebox_plan
 
     cfg = AcousticsConfig(rir_seconds=0.25)
     assert 360 / cfg.yaws <= 5.0

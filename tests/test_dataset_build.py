@@ -15,7 +15,7 @@ import pytest
 import soundfile as sf
 import typer
 import yaml
-from test_dataset_synth import null_library, synth_generate, synth_recipe
+from support.synth import null_library, synth_generate, synth_recipe
 from typer.testing import CliRunner
 
 from echo_data.app.build import BuildError, OutputError, build
@@ -136,6 +136,12 @@ def test_planner_export(built: Path) -> None:
     info = sf.info(str(built / "planner" / rec["audios"][0]))
     heard = pq.read_table(built / "meta" / "episodes.parquet").column("audio_samples")[0].as_py()
     assert (info.samplerate, info.channels, info.frames) == (16000, 1, min(3 * 16000, heard))
+    # alongside: the first second with both ears, whose channel mean is the mono clip's first second
+    binaural, sr = sf.read(str(built / "planner" / "audio_binaural" / "train" / "train-000000.wav"), always_2d=True)
+    mono, _ = sf.read(str(built / "planner" / rec["audios"][0]), always_2d=True)
+    assert (sr, binaural.shape) == (16000, (min(16000, heard), 2))
+    assert np.abs(binaural.mean(axis=1) - mono[: len(binaural), 0]).max() <= 1.5 / 32768  # 16-bit rounding of each file
+    assert np.abs(binaural[:, 0] - binaural[:, 1]).max() > 0  # two ears, not one copied
     assert (built / "planner" / rec["images"][0]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     di = json.loads((built / "planner" / "dataset_info.json").read_text())["synth_train"]
     assert di["formatting"] == "sharegpt" and di["file_name"] == "train.json"
@@ -189,6 +195,25 @@ def test_limit_is_recorded_and_overwrite_replaces(tmp_path: Path) -> None:
     _build(out, limit=2, mode="overwrite")
     assert json.loads((out / "manifest.json").read_text())["counts"]["episodes"] == {"train": 2, "test": 2}
     assert validate(out) == []
+
+
+def test_split_builds_only_the_named_split_and_is_recorded(tmp_path: Path) -> None:
+    out = tmp_path / "synth"
+    _build(out, only=["train"])
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["only_splits"] == ["train"] and m["counts"]["episodes"] == {"train": synth_recipe().splits["train"]}
+    assert all(p.name.startswith("train-") for p in (out / "data").iterdir())
+    assert validate(out) == []
+    with pytest.raises(OutputError, match="--split"):
+        _build(out, mode="resume", only=["test"])
+    with pytest.raises(OutputError, match="--split"):
+        _build(out, mode="resume")  # all splits is another dataset
+    with pytest.raises(OutputError, match="--split val"):
+        _build(tmp_path / "other", only=["val"])
+    assert not (tmp_path / "other").exists()
+    full = tmp_path / "full"
+    _build(full)  # the train split's bytes do not depend on whether the test split was built
+    assert {k: v for k, v in _digests(full).items() if "train-" in k} == {k: v for k, v in _digests(out).items() if "train-" in k}
 
 
 def always_fails(recipe, split, index, library, recipe_dir, attempt=0):  # noqa: ANN001, ANN201

@@ -6,11 +6,11 @@ from pathlib import Path
 
 import pytest
 import yaml
+from support.synth import build_synth
 from typer.testing import CliRunner
 
 from echo_data.cli import app
 from echo_data.dataset.manifest import load_manifest
-from test_dataset_synth import build_synth
 
 
 @pytest.fixture(scope="module")

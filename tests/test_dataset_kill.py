@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import hashlib
+import contextlib
 import json
 import os
 import random
@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
-from test_dataset_synth import null_library, synth_generate, synth_recipe
+from support.synth import file_digests, null_library, synth_generate, synth_recipe
 
 import echo_data.app.build as build_mod
 import echo_data.dataset.writer as writer_mod
@@ -26,20 +26,12 @@ import sys
 sys.path.insert(0, {tests!r})
 from pathlib import Path
 from echo_data.app.build import build
-from test_dataset_synth import null_library, slow_generate, synth_recipe
+from support.synth import null_library, slow_generate, synth_recipe
 
 if __name__ == "__main__":
     build(synth_recipe(), Path({tests!r}), Path({out!r}), mode="resume", generate=slow_generate,
           make_library=null_library, progress=False)
 """
-
-
-def _digests(root: Path) -> dict[str, str]:
-    return {
-        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(root.rglob("*"))
-        if p.is_file() and p.name != "manifest.json"
-    }
 
 
 def _files(root: Path) -> set[tuple[str, int]]:
@@ -48,10 +40,8 @@ def _files(root: Path) -> set[tuple[str, int]]:
         return set()
     out = set()
     for p in root.rglob("*"):
-        try:
+        with contextlib.suppress(FileNotFoundError):  # renamed under our feet
             out.add((str(p.relative_to(root)), p.stat().st_size if p.is_file() else -1))
-        except FileNotFoundError:  # renamed under our feet
-            pass
     return out
 
 
@@ -88,7 +78,7 @@ def test_sigkill_at_random_moments_then_resume(reference: Path, tmp_path: Path) 
     assert interrupted >= 3, "the build finished before it could be killed: make the generator slower"
     build(synth_recipe(), TESTS, out, mode="resume", generate=synth_generate, make_library=null_library, progress=False)
     assert _shard_hashes(out) == _shard_hashes(reference)
-    assert _digests(out) == _digests(reference)
+    assert file_digests(out) == file_digests(reference)
     assert validate(out) == []
 
 
@@ -119,5 +109,5 @@ def test_crash_between_shard_rename_and_manifest(reference: Path, tmp_path: Path
     (out / "data" / "train-00000-of-00003.parquet").write_bytes(b"corrupted")  # a listed shard gone bad
     summary = build(synth_recipe(), TESTS, out, mode="resume", generate=synth_generate, make_library=null_library, progress=False)
     assert summary.generated == 8 - 2  # the second shard's episodes were still stored; the first is redone
-    assert _digests(out) == _digests(reference)
+    assert file_digests(out) == file_digests(reference)
     assert validate(out) == []

@@ -2,21 +2,21 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-
 import torch  # the test extra installs it: a missing one fails, never skips
+from support.synth import synth_generate, synth_recipe
 
 from echo_data.dataset.torch import SequenceDataset, StepDataset
-from test_dataset_synth import build_synth, synth_generate, synth_recipe
 
 
 @pytest.fixture(scope="module")
-def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return build_synth(tmp_path_factory.mktemp("torch") / "synth", {"train": 4, "test": 1})
+def ds(synth_dataset: Callable[[dict[str, int]], Path]) -> Path:
+    return synth_dataset({"train": 4, "test": 1})
 
 
 def _all_rows(ds: Path, split: str) -> dict:

@@ -148,8 +148,9 @@ class _Env:
         return {}, 0.0, False, False, self.info()
 
     def info(self) -> dict:
-        """The environment's info: each chain skill's success test at this step."""
-        return {"skills": [{"success": self.steps >= self.done_at[k]} for k in range(len(self.episode.chain))]}
+        """The environment's info: each chain skill's success test at this step, and `done` (latched in chain order)."""
+        ok = [self.steps >= self.done_at[k] for k in range(len(self.episode.chain))]
+        return {"skills": [{"success": ok[k], "done": all(ok[: k + 1])} for k in range(len(ok))]}
 
 
 class _Planner:

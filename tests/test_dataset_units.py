@@ -5,12 +5,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
+from support.synth import synth_recipe
 
 from echo_data.dataset import stats
 from echo_data.dataset.manifest import plan_shards
 from echo_data.dataset.schema import StepLayout, array3d_column, column_to_numpy
-from test_dataset_synth import synth_recipe
 
 
 def test_merged_stats_equal_direct_computation() -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 import typer
-from test_dataset_synth import build_synth, damageable_copy
+from support.synth import build_synth, damageable_copy
 from typer.testing import CliRunner
 
 from echo_data.app.commands import register

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from echo_data.acoustics.hrtf import Hrtf
-from echo_data.acoustics.room import AcousticScene
-from echo_data.acoustics.stream import SourceTrack, render_track
 from echo_data.acoustics.levels import to_full_scale
 from echo_data.acoustics.noise import NoiseFloor
-from echo_data.pcm import as_written
+from echo_data.acoustics.room import AcousticScene
+from echo_data.acoustics.stream import SourceTrack, render_track
 from echo_data.envs.audio import OnlineTrack, event_waveform, pre_roll_steps, step_samples
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
+from echo_data.pcm import as_written
 from echo_data.recipe import Recipe
 from echo_data.scene.generate import generate_floorplan
 from echo_data.sounds import SoundLibrary

@@ -7,10 +7,10 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+from support.recipes import tiny_recipe
 
 import echo_data.envs  # noqa: F401  (registers the ids)
 from echo_data.envs import EchoDataEnv, EnvInputError
-from test_env_replay import tiny_recipe
 
 ROOT = Path(__file__).resolve().parents[1]
 

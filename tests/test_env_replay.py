@@ -16,22 +16,14 @@ import pyarrow.parquet as pq
 import pytest
 import soundfile as sf
 from PIL import Image
+from support.recipes import tiny_recipe
 
 from echo_data.dataset.encode import encode_wav
 from echo_data.dataset.schema import ACTION, ACTION_EXECUTED, STATE, StepLayout, column_to_numpy
 from echo_data.envs import EchoDataEnv, observation_space
 from echo_data.envs.env import BINAURAL
-from echo_data.recipe import CameraConfig, load_recipe
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def tiny_recipe(setting: str = "quickstart"):
-    r = load_recipe(ROOT / "recipes" / f"{setting}.yaml")
-    cam = CameraConfig(width=32, height=32)
-    robot = r.robot.model_copy(update={"head_camera": cam, "wrist_camera": cam.model_copy(update={"rgb": False})})
-    comp = {"object_relocation": {"test": 1}, "state_transition": {"test": 1}, "multi_event": {"test": 1}}
-    return r.model_copy(update={"robot": robot, "composition": comp, "splits": {"test": 3}})
 
 
 def test_observation_space_is_the_dataset_schema() -> None:

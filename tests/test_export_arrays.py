@@ -13,10 +13,10 @@ import pyarrow.parquet as pq
 import pytest
 import zarr
 from PIL import Image
+from support.synth import build_synth
 from typer.testing import CliRunner
 
 from echo_data.cli import app
-from test_dataset_synth import build_synth
 
 
 @pytest.fixture(scope="module")

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import shutil
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -22,33 +22,15 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 from PIL import Image
+from support.lerobot_env import HERE, VENV_PYTHON, lerobot_env, run_lerobot
 from typer.testing import CliRunner
 
 from echo_data.cli import app
-from test_dataset_synth import build_synth
-
-HERE = Path(__file__).parent
-VENV_PYTHON = Path(os.environ.get("ECHO_LEROBOT_PYTHON", HERE.parent / ".venv-lerobot" / "bin" / "python"))
-
-
-def lerobot_env(tmp_path: Path) -> dict[str, str]:
-    """The environment of a subprocess in the LeRobot venv: offline, its own caches, none of our paths."""
-    if not VENV_PYTHON.is_file():
-        if os.environ.get("CI"):
-            pytest.fail(f"{VENV_PYTHON} missing: scripts/setup_lerobot.sh makes it")
-        pytest.skip(f"no LeRobot environment at {VENV_PYTHON} (bash scripts/setup_lerobot.sh)")
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
-    env.update(HF_HUB_OFFLINE="1", HF_DATASETS_OFFLINE="1", HF_HOME=str(tmp_path / "hf"))
-    return env
-
-
-def run_lerobot(args: list[str], tmp_path: Path, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([str(VENV_PYTHON), *args], capture_output=True, text=True, env=lerobot_env(tmp_path), timeout=300, cwd=cwd)
 
 
 @pytest.fixture(scope="module")
-def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return build_synth(tmp_path_factory.mktemp("lerobot") / "synth", {"train": 4, "test": 2})
+def ds(synth_dataset: Callable[[dict[str, int]], Path]) -> Path:
+    return synth_dataset({"train": 4, "test": 2})
 
 
 def _echo_rows(ds: Path) -> list[dict]:

@@ -10,8 +10,7 @@ import uuid
 from pathlib import Path
 
 import pytest
-from test_dataset_kill import _digests
-from test_dataset_synth import null_library, synth_generate, synth_recipe
+from support.synth import file_digests, null_library, synth_generate, synth_recipe
 
 import echo_data.dataset.writer as writer_mod
 from echo_data.app.build import OutputError, OutputWriteError, build
@@ -59,7 +58,7 @@ def test_write_error_mid_build_is_one_line_keeps_episodes_and_resumes(err: int, 
     monkeypatch.setattr(writer_mod, "atomic_write_bytes", real)
     summary = _build(out, mode="resume")
     assert summary.reused >= 3  # type: ignore[attr-defined]
-    assert _digests(out) == _digests(reference)
+    assert file_digests(out) == file_digests(reference)
     assert validate(out) == []
 
 
@@ -81,7 +80,7 @@ def test_real_full_disk_on_a_small_tmpfs(reference: Path, tmp_path: Path) -> Non
         assert len(list((out / "data").glob("*.parquet"))) + _stored(out) >= 1
         assert subprocess.run(["mount", "-o", "remount,size=64m", str(disk)]).returncode == 0  # space freed
         _build(out, mode="resume")
-        assert _digests(out) == _digests(reference)
+        assert file_digests(out) == file_digests(reference)
         assert validate(out) == []
     finally:
         subprocess.run(["umount", "-l", str(disk)])

@@ -9,7 +9,7 @@ import sys
 import time
 from pathlib import Path
 
-from test_dataset_synth import null_library, synth_generate, synth_recipe
+from support.synth import null_library, synth_generate, synth_recipe
 
 from echo_data.app.build import OutputError, build
 from echo_data.dataset.lock import LOCK_NAME, BuildLock
@@ -21,7 +21,7 @@ import sys
 sys.path.insert(0, {tests!r})
 from pathlib import Path
 from echo_data.app.build import OutputError, build
-from test_dataset_synth import null_library, synth_generate, synth_recipe
+from support.synth import null_library, synth_generate, synth_recipe
 
 def slow(*a, **k):
     import time

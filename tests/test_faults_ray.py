@@ -7,6 +7,7 @@ Slow (a minute or so: Ray notices a dead node by missed health checks), still ru
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -21,8 +22,7 @@ from pathlib import Path
 
 import pytest
 import ray  # noqa: F401  (the test extra installs it: a missing one fails, never skips)
-from test_dataset_kill import _digests
-from test_dataset_synth import null_library, synth_generate, synth_recipe
+from support.synth import file_digests, null_library, synth_generate, synth_recipe
 
 from echo_data.app.build import build
 from echo_data.dataset.validate import validate
@@ -64,10 +64,8 @@ def _tree(roots: set[int], procs: dict[int, tuple[int, str]]) -> set[int]:
 
 def _kill(pids: set[int]) -> None:
     for pid in pids:
-        try:
+        with contextlib.suppress(ProcessLookupError):
             os.kill(pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
 
 
 class Cluster:
@@ -126,7 +124,7 @@ from pathlib import Path
 import ray
 import echo_data.dataset.writer as writer_mod
 from echo_data.app.build import build
-from test_dataset_synth import null_library, slow_generate, synth_recipe
+from support.synth import null_library, slow_generate, synth_recipe
 
 log = open(sys.argv[2], "a")
 real_store = writer_mod.DatasetWriter.store
@@ -172,7 +170,7 @@ def test_raylet_killed_mid_build_gives_the_local_bytes(cluster: Cluster, tmp_pat
     assert episodes and json.loads(episodes[-1]) == {"train": 5, "test": 3}, stdout[-2000:]
     stored = Counter(log.read_text().split("\n")[:-1])
     assert len(stored) == 8 and set(stored.values()) == {1}  # no episode written twice
-    assert _digests(out) == _digests(local)
+    assert file_digests(out) == file_digests(local)
     assert validate(out) == []
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from test_dataset_synth import synth_generate
+from support.synth import synth_generate
 
 from echo_data.app.build import build, default_library
 from echo_data.episode import attempt_draws, episode_seed

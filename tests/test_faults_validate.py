@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import soundfile as sf
-from test_dataset_synth import build_synth, damageable_copy, null_library, synth_generate, synth_recipe
+from support.synth import build_synth, damageable_copy, null_library, synth_generate, synth_recipe
 
 import echo_data.dataset.encode as encode_mod
 from echo_data.app.build import BuildError, build
@@ -73,6 +73,11 @@ def _truncated_planner_wav(d: Path) -> None:
     wav.write_bytes(wav.read_bytes()[:-800])
 
 
+def _truncated_binaural_wav(d: Path) -> None:
+    wav = d / "planner" / "audio_binaural" / "test" / "test-000001.wav"
+    wav.write_bytes(wav.read_bytes()[:-800])
+
+
 def _manifest_skills(d: Path) -> None:
     _edit_json(d / "manifest.json", lambda m: m["skills"]["Pick"].update(successes=m["skills"]["Pick"]["attempts"]))
 
@@ -87,6 +92,10 @@ DAMAGE = {
     "edited meta/stats.json": (_edited_stats, "meta/stats.json: differs from what the shards give"),
     "edited planner json": (_edited_planner_json, "planner/train.json: differs from what the shards give"),
     "truncated planner wav": (_truncated_planner_wav, "planner/audio/test/test-000001.wav: differs from the clip of audio/test/test-000001.wav"),
+    "truncated binaural planner wav": (
+        _truncated_binaural_wav,
+        "planner/audio_binaural/test/test-000001.wav: differs from the clip of audio/test/test-000001.wav",
+    ),
 }
 
 

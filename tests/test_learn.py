@@ -190,6 +190,10 @@ def test_planner_trains_scores_and_plans(ds: Path, tmp_path: Path) -> None:
     acc = report["test"]["all"]["events_in_order"]
     assert acc["n"] == 1 and 0.0 <= acc["ci95"][0] <= acc["ci95"][1] <= 1.0
     assert json.loads((run / runs.POLICY).read_text())["kind"] == "planner"
+    # the decoder is chosen on validation and stored where PlannerModel reads it
+    config = json.loads((run / runs.CONFIG).read_text())
+    assert report["decode"] == config["decode"] and set(report["test_events_in_order_by_decoder"]) == {"threshold", "sets"}
+    assert config["event_sets"] and all(s == sorted(s) for s in config["event_sets"])
     item = StepDataset(ds, "test", columns=["frame_index", "observation.audio.mel", "observation.images.head_rgb"])[0]
     assert int(item["frame_index"]) == 0
     chain = PlannerModel.from_run(run).plan({k: v for k, v in item.items() if k != "frame_index"})
@@ -230,6 +234,24 @@ def test_planner_validation_by_sounds_holds_out_instances_never_trained_on() -> 
         if r["episode_index"] in train:
             assert not sounds & set(held)
     assert split_by_sounds(rows, 0.34, 0) == (train, val, held) and split_by_sounds(rows, 0.34, 1)[2] != held
+
+
+def test_planner_set_decoder_answers_only_event_sets_of_the_training_episodes() -> None:
+    """"threshold" names every category with a positive logit; "sets" the most probable set the
+    training episodes hold (independent sigmoid probabilities), ordered by the priority scores."""
+    from echo_data.learn.planner import decode, event_sets
+
+    cats = ["alarm", "doorbell", "furby", "phone", "sink"]
+    rows = [{"events": [{"category": c} for c in evs]} for evs in (["phone"], ["sink"], ["sink", "phone"], ["doorbell", "alarm"], ["doorbell"])]
+    sets = event_sets(rows)
+    assert sets == [["alarm", "doorbell"], ["doorbell"], ["phone"], ["phone", "sink"], ["sink"]]
+    scores = np.array([0.0, 2.0, 0.0, 1.0, 3.0])
+    logits = np.array([-5.0, 0.5, -5.0, 2.0, 1.0])  # doorbell, phone and sink above 0: no such episode
+    assert decode(logits, scores, cats) == ["sink", "doorbell", "phone"]
+    assert decode(logits, scores, cats, sets) == ["sink", "phone"]  # 1.0 + 2.0 beats doorbell's 0.5 with anything
+    assert decode(logits, scores, cats, [["sink"]]) == ["sink"]
+    # at least one event either way: all logits negative -> the likeliest single set
+    assert decode(np.array([-4.0, -1.0, -4.0, -2.0, -3.0]), scores, cats, sets) == ["doorbell"]
 
 
 def test_planner_augmentation_shifts_pitch_and_gain_alike_in_both_ears() -> None:

@@ -5,10 +5,10 @@ from __future__ import annotations
 import math
 
 import pytest
+from support.nav_plans import two_room_plan
 
 from echo_data.scene.nav import NavGrid, interaction_pose
 from echo_data.skills.navigate import ACC_ANG, ACC_LIN, GOAL_TOL, MAX_ANG, MAX_LIN, YAW_TOL, PathFollower
-from test_nav_plans import two_room_plan
 
 DT = 0.1
 BASE_RADIUS = 0.28  # the robot's physical base disc (echo_data.robot.urdf.BASE_RADIUS)

@@ -7,10 +7,10 @@ import math
 
 import numpy as np
 import pytest
+from support.nav_plans import two_room_plan
 
 from echo_data.scene.floorplan import Furniture
 from echo_data.scene.nav import NavGrid, handle_xy, interaction_pose, target_point
-from test_nav_plans import two_room_plan
 
 R = 0.32
 OPEN = {0: math.radians(90)}

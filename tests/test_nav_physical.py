@@ -5,13 +5,14 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from support.nav_plans import two_room_plan
+
 from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.recipe import Recipe, RobotConfig
 from echo_data.records import ACTION_DIM
 from echo_data.scene.floorplan import FloorPlan, Furniture, Rect
 from echo_data.scene.nav import NavGrid, interaction_pose, target_point
 from echo_data.skills import navigate as nav_skill
-from test_nav_plans import two_room_plan
 
 BASE_RADIUS = 0.28  # echo_data.robot.urdf.BASE_RADIUS
 

@@ -9,13 +9,13 @@ import pytest
 import sapien
 
 from echo_data.robot.robot import GRIPPER_OPEN
+from echo_data.scene.bodies import build_object
 from echo_data.scene.floorplan import PlacedObject
 from echo_data.scene.objects import (
     CATEGORIES,
     MAX_TARGET_GRASP_WIDTH,
     SIZE_RANGES,
     TARGET_CATEGORIES,
-    build_object,
     instance_scale,
     object_mass,
     object_size,

@@ -14,11 +14,11 @@ from pathlib import Path
 
 import pytest
 import yaml
+from support.lerobot_env import HERE, run_lerobot
+from support.synth import build_synth
 from typer.testing import CliRunner
 
 from echo_data.cli import app
-from test_dataset_synth import build_synth
-from test_export_lerobot import HERE, run_lerobot
 
 README = (HERE.parent / "README.md").read_text()
 EXAMPLES = dict(re.findall(r"<!-- example: (\w+) -->\n```\w+\n(.*?)```", README, flags=re.S))

@@ -14,7 +14,7 @@ from echo_data.recipe import RecipeError, load_recipe, recipe_from_mapping
 RECIPES = Path(__file__).resolve().parents[1] / "recipes"
 
 
-@pytest.mark.parametrize("name", ["quickstart", "object_relocation", "state_transition", "multi_event", "stmm_1_9k", "planner_audio"])
+@pytest.mark.parametrize("name", ["quickstart", "object_relocation", "state_transition", "multi_event", "stmm_1_9k", "planner_audio", "planner_fresh"])
 def test_shipped_recipes_load(name: str) -> None:
     r = load_recipe(RECIPES / f"{name}.yaml")
     assert r.name == name
@@ -58,8 +58,10 @@ def test_hash_changes_with_content() -> None:
     d = a.model_dump(mode="json")
     del d["outputs"]["max_frames"]
     del d["experts"]
+    del d["sounds"]["fresh_train_instances"]
     assert a.content_hash() == hashlib.sha256(json.dumps(d, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
     assert recipe_from_mapping({"name": "x", "outputs": {"max_frames": 10}}).content_hash() != a.content_hash()
+    assert recipe_from_mapping({"name": "x", "sounds": {"fresh_train_instances": True}}).content_hash() != a.content_hash()
     # experts.action_noise: 0 (the default) likewise keeps the hash; DART noise changes it
     assert recipe_from_mapping({"name": "x", "experts": {"action_noise": 0}}).content_hash() == a.content_hash()
     assert recipe_from_mapping({"name": "x", "experts": {"action_noise": 1}}).content_hash() != a.content_hash()
@@ -82,6 +84,8 @@ def test_hash_changes_with_content() -> None:
         ("name: x\noutputs:\n  max_frames: ten\n", "outputs.max_frames"),
         ("name: x\noutputs:\n  max_frames: 2.5\n", "outputs.max_frames"),
         ("name: x\noutputs:\n  max_frames: true\n", "outputs.max_frames"),
+        ("name: x\nsounds:\n  fresh_train_instances: maybe\n", "sounds.fresh_train_instances"),
+        ("name: x\nsounds:\n  builtin: false\n  fresh_train_instances: true\n", "sounds.fresh_train_instances"),
         ("- a\n- b\n", "must be a mapping"),
         ("name: x\nexperts:\n  action_noise: -0.5\n", "experts.action_noise"),
         ("name: x\nexperts:\n  action_noise: lots\n", "experts.action_noise"),

@@ -12,20 +12,12 @@ from scipy import ndimage
 
 from echo_data.recipe import Recipe
 from echo_data.scene.floorplan import FloorPlan, Rect
-from echo_data.scene.generate import (
-    DOORBELL_BESIDE,
-    DOORBELL_Z,
-    EDGE_MARGIN,
-    FRONT_REACH,
-    door_operation_zone,
-    door_swing_zone,
-    front_zone,
-    generate_floorplan,
-    object_radius,
-)
+from echo_data.scene.furniture import EDGE_MARGIN, FRONT_REACH, front_zone, object_radius
+from echo_data.scene.generate import generate_floorplan
 from echo_data.scene.layouts import HALL_WIDTH
 from echo_data.scene.nav import NavGrid, interaction_pose
 from echo_data.scene.objects import object_size
+from echo_data.scene.structure import DOORBELL_BESIDE, DOORBELL_Z, door_operation_zone, door_swing_zone
 
 RECIPES = [
     Recipe(name="small"),

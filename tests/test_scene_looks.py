@@ -11,12 +11,9 @@ import pytest
 from echo_data.acoustics.materials import absorption
 from echo_data.recipe import load_recipe
 from echo_data.scene import textures
-from echo_data.scene.generate import (
-    CURTAIN_MATERIALS,
-    RUG_MATERIALS,
-    UPHOLSTERY,
-    generate_floorplan_from_seed,
-)
+from echo_data.scene.furniture import UPHOLSTERY
+from echo_data.scene.generate import generate_floorplan_from_seed
+from echo_data.scene.soft_furnishings import CURTAIN_MATERIALS, RUG_MATERIALS
 from echo_data.scene.surfaces import _MATERIAL_LOOKS, furniture_look, surface_look
 
 RECIPE = load_recipe(Path(__file__).resolve().parents[1] / "recipes" / "multi_event.yaml")

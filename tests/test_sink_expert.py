@@ -7,10 +7,10 @@ import math
 
 import numpy as np
 import pytest
+from support.experts import make_spec, rollout, two_room_plan
 
 from echo_data.recipe import Recipe
 from echo_data.scene.floorplan import Faucet, FloorPlan, Furniture
-from test_door_expert import make_spec, rollout, two_room_plan
 
 
 def sink_on_north_wall(plan: FloorPlan, angle: float) -> FloorPlan:
@@ -77,6 +77,6 @@ def test_close_sink_expert_is_deterministic(sink_world_factory) -> None:
     runs = []
     for _ in range(2):
         world, spec = sink_world_factory(two_room_plan())
-        _, trace, _ = rollout(world, close_sink, spec, lambda: world.robot.last_action())
+        _, trace, _ = rollout(world, close_sink, spec, world.robot.last_action)
         runs.append(np.stack(trace))
     assert runs[0].shape == runs[1].shape and np.array_equal(runs[0], runs[1])

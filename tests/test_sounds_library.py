@@ -10,8 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from echo_data.sounds import CATEGORY_COUNTS, PEAK_DBFS, SoundInstance, SoundLibrary
-from echo_data.sounds import synth
+from echo_data.sounds import CATEGORY_COUNTS, PEAK_DBFS, SoundInstance, SoundLibrary, synth
 
 PAPER_COUNTS = {"alarm": (11, 5), "furby": (30, 14), "phone": (19, 9), "sink": (6, 3), "doorbell": (11, 5)}
 SR = 16000
@@ -98,8 +97,8 @@ def test_deterministic_bytes_across_processes() -> None:
     synth_again = hashlib.sha256(b"".join(synth.render(i, 22050).tobytes() for i in ids)).hexdigest()
     assert synth_again == hashlib.sha256(b"".join(synth.render(i, 22050).tobytes() for i in ids)).hexdigest()
     code = (
-        "import sys; sys.path.insert(0, %r); from test_sounds_library import _digest; "
-        "print(_digest(%r, 16000, 2.5))" % (os.path.dirname(__file__), ids)
+        f"import sys; sys.path.insert(0, {os.path.dirname(__file__)!r}); from test_sounds_library import _digest; "
+        f"print(_digest({ids!r}, 16000, 2.5))"
     )
     env = {**os.environ, "PYTHONHASHSEED": "12345"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)

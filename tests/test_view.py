@@ -1,21 +1,37 @@
-"""`echo-data view`: an MP4 of one episode with its binaural sound track."""
+"""`echo-data view`: an MP4 of one episode with its binaural sound track at a stated listening
+gain, and a Rerun recording of it read back with rerun's own API."""
 
 from __future__ import annotations
 
+import hashlib
+import io
+import json
+import math
+import subprocess
+import sys
+from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pyarrow.parquet as pq
 import pytest
+import soundfile as sf
+from PIL import Image
 from typer.testing import CliRunner
 
+from echo_data.camera import depth_to_world
 from echo_data.cli import app
-from echo_data.media import probe_mp4
-from test_dataset_synth import build_synth
+from echo_data.media import colour_lut, probe_mp4
+from echo_data.view import render_episode_video
+from echo_data.viz.frames import CAPTION_TOP, DEPTH_RANGE_M, HEIGHT, KEY_TOP, PANEL, PANEL_TOP, TITLE_H, WIDTH, EpisodeFrames
+from echo_data.viz.listening import TARGET_PEAK_DBFS, TARGET_RMS_DBFS, listening
+from echo_data.viz.recording import _grid_step
+from echo_data.viz.topdown import TopDownMap
 
 
 @pytest.fixture(scope="module")
-def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return build_synth(tmp_path_factory.mktemp("view") / "synth", {"train": 2, "test": 1})
+def ds(synth_dataset: Callable[[dict[str, int]], Path]) -> Path:
+    return synth_dataset({"train": 2, "test": 1})
 
 
 def test_view_writes_video_with_binaural_sound(ds: Path, tmp_path: Path) -> None:
@@ -28,7 +44,7 @@ def test_view_writes_video_with_binaural_sound(ds: Path, tmp_path: Path) -> None
     assert p["video_frames"] == ep["n_steps"] and p["fps"] == 10.0
     assert p["audio_channels"] == 2 and p["audio_rate"] == 16000
     assert p["duration_s"] == pytest.approx(ep["n_steps"] / 10, abs=0.05)
-    assert (p["width"], p["height"]) == (768, 412)
+    assert (p["width"], p["height"]) == (1024, 468)
 
 
 def test_view_bad_episode_is_exit_2_and_writes_nothing(ds: Path, tmp_path: Path) -> None:
@@ -37,3 +53,115 @@ def test_view_bad_episode_is_exit_2_and_writes_nothing(ds: Path, tmp_path: Path)
     assert r.exit_code == 2 and "no train episode 7" in r.output and not out.exists()
     r = CliRunner().invoke(app, ["view", str(tmp_path), "--out", str(out)])
     assert r.exit_code == 2 and "manifest.json" in r.output and not out.exists()
+
+
+def _mp4_audio(path: Path) -> np.ndarray:
+    """The decoded sound track of an MP4, (samples, channels) float."""
+    import av
+
+    with av.open(str(path)) as c:
+        return np.concatenate([f.to_ndarray().reshape(f.layout.nb_channels, -1).T for f in c.decode(audio=0)]).astype(np.float64)
+
+
+def test_view_plays_at_the_stated_gain_and_leaves_the_wav_alone(ds: Path, tmp_path: Path) -> None:
+    ep = next(e for e in pq.read_table(ds / "meta" / "episodes.parquet").to_pylist() if e["split"] == "train" and e["episode_index"] == 0)
+    wav = ds / ep["audio_path"]
+    before = hashlib.sha256(wav.read_bytes()).hexdigest()
+    summary = render_episode_video(ds, 0, tmp_path / "ep.mp4")
+    assert hashlib.sha256(wav.read_bytes()).hexdigest() == before
+    stored, sr = sf.read(wav, dtype="float64", always_2d=True)
+    first = pq.read_table(ds / "data" / ep["shard"], filters=[("episode_index", "=", 0)])["audio_offset"][0].as_py()
+    stored = stored[first : first + ep["n_steps"] * sr // 10]
+    played = _mp4_audio(tmp_path / "ep.mp4")[: len(stored)]
+    rms_db = [20 * math.log10(np.sqrt(np.mean(x**2))) for x in (stored, played)]
+    assert rms_db[1] - rms_db[0] == pytest.approx(summary["gain_db"], abs=1.0)  # AAC keeps the level to well under 1 dB
+    assert 20 * math.log10(np.abs(played).max()) < -0.5
+
+
+def test_listening_gain_brings_a_calibrated_room_level_to_the_target() -> None:
+    """A 1 kHz tone at 60 dB SPL RMS (full scale 120 dB SPL): -60 dBFS RMS, peak 3 dB above
+    (a sine's crest factor is sqrt 2); played 40 dB up, at the -20 dBFS target."""
+    fs = 16_000
+    t = np.arange(fs) / fs
+    tone = np.sqrt(2) * 10 ** (-60 / 20) * np.sin(2 * np.pi * 1000 * t)
+    level = listening(np.c_[tone, tone], 120.0)
+    assert level.rms_dbfs == pytest.approx(-60.0, abs=0.01) and level.peak_dbfs == pytest.approx(-56.99, abs=0.01)
+    assert level.gain_db == 40.0
+    out = level.apply(np.c_[tone, tone])
+    assert 20 * math.log10(np.sqrt(np.mean(out.astype(np.float64) ** 2))) == pytest.approx(TARGET_RMS_DBFS, abs=0.01)
+    assert "+40 dB" in level.note() and "120 dB SPL" in level.note() and "60 dB SPL RMS" in level.note()
+    click = np.c_[tone, tone]
+    click[100] = 10 ** (-10 / 20)  # one click at -10 dBFS: the peak limit decides, not the RMS
+    assert listening(click, 120.0).gain_db == math.floor(TARGET_PEAK_DBFS + 10.0) == 9
+
+
+def test_frame_titles_depth_bars_in_metres_wrist_panel_and_map_key() -> None:
+    topdown = TopDownMap(None, [{"category": "phone", "source": (1.0, 1.0, 0.8)}], size=PANEL, extent=[(0.0, 0.0), (4.0, 4.0)])
+    video = EpisodeFrames(topdown, np.zeros((16_000, 2), np.float32), 16_000, sound_note="sound +30 dB")
+    depth = np.full((16, 16), 3.0)
+    rgb = np.full((16, 24, 3), 200, np.uint8)
+    with_wrist = video.frame(rgb, depth, [(0.5, 0.5)], 0.0, 0, "caption", wrist_depth_m=np.full((16, 16), 6.0))
+    without = video.frame(rgb, depth, [(0.5, 0.5)], 0.0, 0, "caption")
+    assert with_wrist.shape == (HEIGHT, WIDTH, 3) == (468, 1024, 3)
+    mid = PANEL_TOP + PANEL // 2
+    assert not without[PANEL_TOP:KEY_TOP, 2 * PANEL : 3 * PANEL].any()  # no wrist depth: an empty panel
+    lut = colour_lut("turbo")
+    assert tuple(with_wrist[mid, 2 * PANEL + PANEL // 2]) == tuple(lut[255])  # 6 m: the end of the scale
+    bar_y = KEY_TOP + 6
+    for x0 in (PANEL, 2 * PANEL):  # each depth panel has its bar: 0 m at the left end, 6 m at the right
+        left, right = x0 + 12, x0 + PANEL - 25
+        assert tuple(with_wrist[bar_y, left]) == tuple(lut[0]) and tuple(with_wrist[bar_y, right]) == tuple(lut[255])
+    # the 3 m tick of the bar shows the colour of the 3 m depth panel
+    tick3 = PANEL + 12 + round(3 / DEPTH_RANGE_M * (PANEL - 37))
+    assert np.abs(with_wrist[bar_y, tick3].astype(int) - with_wrist[mid, PANEL + PANEL // 2].astype(int)).max() <= 8
+    assert with_wrist[:TITLE_H].any() and with_wrist[:TITLE_H, 3 * PANEL :].any()  # titles over every panel
+    bar = np.flatnonzero((with_wrist[KEY_TOP + 22, 3 * PANEL :] == 255).all(axis=1))
+    assert bar[-1] - bar[0] + 1 == pytest.approx(topdown.scale, abs=1.5)  # the scale bar is 1 m of the map
+    assert with_wrist[CAPTION_TOP + 20 :].any()  # the sound-level line
+
+
+def test_rerun_recording_reads_back(ds: Path, tmp_path: Path) -> None:
+    import rerun as rr
+
+    out = tmp_path / "rec" / "ep.rrd"
+    r = CliRunner().invoke(app, ["view", str(ds), "--episode", "1", "--rerun", str(out)])
+    assert r.exit_code == 0, r.output
+    assert out.is_file() and not list(out.parent.glob(".*")) and not list(Path.cwd().glob("train-*.mp4"))  # --rerun alone: no MP4
+    ep = next(e for e in pq.read_table(ds / "meta" / "episodes.parquet").to_pylist() if e["split"] == "train" and e["episode_index"] == 1)
+    rows = pq.read_table(ds / "data" / ep["shard"], filters=[("episode_index", "=", 1)]).to_pylist()
+    rec = rr.dataframe.load_recording(out)
+    entities = {c.entity_path for c in rec.schema().component_columns()}
+    want = {"/world/head/rgb", "/world/head/depth", "/world/wrist/depth", "/world/points/head", "/world/points/wrist", "/world/path", "/world/sources",
+            "/plan/map", "/plan/path", "/plan/robot", "/audio/spectrogram", "/skill", "/state/base_x", "/action/base_vx", "/state/gripper"}
+    assert want <= entities
+    table = rec.view(index="step", contents="/**").select().read_all()
+    assert table.column("step").to_pylist() == list(range(ep["n_steps"]))
+    secs = [t.total_seconds() if hasattr(t, "total_seconds") else t / 1e9 for t in table.column("time").to_pylist()]
+    assert secs == pytest.approx([row["timestamp"] for row in rows], abs=1e-6)
+    # the point cloud is the stored depth lifted with the stored camera pose
+    info = json.loads((ds / "meta" / "info.json").read_text())["cameras"]["wrist"]
+    t0 = rec.view(index="step", contents="/world/points/wrist").filter_range_sequence(0, 0).select().read_all()
+    got = np.array(t0.column("/world/points/wrist:Position3D")[0].as_py(), dtype=np.float64)
+    depth = np.asarray(Image.open(io.BytesIO(rows[0]["observation.images.wrist_depth"]["bytes"])))
+    pts = depth_to_world(depth, np.array(info["K"]), np.array(rows[0]["camera_pose.wrist"]), info["depth_unit_m"])
+    pts = pts[:: _grid_step(*depth.shape), :: _grid_step(*depth.shape)]
+    pts = pts[np.isfinite(pts[..., 0])]
+    assert got.shape == pts.shape and np.allclose(got, pts, atol=1e-4)
+    # and rerun's own checker accepts every chunk against its archetypes (what the viewer loads)
+    check = subprocess.run([sys.executable, "-m", "rerun", "rrd", "verify", str(out)], capture_output=True, text=True, timeout=120)
+    assert check.returncode == 0 and "without error" in check.stdout + check.stderr, check.stdout + check.stderr
+
+
+@pytest.mark.parametrize("bad", ["ep.mp4", "folder.rrd", "afile/ep.rrd"])
+def test_bad_rerun_target_is_one_line_exit_2_and_writes_nothing(ds: Path, tmp_path: Path, bad: str) -> None:
+    (tmp_path / "folder.rrd").mkdir()
+    (tmp_path / "afile").write_text("x")
+    target = tmp_path / bad
+    r = CliRunner().invoke(app, ["view", str(ds), "--rerun", str(target)])
+    assert r.exit_code == 2 and "--rerun" in r.output and len(r.output.strip().splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "folder.rrd"] and not any((tmp_path / "folder.rrd").iterdir())
+
+
+def test_rerun_for_a_missing_episode_leaves_no_file(ds: Path, tmp_path: Path) -> None:
+    r = CliRunner().invoke(app, ["view", str(ds), "--episode", "7", "--rerun", str(tmp_path / "ep.rrd")])
+    assert r.exit_code == 2 and "no train episode 7" in r.output and list(tmp_path.iterdir()) == []

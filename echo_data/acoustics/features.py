@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import functools
 
-import librosa
 import numpy as np
+import scipy.fft as sfft
+from scipy.signal import get_window
 
 N_FFT = 512
 HOP = 160
@@ -26,18 +27,33 @@ MEL_FLOOR = 1e-10  # power floor: -100 dB
 _CHUNK = 32  # steps per batched STFT (bounds memory)
 
 
+@functools.lru_cache(maxsize=1)
+def _window() -> np.ndarray:
+    """The analysis window: periodic Hann of WIN samples centred in N_FFT (float64, as librosa builds it)."""
+    w = np.zeros(N_FFT)
+    w[(N_FFT - WIN) // 2 : (N_FFT - WIN) // 2 + WIN] = get_window("hann", WIN, fftbins=True)
+    w.setflags(write=False)
+    return w
+
+
+def _frame_mag(frames: np.ndarray) -> np.ndarray:
+    """|rfft| of windowed frames: (..., k, N_FFT) float32 -> (..., 257, k) float32.
+
+    The arithmetic of `librosa.stft` (float32 samples times the float64 window, `scipy.fft.rfft`
+    in float64, rounded to complex64, magnitude in float32), one frame at a time: a frame's
+    magnitudes do not depend on which other frames are analysed with it.
+    """
+    spec = sfft.rfft(_window() * np.asarray(frames, dtype=np.float32), axis=-1).astype(np.complex64)
+    return np.abs(spec).swapaxes(-1, -2)
+
+
 def _stft_mag(x: np.ndarray) -> np.ndarray:
-    """|STFT| over the last axis: (..., samples) -> (..., 257, frames) float32."""
-    spec = librosa.stft(
-        np.ascontiguousarray(x, dtype=np.float32),
-        n_fft=N_FFT,
-        hop_length=HOP,
-        win_length=WIN,
-        window="hann",
-        center=True,
-        pad_mode="constant",
-    )
-    return np.abs(spec)
+    """|STFT| over the last axis: (..., samples) -> (..., 257, frames) float32 (centred frames, zero-padded)."""
+    x = np.asarray(x, dtype=np.float32)
+    pad = [(0, 0)] * (x.ndim - 1) + [(N_FFT // 2, N_FFT // 2)]
+    padded = np.pad(x, pad)
+    frames = np.lib.stride_tricks.sliding_window_view(padded, N_FFT, axis=-1)[..., ::HOP, :]
+    return _frame_mag(frames)
 
 
 def _pool(mag: np.ndarray) -> np.ndarray:
@@ -49,10 +65,38 @@ def _pool(mag: np.ndarray) -> np.ndarray:
     return padded.reshape(*lead, fp // POOL, POOL, tp // POOL, POOL).mean(axis=(-3, -1))
 
 
+def _hz_to_mel(f: np.ndarray) -> np.ndarray:
+    """Slaney's mel scale (Auditory Toolbox): linear, 3 mel per 200 Hz, below 1 kHz; logarithmic
+    above, 27 mel per factor 6.4 (the scale librosa uses with htk=False)."""
+    f = np.asarray(f, dtype=np.float64)
+    lin = f / _MEL_SP
+    return np.where(f >= 1000.0, 1000.0 / _MEL_SP + np.log(np.maximum(f, 1e-300) / 1000.0) / _MEL_LOGSTEP, lin)
+
+
+def _mel_to_hz(m: np.ndarray) -> np.ndarray:
+    m = np.asarray(m, dtype=np.float64)
+    lin = _MEL_SP * m
+    return np.where(m >= 1000.0 / _MEL_SP, 1000.0 * np.exp(_MEL_LOGSTEP * (m - 1000.0 / _MEL_SP)), lin)
+
+
+_MEL_SP = 200.0 / 3
+_MEL_LOGSTEP = float(np.log(6.4) / 27.0)
+
+
 @functools.lru_cache(maxsize=16)
 def mel_filterbank(fs: int, n_mels: int) -> np.ndarray:
-    """(n_mels, 257) Slaney-normalised mel filterbank for the shared STFT (cached)."""
-    fb = librosa.filters.mel(sr=fs, n_fft=N_FFT, n_mels=n_mels)
+    """(n_mels, 257) Slaney-normalised mel filterbank for the shared STFT (cached), float32:
+    triangles between band edges equally spaced in mel from 0 Hz to fs/2, each of unit area
+    (scaled by 2 / its width in Hz), as `librosa.filters.mel(sr=fs, n_fft=512, n_mels=n_mels)`
+    gives (a test checks it) without importing librosa in every worker."""
+    freqs = np.fft.rfftfreq(N_FFT, 1.0 / fs)
+    edges = _mel_to_hz(np.linspace(_hz_to_mel(np.array(0.0)), _hz_to_mel(np.array(fs / 2.0)), n_mels + 2))
+    width = np.diff(edges)
+    ramps = np.subtract.outer(edges, freqs)
+    fb = np.zeros((n_mels, len(freqs)), dtype=np.float32)
+    for b in range(n_mels):
+        fb[b] = np.maximum(0.0, np.minimum(-ramps[b] / width[b], ramps[b + 2] / width[b + 1]))
+    fb *= (2.0 / (edges[2 : n_mels + 2] - edges[:n_mels]))[:, None]
     fb.setflags(write=False)
     return fb
 
@@ -62,19 +106,35 @@ def _spectrogram_from_mag(mag: np.ndarray) -> np.ndarray:
     return np.moveaxis(np.log1p(_pool(mag)), -3, -1).astype(np.float32)
 
 
+@functools.lru_cache(maxsize=16)
+def _mel_taps(fs: int, n_mels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each band's non-zero filterbank bins in ascending order, padded to one width:
+    (bins (n_mels, W) int, weights (n_mels, W) float64, 0 where padded)."""
+    fb = mel_filterbank(fs, n_mels).astype(np.float64)
+    nz = [np.flatnonzero(row) for row in fb]
+    width = max((len(k) for k in nz), default=0)
+    bins = np.zeros((n_mels, width), dtype=np.int64)
+    weights = np.zeros((n_mels, width))
+    for b, k in enumerate(nz):
+        bins[b, : len(k)] = k
+        weights[b, : len(k)] = fb[b, k]
+    return bins, weights
+
+
 def _mel_from_mag(mag: np.ndarray, fs: int, n_mels: int) -> np.ndarray:
     """(..., 2, 257, T) magnitudes -> (..., n_mels, T, 2) float32 log-mel (dB).
 
     The filterbank is applied as element-wise multiply-adds over each band's non-zero bins in
-    a fixed order (not BLAS), so the bytes do not depend on the CPU or on the batch size.
+    ascending order (not BLAS; padding adds exact zeros), so the bytes do not depend on the CPU,
+    the batch size or which frames are analysed together.
     """
     *lead, f, t = mag.shape
     power = np.ascontiguousarray(np.moveaxis(np.square(mag, dtype=np.float64), -2, 0))  # (257, ..., T)
-    fb = mel_filterbank(fs, n_mels).astype(np.float64)
-    mel = np.zeros((n_mels, *lead, t))
-    for b in range(n_mels):
-        for k in np.flatnonzero(fb[b]):
-            mel[b] += fb[b, k] * power[k]
+    bins, weights = _mel_taps(fs, n_mels)
+    extra = (1,) * (power.ndim - 1)
+    mel = np.zeros((n_mels, *power.shape[1:]))
+    for j in range(bins.shape[1]):
+        mel += weights[:, j].reshape(n_mels, *extra) * power[bins[:, j]]
     db = 10.0 * np.log10(np.maximum(mel, MEL_FLOOR))  # (n_mels, ..., 2, T)
     return np.ascontiguousarray(np.moveaxis(db, (0, -2), (-3, -1)), dtype=np.float32)
 
@@ -110,6 +170,59 @@ def last_second(track: np.ndarray, offset: int, fs: int) -> np.ndarray:
     return out
 
 
+def _frame_layout(fs: int) -> tuple[np.ndarray, np.ndarray]:
+    """Start of each frame of a one-second window relative to the window's first sample, and
+    which frames lie wholly inside the window (their samples are the track's own, so a frame at
+    the same track position is the same in every window; the others see the window's zero padding)."""
+    rel = HOP * np.arange(1 + fs // HOP) - N_FFT // 2
+    return rel, (rel >= 0) & (rel + N_FFT <= fs)
+
+
+def _edge_frames(windows: np.ndarray, rel: np.ndarray) -> np.ndarray:
+    """(k, 2, fs) windows -> (k, 2, len(rel), N_FFT) frames starting at `rel`, zero-padded outside the window."""
+    pad = N_FFT // 2
+    padded = np.pad(windows, [(0, 0), (0, 0), (pad, pad)])
+    return np.stack([padded[..., r + pad : r + pad + N_FFT] for r in rel], axis=2)
+
+
+def _windows(track: np.ndarray, offsets: np.ndarray, fs: int) -> np.ndarray:
+    """(k, 2, fs) float32: the second before each offset (zeros outside the track)."""
+    return np.stack([last_second(track, o, fs).T for o in offsets])
+
+
+def _track_frames(track: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """(2, len(starts), N_FFT) float32 frames of `track` (n, 2) starting at `starts` (zeros outside it)."""
+    lo = int(min(starts.min(), 0))
+    hi = int(max(starts.max() + N_FFT, len(track)))
+    z = np.zeros((2, hi - lo), dtype=np.float32)
+    z[:, -lo : -lo + len(track)] = np.asarray(track, dtype=np.float32).T
+    view = np.lib.stride_tricks.sliding_window_view(z, N_FFT, axis=-1)
+    return view[:, starts - lo]
+
+
+def _assemble(inner: np.ndarray, mag_i: np.ndarray, mel_i: np.ndarray, mag_e: np.ndarray, mel_e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Interior frames (k, 2, 257, I) / (k, n_mels, I, 2) and edge frames -> the windows' features."""
+    k, _, f, _ = mag_i.shape
+    t = len(inner)
+    mag = np.empty((k, 2, f, t), dtype=np.float32)
+    mag[..., inner], mag[..., ~inner] = mag_i, mag_e
+    mel = np.empty((k, mel_i.shape[1], t, 2), dtype=np.float32)
+    mel[:, :, inner], mel[:, :, ~inner] = mel_i, mel_e
+    return _spectrogram_from_mag(mag), mel
+
+
+def _features(track: np.ndarray, offsets: np.ndarray, fs: int, n_mels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Features of the windows before `offsets`: each interior frame analysed once for all of them."""
+    rel, inner = _frame_layout(fs)
+    starts = offsets[:, None] - fs + rel[None, inner]
+    uniq, inv = np.unique(starts, return_inverse=True)
+    mag_u = _frame_mag(_track_frames(track, uniq))  # (2, 257, U)
+    mel_u = _mel_from_mag(mag_u, fs, n_mels)  # (n_mels, U, 2)
+    inv = inv.reshape(starts.shape)
+    mag_e = _frame_mag(_edge_frames(_windows(track, offsets, fs), rel[~inner]))
+    return _assemble(inner, np.moveaxis(mag_u[:, :, inv], 2, 0), np.moveaxis(mel_u[:, inv], 1, 0), mag_e, _mel_from_mag(mag_e, fs, n_mels))
+
+
 def step_features(
     track: np.ndarray, offsets: np.ndarray, fs: int = 16000, n_mels: int = 64
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -118,12 +231,12 @@ def step_features(
     Step i sees the second of audio before `offsets[i]` (zero-padded at the episode start).
     """
     offsets = np.asarray(offsets, dtype=np.int64).ravel()
+    track = np.asarray(track)
     specs, mels = [], []
     for c0 in range(0, len(offsets), _CHUNK):
-        windows = np.stack([last_second(track, o, fs).T for o in offsets[c0 : c0 + _CHUNK]])  # (k, 2, fs)
-        mag = _stft_mag(windows)  # (k, 2, 257, T)
-        specs.append(_spectrogram_from_mag(mag))
-        mels.append(_mel_from_mag(mag, fs, n_mels))
+        s, m = _features(track, offsets[c0 : c0 + _CHUNK], fs, n_mels)
+        specs.append(s)
+        mels.append(m)
     if not specs:
         frames = 1 + fs // HOP
         return (
@@ -131,3 +244,42 @@ def step_features(
             np.zeros((0, n_mels, frames, 2), dtype=np.float32),
         )
     return np.concatenate(specs), np.concatenate(mels)
+
+
+class FeatureStream:
+    """Per-step features of a track that grows one control step at a time (the environment's ears).
+
+    A step adds `hop` samples; the frames of the window that lay wholly inside the previous
+    windows are kept (by their start in the track) and only the new ones and the window's four
+    edge frames are analysed. Every frame is computed by the same functions as `step_features`,
+    so the result is bit for bit the batch result on the finished track.
+    """
+
+    def __init__(self, fs: int, n_mels: int) -> None:
+        self.fs, self.n_mels = int(fs), int(n_mels)
+        self._rel, self._inner = _frame_layout(self.fs)
+        self._mag: dict[int, np.ndarray] = {}  # frame start -> (2, 257)
+        self._mel: dict[int, np.ndarray] = {}  # frame start -> (n_mels, 2)
+
+    def features(self, window: np.ndarray, offset: int) -> tuple[np.ndarray, np.ndarray]:
+        """(spectrogram (65, 26, 2), mel (n_mels, 101, 2)) of `window` (fs, 2): the second of the
+        track before sample `offset` (zeros before the track's start)."""
+        fs = self.fs
+        w = np.ascontiguousarray(np.asarray(window, dtype=np.float32).T)  # (2, fs)
+        inner_rel = self._rel[self._inner]
+        starts = [int(offset) - fs + int(r) for r in inner_rel]
+        todo = [i for i, s in enumerate(starts) if s not in self._mag]
+        edges = _edge_frames(w[None], self._rel[~self._inner])[0]  # (2, E, N_FFT)
+        frames = np.concatenate([np.stack([w[:, r : r + N_FFT] for r in inner_rel[todo]], axis=1), edges], axis=1) if todo else edges
+        mag = _frame_mag(frames)  # new interior frames, then the edges: (2, 257, m + E)
+        mel = _mel_from_mag(mag, fs, self.n_mels)  # (n_mels, m + E, 2)
+        for j, i in enumerate(todo):
+            self._mag[starts[i]], self._mel[starts[i]] = mag[:, :, j], mel[:, j]
+        keep = set(starts)
+        for s in [s for s in self._mag if s not in keep]:
+            del self._mag[s], self._mel[s]
+        n = len(todo)
+        mag_i = np.stack([self._mag[s] for s in starts], axis=-1)[None]
+        mel_i = np.stack([self._mel[s] for s in starts], axis=1)[None]
+        spec, mel = _assemble(self._inner, mag_i, mel_i, mag[None, :, :, n:], mel[None, :, n:])
+        return spec[0], mel[0]

@@ -36,6 +36,7 @@ _SPHERE_LEAD = 8  # samples of lead before the earliest ear delay (room for frac
 _SPHERE_TAPS = 64
 _DIFFUSE_SPREAD_S = 0.010  # decorrelation filters spread the directions' HRIRs over 10 ms
 _DIFFUSE_WAVES = 128  # plane waves per diffuse-field realisation
+_KEEP_DRAWS = 32  # diffuse-field realisations kept per table (one per receiver cell)
 _EQ_EXTRA_TAPS = 96  # the diffuse-field equaliser lengthens KEMAR HRIRs by this much
 
 
@@ -56,6 +57,7 @@ class Hrtf:
         self.directions = np.ascontiguousarray(directions, dtype=np.float64)  # (n_dirs, 3) unit
         self.delay_s = float(delay_s)  # head-centre latency inside every HRIR: the frontal response's onset
         self._spec: tuple[np.ndarray, int] | None = None
+        self._draws: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         self._tree = cKDTree(self.directions)  # Euclidean nearest on the unit sphere = largest dot product
         self.table.setflags(write=False)
         self.directions.setflags(write=False)
@@ -98,16 +100,8 @@ class Hrtf:
         diffuse field. One gain for both ears sets the mean ear energy to 1 (the level of the
         tail is preserved; a realisation keeps its own small broadband left/right imbalance).
         """
-        rng = seeds.derived_rng(seeds.DIFFUSE_NOISE, int(seed) % (1 << 63))
-        z = rng.uniform(-1.0, 1.0, _DIFFUSE_WAVES)
-        phi = rng.uniform(0.0, 2 * np.pi, _DIFFUSE_WAVES)
-        signs = rng.choice(np.array([-1.0, 1.0]), size=_DIFFUSE_WAVES)
-        spread = int(round(_DIFFUSE_SPREAD_S * self.fs))
-        delays = rng.integers(0, spread, size=_DIFFUSE_WAVES)
+        z, phi, rho, phase = self._diffuse_draw(int(seed))
         spec_table, n_fft = self._spectra()
-        f = np.arange(spec_table.shape[1])
-        phase = signs[:, None] * np.exp(-2j * np.pi * f[None, :] * delays[:, None] / n_fft)  # (K, F)
-        rho = np.sqrt(1.0 - z * z)
         out = np.empty((len(head_yaws), self.diffuse_taps, 2), dtype=np.float32)
         for i, yaw in enumerate(head_yaws):
             rel = phi - float(yaw)  # world azimuth -> head azimuth
@@ -116,6 +110,26 @@ class Hrtf:
             ir = np.fft.irfft(spec, n_fft, axis=0)[: self.diffuse_taps]
             out[i] = ir / np.sqrt((ir**2).sum(axis=0).mean())
         return out
+
+    def _diffuse_draw(self, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The yaw-independent part of a realisation: directions (z, azimuth, horizontal radius) and
+        each wave's sign x delay as a phase per frequency. The last few are kept: a receiver's
+        RIRs are asked for one head-yaw bin at a time."""
+        hit = self._draws.get(seed)
+        if hit is None:
+            rng = seeds.derived_rng(seeds.DIFFUSE_NOISE, seed % (1 << 63))
+            z = rng.uniform(-1.0, 1.0, _DIFFUSE_WAVES)
+            phi = rng.uniform(0.0, 2 * np.pi, _DIFFUSE_WAVES)
+            signs = rng.choice(np.array([-1.0, 1.0]), size=_DIFFUSE_WAVES)
+            spread = int(round(_DIFFUSE_SPREAD_S * self.fs))
+            delays = rng.integers(0, spread, size=_DIFFUSE_WAVES)
+            spec_table, n_fft = self._spectra()
+            f = np.arange(spec_table.shape[1])
+            phase = signs[:, None] * np.exp(-2j * np.pi * f[None, :] * delays[:, None] / n_fft)  # (K, F)
+            hit = self._draws[seed] = (z, phi, np.sqrt(1.0 - z * z), phase)
+            while len(self._draws) > _KEEP_DRAWS:
+                del self._draws[next(iter(self._draws))]
+        return hit
 
     def diffuse_coherence(self, freqs: np.ndarray) -> np.ndarray:
         """Real interaural coherence of a diffuse field at `freqs` (Hz): the cross-spectrum of the

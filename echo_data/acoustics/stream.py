@@ -18,7 +18,7 @@ the same way at the end of the episode; the track is long enough for every tail 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -27,7 +27,10 @@ import scipy.fft as sfft
 
 from echo_data.acoustics.binaural import binaural_irs, binaural_length
 from echo_data.acoustics.hrtf import Hrtf
+from echo_data.acoustics.levels import to_full_scale
+from echo_data.acoustics.noise import NoiseFloor
 from echo_data.acoustics.types import AcousticResponse
+from echo_data.pcm import as_written
 from echo_data.recipe import AcousticsConfig
 
 FADE_S = 0.020  # dry-signal fade-out when a source stops
@@ -196,20 +199,203 @@ class RirCache:
         return new
 
 
+def fade_ramp(fs: int) -> np.ndarray:
+    """The 20 ms raised-cosine fade-out of a stopping source's dry signal (float64)."""
+    fade = int(round(FADE_S * fs))
+    return 0.5 * (1 + np.cos(np.pi * (np.arange(fade) + 0.5) / fade))
+
+
+def dry_segment(wave: np.ndarray, stop: int | None, lo: int, hi: int, ramp: np.ndarray) -> np.ndarray:
+    """Samples [lo, hi) of a source's dry input, float64: `wave` (its first samples; zero past
+    them and before 0), faded by `ramp` from `stop` on and silent after the fade."""
+    seg = np.zeros(hi - lo)
+    a = max(lo, 0)
+    end = hi if stop is None else min(hi, stop + len(ramp))
+    w = wave[a:end]
+    if len(w):
+        seg[a - lo : a - lo + len(w)] = w
+        if stop is not None:
+            f0, f1 = max(stop, a), end
+            if f1 > f0:
+                seg[f0 - lo : f1 - lo] *= ramp[f0 - stop : f1 - stop]
+    return seg
+
+
 def dry_signal(track: SourceTrack, n_play: int, fs: int) -> np.ndarray:
     """The source's dry input as rendered: played until its stop (or `n_play`), then a 20 ms fade.
 
     Returns float64 of length n_play + fade; zero after the fade.
     """
-    fade = int(round(FADE_S * fs))
+    ramp = fade_ramp(fs)
     stop = n_play if track.stop_sample is None else min(max(int(track.stop_sample), 0), n_play)
-    x = np.zeros(n_play + fade)
-    w = np.asarray(track.waveform, dtype=np.float64).ravel()[: stop + fade]
-    x[: len(w)] = w
-    ramp = 0.5 * (1 + np.cos(np.pi * (np.arange(fade) + 0.5) / fade))
-    x[stop : stop + fade] *= ramp
-    x[stop + fade :] = 0.0
-    return x
+    return dry_segment(np.asarray(track.waveform, dtype=np.float64).ravel(), stop, 0, n_play + len(ramp), ramp)
+
+
+Wave = Callable[[int], np.ndarray]  # n -> at least the first n samples of a dry signal (float64; fewer = zeros after)
+
+
+@dataclass
+class _Epoch:
+    start: int  # first sample of this acoustic geometry (the centre of its crossfade)
+    cache: RirCache
+
+
+class StreamRenderer:
+    """The one sound renderer: sources heard by a moving head, one block of samples per call.
+
+    `step(pose)` renders the next `block` samples with the head at pose [x, y, z, yaw] (exact
+    overlap-save convolution of each source's dry input with the RIR of that pose, crossfaded
+    over the block from the previous pose's RIR when it changed); `stop(i)` fades source i out
+    from the next block on (its reverberation rings on); `new_epoch(scene, at)` switches to
+    another acoustic geometry (an opened door) with a raised-cosine crossfade one block long
+    centred on sample `at`; `finish()` stops everything and renders until every tail has rung
+    out. With a `noise` bed and a `full_scale_db_spl`, blocks are calibrated WAV samples as
+    written (16-bit values); otherwise they are the sources' part in the dry signals' units.
+    Knows nothing of later poses, so the environment, the build, `preview` and `render_track`
+    share it.
+    """
+
+    def __init__(
+        self,
+        scene: Any,
+        positions: Sequence[Sequence[float]],
+        waves: Sequence[Wave],
+        cfg: AcousticsConfig,
+        block: int,
+        hrtf: Hrtf | None = None,
+        cache: RirCache | None = None,
+        noise: NoiseFloor | None = None,
+        full_scale_db_spl: float | None = None,
+        name: str = "track",
+    ) -> None:
+        self.cfg = cfg
+        self.fs = int(cfg.sample_rate)
+        self.hop = int(block)
+        self.hrtf = hrtf or (cache.hrtf if cache is not None else Hrtf.load(cfg.hrtf, self.fs))
+        if self.hrtf.fs != self.fs:
+            raise ValueError(f"HRTF at {self.hrtf.fs} Hz but the config asks for {self.fs} Hz")
+        self.positions = [tuple(float(v) for v in p) for p in positions]
+        if cache is None:
+            cache = RirCache(scene, self.positions, cfg, self.hrtf)
+        elif cache.positions != self.positions:
+            raise ValueError("the RIR cache was made for other source positions")
+        self.epochs = [_Epoch(0, cache)]
+        self.waves = list(waves)
+        self.noise = noise
+        self.full_scale_db_spl = full_scale_db_spl
+        self.name = name
+        self.length = cache.expected_length()  # binaural RIR length L
+        self.n_fft = sfft.next_fast_len(self.hop + self.length - 1, real=True)
+        self.ramp = fade_ramp(self.fs)
+        self.fade = len(self.ramp)
+        self._xfade = 0.5 * (1 - np.cos(np.pi * (np.arange(self.hop) + 0.5) / self.hop))[:, None]
+        self.stops: list[int | None] = [None] * len(self.positions)
+        self._support_end: list[int | None] = [None] * len(self.positions)
+        self.blocks: list[np.ndarray] = []
+        self._prev: list[list[tuple[CacheKey, float]]] | None = None
+        self._last_pose: np.ndarray | None = None
+
+    @property
+    def samples(self) -> int:
+        """Samples rendered so far (a whole number of blocks)."""
+        return len(self.blocks) * self.hop
+
+    def new_epoch(self, scene: Any, at: int) -> None:
+        """Another acoustic geometry from sample `at` on (at least half a block past what is rendered)."""
+        if at - self.hop // 2 < self.samples:
+            raise ValueError(f"geometry change at sample {at} is not in the future (rendered {self.samples})")
+        self.epochs.append(_Epoch(int(at), RirCache(scene, self.positions, self.cfg, self.hrtf)))
+
+    def stop(self, i: int, at: int | None = None) -> None:
+        """Source i stops at sample `at` (default: the next block); no-op if it already stopped."""
+        if self.stops[i] is not None:
+            return
+        stop = self.samples if at is None else int(at)
+        if stop < self.samples:
+            raise ValueError(f"source {i}: stop at sample {stop} is in the past (rendered {self.samples})")
+        self.stops[i] = stop
+        nz = np.flatnonzero(self._dry(i, 0, stop + self.fade))
+        self._support_end[i] = int(nz[-1]) + 1 if nz.size else 0
+
+    def step(self, pose: Sequence[float]) -> np.ndarray:
+        """Render the next block heard at head pose [x, y, z, yaw]; returns it (block, 2) float32."""
+        head = np.asarray(pose, dtype=np.float64).reshape(4)
+        self._last_pose = head
+        out = self._render(len(self.blocks), head)
+        self.blocks.append(out)
+        return out
+
+    def finish(self) -> np.ndarray:
+        """The whole track: every source stopped at the end of the last block, rendered (last pose
+        held) until every tail has rung out: (samples + fade + L - 1, 2) float32."""
+        for i in range(len(self.positions)):
+            self.stop(i)
+        total = self.samples + self.fade + self.length - 1
+        pose = self._last_pose if self._last_pose is not None else np.zeros(4)
+        while self.samples < total:
+            self.blocks.append(self._render(len(self.blocks), pose))
+        return np.concatenate(self.blocks)[:total]
+
+    def _dry(self, i: int, lo: int, hi: int) -> np.ndarray:
+        end = hi if self.stops[i] is None else min(hi, self.stops[i] + self.fade)  # type: ignore[operator]
+        return dry_segment(self.waves[i](max(end, 0)), self.stops[i], lo, hi, self.ramp)
+
+    def _render(self, j: int, pose: np.ndarray) -> np.ndarray:
+        S, L = self.hop, self.length
+        lo = j * S
+        keys = [self.epochs[0].cache.keys(i, pose) for i in range(len(self.positions))]
+        spectra = []
+        for i in range(len(self.positions)):
+            seg = self._dry(i, lo - (L - 1), lo + S)
+            spectra.append(sfft.rfft(seg, self.n_fft) if seg.any() else None)
+        out = np.zeros((S, 2), dtype=np.float32)
+        zero_from = self._zero_from()
+        for e, ep in enumerate(self.epochs):
+            if len(self.epochs) > 1:
+                nxt = self.epochs[e + 1].start if e + 1 < len(self.epochs) else None
+                w = epoch_window(np.arange(lo, lo + S), ep.start if e else None, nxt, S)
+                if not w.any():
+                    continue
+            new = _block(ep.cache, keys, spectra, self.n_fft, L, S)
+            if self._prev is not None and self._prev != keys:
+                old = _block(ep.cache, self._prev, spectra, self.n_fft, L, S)
+                new = old + self._xfade * (new - old)
+            if zero_from is not None and zero_from < lo + S:
+                new[max(zero_from - lo, 0) :] = 0.0
+            part = new.astype(np.float32)
+            if len(self.epochs) > 1:
+                out = (out.astype(np.float64) + part.astype(np.float64) * w[:, None]).astype(np.float32)
+            else:
+                out = part
+        self._prev = keys
+        if self.full_scale_db_spl is None:
+            return out
+        pressure = out.astype(np.float64)
+        if self.noise is not None:
+            pressure += self.noise.render(lo, S)
+        # What is heard is what the WAV holds: 16-bit samples (features are computed from them).
+        return as_written(to_full_scale(pressure, self.full_scale_db_spl, what=self.name), self.name)
+
+    def _zero_from(self) -> int | None:
+        """Sample from which the sources' part is exactly zero: every source stopped and its tail
+        rung out (a noise bed goes on)."""
+        if not self.positions or any(s is None for s in self._support_end):
+            return None
+        return max(s for s in self._support_end if s is not None) + self.length - 1
+
+
+def epoch_window(t: np.ndarray, start: int | None, end: int | None, ramp: int) -> np.ndarray:
+    """Weight of one geometry epoch at samples `t`: 1 inside [start, end), raised-cosine ramps of
+    `ramp` samples centred on the boundaries (None = open-ended); consecutive epochs sum to 1."""
+    t = np.asarray(t, dtype=np.float64)
+    w = np.ones(len(t))
+    for edge, rising in ((start, True), (end, False)):
+        if edge is None:
+            continue
+        x = np.clip((t - (edge - ramp / 2)) / ramp, 0.0, 1.0)
+        up = 0.5 - 0.5 * np.cos(np.pi * x)
+        w *= up if rising else 1.0 - up
+    return w
 
 
 def render_track(
@@ -221,52 +407,27 @@ def render_track(
     hrtf: Hrtf | None = None,
     cache: RirCache | None = None,
 ) -> np.ndarray:
-    """Binaural track (n_steps * step_samples + fade + RIR length - 1, 2) float32, channel 0 = left.
+    """Binaural track (n_steps * step_samples + fade + RIR length - 1, 2) float32, channel 0 = left:
+    `StreamRenderer` fed the whole path.
 
     `poses[i]` = [x, y, z, yaw] of the head during step i (samples [i * step, (i + 1) * step)).
     Pass `cache` to reuse RIRs across calls with the same scene and sources.
     """
-    fs = int(cfg.sample_rate)
-    hrtf = hrtf or Hrtf.load(cfg.hrtf, fs)
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 4)
-    n_steps, S = len(poses), int(step_samples)
-    if cache is None:
-        cache = RirCache(scene, [s.position for s in sources], cfg, hrtf)
-    elif cache.positions != [tuple(float(v) for v in s.position) for s in sources]:
-        raise ValueError("the RIR cache was made for other source positions")
-    if cache.hrtf.fs != fs:
-        raise ValueError(f"HRTF at {cache.hrtf.fs} Hz but the config asks for {fs} Hz")
-    fade = int(round(FADE_S * fs))
-    n_play = n_steps * S
-    dry = [dry_signal(s, n_play, fs) for s in sources]
-    L = cache.expected_length()
-    total = n_play + fade + L - 1
-    out = np.zeros((total, 2))
-    if not sources or n_steps == 0:
-        return out.astype(np.float32)
-    n_fft = sfft.next_fast_len(S + L - 1, real=True)
-    # input history: L - 1 zeros before t = 0, then the signal, then zeros to the last block
-    n_blocks = -(-total // S)
-    padded = [np.concatenate([np.zeros(L - 1), x, np.zeros(n_blocks * S - len(x))]) for x in dry]
-    ramp = 0.5 * (1 - np.cos(np.pi * (np.arange(S) + 0.5) / S))[:, None]
-    prev: list[list[tuple[CacheKey, float]]] | None = None
-    for j in range(n_blocks):
-        pose = poses[min(j, n_steps - 1)]
-        keys = [cache.keys(i, pose) for i in range(len(sources))]
-        spectra = []
-        for x in padded:
-            seg = x[j * S : j * S + S + L - 1]
-            spectra.append(sfft.rfft(seg, n_fft) if seg.any() else None)
-        new = _block(cache, keys, spectra, n_fft, L, S)
-        if prev is not None and prev != keys:
-            old = _block(cache, prev, spectra, n_fft, L, S)
-            new = old + ramp * (new - old)
-        hi = min((j + 1) * S, total)
-        out[j * S : hi] = new[: hi - j * S]
-        prev = keys
-    end = max(_support_end(x) for x in dry) + L - 1  # past every source's last sample + RIR
-    out[end:] = 0.0
-    return out.astype(np.float32)
+    waves = [np.asarray(s.waveform, dtype=np.float64).ravel() for s in sources]
+    r = StreamRenderer(scene, [s.position for s in sources], [_prefix(w) for w in waves], cfg, step_samples, hrtf, cache)
+    n_play = len(poses) * r.hop
+    for i, s in enumerate(sources):
+        if s.stop_sample is not None:
+            r.stop(i, min(max(int(s.stop_sample), 0), n_play))
+    for pose in poses:
+        r.step(pose)
+    return r.finish()
+
+
+def _prefix(w: np.ndarray) -> Wave:
+    """A fixed signal as a `Wave`: n -> its first n samples."""
+    return lambda n: w[:n]
 
 
 def _block(
@@ -289,8 +450,3 @@ def _block(
     if acc is None:
         return np.zeros((S, 2))
     return sfft.irfft(acc, n_fft, axis=0)[L - 1 : L - 1 + S]
-
-
-def _support_end(x: np.ndarray) -> int:
-    nz = np.flatnonzero(x)
-    return int(nz[-1]) + 1 if nz.size else 0

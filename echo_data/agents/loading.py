@@ -68,7 +68,24 @@ def _load(target: str, builtins: dict[str, Any], what: str, methods: tuple[str, 
     missing = [m for m in methods if not callable(getattr(agent, m, None))]
     if missing:
         raise AgentLoadError(f"{what} {target!r}: has no {', '.join(missing)}() method")
+    check_observations(agent, f"{what} {target!r}")
     return agent
+
+
+def check_observations(agent: Any, name: str, known: Sequence[str] | None = None) -> None:
+    """An agent's `observations` (what the environment must render for it): absent/None, or a
+    tuple or list of observation keys, each in `known` when given; else `AgentLoadError` naming
+    the agent and the key, before any episode runs."""
+    keys = getattr(agent, "observations", None)
+    if keys is None:
+        return
+    if not isinstance(keys, (tuple, list)):
+        raise AgentLoadError(f"{name}: observations must be a tuple of observation keys, got {type(keys).__name__} {keys!r}"[:300])
+    for k in keys:
+        if not isinstance(k, str) or not k.startswith("observation."):
+            raise AgentLoadError(f"{name}: observations: {k!r} is not an observation key (observation.*)"[:300])
+        if known is not None and k not in known:
+            raise AgentLoadError(f"{name}: observations: {k!r} is not an observation of this recipe ({', '.join(sorted(known))})")
 
 
 def load_policy(target: str | Sequence[str]) -> Policy:

@@ -5,12 +5,18 @@ under evaluation:
 1. the planner answers with a skill chain in the planner export's JSON
    (`[{"skill": "Navigate", "target": "phone"}, ...]`); the plan is right when it equals the
    episode's true chain exactly, order included;
-2. with a right plan, each skill of the chain runs until its success test holds (policies that
-   end themselves, like the scripted experts, run until they return and are then tested) or its
-   step budget from the recipe runs out; a failed skill ends the episode.
+2. with a right plan, each skill of the chain runs until its success test holds or its step
+   budget from the recipe runs out; a failed skill ends the episode. Success is the
+   environment's one evaluation per step (`info["skills"]`; the dataset's `skill_success`
+   column records its in-order latched form, `done`). Policies that end themselves (the
+   scripted experts) run until they return and are then tested: after a skill's test first
+   holds, an expert still lets go, backs off and tucks the arm, which the next skill starts
+   from, so those steps belong to the skill (the step rows say so: that skill's
+   `skill_success` flag is already true). The last skill ends where its test first holds: the
+   environment then terminates the episode and refuses further steps.
 
-A non-finite action ends the episode as failed with that reason; an action of the wrong shape
-is the policy's bug and raises `AgentActionError`.
+A non-finite action ends the episode as failed with that reason; an action that is not 12 real
+numbers (wrong shape, complex, not numbers) is the policy's bug and raises `AgentActionError`.
 
 `max_steps` cuts an episode after its first `max_steps` control steps (the recipe's
 `outputs.max_frames`, for data that needs only the first seconds): the policy acts exactly as it
@@ -30,7 +36,7 @@ import numpy as np
 
 from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.protocols import Planner, Policy
-from echo_data.records import ACTION_DIM, SkillOutcome
+from echo_data.records import SkillOutcome
 
 if TYPE_CHECKING:
     from echo_data.envs.env import EchoDataEnv
@@ -38,6 +44,11 @@ if TYPE_CHECKING:
 
 class AgentActionError(ValueError):
     """A policy returned something that is not an action of the dataset's shape."""
+
+
+class StopEpisode(Exception):
+    """Raised by an `on_step` hook to end the episode before that action is applied (like a
+    `max_steps` cut: the running skill gets no outcome, `truncated_at` records where)."""
 
 
 @dataclass
@@ -65,7 +76,7 @@ class EpisodeRun:
     setting: str
     seed: int
     true_chain: list[dict[str, str]]
-    planned_chain: Any
+    planned_chain: list[dict[str, str]] | None  # None: the planner's answer was not a chain (see `failure`)
     plan_correct: bool
     outcomes: list[SkillOutcome] = field(default_factory=list)
     navigate: list[NavigateRecord] = field(default_factory=list)
@@ -96,22 +107,28 @@ def true_chain(spec: EpisodeSpec) -> list[dict[str, str]]:
     return [{"skill": c.skill, "target": target_kind(c.target, spec.plan)} for c in spec.chain]
 
 
-def normalise_plan(plan: Any) -> list[dict[str, str]] | None:
-    """A planner's answer (a list of {"skill", "target"} or its JSON text) -> list, or None if malformed."""
+class PlanError(ValueError):
+    """A planner's answer that is not a skill chain; the message says what is wrong with it."""
+
+
+def normalise_plan(plan: Any) -> list[dict[str, str]]:
+    """A planner's answer (a list or tuple of {"skill", "target"} strings, or its JSON text) as plain
+    JSON-able lists and strings; anything else raises `PlanError` saying why, so a planner's
+    arrays, generators or objects never reach the results file."""
     import json
 
     if isinstance(plan, str):
         try:
             plan = json.loads(plan)
         except ValueError:
-            return None
+            raise PlanError("not JSON text") from None
     if not isinstance(plan, (list, tuple)):
-        return None
+        raise PlanError(f"expected a list of {{'skill', 'target'}}, got {type(plan).__name__}")
     out = []
-    for c in plan:
+    for i, c in enumerate(plan):
         if not isinstance(c, dict) or not isinstance(c.get("skill"), str) or not isinstance(c.get("target"), str):
-            return None
-        out.append({"skill": c["skill"], "target": c["target"]})
+            raise PlanError(f"item {i}: expected {{'skill': str, 'target': str}}, got {type(c).__name__}")
+        out.append({"skill": str(c["skill"]), "target": str(c["target"])})
     return out
 
 
@@ -144,15 +161,17 @@ StepHook = Callable[["EchoDataEnv", dict[str, np.ndarray], np.ndarray, int, Skil
 
 def run_episode(
     env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any], planner: Planner, policy: Policy,
-    on_step: StepHook | None = None, max_steps: int | None = None,
+    on_step: StepHook | None = None, max_steps: int | None = None, skills: int | None = None,
 ) -> EpisodeRun:
     """Run one episode already reset in `env` (its first observation and info) with a planner and a skill policy.
 
     Success is read from the environment's `info["skills"]` (one evaluation per step).
     `on_step(env, obs, action, skill_index, call, skill_flags)` is called before each action is
-    applied (the build records its rows there). `max_steps`: cut the episode after that many
-    control steps (see the module docstring).
+    applied (the build records its rows there; DAgger labels there); it may raise `StopEpisode`.
+    `max_steps`: cut the episode after that many control steps (see the module docstring);
+    `skills`: run only the chain's first `skills` skills.
     """
+    from echo_data.envs.env import EnvInputError, as_action
     from echo_data.skills.registry import skill_budget
 
     env = getattr(env, "unwrapped", env)  # gymnasium wrappers around an EchoDataEnv
@@ -161,19 +180,24 @@ def run_episode(
     reset_planner = getattr(planner, "reset", None)  # optional (echo_data.protocols)
     if callable(reset_planner):
         reset_planner({**info, "true_chain": truth, "spec_object": spec})
-    raw = planner.plan(first_obs)
-    planned = normalise_plan(raw)
-    run = EpisodeRun(spec.episode_id, spec.setting, spec.seed, truth, planned if planned is not None else raw, planned == truth)
+    try:
+        planned: list[dict[str, str]] | None = normalise_plan(planner.plan(first_obs))
+        malformed = ""
+    except PlanError as e:
+        planned, malformed = None, str(e)
+    run = EpisodeRun(spec.episode_id, spec.setting, spec.seed, truth, planned, planned == truth)
     if not run.plan_correct:
-        run.failure = "plan wrong" if planned is not None else "plan malformed"
+        run.failure = "plan wrong" if planned is not None else f"plan malformed: {malformed}"
         return run
     obs = first_obs
-    flags = [False] * len(spec.chain)
+
+    def flags() -> tuple[bool, ...]:  # the environment's latched success tests now, per chain entry
+        return tuple(bool(s["done"]) for s in info["skills"])
 
     def cut() -> bool:
         return max_steps is not None and env.steps >= max_steps
 
-    for k, call in enumerate(spec.chain):
+    for k, call in enumerate(spec.chain[:skills]):
         if cut():  # the previous skill ended exactly at the cut and more of the chain remains
             run.truncated_at = env.steps
             break
@@ -189,6 +213,7 @@ def run_episode(
         path = 0.0
         n = 0
         reason = ""
+        ended = False
         while True:
             if not ends_itself and succeeded(info, k):
                 break
@@ -201,21 +226,30 @@ def run_episode(
             if n >= budget:
                 reason = "timeout"
                 break
-            a = np.asarray(action, dtype=np.float32)
-            if a.shape != (ACTION_DIM,):
-                raise AgentActionError(f"policy action: expected shape ({ACTION_DIM},), got {a.shape} at step {env.steps}")
+            try:
+                a = as_action(action)
+            except EnvInputError as e:
+                raise AgentActionError(f"policy {e} at step {env.steps}") from None
             if on_step is not None:
-                on_step(env, obs, a, k, call, tuple(flags))
+                try:
+                    on_step(env, obs, a, k, call, flags())
+                except StopEpisode:
+                    run.truncated_at = env.steps
+                    break
             x0, y0, _ = env.world.robot.base_pose()
-            obs, _, _, _, info = env.step(a)
+            obs, _, terminated, truncated, info = env.step(a)
             n += 1
             if info.get("failure"):
                 reason = info["failure"]
                 break
             x1, y1, _ = env.world.robot.base_pose()
             path += math.hypot(x1 - x0, y1 - y0)
+            if terminated or truncated:  # the chain is done (or past the episode's budget): no step follows
+                ended = True
+                reason = "" if terminated else "timeout" if n >= budget else "episode step limit"
+                break
         close = getattr(policy, "close", None)  # optional (echo_data.protocols)
-        if (reason == "timeout" or run.truncated_at is not None) and ends_itself and callable(close):
+        if (reason or ended or run.truncated_at is not None) and ends_itself and callable(close):
             close()
         if run.truncated_at is not None:  # the skill running at the cut has no outcome
             break
@@ -226,7 +260,6 @@ def run_episode(
         run.outcomes.append(SkillOutcome(call.skill, call.target, ok, "" if ok else reason, n))
         if call.skill == "Navigate":
             run.navigate.append(NavigateRecord(k, ok, path, expert_len))
-        flags[k] = ok
         if not ok:
             run.failure = f"{call.skill}({call.target}): {reason}"
             break

@@ -15,7 +15,7 @@ import errno
 import shutil
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -30,6 +30,7 @@ from echo_data.dataset.manifest import (
     load_manifest,
     new_manifest,
     plan_shards,
+    split_sizes,
     write_manifest,
 )
 from echo_data.dataset.schema import StepLayout
@@ -192,7 +193,9 @@ def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
 # ---------------------------------------------------------------- output checks
 
 
-def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, mode: str, workers: int, executor: str) -> dict[str, Any]:
+def _prepare(
+    out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, mode: str, workers: int, executor: str, only: Sequence[str] | None
+) -> dict[str, Any]:
     """Create, refuse, replace or reopen the output according to `mode`; return its manifest."""
     has_content = out.is_dir() and any(p.name != LOCK_NAME for p in out.iterdir())
     if has_content and mode == "new":
@@ -209,6 +212,8 @@ def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, m
             )
         if manifest.get("limit") != limit:
             raise OutputError(f"{out} was built with --limit {manifest.get('limit')}, not {limit}; pass the same --limit or --overwrite")
+        if manifest.get("only_splits") != (None if only is None else list(plan_shards(recipe, limit, only))):
+            raise OutputError(f"{out} was built with --split {manifest.get('only_splits') or 'all'}, not {only or 'all'}; pass the same --split or --overwrite")
         manifest["build"].update({"workers": workers, "executor": executor})
         manifest["build"]["resumes"] = manifest["build"].get("resumes", 0) + 1
         return manifest
@@ -223,12 +228,36 @@ def _prepare(out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, m
             else:
                 child.unlink()
     out.mkdir(parents=True, exist_ok=True)
-    manifest = new_manifest(recipe, limit, layout, workers, executor)
+    manifest = new_manifest(recipe, limit, layout, workers, executor, only)
     write_manifest(out, manifest)
     return manifest
 
 
 # ---------------------------------------------------------------- parent side
+
+
+class _Rate:
+    """Steps/s of this run and the projected time left for the whole recipe (every split at
+    full size, not just this run's --limit), from the episodes finished so far."""
+
+    def __init__(self, recipe_todo: int) -> None:
+        self.t0 = time.monotonic()
+        self.recipe_todo = recipe_todo
+        self.episodes = self.steps = 0
+
+    def add(self, steps: int) -> None:
+        self.episodes += 1
+        self.steps += steps
+
+    def __str__(self) -> str:
+        dt = max(time.monotonic() - self.t0, 1e-9)
+        left = (self.recipe_todo - self.episodes) * dt / max(self.episodes, 1)
+        return f"{self.steps / dt:.0f} steps/s, whole recipe {_duration(left)} left"
+
+
+def _duration(seconds: float) -> str:
+    s = int(round(max(seconds, 0.0)))
+    return f"{s // 3600}h{s % 3600 // 60:02d}m" if s >= 3600 else f"{s // 60}m{s % 60:02d}s"
 
 
 def _default_generate() -> Generate:
@@ -251,12 +280,14 @@ def build(
     progress: bool = True,
     make_library: Callable[[Recipe, Path], SoundLibrary] | None = None,
     address: str | None = None,
+    only: Sequence[str] | None = None,
 ) -> BuildSummary:
     """Build (or resume) the dataset of `recipe` in the directory `out`.
 
     `generate(recipe, split, index, library, recipe_dir, attempt=0) -> EpisodeResult` defaults
     to `echo_data.app.pipeline.generate_episode`; `make_library(recipe, recipe_dir)` defaults to the
-    recipe's `SoundLibrary`; `address` is a Ray cluster's (with executor "ray"). Raises
+    recipe's `SoundLibrary`; `address` is a Ray cluster's (with executor "ray"); `only` names the
+    splits to build (default: all). Raises
     `OutputError` (bad input, nothing written) or `BuildError`.
     """
     t0 = time.monotonic()
@@ -277,8 +308,10 @@ def build(
         raise OutputError(f"unknown executor {executor!r} (use local or ray)")
     if address and executor != "ray":
         raise OutputError("--address names a Ray cluster: use it with --executor ray")
+    if only is not None and (not only or set(only) - set(recipe.splits)):
+        raise OutputError(f"--split {','.join(only)}: the recipe's splits are {', '.join(recipe.splits)}")
     layout = StepLayout.from_recipe(recipe)
-    plans = plan_shards(recipe, limit)
+    plans = plan_shards(recipe, limit, only)
     gen = generate or _default_generate()
     # Read the sound library once before anything is written: an unreadable user WAV is bad
     # input (exit 2, nothing written), not a crash inside a worker halfway through the build.
@@ -297,7 +330,7 @@ def build(
     except OSError as e:
         raise OutputError(f"{out}: cannot create the build lock ({e.strerror or e})") from None
     try:
-        return _build_locked(recipe, recipe_path, out, workers, limit, mode, executor, gen, progress, make_library, layout, plans, t0, address)
+        return _build_locked(recipe, recipe_path, out, workers, limit, mode, executor, gen, progress, make_library, layout, plans, t0, address, only)
     except OSError as e:
         if e.errno not in _OUTPUT_ERRNOS:
             raise
@@ -336,6 +369,7 @@ def _build_locked(
     plans: dict[str, ShardPlans],
     t0: float,
     address: str | None,
+    only: Sequence[str] | None,
 ) -> BuildSummary:
     """The build proper, run while this process holds the folder's build lock."""
     job = _Job(recipe, Path(recipe_path).resolve().parent, layout, gen, make_library)
@@ -347,7 +381,7 @@ def _build_locked(
 
     bar = None
     try:
-        manifest = _prepare(out, recipe, limit, layout, mode, workers, executor)
+        manifest = _prepare(out, recipe, limit, layout, mode, workers, executor, only)
         writer = DatasetWriter(out, recipe, layout, manifest, plans)
         writer.verify_shards()
         writer.remove_leftovers()
@@ -364,6 +398,7 @@ def _build_locked(
             if not writer.stored(split, i)
         )
         bar = tqdm(total=total, initial=reused, unit="ep", desc=f"build {recipe.name}", disable=not progress, dynamic_ncols=True)
+        rate = _Rate(sum(split_sizes(recipe, None).values()) - reused)
         attempts = successes = 0
         for res in ex.imap_unordered(_run_episode, todo):
             if isinstance(res, FailedEpisode) and res.error:
@@ -378,7 +413,8 @@ def _build_locked(
             attempts += 1 + len(res.failures)
             successes += 1
             bar.update(1)
-            bar.set_postfix_str(f"success {successes / attempts:.0%}", refresh=False)
+            rate.add(int(res.episode["n_steps"]))
+            bar.set_postfix_str(f"success {successes / attempts:.0%}, {rate}", refresh=False)
             writer.flush(res.split)
     except BuildError:
         raise

@@ -22,8 +22,9 @@ def _fail(message: str, code: int) -> typer.Exit:
 def build_cmd(
     recipe: Annotated[Path, typer.Argument(help="Recipe YAML file.")],
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Dataset folder (default: out/<recipe name>).")] = None,
-    workers: Annotated[int, typer.Option("--workers", "-w", help="Parallel episode workers.")] = 1,
+    workers: Annotated[int | None, typer.Option("--workers", "-w", help="Parallel episode workers (default: the usable CPU cores).")] = None,
     limit: Annotated[int | None, typer.Option("--limit", help="At most N episodes per split (quick runs).")] = None,
+    split: Annotated[list[str] | None, typer.Option("--split", help="Build only this split (repeat for several; default all). Evaluation needs no built test split.")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted build.")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing dataset.")] = False,
     executor: Annotated[str, typer.Option("--executor", help="local (process pool) or ray.")] = "local",
@@ -41,8 +42,12 @@ def build_cmd(
     except RecipeError as e:
         raise _fail(str(e), 2) from None
     mode = "resume" if resume else "overwrite" if overwrite else "new"
+    if workers is None:
+        from echo_data.app.executors import default_workers
+
+        workers = default_workers()
     try:
-        summary = build(r, recipe, out if out is not None else Path("out") / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress, address=address)  # type: ignore[arg-type]
+        summary = build(r, recipe, out if out is not None else Path("out") / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress, address=address, only=split or None)  # type: ignore[arg-type]
     except OutputError as e:
         raise _fail(str(e), 2) from None
     except BuildError as e:
@@ -105,6 +110,10 @@ def export_cmd(
     """Write the dataset in another library's format (LeRobot v3.0, robomimic HDF5, Zarr), next to the original."""
     import importlib
 
+    from echo_data.dataset.manifest import ManifestError
+    from echo_data.dataset.validate import DamagedDataset, check_whole
+    from echo_data.targets import TargetError, check_file, check_folder, write_failed
+
     if fmt not in EXPORT_FORMATS:
         raise _fail(f"--format {fmt}: unknown format (use {', '.join(EXPORT_FORMATS)})", 2)
     if video and fmt != "lerobot":
@@ -112,9 +121,13 @@ def export_cmd(
     module, name = EXPORT_FORMATS[fmt]
     mod = importlib.import_module(module)
     try:
+        (check_folder if out.is_dir() or not out.suffix else check_file)(out, "--out")  # robomimic writes one .hdf5 file
+        check_whole(path)
         info = getattr(mod, name)(path, out, overwrite=overwrite, **({"video": tuple(video)} if video else {}))
-    except mod.ExportError as e:
+    except (mod.ExportError, TargetError, ManifestError, DamagedDataset) as e:
         raise _fail(str(e), 2) from None
+    except OSError as e:
+        raise _fail(write_failed("--out", out, e), 2) from None
     typer.echo(f"{out}: {fmt} {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
 
 
@@ -122,21 +135,39 @@ def view_cmd(
     path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
     episode: Annotated[int, typer.Option("--episode", "-e", help="Episode index within the split.")] = 0,
     split: Annotated[str, typer.Option("--split", help="Split of the episode.")] = "train",
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="MP4 to write (default: <split>-<episode>.mp4 here).")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="MP4 to write (default: <split>-<episode>.mp4 here, unless --rerun alone is given).")] = None,
+    rerun: Annotated[Path | None, typer.Option("--rerun", help="Also (or, without --out, only) write a Rerun recording (.rrd) to scrub through with `rerun FILE.rrd`.")] = None,
 ) -> None:
-    """Write an MP4 of one episode: head RGB, depth, top-down map, scrolling binaural spectrogram,
-    the active skill as a caption, and the episode's binaural sound."""
+    """Write an MP4 of one episode (head RGB, head and wrist depth, top-down map, scrolling binaural
+    spectrogram, the active skill, the sound at a stated listening gain) and/or a Rerun recording."""
     from echo_data.dataset.manifest import ManifestError
+    from echo_data.dataset.validate import DamagedDataset, check_whole
+    from echo_data.targets import TargetError, check_file, write_failed
     from echo_data.view import ViewError, render_episode_video
+    from echo_data.viz.recording import RecordingTargetError, check_rerun_target, write_recording
 
-    target = out if out is not None else Path(f"{split}-{episode:06d}.mp4")
-    if target.exists() and target.is_dir():
-        raise _fail(f"--out {target}: is a folder", 2)
+    target = out if out is not None else (Path(f"{split}-{episode:06d}.mp4") if rerun is None else None)
+    writing: tuple[str, Path] | None = None  # the option and file being written when an OSError comes
     try:
-        summary = render_episode_video(path, episode, target, split=split)
-    except (ManifestError, ViewError) as e:
+        if target is not None:
+            check_file(target, "--out")
+        if rerun is not None:
+            check_rerun_target(rerun)
+        check_whole(path, split, episode)
+        if target is not None:
+            writing = ("--out", target)
+            summary = render_episode_video(path, episode, target, split=split)
+            typer.echo(f"wrote {summary['path']}: {summary['frames']} frames, {summary['seconds']:.1f} s with binaural sound ({summary['listening']})")
+        if rerun is not None:
+            writing = ("--rerun", rerun)
+            rec = write_recording(path, episode, rerun, split=split)
+            typer.echo(f"wrote {rec['path']}: {rec['steps']} steps, cameras {', '.join(rec['cameras'])} (open it with `rerun {rec['path']}`)")
+    except (ManifestError, ViewError, RecordingTargetError, TargetError, DamagedDataset) as e:
         raise _fail(str(e), 2) from None
-    typer.echo(f"wrote {summary['path']}: {summary['frames']} frames, {summary['seconds']:.1f} s with binaural sound")
+    except OSError as e:
+        if writing is None:
+            raise
+        raise _fail(write_failed(writing[0], writing[1], e), 2) from None
 
 
 def register(app: typer.Typer) -> None:

@@ -18,6 +18,15 @@ ExecutorName = Literal["local", "ray"]
 WORKER_ENV = {"LP_NUM_THREADS": "1"}
 
 
+def default_workers() -> int:
+    """The cores this process may run on (`os.sched_getaffinity`; all CPUs where it is missing):
+    the default number of build workers."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
 class ExecutorError(RuntimeError):
     """An executor cannot be used (e.g. Ray missing); the message says what to do."""
 

@@ -43,9 +43,9 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
     try:
         obs, info = env.reset(options={"spec": spec})
         run = run_episode(env, obs, info, OraclePlanner(), policy, on_step=recorder, max_steps=recipe.outputs.max_frames)
-        if recorder.steps:  # the last stored step ends the episode; its flags are the outcomes so far
+        if recorder.steps:  # the last stored step ends the episode
             recorder.steps[-1].done = True
-            recorder.steps[-1].skill_success = tuple(o.success for o in run.outcomes) + (False,) * (len(spec.chain) - len(run.outcomes))
+            recorder.steps[-1].skill_success = done_flags(env)
         success = len(run.outcomes) == len(spec.chain) and all(o.success for o in run.outcomes)
         ro = EpisodeResult(
             spec, recorder.steps, run.outcomes, success,
@@ -61,12 +61,22 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
         env.close()
 
 
+def done_flags(env: EchoDataEnv) -> tuple[bool, ...]:
+    """The environment's success tests now, per chain entry (latched, in order: `info["skills"][k]["done"]`)."""
+    return tuple(k < env.progress for k in range(len(env.episode.chain)))
+
+
 def _stack(xs: list[np.ndarray]) -> np.ndarray | None:
     return np.stack(xs) if xs else None
 
 
 class _Recorder:
     """Turns each (observation, action) the runtime is about to apply into a StepRecord.
+
+    A row's `skill_success` is what the environment's success tests say after the row's action
+    (the `info` that `step(action)` returns), so the flags and the `done` row agree with a replay:
+    they are filled in when the next row arrives (nothing happens in between) or, for the last
+    row, by `simulate`.
 
     With DART noise (`dart`) the record's `action` is the expert's own and `executed` the noisy
     action the runtime applies."""
@@ -83,6 +93,8 @@ class _Recorder:
 
         x, y, z, yaw = env.ear_pose()
         frame = len(self.steps)
+        if self.steps:
+            self.steps[-1].skill_success = done_flags(env)
         executed = None
         if self.dart is not None and self.dart.label is not None and not np.array_equal(self.dart.label, action):
             action, executed = self.dart.label, action
@@ -99,7 +111,6 @@ class _Recorder:
             ear_position=(x, y, z),
             ear_yaw=yaw,
             sounding=tuple(env.sounding),
-            skill_success=flags,
             camera_poses=env.world.robot.camera_poses(),
             executed=executed,
         ))

@@ -50,7 +50,7 @@ COLUMN_NOTES = {
     "audio_sample_rate": "sample rate of that WAV (Hz)",
     "audio_offset": "sample of the WAV at which this step's observation was taken",
     "done": "last step of the episode",
-    "skill_success": "per chain slot (5): skill finished successfully so far (unused slots False)",
+    "skill_success": "per chain slot (5): the environment's success test of that skill after this step's action, latched in chain order (the env's info['skills'][k]['done']); a row of skill k whose flag k was already true is the expert finishing k (letting go, backing off, tucking) before the next skill (unused slots False)",
 }
 
 

@@ -60,10 +60,12 @@ class ShardPlan:
         return range(self.first, self.last)
 
 
-def split_sizes(recipe: Recipe, limit: int | None) -> dict[str, int]:
+def split_sizes(recipe: Recipe, limit: int | None, only: Sequence[str] | None = None) -> dict[str, int]:
     """Episodes per split after --limit, in the canonical order train, val, test (never the
-    order of keys in a file: the manifest stores the recipe with sorted keys)."""
-    names = sorted(recipe.splits, key=lambda s: SPLIT_KEYS[s])
+    order of keys in a file: the manifest stores the recipe with sorted keys). `only` (build
+    --split) keeps the named splits: a training build need not pay for the test split, which
+    `echo-data evaluate` samples from the recipe itself."""
+    names = sorted((s for s in recipe.splits if only is None or s in only), key=lambda s: SPLIT_KEYS[s])
     return {s: (recipe.splits[s] if limit is None else min(recipe.splits[s], limit)) for s in names}
 
 
@@ -98,14 +100,16 @@ class ShardPlans(Sequence[ShardPlan]):
         return None
 
 
-def plan_shards(recipe: Recipe, limit: int | None) -> dict[str, ShardPlans]:
+def plan_shards(recipe: Recipe, limit: int | None, only: Sequence[str] | None = None) -> dict[str, ShardPlans]:
     """Episodes -> shards by (split, index): `episodes_per_shard` consecutive episodes each."""
     eps = recipe.outputs.episodes_per_shard
-    return {split: ShardPlans(split, n, eps) for split, n in split_sizes(recipe, limit).items()}
+    return {split: ShardPlans(split, n, eps) for split, n in split_sizes(recipe, limit, only).items()}
 
 
-def new_manifest(recipe: Recipe, limit: int | None, layout: StepLayout, workers: int, executor: str) -> dict[str, Any]:
-    plans = plan_shards(recipe, limit)
+def new_manifest(
+    recipe: Recipe, limit: int | None, layout: StepLayout, workers: int, executor: str, only: Sequence[str] | None = None
+) -> dict[str, Any]:
+    plans = plan_shards(recipe, limit, only)
     now = _now()
     return {
         "format": FORMAT_VERSION,
@@ -113,6 +117,7 @@ def new_manifest(recipe: Recipe, limit: int | None, layout: StepLayout, workers:
         "recipe_hash": recipe.content_hash(),
         "recipe": recipe.model_dump(mode="json"),
         "limit": limit,
+        **({"only_splits": sorted(only, key=lambda s: SPLIT_KEYS[s])} if only is not None else {}),
         "seed": recipe.seed,
         "seed_rule": (
             "build attempt a of an episode lets the sampler try draws a*max_attempts_per_episode .. "

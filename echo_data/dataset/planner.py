@@ -5,7 +5,9 @@ library; the assistant answers with the ground-truth skill chain as JSON. The au
 first seconds the robot heard (16 kHz mono, as Qwen2.5-Omni expects), the image its first head
 RGB frame; both were written next to the episode by the build. Media paths are relative to
 planner/ itself, so LLaMA-Factory with `dataset_dir` = <root>/planner finds them with its default
-`media_dir` (= dataset_dir).
+`media_dir` (= dataset_dir). Alongside, `audio_binaural/<split>/<episode>.wav` holds the first
+second with both ears (16 kHz, left/right), the window the learned planner decides from: the
+mono clip stays what an Omni model reads, the binaural one keeps where the sound comes from.
 """
 
 from __future__ import annotations
@@ -16,6 +18,16 @@ from typing import Any
 
 from echo_data.dataset.storage import atomic_write_json
 from echo_data.recipe import Recipe
+
+# planner/ media folders, one file per episode: (folder, suffix). The one place their paths are written.
+MEDIA = {"audio": ("audio", "wav"), "audio_binaural": ("audio_binaural", "wav"), "image": ("images", "png")}
+
+
+def media_path(kind: str, split: str, episode_id: str) -> str:
+    """An episode's planner media file, relative to planner/ (as the records name it)."""
+    folder, suffix = MEDIA[kind]
+    return f"{folder}/{split}/{episode_id}.{suffix}"
+
 
 SKILL_LIBRARY = {
     "Navigate": "drive the base to stand in front of a target (object, door, sink or furniture)",
@@ -53,10 +65,10 @@ def planner_record(row: dict[str, Any], has_image: bool) -> dict[str, Any]:
             {"role": "user", "content": prompt(has_image)},
             {"role": "assistant", "content": answer(row["chain"])},
         ],
-        "audios": [f"audio/{row['split']}/{row['episode_id']}.wav"],
+        "audios": [media_path("audio", row["split"], row["episode_id"])],
     }
     if has_image:
-        rec["images"] = [f"images/{row['split']}/{row['episode_id']}.png"]
+        rec["images"] = [media_path("image", row["split"], row["episode_id"])]
     return rec
 
 
@@ -84,7 +96,7 @@ def planner_files(out: Path, recipe: Recipe, rows: list[dict[str, Any]]) -> dict
     for split in recipe.splits:
         records = []
         for row in (r for r in rows if r["split"] == split):
-            has_image = (out / "planner" / "images" / split / f"{row['episode_id']}.png").is_file()
+            has_image = (out / "planner" / media_path("image", split, row["episode_id"])).is_file()
             any_image |= has_image
             records.append(planner_record(row, has_image))
         files[f"planner/{split}.json"] = records

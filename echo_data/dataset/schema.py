@@ -267,6 +267,7 @@ EPISODE_FIELDS = pa.schema(
                         ("priority", pa.int64()),
                         ("target", pa.string()),
                         ("source", pa.list_(pa.float64(), 3)),
+                        ("level_db", pa.float64()),  # source level, dB SPL at 1 m
                     ]
                 )
             ),

@@ -28,10 +28,14 @@ def summarize(values: np.ndarray, frames: int) -> dict[str, Any]:
     if x.ndim != 2 or x.shape[0] == 0:
         raise ValueError(f"summarize expects a non-empty (n, channels) array, got shape {x.shape}")
     n = x.shape[0]
-    mean = x.mean(axis=0, dtype=np.float64)
+    # One transposed copy, then every reduction runs along contiguous memory: reducing over the
+    # rows of an (n, C) array walks it C values at a time and cost more than rendering the episode.
+    xt = np.ascontiguousarray(x.T)  # (C, n)
+    mean = xt.sum(axis=1, dtype=np.float64) / n
     m2 = np.zeros_like(mean)
     for start in range(0, n, 1 << 18):  # bounded float64 temporaries
-        m2 += ((x[start : start + (1 << 18)].astype(np.float64) - mean) ** 2).sum(axis=0)
+        d = xt[:, start : start + (1 << 18)].astype(np.float64) - mean[:, None]
+        m2 += np.einsum("ij,ij->i", d, d)
     stride = max(1, n // _MAX_SKETCH_VALUES)
     ordered = np.sort(x[::stride], axis=0).astype(np.float64)
     pos = np.linspace(0.0, len(ordered) - 1, SKETCH_POINTS)
@@ -44,8 +48,8 @@ def summarize(values: np.ndarray, frames: int) -> dict[str, Any]:
         "n": int(n),
         "mean": mean.tolist(),
         "m2": m2.tolist(),
-        "min": x.min(axis=0).astype(np.float64).tolist(),
-        "max": x.max(axis=0).astype(np.float64).tolist(),
+        "min": xt.min(axis=1).astype(np.float64).tolist(),
+        "max": xt.max(axis=1).astype(np.float64).tolist(),
         "sketch": sketch.T.tolist(),  # (C, 101)
     }
 

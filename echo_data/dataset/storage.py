@@ -44,10 +44,14 @@ def atomic_path(path: Path) -> Iterator[Path]:
     file is fsynced and renamed over `path`, and the folder fsynced."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = tmp_path(path)
-    yield tmp
-    with open(tmp, "rb+") as f:
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    try:
+        yield tmp
+        with open(tmp, "rb+") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:  # a failed write (or a target that is a folder) leaves nothing behind
+        tmp.unlink(missing_ok=True)
+        raise
     fsync_dir(path.parent)
 
 

@@ -22,8 +22,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset import stats as stats_mod
-from echo_data.dataset.encode import planner_wav_bytes
-from echo_data.dataset.manifest import ManifestError, load_manifest, plan_shards, totals
+from echo_data.dataset.encode import planner_binaural_wav_bytes, planner_wav_bytes
+from echo_data.dataset.manifest import ManifestError, load_manifest, new_manifest, plan_shards, totals
+from echo_data.dataset.planner import MEDIA, media_path
 from echo_data.dataset.schema import EPISODE_FIELDS, MEL, SHARD_META_KEY, SPECTROGRAM, StepLayout, column_to_numpy
 from echo_data.dataset.shards import read_shard_meta
 from echo_data.dataset.storage import canonical_json, sha256_file
@@ -87,17 +88,69 @@ def _feature_problems(eid: str, audio: np.ndarray, offsets: np.ndarray, stored: 
     return problems
 
 
+_WAV_MISSING = "{episode_id}: missing {audio_path}"
+_WAV_CHANGED = "{episode_id}: {audio_path} does not match its sha256 (truncated or modified)"
+
+
+def shard_damage(out: Path, file: str, entry: dict[str, Any] | None) -> str | None:
+    """A shard missing or changed since the manifest recorded it (None when whole)."""
+    path = out / file
+    if not path.is_file():
+        return f"{file}: missing"
+    if entry is not None and sha256_file(path) != entry["sha256"]:
+        return f"{file}: sha256 differs from the manifest"
+    return None
+
+
+def first_damage(out: Path, split: str | None = None, episode: int | None = None) -> str | None:
+    """The first shard or WAV that a reader of the dataset would trip on (missing, truncated,
+    modified: validate's own file checks), limited to one split or one episode of it; None when
+    they are whole. `export`, `view` and `train` call it before reading, so damage is one line
+    naming the file instead of a traceback from Arrow or libsndfile. Raises `ManifestError`
+    for a folder that is no dataset."""
+    manifest = load_manifest(out)
+    try:
+        records = pq.read_table(out / "meta" / "episodes.parquet").to_pylist()
+    except Exception as e:
+        return f"meta/episodes.parquet: unreadable ({type(e).__name__})"
+    chosen = [r for r in records if (split is None or r["split"] == split) and (episode is None or r["episode_index"] == episode)]
+    listed = {Path(e["file"]).name: e for e in manifest.get("shards", [])}
+    for name in sorted({r["shard"] for r in chosen}):
+        entry = listed.get(name)
+        damage = shard_damage(out, entry["file"] if entry else f"data/{name}", entry)
+        if damage:
+            return damage
+    for r in chosen:
+        path = out / r["audio_path"]
+        if not path.is_file():
+            return _WAV_MISSING.format(**r)
+        if sha256_file(path) != r["audio_sha256"]:
+            return _WAV_CHANGED.format(**r)
+    return None
+
+
+class DamagedDataset(ValueError):
+    """A dataset whose shards or WAVs are not what its manifest recorded: one line naming the file."""
+
+
+def check_whole(out: Path, split: str | None = None, episode: int | None = None) -> None:
+    """Raise `DamagedDataset` naming the first damaged file (`first_damage`), or `ManifestError`."""
+    damage = first_damage(out, split, episode)
+    if damage:
+        raise DamagedDataset(f"{out}: damaged: {damage} (`echo-data validate {out}` lists every problem)")
+
+
 def _audio_problems(out: Path, row: dict[str, Any], offsets: np.ndarray, sample_rate: int, stored: dict[str, np.ndarray] | None = None) -> list[str]:
     import soundfile as sf
 
     path = out / row["audio_path"]
     eid = row["episode_id"]
     if not path.is_file():
-        return [f"{eid}: missing {row['audio_path']}"]
+        return [_WAV_MISSING.format(**row)]
     data = path.read_bytes()
     problems = []
     if hashlib.sha256(data).hexdigest() != row["audio_sha256"]:
-        problems.append(f"{eid}: {row['audio_path']} does not match its sha256 (truncated or modified)")
+        problems.append(_WAV_CHANGED.format(**row))
     try:
         import io
 
@@ -139,18 +192,18 @@ def validate(out: Path) -> list[str]:
     want = layout.schema()
     listed = {e["file"]: e for e in manifest.get("shards", [])}
     all_rows: list[dict[str, Any]] = []
-    for plans in plan_shards(recipe, manifest.get("limit")).values():
+    for plans in plan_shards(recipe, manifest.get("limit"), manifest.get("only_splits")).values():
         next_index = 0
         for plan in plans:
             path = out / plan.file
             entry = listed.pop(plan.file, None)
             if entry is None:
                 problems.append(f"{plan.file}: not in the manifest")
+            damage = shard_damage(out, plan.file, entry)
+            if damage:
+                problems.append(damage)
             if not path.is_file():
-                problems.append(f"{plan.file}: missing")
                 continue
-            if entry is not None and sha256_file(path) != entry["sha256"]:
-                problems.append(f"{plan.file}: sha256 differs from the manifest")
             try:
                 pf = pq.ParquetFile(path)
                 table = pf.read()
@@ -242,8 +295,10 @@ def _entry_problems(file: str, entry: dict[str, Any], rows: list[dict[str, Any]]
 
 def _manifest_problems(manifest: dict[str, Any], recipe: Recipe) -> list[str]:
     """Totals (counts, success rate, skills, rejections, failed attempts) are a function of the
-    shard entries: an edited total no longer matches them."""
-    problems = []
+    shard entries: an edited total no longer matches them. Keys the build never writes are
+    named (a hand edit or another tool's: a reader would silently ignore them)."""
+    known = set(new_manifest(recipe, manifest.get("limit"), StepLayout.from_recipe(recipe), 1, "local")) | set(totals([]))
+    problems = [f"manifest.json: unknown key {k!r}" for k in sorted(set(manifest) - known)]
     try:
         want = totals(manifest.get("shards", []))
     except Exception as e:
@@ -291,7 +346,7 @@ def _derived_problems(out: Path, recipe: Recipe, layout: StepLayout, manifest: d
         expected["meta/stats.json"] = stats_mod.dataset_stats(metas)
     except Exception as e:
         problems.append(f"meta/stats.json: cannot be rebuilt from the shards ({type(e).__name__}: {e})")
-    plans = plan_shards(recipe, manifest.get("limit"))
+    plans = plan_shards(recipe, manifest.get("limit"), manifest.get("only_splits"))
     expected["meta/info.json"] = DatasetWriter(out, recipe, layout, manifest, plans).info_json()
     if recipe.outputs.planner_export:
         expected.update(planner_files(out, recipe, rows))
@@ -305,23 +360,24 @@ def _derived_problems(out: Path, recipe: Recipe, layout: StepLayout, manifest: d
 
 
 def _planner_media_problems(out: Path, layout: StepLayout, rows: list[dict[str, Any]]) -> list[str]:
-    """Each planner WAV must be the clip its episode WAV gives (catches truncation and edits)."""
+    """Each planner WAV (mono and binaural) must be the clip its episode WAV gives (catches truncation and edits)."""
     import soundfile as sf
 
     problems = []
     for r in rows:
-        rel = f"planner/audio/{r['split']}/{r['episode_id']}.wav"
-        path = out / rel
-        if not path.is_file():
-            problems.append(f"{rel}: missing")
-            continue
+        rels = {kind: "planner/" + media_path(kind, r["split"], r["episode_id"]) for kind in ("audio", "audio_binaural")}
+        for rel in rels.values():
+            if not (out / rel).is_file():
+                problems.append(f"{rel}: missing")
         try:
             audio, _ = sf.read(str(out / r["audio_path"]), dtype="int16", always_2d=True)
-            want = planner_wav_bytes(dequantise(audio), layout.sample_rate)
+            track = dequantise(audio)
+            want = {"audio": planner_wav_bytes(track, layout.sample_rate), "audio_binaural": planner_binaural_wav_bytes(track, layout.sample_rate)}
         except Exception:
             continue  # the episode WAV's own problem is reported already
-        if path.read_bytes() != want:
-            problems.append(f"{rel}: differs from the clip of {r['audio_path']} (truncated or modified)")
+        for kind, rel in rels.items():
+            if (out / rel).is_file() and (out / rel).read_bytes() != want[kind]:
+                problems.append(f"{rel}: differs from the clip of {r['audio_path']} (truncated or modified)")
     return problems
 
 
@@ -330,10 +386,9 @@ def _stray_problems(out: Path, recipe: Recipe, manifest: dict[str, Any], rows: l
     expected = {e["file"] for e in manifest.get("shards", [])}
     expected |= {r["audio_path"] for r in rows}
     if recipe.outputs.planner_export:
-        expected |= {f"planner/audio/{r['split']}/{r['episode_id']}.wav" for r in rows}
-        expected |= {f"planner/images/{r['split']}/{r['episode_id']}.png" for r in rows}
+        expected |= {"planner/" + media_path(kind, r["split"], r["episode_id"]) for kind in MEDIA for r in rows}
     problems = []
-    for folder in ("data", "audio", "planner/audio", "planner/images"):
+    for folder in ("data", "audio", *(f"planner/{f}" for f, _ in MEDIA.values())):
         for path in sorted((out / folder).rglob("*")) if (out / folder).is_dir() else []:
             rel = path.relative_to(out).as_posix()
             if path.is_file() and rel not in expected and not path.name.startswith("."):

@@ -72,9 +72,13 @@ class DatasetWriter:
         """Media first, rows next, the JSON commit marker last (each atomic)."""
         atomic_write_bytes(self.out / enc.episode["audio_path"], enc.wav)
         if self.recipe.outputs.planner_export:
-            atomic_write_bytes(self.out / "planner" / "audio" / enc.split / f"{enc.episode_id}.wav", enc.planner_wav or b"")
+            from echo_data.dataset.planner import media_path
+
+            planner = self.out / "planner"
+            atomic_write_bytes(planner / media_path("audio", enc.split, enc.episode_id), enc.planner_wav or b"")
+            atomic_write_bytes(planner / media_path("audio_binaural", enc.split, enc.episode_id), enc.planner_binaural_wav or b"")
             if enc.planner_png is not None:
-                atomic_write_bytes(self.out / "planner" / "images" / enc.split / f"{enc.episode_id}.png", enc.planner_png)
+                atomic_write_bytes(planner / media_path("image", enc.split, enc.episode_id), enc.planner_png)
         atomic_write_bytes(self.work(enc.split, enc.index, "arrow"), enc.table_ipc)
         atomic_write_json(self.work(enc.split, enc.index, "json"), enc.meta())
 

@@ -12,7 +12,9 @@ control period (the episode WAV is these blocks one after another).
 
 Reward: the number of true-chain skills newly completed in order at this step (their success
 tests, latched); `terminated` when the whole chain is done or a non-finite action arrived (the
-reason in `info["failure"]`); `truncated` past the sum of the chain's step budgets.
+reason in `info["failure"]`); `truncated` past the sum of the chain's step budgets. After either,
+`step` refuses (`EnvInputError`) until `reset`, as gymnasium's API asks. Reset options and
+actions are checked first: a wrong key, type or value raises `EnvInputError` naming it.
 
 The build drives this same environment with the scripted experts (`echo_data.agents`), so a
 dataset episode replays here action by action to the same states, images and audio.
@@ -43,6 +45,55 @@ SHIPPED_RECIPES = Path(__file__).resolve().parents[2] / "recipes"
 
 class EnvInputError(ValueError):
     """A bad argument to the environment (index past a split, wrong action shape): one line."""
+
+
+RESET_OPTIONS = ("spec", "split", "index", "attempt")
+
+
+def as_action(action: Any) -> np.ndarray:
+    """`action` as the dataset's 12 float32, or `EnvInputError` saying why it is not one (not
+    numbers, complex numbers whose imaginary parts a cast would drop, the wrong shape)."""
+    try:
+        a = np.asarray(action)
+    except Exception as e:  # ragged lists and objects numpy cannot make an array of
+        raise EnvInputError(f"action: not an array of {ACTION_DIM} numbers ({type(e).__name__}: {e})".splitlines()[0]) from None
+    if a.dtype.kind == "c":
+        raise EnvInputError(f"action: complex values (dtype {a.dtype}); an action is {ACTION_DIM} real numbers")
+    if a.dtype.kind not in "iuf":
+        raise EnvInputError(f"action: expected {ACTION_DIM} numbers, got {type(action).__name__} of dtype {a.dtype}")
+    if a.shape != (ACTION_DIM,):
+        raise EnvInputError(f"action: expected shape ({ACTION_DIM},), got {a.shape}")
+    return a.astype(np.float32)
+
+
+def _int_option(options: dict[str, Any], key: str) -> int:
+    """An integer option (a Python or numpy integer, never a bool or a float that would be rounded)."""
+    v = options[key]
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)):
+        raise EnvInputError(f"reset options['{key}']: expected an integer, got {type(v).__name__} {v!r}")
+    if v < 0:
+        raise EnvInputError(f"reset options['{key}']: must be >= 0, got {v}")
+    return int(v)
+
+
+def check_reset_options(options: dict[str, Any], recipe: Recipe) -> None:
+    """Refuse reset options the environment would misread, naming the option."""
+    unknown = sorted(str(k) for k in options if k not in RESET_OPTIONS)
+    if unknown:
+        raise EnvInputError(f"reset options: unknown key {unknown[0]!r} (known: {', '.join(RESET_OPTIONS)})")
+    if "spec" in options:
+        if not isinstance(options["spec"], EpisodeSpec):
+            raise EnvInputError(f"reset options['spec']: expected an EpisodeSpec, got {type(options['spec']).__name__}")
+        others = sorted(k for k in options if k != "spec")
+        if others:
+            raise EnvInputError(f"reset options: 'spec' excludes {', '.join(repr(k) for k in others)}")
+    if "split" in options and options["split"] not in recipe.splits:
+        raise EnvInputError(f"reset options['split']: {options['split']!r} is not a split of recipe {recipe.name} ({', '.join(recipe.splits)})")
+    for key in ("index", "attempt"):
+        if key in options:
+            _int_option(options, key)
+    if "attempt" in options and "index" not in options:
+        raise EnvInputError("reset options['attempt']: needs 'index' (a fresh draw has no attempts)")
 
 
 def resolve_recipe(recipe: Recipe | str | Path) -> tuple[Recipe, Path | None]:
@@ -159,11 +210,14 @@ class EchoDataEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
         """Enter an episode: options {"spec": EpisodeSpec} | {"split", "index"[, "attempt"]}; else a fresh draw."""
         super().reset(seed=seed)
+        if options is not None and not isinstance(options, dict):
+            raise EnvInputError(f"reset options: expected a dict, got {type(options).__name__}")
         options = dict(options or {})
+        check_reset_options(options, self.recipe)
         if "spec" in options:
             spec = options["spec"]
         elif "index" in options:
-            spec = self.sample_spec(options.get("split", self.split), int(options["index"]), int(options.get("attempt", 0)))
+            spec = self.sample_spec(options.get("split", self.split), options["index"], options.get("attempt", 0))
         else:  # a fresh episode: the recipe under another seed, both drawn from the seeded generator
             from echo_data.scene.sampling import sample_episode
 
@@ -186,6 +240,7 @@ class EchoDataEnv(gym.Env):
         self.progress = 0  # true-chain skills completed in order (latched)
         self.steps = 0
         self.failure = ""
+        self.ended = ""  # "terminated" or "truncated" once the episode is over: step() then refuses
         self._grids: dict[tuple, Any] = {}
         self._resolver = {call.event: k for k, call in enumerate(spec.chain) if SKILLS[call.skill].resolves_event}
         self.max_episode_steps = sum(skill_budget(self.recipe, c.skill) for c in spec.chain)
@@ -199,16 +254,18 @@ class EchoDataEnv(gym.Env):
             self.track = OnlineTrack(spec, self.recipe, self.library)
             self.track.pre_roll(self.ear_pose())
             block = self.track.blocks[-1]
+        self._advance()  # a skill whose test holds from the start counts from the start
         self._obs = self._observe(block)
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         if self._world is None:
             raise EnvInputError("step() before reset()")
-        a = np.asarray(action, dtype=np.float32)
-        if a.shape != (ACTION_DIM,):
-            raise EnvInputError(f"action: expected shape ({ACTION_DIM},), got {a.shape}")
+        if self.ended:
+            raise EnvInputError(f"step(): the episode {self.ended} at step {self.steps}; call reset() first")
+        a = as_action(action)
         if not np.all(np.isfinite(a)):
             self.failure = f"non-finite action at step {self.steps}"
+            self.ended = "terminated"
             return self._obs, 0.0, True, False, self._info()
         pose = self.ear_pose()  # the head during this control period
         self.world.step(a)
@@ -231,6 +288,7 @@ class EchoDataEnv(gym.Env):
         self._obs = self._observe(block)
         terminated = self.progress == len(self.episode.chain)
         truncated = not terminated and self.steps >= self.max_episode_steps
+        self.ended = "terminated" if terminated else "truncated" if truncated else ""
         return self._obs, float(self.progress - before), terminated, truncated, self._info()
 
     def _update_events(self) -> list[int]:
@@ -269,15 +327,12 @@ class EchoDataEnv(gym.Env):
                     obs[col] = pics[key]
         obs[STATE] = self.world.robot.state().astype(np.float32)
         if self.track is not None:
-            from echo_data.acoustics.features import step_features
-
             obs[BINAURAL] = np.asarray(block, dtype=np.float32)
-            fs = self.track.fs
-            spec, mel = step_features(self.track.last_second(), np.array([fs]), fs, self.recipe.acoustics.mel_bands)
+            spec, mel = self.track.features()
             if SPECTROGRAM in self.observation_space.spaces:
-                obs[SPECTROGRAM] = spec[0]
+                obs[SPECTROGRAM] = spec
             if MEL in self.observation_space.spaces:
-                obs[MEL] = mel[0]
+                obs[MEL] = mel
         return obs
 
     def _info(self, reset: bool = False) -> dict[str, Any]:

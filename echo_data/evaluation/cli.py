@@ -37,14 +37,39 @@ def format_tables(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _check_targets(json_out: Path | None, video: Path | None, resume: bool) -> str:
+    """Why `--json`/`--video`/`--resume` cannot be used ("" when they can): checked before the first episode."""
+    from echo_data.targets import TargetError, check_file, check_folder
+
+    if resume and json_out is None:
+        return "--resume: continues the evaluation recorded next to --json; give --json"
+    if json_out is not None and not json_out.parent.is_dir():
+        return f"--json {json_out}: folder {json_out.parent} does not exist"
+    try:
+        if json_out is not None:
+            check_file(json_out, "--json")
+        if video is not None:
+            check_folder(video, "--video")
+    except TargetError as e:
+        return str(e)
+    return ""
+
+
 def run_evaluate(
-    recipe: Recipe, recipe_path: Path, split: str, n: int, policy: str | tuple[str, ...], planner: str, workers: int, json_out: Path | None, video: Path | None
+    recipe: Recipe, recipe_path: Path, split: str, n: int, policy: str | tuple[str, ...], planner: str, workers: int, json_out: Path | None, video: Path | None,
+    resume: bool = False,
 ) -> int:
+    """`echo-data evaluate`: 0 when the results are written, 2 for bad input (one line on stderr).
+
+    With `--json OUT` every finished episode is recorded at once in `OUT.episodes.jsonl`
+    (`evaluation.journal`); `resume` runs only the episodes not recorded there."""
     from tqdm import tqdm
 
-    from echo_data.agents.compose import is_composite
-    from echo_data.agents.loading import AgentLoadError, load_planner, load_policy
+    from echo_data.agents.compose import is_composite, spec_name
+    from echo_data.agents.loading import AgentLoadError, check_observations, identity, load_planner, load_policy
     from echo_data.agents.runtime import AgentActionError
+    from echo_data.envs.env import observation_space
+    from echo_data.evaluation.journal import Journal, JournalError, journal_path
     from echo_data.evaluation.run import evaluate
 
     size = recipe.splits.get(split)
@@ -52,36 +77,64 @@ def run_evaluate(
         return _fail(f"--split {split}: recipe {recipe_path} has no such split ({', '.join(recipe.splits)})")
     if n > size:
         return _fail(f"-n {n}: index {n - 1} is past the {split} split of {recipe_path} ({size} episodes)")
-    if json_out is not None and not json_out.parent.is_dir():
-        return _fail(f"--json {json_out}: folder {json_out.parent} does not exist")
-    if video is not None and video.exists() and not video.is_dir():
-        return _fail(f"--video {video}: exists and is not a folder")
+    why = _check_targets(json_out, video, resume)
+    if why:
+        return _fail(why)
     if not isinstance(policy, str) and not is_composite(policy):
         policy = policy[0]  # one plain policy: as before
     try:
-        load_policy(policy)
-        load_planner(planner)
+        pol, plan = load_policy(policy), load_planner(planner)
+        known = tuple(observation_space(recipe).spaces)
+        check_observations(pol, f"policy {spec_name(policy)!r}", known)
+        check_observations(plan, f"planner {planner!r}", known)
+        key = {"recipe": recipe.content_hash(), "split": split, "policy": identity(pol, policy), "planner": identity(plan, planner), "video": video is not None}
     except AgentLoadError as e:
         return _fail(str(e))
-    bar = tqdm(total=n, desc="evaluate", unit="ep", file=sys.stderr, dynamic_ncols=True)
-    done = [0, 0]
+    journal = None
+    if json_out is not None:
+        try:
+            journal = Journal(journal_path(json_out), key, resume)
+        except JournalError as e:
+            return _fail(str(e))
+    if video is not None:
+        video.mkdir(parents=True, exist_ok=True)
+    done = dict(journal.records) if journal is not None else {}
+    bar = tqdm(total=n, initial=sum(i < n for i in done), desc="evaluate", unit="ep", file=sys.stderr, dynamic_ncols=True)
+    tally = [0, 0]
 
     def tick(rec: dict[str, Any]) -> None:
-        done[0] += 1
-        done[1] += int(bool(rec.get("success")))
+        if journal is not None:
+            journal.append(rec)
+        tally[0] += 1
+        tally[1] += int(bool(rec.get("success")))
         bar.update(1)
-        bar.set_postfix_str(f"success {done[1]}/{done[0]}", refresh=False)
+        bar.set_postfix_str(f"success {tally[1]}/{tally[0]}", refresh=False)
 
+    finished = False
     try:
-        doc = evaluate(recipe, recipe_path.resolve(), split, n, policy, planner, workers, video, progress=tick)
+        doc = evaluate(recipe, recipe_path.resolve(), split, n, policy, planner, workers, video, progress=tick, done=done)
+        finished = True
     except (AgentActionError, AgentLoadError) as e:
+        bar.close()  # before the error line, so it stands alone
+        return _fail(str(e) + (f" ({len(journal.records)} finished episode(s) kept in {journal.path})" if journal is not None else ""))
+    except KeyboardInterrupt:
         bar.close()
-        return _fail(str(e))
-    bar.close()
+        kept = f"; {len(journal.records)} finished episode(s) kept, --resume continues" if journal is not None else ""
+        print(f"interrupted{kept}", file=sys.stderr)
+        return 130
+    finally:
+        bar.close()
+        if journal is not None and not finished:
+            journal.close(finished=False)
     print(format_tables(doc))
-    if json_out is not None:
+    if json_out is not None and journal is not None:
         from echo_data.dataset.storage import atomic_write_json
 
-        atomic_write_json(json_out, doc)
+        try:
+            atomic_write_json(json_out, doc)
+        except OSError as e:
+            journal.close(finished=False)
+            return _fail(f"--json {json_out}: cannot write ({e.strerror or e}); the episodes are kept in {journal.path}, --resume writes it")
+        journal.close(finished=True)
         print(f"wrote {json_out}")
     return 0

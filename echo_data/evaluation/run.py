@@ -13,6 +13,7 @@ the same either way.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -129,7 +130,7 @@ def evaluate_episode(job: EvalJob, index: int) -> dict[str, Any]:
     if video is not None and video.frames:
         rec["video"] = video.write(Path(job.video_dir) / f"{spec.episode_id}.mp4")  # type: ignore[arg-type]
     rec["seconds"] = time.perf_counter() - t0
-    return rec
+    return json.loads(json.dumps(rec))  # the record as a results file holds it (and as a resumed run reads it back)
 
 
 class _VideoRecorder:
@@ -138,23 +139,24 @@ class _VideoRecorder:
 
     def __init__(self, env: Any) -> None:
         self.env = env
-        self.steps: list[tuple[Any, Any, tuple[float, float], float, tuple[bool, ...], str]] = []
+        self.steps: list[tuple[Any, Any, Any, tuple[float, float], float, tuple[bool, ...], str]] = []
 
     @property
     def frames(self) -> int:
         return len(self.steps)
 
     def __call__(self, env: Any, obs: dict, action: Any, k: int, call: Any, flags: tuple[bool, ...]) -> None:
+        from echo_data.camera import DEPTH_UNIT_M
         from echo_data.dataset.schema import IMAGE_COLUMNS
 
         x, y, yaw = env.world.robot.base_pose()
-        depth = obs.get(IMAGE_COLUMNS["head_depth"])
-        depth_m = None if depth is None else np.asarray(depth, dtype=np.float64) / 1000.0
-        self.steps.append((obs.get(IMAGE_COLUMNS["head_rgb"]), depth_m, (x, y), yaw, tuple(env.sounding), f"{call.skill}({call.target})"))
+        depth_m = [None if (d := obs.get(IMAGE_COLUMNS[c])) is None else np.asarray(d, dtype=np.float64) * DEPTH_UNIT_M for c in ("head_depth", "wrist_depth")]
+        self.steps.append((obs.get(IMAGE_COLUMNS["head_rgb"]), depth_m[0], depth_m[1], (x, y), yaw, tuple(env.sounding), f"{call.skill}({call.target})"))
 
     def write(self, path: Path) -> str:
         from echo_data.media import write_mp4
         from echo_data.viz.frames import PANEL, EpisodeFrames
+        from echo_data.viz.listening import listening
         from echo_data.viz.topdown import TopDownMap
 
         track, offsets = self.env.episode_audio()
@@ -162,14 +164,15 @@ class _VideoRecorder:
         start = int(offsets[0])
         audio = track[start : start + len(self.steps) * hop]
         episode = self.env.episode
-        video = EpisodeFrames(TopDownMap(episode.plan, episode.events, size=PANEL), track, fs)
-        path_xy = [s[2] for s in self.steps]
+        level = listening(audio, self.env.recipe.acoustics.full_scale_db_spl)
+        video = EpisodeFrames(TopDownMap(episode.plan, episode.events, size=PANEL), track, fs, sound_note=level.note())
+        path_xy = [s[3] for s in self.steps]
         frames = (
-            video.frame(rgb, depth, path_xy[: t + 1], yaw, start + t * hop, f"{episode.episode_id}  t={t / self.env.recipe.robot.control_hz:.1f}s  {caption}", sounding)
-            for t, (rgb, depth, _, yaw, sounding, caption) in enumerate(self.steps)
+            video.frame(rgb, depth, path_xy[: t + 1], yaw, start + t * hop, f"{episode.episode_id}  t={t / self.env.recipe.robot.control_hz:.1f}s  {caption}", sounding, wrist_depth_m=wrist)
+            for t, (rgb, depth, wrist, _, yaw, sounding, caption) in enumerate(self.steps)
         )
         path.parent.mkdir(parents=True, exist_ok=True)
-        write_mp4(path, frames, fps=float(self.env.recipe.robot.control_hz), audio=audio, sample_rate=fs)
+        write_mp4(path, frames, fps=float(self.env.recipe.robot.control_hz), audio=level.apply(audio), sample_rate=fs)
         return str(path)
 
 
@@ -185,19 +188,26 @@ def _evaluate_index(index: int) -> dict[str, Any]:
     return evaluate_episode(_JOB["job"], index)
 
 
-def run_episodes(job: EvalJob, n: int, workers: int = 1, progress: Callable[[dict[str, Any]], None] | None = None) -> list[dict[str, Any]]:
-    """Episodes 0..n-1 of the split, on `workers` processes (the build's pool); records ordered by index."""
+def run_episodes(
+    job: EvalJob, n: int, workers: int = 1, progress: Callable[[dict[str, Any]], None] | None = None, done: dict[int, dict[str, Any]] | None = None,
+) -> list[dict[str, Any]]:
+    """Episodes 0..n-1 of the split, on `workers` processes (the build's pool); records ordered by index.
+
+    `done`: records already finished (a resumed evaluation): those episodes are not run again.
+    `progress` is called with each newly finished record as it completes."""
     from echo_data.app.executors import make_executor
 
-    out: dict[int, dict[str, Any]] = {}
-    pool = make_executor("local", workers, _set_job, (job,))
+    out = {i: r for i, r in (done or {}).items() if i < n}
+    todo = [i for i in range(n) if i not in out]
+    pool = make_executor("local", max(1, min(workers, len(todo))), _set_job, (job,)) if todo else None
     try:
-        for rec in pool.imap_unordered(_evaluate_index, range(n)):
+        for rec in pool.imap_unordered(_evaluate_index, todo) if pool is not None else ():
             out[rec["index"]] = rec
             if progress:
                 progress(rec)
     finally:
-        pool.close()
+        if pool is not None:
+            pool.close()
     return [out[i] for i in range(n)]
 
 
@@ -211,8 +221,11 @@ def evaluate(
     workers: int = 1,
     video_dir: Path | None = None,
     progress: Callable[[dict[str, Any]], None] | None = None,
+    done: dict[int, dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
-    """The results document: metrics per setting, per-episode outcomes, what was evaluated."""
+    """The results document: metrics per setting, per-episode outcomes, what was evaluated.
+
+    `done`: records of episodes already finished (`evaluation.journal`), not run again."""
     from echo_data.agents.loading import identity, load_planner, load_policy
     from echo_data.dataset.manifest import versions
     from echo_data.evaluation.metrics import by_setting
@@ -222,7 +235,7 @@ def evaluate(
         policy = tuple(policy)
     job = EvalJob(recipe, str(recipe_path.parent) if recipe_path else None, split, policy, planner, str(video_dir) if video_dir else None)
     t0 = time.perf_counter()
-    episodes = run_episodes(job, n, workers, progress)
+    episodes = run_episodes(job, n, workers, progress, done)
     scored = [e for e in episodes if "skipped" not in e]
     return {
         "recipe": {"name": recipe.name, "path": str(recipe_path) if recipe_path else None, "content_hash": recipe.content_hash()},

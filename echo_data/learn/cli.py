@@ -8,6 +8,8 @@ from typing import Annotated
 
 import typer
 
+from echo_data.targets import write_failed
+
 train_app = typer.Typer(add_completion=False, no_args_is_help=True, help="Train reference policies on a dataset (needs the torch extra).")
 
 _Dataset = Annotated[Path, typer.Argument(metavar="DATASET", help="Dataset folder (out/<name>).")]
@@ -26,10 +28,32 @@ def _fail(message: str) -> typer.Exit:
 
 
 def _errors() -> tuple[type[Exception], ...]:
+    from echo_data.dataset.manifest import ManifestError
+    from echo_data.dataset.validate import DamagedDataset
     from echo_data.learn.features import FeatureError
     from echo_data.learn.runs import RunError
+    from echo_data.targets import TargetError
 
-    return (FeatureError, RunError)
+    return (FeatureError, RunError, TargetError, ManifestError, DamagedDataset)
+
+
+def _not_applying(ctx: typer.Context, needs: dict[str, tuple[bool, str]]) -> None:
+    """Refuse an option given on the command line where it has no effect (it would be stored in
+    the run's config as if it had mattered): `needs` maps a parameter to (applies, why not)."""
+    for name, (applies, why) in needs.items():
+        source = ctx.get_parameter_source(name)  # typer vendors its own click: match the enum by name
+        if not applies and source is not None and source.name == "COMMANDLINE":
+            raise _fail(f"--{name.replace('_', '-')}: does not apply {why}")
+
+
+def _check(dataset: Path, folder: Path) -> None:
+    """Before any training: the run folder can be written and the dataset's files are whole."""
+    from echo_data.dataset.validate import check_whole
+    from echo_data.targets import check_folder
+
+    check_folder(folder, "--out")
+    if (dataset / "manifest.json").is_file():  # no dataset at all: training's own message says so
+        check_whole(dataset)
 
 
 def _need_torch() -> None:
@@ -41,9 +65,10 @@ def _need_torch() -> None:
 
 @train_app.command("bc")
 def bc_cmd(
+    ctx: typer.Context,
     dataset: _Dataset,
     skill: Annotated[str, typer.Option("--skill", help="Skill whose step rows are cloned (Navigate, Pick, Place, OpenDoor, CloseSink).")],
-    inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, depth, state (velocities left out), state_raw (all 25), target.")] = "audio,depth,state",
+    inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, depth (head), wrist_depth, rgb (head), state (velocities left out), state_raw (all 25), target (the goal position: the paper's * rows), kind (the chain's target kind, one-hot).")] = "audio,depth,state",
     epochs: _Epochs = None,
     seed: _Seed = 0,
     out: Annotated[Path | None, typer.Option("--out", help="Run folder (default runs/bc-<skill>-<inputs>).")] = None,
@@ -54,6 +79,9 @@ def bc_cmd(
     lr: Annotated[float, typer.Option("--lr", min=0.0)] = 1e-3,
     max_steps: _MaxSteps = None,
     threads: _Threads = 1,
+    gru: Annotated[bool, typer.Option("--gru/--no-gru", help="A GRU over the steps of a skill (BC-RNN), trained on whole segments; its state resets at each skill's start.")] = False,
+    seq_batch: Annotated[int, typer.Option("--seq-batch", min=1, help="With --gru: segments per optimiser step.")] = 4,
+    shift: Annotated[int, typer.Option("--shift", min=0, help="Random-shift augmentation of training images: up to N pixels (0 = off).")] = 0,
     resume: _Resume = False,
     overwrite: _Overwrite = False,
     progress: _Progress = True,
@@ -69,11 +97,14 @@ def bc_cmd(
 
     try:
         names = parse_inputs(inputs, BC_INPUTS)
+        _not_applying(ctx, {"audio_form": ("audio" in names, "without audio in --inputs"),
+                            "dagger_episodes": (dagger > 0, "without --dagger"), "dagger_steps": (dagger > 0, "without --dagger")})
         folder = out or Path("runs") / f"bc-{skill}-{'-'.join(names)}"
         cfg = BCConfig(str(dataset), skill, names, seed=seed, chunk=chunk, execute=execute, batch_size=batch_size, lr=lr, max_steps=max_steps, threads=threads,
-                       audio_form=audio_form)
+                       audio_form=audio_form, recurrent=gru, seq_batch=seq_batch, shift=shift)
         if epochs is not None:
             cfg.epochs = epochs
+        _check(dataset, folder)
         if dagger:
             from echo_data.learn.dagger import run_dagger
 
@@ -83,11 +114,14 @@ def bc_cmd(
             summary = train_bc(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)
     except _errors() as e:
         raise _fail(str(e)) from None
+    except OSError as e:
+        raise _fail(write_failed("--out", folder, e)) from None
     typer.echo(json.dumps(summary, indent=1))
 
 
 @train_app.command("planner")
 def planner_cmd(
+    ctx: typer.Context,
     dataset: _Dataset,
     inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, image (first head RGB frame).")] = "audio",
     audio: Annotated[str, typer.Option("--audio", help="Audio feature: mel (64 bands x 101 frames) or spectrogram (SoundSpaces 65 x 26).")] = "mel",
@@ -112,12 +146,16 @@ def planner_cmd(
 
     try:
         names = parse_inputs(inputs, PLANNER_INPUTS)
+        _not_applying(ctx, {"audio": ("audio" in names, "without audio in --inputs"), "augment": ("audio" in names, "without audio in --inputs")})
         folder = out or Path("runs") / f"planner-{'-'.join(names)}"
         cfg = PlannerConfig(str(dataset), names, seed=seed, audio=audio, max_steps=max_steps, threads=threads, train_frames=train_frames, train_episodes=train_episodes,
                             val_by=val_by, select=select, augment=augment)
         if epochs is not None:
             cfg.epochs = epochs
+        _check(dataset, folder)
         report = train_planner(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)
     except _errors() as e:
         raise _fail(str(e)) from None
+    except OSError as e:
+        raise _fail(write_failed("--out", folder, e)) from None
     typer.echo(json.dumps(report, indent=1))

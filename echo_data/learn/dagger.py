@@ -87,25 +87,54 @@ def recipe_of(dataset: Path) -> Any:
     return recipe_from_mapping(manifest["recipe"], source=str(dataset / "manifest.json")), int(manifest["splits"]["train"]["episodes"])
 
 
+class _Labels:
+    """`run_episode`'s step hook: before each learner action, the expert's label for the state and
+    the learner's inputs; ends the episode when the labeller has nothing more to say."""
+
+    def __init__(self, policy: Any) -> None:
+        self.policy = policy
+        self.parts: dict[str, list[Any]] = {}
+        self.labels: list[np.ndarray] = []
+        self.gaps: list[float] = []
+        self.label: NavigateLabeller | None = None
+        self.last = np.zeros(3, dtype=np.float32)
+
+    def start(self) -> None:
+        self.label, self.last = None, np.zeros(3, dtype=np.float32)
+
+    def __call__(self, env: Any, obs: dict[str, Any], a: np.ndarray, k: int, call: Any, flags: tuple[bool, ...]) -> None:
+        from echo_data.agents.runtime import StopEpisode
+
+        if self.label is None:  # at the skill's first step, before anything moved
+            self.label = NavigateLabeller(env.world, call.target, env.nav_grid())
+        y = self.label(self.last)
+        if y is None:
+            raise StopEpisode
+        for key, v in self.policy.inputs(obs).items():
+            self.parts.setdefault(key, []).append(v)
+        self.labels.append(y)
+        self.gaps.append(float(np.abs(a[[0, 2]] - y[[0, 2]]).mean()))
+        self.last = a[:3]
+
+
 def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None = None) -> Rollouts:
-    """Roll the policy in `run` on train episodes `episodes`, label every visited state."""
+    """Roll the policy in `run` on train episodes `episodes` (their first skill, Navigate, through
+    `run_episode`), label every visited state."""
     import torch
 
-    from echo_data.agents.runtime import succeeded, true_chain
+    from echo_data.agents.builtin import OraclePlanner
+    from echo_data.agents.runtime import run_episode
     from echo_data.envs.env import EchoDataEnv
     from echo_data.evaluation.run import needs
     from echo_data.learn.policy import BCPolicy
     from echo_data.scene.sampling import SamplingError
-    from echo_data.skills.registry import skill_budget
 
     policy = BCPolicy.from_run(run)
     recipe, _ = recipe_of(dataset)
     images, audio = needs(policy)
     env = EchoDataEnv(recipe, split="train", images=images, audio=audio)
-    parts: dict[str, list[Any]] = {}
-    labels: list[np.ndarray] = []
+    hook = _Labels(policy)
     success: list[bool] = []
-    gaps: list[float] = []
     try:
         for i in episodes:
             spec = None
@@ -118,33 +147,14 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
             if spec is None or spec.chain[0].skill != "Navigate":
                 continue
             obs, info = env.reset(options={"spec": spec})
-            call = spec.chain[0]
-            policy.reset({"skill": call.skill, "target": call.target, "target_kind": true_chain(spec)[0]["target"], "skill_index": 0,
-                          "event": call.event, "spec_object": spec, "world": env.world})
-            label = NavigateLabeller(env.world, call.target, env.nav_grid())
-            budget = skill_budget(recipe, "Navigate") if max_steps is None else max_steps
-            last = np.zeros(3, dtype=np.float32)
-            for _ in range(budget):
-                if succeeded(info, 0):
-                    break
-                y = label(last)
-                if y is None:
-                    break
-                for k, v in policy.inputs(obs).items():
-                    parts.setdefault(k, []).append(v)
-                a = policy.act(obs)
-                labels.append(y)
-                gaps.append(float(np.abs(a[[0, 2]] - y[[0, 2]]).mean()))
-                obs, _, _, _, info = env.step(a)
-                last = a[:3]
-                if info.get("failure"):
-                    break
-            success.append(succeeded(info, 0))
+            hook.start()
+            run_episode(env, obs, info, OraclePlanner(), policy, on_step=hook, max_steps=max_steps, skills=1)
+            success.append(bool(env.success_flags[0]))  # the learner's Navigate success test at its end
     finally:
         env.close()
-    inputs = {k: torch.cat(v) for k, v in parts.items()}
-    acts = np.stack(labels)[:, None, :] if labels else np.zeros((0, 1, 12), np.float32)
-    return Rollouts(inputs, acts.astype(np.float32), success, float(np.mean(gaps)) if gaps else math.nan)
+    inputs = {k: torch.cat(v) for k, v in hook.parts.items()}
+    acts = np.stack(hook.labels)[:, None, :] if hook.labels else np.zeros((0, 1, 12), np.float32)
+    return Rollouts(inputs, acts.astype(np.float32), success, float(np.mean(hook.gaps)) if hook.gaps else math.nan)
 
 
 def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_steps: int | None, progress: bool,
@@ -161,6 +171,8 @@ def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_st
     if cfg.chunk != 1:
         raise DaggerError("--dagger: the expert labels one action per state; use --chunk 1")
     _, n_train = recipe_of(Path(cfg.dataset))
+    if episodes_per_round > n_train:
+        raise DaggerError(f"--dagger-episodes {episodes_per_round}: the train split of {cfg.dataset} has {n_train} episodes")
     summary = train_bc(cfg, out, resume=resume, overwrite=not resume, progress=progress)
     agg: Rollouts | None = None
     log = ["round,episodes,rows_added,rows_aggregated,learner_success,learner_expert_gap,best_val_loss"]

@@ -5,7 +5,8 @@ depth) and passed through `features.canonical` and `features.prepare`, exactly w
 does when it acts, then kept in memory: decoding PNGs every epoch would cost more than training
 these small networks on two cores.
 The active skill of a row is its `skill` column; a skill's segment is a run of rows with the
-same (episode_index, skill_index) (a chain may Navigate twice).
+same (episode_index, skill_index) (a chain may Navigate twice). The target kind a segment serves
+(phone, door, table, ...) is its chain entry's `target_kind` in meta/episodes.parquet.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import pyarrow.parquet as pq
 
 from echo_data.dataset.manifest import load_manifest
 from echo_data.dataset.schema import ACTION, STATE, StepLayout, column_to_numpy
-from echo_data.learn.features import FeatureSpec, canonical, prepare
+from echo_data.learn.features import FeatureSpec, canonical, kind_index, prepare
 from echo_data.records import ACTION_DIM, STATE_DIM
 
 
@@ -34,6 +35,7 @@ class SkillRows:
     action_pad: np.ndarray  # (n, chunk) True where the chunk ran past the segment's end
     goals: np.ndarray  # (n, 3) the segment's final base pose (x, y, yaw): where the expert went
     episodes: np.ndarray  # (n,) episode_index
+    segments: np.ndarray  # (n,) segment id, contiguous rows, unique over the split (-1: appended rows)
 
     def __len__(self) -> int:
         return len(self.episodes)
@@ -80,6 +82,23 @@ def skills_in(dataset: Path, split: str) -> list[str]:
     return sorted(names)
 
 
+def chain_kinds(dataset: Path, split: str) -> dict[tuple[int, int], str]:
+    """(episode_index, skill_index) -> the target kind of that chain entry, for one split."""
+    table = pq.read_table(dataset / "meta" / "episodes.parquet", columns=["episode_index", "split", "chain"])
+    out: dict[tuple[int, int], str] = {}
+    for ep, sp, chain in zip(*(table.column(c).to_pylist() for c in ("episode_index", "split", "chain")), strict=True):
+        if sp == split:
+            out.update({(int(ep), k): str(c["target_kind"]) for k, c in enumerate(chain)})
+    return out
+
+
+def skill_kinds(dataset: Path, split: str, skill: str) -> tuple[str, ...]:
+    """The target kinds `skill` serves in a split (sorted): the "kind" input's vocabulary."""
+    table = pq.read_table(dataset / "meta" / "episodes.parquet", columns=["split", "chain"])
+    return tuple(sorted({str(c["target_kind"]) for sp, chain in zip(*(table.column(c).to_pylist() for c in ("split", "chain")), strict=True)
+                         if sp == split for c in chain if c["skill"] == skill}))
+
+
 def _chunks(actions: np.ndarray, seg_start: np.ndarray, seg_end: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray]:
     """Actions t..t+chunk-1 clamped to each row's segment [start, end] (inclusive), with pad mask."""
     t = np.arange(len(actions))[:, None] + np.arange(chunk)[None, :]
@@ -95,8 +114,10 @@ def load_skill_rows(
     import torch
 
     shards = Shards.of(dataset, split)
+    kinds_of = chain_kinds(dataset, split) if "kind" in spec.inputs else {}
     parts: dict[str, list[Any]] = {}
-    acts, pads, goals, eps = [], [], [], []
+    acts, pads, goals, eps, segs = [], [], [], [], []
+    seg_base = 0
     for f in shards.files:
         pf = pq.ParquetFile(f)
         idx = pf.read(columns=["episode_index", "skill", "skill_index", ACTION, STATE])
@@ -112,6 +133,7 @@ def load_skill_rows(
         ends = np.concatenate([starts[1:], [len(ep)]]) - 1
         row_end = ends[seg_id]
         keep = np.flatnonzero(sk == skill)
+        seg_base, first_seg = seg_base + len(starts), seg_base
         if len(keep) == 0:
             continue
         a, p = _chunks(action, starts[seg_id], row_end, chunk)
@@ -119,7 +141,9 @@ def load_skill_rows(
         pads.append(p[keep])
         goals.append(state[row_end[keep]][:, [0, 1, 2]])
         eps.append(ep[keep])
-        for k, v in prepare_rows(pf, shards, keep, spec, state[row_end][:, [0, 1, 2]], tick).items():
+        segs.append(first_seg + seg_id[keep])
+        kind = np.array([kind_index(spec, kinds_of.get((int(e), int(k)))) for e, k in zip(ep, si, strict=True)]) if kinds_of else None
+        for k, v in prepare_rows(pf, shards, keep, spec, state[row_end][:, [0, 1, 2]], tick, kind).items():
             parts.setdefault(k, []).append(v)
     if not eps:
         raise ValueError(f"{dataset}: no {skill!r} rows in split {split!r}")
@@ -129,6 +153,7 @@ def load_skill_rows(
         action_pad=np.concatenate(pads),
         goals=np.concatenate(goals),
         episodes=np.concatenate(eps),
+        segments=np.concatenate(segs),
     )
 
 
@@ -145,14 +170,22 @@ def append_rows(rows: SkillRows, inputs: dict[str, Any], actions: np.ndarray) ->
         action_pad=np.concatenate([rows.action_pad, np.zeros((n, chunk), dtype=bool)]),
         goals=np.concatenate([rows.goals, np.full((n, 3), np.nan, dtype=np.float32)]),
         episodes=np.concatenate([rows.episodes, np.full(n, -1, dtype=rows.episodes.dtype)]),
+        segments=np.concatenate([rows.segments, np.full(n, -1, dtype=rows.segments.dtype)]),
     )
 
 
 def prepare_rows(
-    pf: pq.ParquetFile, shards: Shards, keep: np.ndarray, spec: FeatureSpec, goals: np.ndarray | None = None, tick: Callable[[int], object] | None = None
+    pf: pq.ParquetFile,
+    shards: Shards,
+    keep: np.ndarray,
+    spec: FeatureSpec,
+    goals: np.ndarray | None = None,
+    tick: Callable[[int], object] | None = None,
+    kinds: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Decode and prepare rows `keep` (sorted, shard-local) of one shard, one row group (64
-    rows) at a time so memory stays bounded; `goals` (rows of the shard, 3) feed "target"."""
+    rows) at a time so memory stays bounded; `goals` (rows of the shard, 3) feed "target",
+    `kinds` (rows of the shard: indices into `spec.kinds`) feed "kind"."""
     import torch
 
     sizes = [pf.metadata.row_group(g).num_rows for g in range(pf.num_row_groups)]
@@ -163,7 +196,8 @@ def prepare_rows(
         rows = keep[group_of == g]
         table = pf.read_row_group(int(g), columns=spec.columns).take(rows - group_start[g])
         goal = None if goals is None else torch.from_numpy(goals[rows])
-        for k, v in prepare(shards.decode(table, spec.columns), spec, goal=goal).items():
+        kind = None if kinds is None else kinds[rows]
+        for k, v in prepare(shards.decode(table, spec.columns), spec, goal=goal, kind=kind).items():
             parts.setdefault(k, []).append(v)
         if tick is not None:
             tick(len(rows))

@@ -33,7 +33,7 @@ AUDIO_COLUMNS = {"spectrogram": SPECTROGRAM, "mel": MEL}
 
 # State entries that echo the previous command (see module doc): never fed by `state`.
 LEAKING_STATE = tuple(n for n in STATE_NAMES if n in ("base_vx", "base_vy", "base_wz") or n.endswith("_vel"))
-BC_INPUTS = ("audio", "depth", "state", "state_raw", "target")
+BC_INPUTS = ("audio", "depth", "wrist_depth", "rgb", "state", "state_raw", "target", "kind")
 PLANNER_INPUTS = ("audio", "image")
 DEPTH_MAX_M = 10.0  # farther readings (and the renderer's 0 = nothing hit) carry no more cue
 GOAL_SCALE_M = 5.0  # goal offsets are divided by this: apartments are a few rooms across
@@ -64,11 +64,14 @@ class FeatureSpec:
     audio_std: tuple[float, ...] = (1.0, 1.0)
     depth_mean: float = 0.0
     depth_std: float = 1.0
+    wrist_mean: float = 0.0
+    wrist_std: float = 1.0
     image_size: int = 64  # depth / RGB are area-downsampled to this side
     rgb_mean: tuple[float, ...] = (0.0, 0.0, 0.0)
     rgb_std: tuple[float, ...] = (1.0, 1.0, 1.0)
     image_key: str = HEAD_RGB
     audio_form: str = "stored"  # one of AUDIO_FORMS
+    kinds: tuple[str, ...] = ()  # "kind": the target kinds this skill serves in training (one-hot, unknown = zeros)
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -84,7 +87,9 @@ class FeatureSpec:
             cols.append(self.audio_key)
         if "depth" in self.inputs:
             cols.append(HEAD_DEPTH)
-        if "image" in self.inputs:
+        if "wrist_depth" in self.inputs:
+            cols.append(WRIST_DEPTH)
+        if "image" in self.inputs or "rgb" in self.inputs:
             cols.append(self.image_key)
         if any(i in self.inputs for i in ("state", "state_raw", "target")):
             cols.append(STATE)
@@ -114,8 +119,11 @@ def parse_inputs(text: str, allowed: tuple[str, ...]) -> tuple[str, ...]:
     return names
 
 
-def feature_spec(dataset: Path, inputs: tuple[str, ...], audio: str = "spectrogram", image_size: int = 64, audio_form: str = "stored") -> FeatureSpec:
-    """The spec for `inputs` with constants from `dataset`/meta/stats.json (train split)."""
+def feature_spec(
+    dataset: Path, inputs: tuple[str, ...], audio: str = "spectrogram", image_size: int = 64, audio_form: str = "stored", kinds: tuple[str, ...] = ()
+) -> FeatureSpec:
+    """The spec for `inputs` with constants from `dataset`/meta/stats.json (train split);
+    `kinds` is the target-kind vocabulary the "kind" input one-hot encodes."""
     path = dataset / "meta" / "stats.json"
     try:
         stats = json.loads(path.read_text())
@@ -127,7 +135,7 @@ def feature_spec(dataset: Path, inputs: tuple[str, ...], audio: str = "spectrogr
             raise FeatureError(f"{path}: no statistics for {key!r}; the dataset does not store it")
         return stats[key]
 
-    kw: dict[str, Any] = {"inputs": inputs, "image_size": image_size}
+    kw: dict[str, Any] = {"inputs": inputs, "image_size": image_size, "kinds": tuple(kinds) if "kind" in inputs else ()}
     if "audio" in inputs:
         if audio not in AUDIO_COLUMNS:
             raise FeatureError(f"--audio: unknown feature {audio!r}; choose from {', '.join(AUDIO_COLUMNS)}")
@@ -139,7 +147,10 @@ def feature_spec(dataset: Path, inputs: tuple[str, ...], audio: str = "spectrogr
     if "depth" in inputs:
         s = need(HEAD_DEPTH)
         kw.update(depth_mean=s["mean"][0], depth_std=max(s["std"][0], 1e-6))
-    if "image" in inputs:
+    if "wrist_depth" in inputs:
+        s = need(WRIST_DEPTH)
+        kw.update(wrist_mean=s["mean"][0], wrist_std=max(s["std"][0], 1e-6))
+    if "image" in inputs or "rgb" in inputs:
         s = need(HEAD_RGB)
         kw.update(rgb_mean=tuple(s["mean"]), rgb_std=tuple(max(v, 1e-6) for v in s["std"]))
     if "state" in inputs or "state_raw" in inputs:
@@ -215,9 +226,15 @@ def _area(x: Any, size: int) -> Any:
     return x if x.shape[-1] == size and x.shape[-2] == size else F.adaptive_avg_pool2d(x, size)
 
 
-def prepare(batch: Mapping[str, Any], spec: FeatureSpec, goal: Any | None = None) -> dict[str, Any]:
-    """Loader-form batch {column: (B, ...)} -> {"audio", "depth", "image", "state", "target"}
-    float32 tensors, normalised. `goal` (B, 3) world poses is needed when "target" is an input."""
+def kind_index(spec: FeatureSpec, kind: str | None) -> int:
+    """Position of a target kind in the spec's vocabulary; -1 (all-zero one-hot) when unknown."""
+    return spec.kinds.index(kind) if kind in spec.kinds else -1
+
+
+def prepare(batch: Mapping[str, Any], spec: FeatureSpec, goal: Any | None = None, kind: Any | None = None) -> dict[str, Any]:
+    """Loader-form batch {column: (B, ...)} -> {"audio", "depth", "wrist_depth", "image" | "rgb",
+    "state", "target", "kind"} float32 tensors, normalised. `goal` (B, 3) world poses is needed
+    when "target" is an input, `kind` (B,) indices into `spec.kinds` when "kind" is."""
     import torch
 
     t = lambda k: torch.as_tensor(batch[k], dtype=torch.float32)  # noqa: E731
@@ -233,9 +250,13 @@ def prepare(batch: Mapping[str, Any], spec: FeatureSpec, goal: Any | None = None
     if "depth" in spec.inputs:
         d = _area(t(HEAD_DEPTH).clamp(0.0, DEPTH_MAX_M), spec.image_size)
         out["depth"] = (d - spec.depth_mean) / spec.depth_std
-    if "image" in spec.inputs:
-        im = _area(t(spec.image_key), spec.image_size)
-        out["image"] = (im - torch.tensor(spec.rgb_mean).view(1, 3, 1, 1)) / torch.tensor(spec.rgb_std).view(1, 3, 1, 1)
+    if "wrist_depth" in spec.inputs:
+        w = _area(t(WRIST_DEPTH).clamp(0.0, DEPTH_MAX_M), spec.image_size)
+        out["wrist_depth"] = (w - spec.wrist_mean) / spec.wrist_std
+    for name in ("image", "rgb"):
+        if name in spec.inputs:
+            im = _area(t(spec.image_key), spec.image_size)
+            out[name] = (im - torch.tensor(spec.rgb_mean).view(1, 3, 1, 1)) / torch.tensor(spec.rgb_std).view(1, 3, 1, 1)
     if spec.state_names or "target" in spec.inputs:
         st = t(STATE)
     if spec.state_names:
@@ -250,6 +271,13 @@ def prepare(batch: Mapping[str, Any], spec: FeatureSpec, goal: Any | None = None
         if goal is None:
             raise FeatureError("the model reads a target position but none was given (info['target_pose'] or a plan)")
         out["target"] = goal_features(st, torch.as_tensor(goal, dtype=torch.float32))
+    if "kind" in spec.inputs:
+        if kind is None:
+            raise FeatureError("the model reads the target kind but none was given (info['target_kind'])")
+        k = torch.as_tensor(kind, dtype=torch.long).reshape(-1)
+        out["kind"] = torch.zeros(len(k), max(len(spec.kinds), 1))
+        known = k >= 0
+        out["kind"][known, k[known]] = 1.0
     return out
 
 

@@ -87,23 +87,30 @@ def mlp(inp: int, hidden: int, out: int, layers: int = 2) -> nn.Sequential:
 
 
 class Encoders(nn.Module):
-    """One encoder per input of a FeatureSpec; `forward` concatenates their codes."""
+    """One encoder per input of a FeatureSpec; `forward` concatenates their codes. Head and
+    wrist depth get separate encoders (they see different things: the room, the grasp); the
+    target kind is a one-hot fed as is."""
 
     def __init__(self, spec: FeatureSpec, audio_shape: tuple[int, int] | None, width: int = 128) -> None:
         super().__init__()
         self.parts = nn.ModuleDict()
+        dims: dict[str, int] = {}
         if "audio" in spec.inputs:
             assert audio_shape is not None
             self.parts["audio"] = AudioEncoder(*audio_shape, out=width, channels=spec.audio_channels)
-        if "depth" in spec.inputs:
-            self.parts["depth"] = ImageEncoder(1, spec.image_size, out=width)
-        if "image" in spec.inputs:
-            self.parts["image"] = ImageEncoder(3, spec.image_size, out=width)
+        for name, channels in (("depth", 1), ("wrist_depth", 1), ("image", 3), ("rgb", 3)):
+            if name in spec.inputs:
+                self.parts[name] = ImageEncoder(channels, spec.image_size, out=width)
         if spec.state_names:
             self.parts["state"] = nn.Sequential(mlp(spec.state_dim, 64, 64, layers=1), nn.ReLU())
+            dims["state"] = 64
         if "target" in spec.inputs:
             self.parts["target"] = nn.Sequential(mlp(GOAL_DIM, 64, 64, layers=1), nn.ReLU())
-        self.out_dim = sum(width if name in ("audio", "depth", "image") else 64 for name in self.parts)
+            dims["target"] = 64
+        if "kind" in spec.inputs:
+            self.parts["kind"] = nn.Identity()
+            dims["kind"] = max(len(spec.kinds), 1)
+        self.out_dim = sum(dims.get(name, width) for name in self.parts)
 
     def forward(self, x: dict[str, torch.Tensor]) -> torch.Tensor:
         return torch.cat([enc(x[name]) for name, enc in self.parts.items()], dim=1)
@@ -120,6 +127,26 @@ class BCNet(nn.Module):
 
     def forward(self, x: dict[str, torch.Tensor]) -> torch.Tensor:
         return self.head(self.enc(x)).view(-1, self.chunk, ACTION_DIM)
+
+
+class BCRNN(nn.Module):
+    """Encoders -> GRU over the steps of a skill segment -> next action (normalised): robomimic's
+    BC-RNN, SoundSpaces' recurrent state. Inputs carry (B, T, ...) tensors; the hidden state is
+    zero at a segment's first step in training, as a policy's is after `reset` at a skill's start.
+    Returns ((B, T, 1, ACTION_DIM), hidden)."""
+
+    def __init__(self, spec: FeatureSpec, audio_shape: tuple[int, int] | None, hidden: int = 256) -> None:
+        super().__init__()
+        self.chunk = 1
+        self.enc = Encoders(spec, audio_shape)
+        self.gru = nn.GRU(self.enc.out_dim, hidden, batch_first=True)
+        self.head = mlp(hidden, hidden, ACTION_DIM, layers=1)
+
+    def forward(self, x: dict[str, torch.Tensor], h: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        b, t = next(iter(x.values())).shape[:2]
+        code = self.enc({k: v.reshape(b * t, *v.shape[2:]) for k, v in x.items()}).view(b, t, -1)
+        y, h = self.gru(code, h)
+        return self.head(y).view(b, t, 1, ACTION_DIM), h
 
 
 class PlannerNet(nn.Module):

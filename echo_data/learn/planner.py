@@ -69,6 +69,10 @@ class PlannerConfig:
     categories: list[str] = field(default_factory=list)
     templates: dict[str, list[list[str]]] = field(default_factory=dict)  # category -> [[skill, target], ...]
     val_episodes: list[int] = field(default_factory=list)
+    # The event sets (sorted categories) the training episodes hold, and how the answer is read
+    # from the logits (see `decode`): chosen after training on validation, written to config.json.
+    event_sets: list[list[str]] = field(default_factory=list)
+    decode: str = "threshold"
 
     @staticmethod
     def from_dict(d: dict[str, Any]) -> PlannerConfig:
@@ -229,7 +233,7 @@ def resolve(cfg: PlannerConfig) -> PlannerConfig:
     cats = sorted(set(recipe_cats) | {e["category"] for r in rows for e in r["events"]})
     return PlannerConfig(
         **{**asdict(cfg), "dataset": str(root.resolve()), "features": spec.to_dict(), "audio_shape": list(shape) if shape else None,
-           "categories": cats, "templates": learn_templates(rows)}
+           "categories": cats, "templates": learn_templates(rows), "event_sets": event_sets(rows)}
     )
 
 
@@ -239,10 +243,28 @@ def build_model(cfg: PlannerConfig) -> Any:
     return PlannerNet(FeatureSpec.from_dict(cfg.features), stored_audio_shape(cfg.audio_shape), len(cfg.categories))
 
 
-def decode(logits: np.ndarray, scores: np.ndarray, categories: list[str]) -> list[str]:
-    """Sounding categories (logit > 0, at least the most likely one), most urgent first."""
-    on = [i for i in range(len(categories)) if logits[i] > 0] or [int(np.argmax(logits))]
+DECODERS = ("threshold", "sets")
+
+
+def decode(logits: np.ndarray, scores: np.ndarray, categories: list[str], sets: list[list[str]] | None = None) -> list[str]:
+    """Sounding categories, most urgent first. Without `sets` ("threshold"): every category whose
+    logit is > 0, at least the most likely one. With `sets` ("sets": the event sets of the training
+    episodes, e.g. one relocation and one state event at most): the most probable of those sets
+    under independent per-category probabilities sigmoid(logit) -- the answer cannot be a set the
+    recipe never makes, such as two state events."""
+    if sets:
+        index = {c: i for i, c in enumerate(categories)}
+        gain = -np.logaddexp(0.0, -logits) + np.logaddexp(0.0, logits)  # log p(on) - log p(off)
+        best = max(sets, key=lambda s: float(sum(gain[index[c]] for c in s)))
+        on = [index[c] for c in best]
+    else:
+        on = [i for i in range(len(categories)) if logits[i] > 0] or [int(np.argmax(logits))]
     return [categories[i] for i in sorted(on, key=lambda i: -scores[i])]
+
+
+def event_sets(rows: list[dict[str, Any]]) -> list[list[str]]:
+    """The distinct event sets (sorted categories) of episode rows, sorted."""
+    return [list(t) for t in sorted({tuple(sorted(e["category"] for e in r["events"])) for r in rows})]
 
 
 def _targets(ep: Episodes, categories: list[str]) -> tuple[Any, Any]:
@@ -292,12 +314,12 @@ def score(predicted: list[list[str]], ep: Episodes, templates: dict[str, list[li
     return out
 
 
-def predict(model: Any, ep: Episodes, categories: list[str]) -> list[list[str]]:
+def predict(model: Any, ep: Episodes, categories: list[str], sets: list[list[str]] | None = None) -> list[list[str]]:
     import torch
 
     with torch.no_grad():
         logits, scores = model(ep.inputs)
-    return [decode(logits[n].numpy(), scores[n].numpy(), categories) for n in range(len(ep.events))]
+    return [decode(logits[n].numpy(), scores[n].numpy(), categories, sets) for n in range(len(ep.events))]
 
 
 def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite: bool = False, progress: bool = True) -> dict[str, Any]:
@@ -318,6 +340,8 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     spec = FeatureSpec.from_dict(cfg.features)
     root = Path(cfg.dataset)
     meta = episode_rows(root, "train")
+    if cfg.train_episodes is not None and cfg.train_episodes > len(meta):
+        raise runs.RunError(f"--train-episodes {cfg.train_episodes}: the train split of {root} has {len(meta)} episodes")
     chosen = subset([r["episode_index"] for r in meta], cfg.train_episodes, cfg.seed)
     held: list[str] = []
     if cfg.val_by == "sounds":
@@ -349,25 +373,40 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         logits, scores = model(x)
         return planner_loss(logits, scores, y[ix], pairs[ix])
 
+    def val_accuracy(logits: Any, scores: Any, sets: list[list[str]] | None) -> tuple[float, float]:
+        """(plain, balanced) validation accuracy of the events in order: balanced is the mean of the
+        single- and the multi-event episodes' accuracies."""
+        pred = [decode(logits[n].numpy(), scores[n].numpy(), cfg.categories, sets) for n in range(len(va))]
+        right = np.asarray([p == train.events[i] for p, i in zip(pred, va)], dtype=float)
+        multi = np.asarray([len(train.events[i]) >= 2 for i in va])
+        return float(right.mean()), float(np.mean([right[g].mean() for g in (~multi, multi) if g.any()]))
+
     def validate() -> dict[str, float]:
         if len(va) == 0:
             return {"val_loss": math.nan, "val_events_accuracy": math.nan, "val_balanced_accuracy": math.nan}
         with torch.no_grad():
             logits, scores = model(part(va))
             loss = float(planner_loss(logits, scores, y[va], pairs[va]))
-        pred = [decode(logits[n].numpy(), scores[n].numpy(), cfg.categories) for n in range(len(va))]
-        right = np.asarray([p == train.events[i] for p, i in zip(pred, va)], dtype=float)
-        multi = np.asarray([len(train.events[i]) >= 2 for i in va])
-        groups = [right[g].mean() for g in (~multi, multi) if g.any()]
-        return {"val_loss": loss, "val_events_accuracy": float(right.mean()), "val_balanced_accuracy": float(np.mean(groups))}
+        plain, balanced = val_accuracy(logits, scores, None)
+        return {"val_loss": loss, "val_events_accuracy": plain, "val_balanced_accuracy": balanced}
 
     loop = LoopConfig(cfg.epochs, cfg.batch_size, cfg.seed, cfg.max_steps, select=SELECT[cfg.select])
     state = fit(model, opt, tr, loss_fn, validate, loop, out, resume, progress, desc="train planner")
     best = runs.load_torch(out / runs.BEST)
     model.load_state_dict(best["model"])
     model.eval()
+    # The decoder of the kept weights, chosen on validation (balanced accuracy; a tie keeps "threshold").
+    decoders = {"threshold": None, "sets": cfg.event_sets}
+    val_by_decoder: dict[str, float] = {}
+    if len(va):
+        with torch.no_grad():
+            logits, scores = model(part(va))
+        val_by_decoder = {name: val_accuracy(logits, scores, sets)[1] for name, sets in decoders.items()}
+        cfg.decode = max(DECODERS, key=lambda d: (val_by_decoder[d], d == "threshold"))
+        runs.write_run_files(out, "planner", PLANNER_CLASS, asdict(cfg), {"inputs": list(cfg.inputs)})
     test = load_episodes(root, "test", spec)
     heard = {s for ss in train.sounds for s in ss}
+    fitted = {s for n in tr for s in train.sounds[n]}
     report = {
         "run": str(out),
         "inputs": list(cfg.inputs),
@@ -379,12 +418,22 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         "seconds": round(state["seconds"], 1),
         "val_by": cfg.val_by,
         "val_sounds_held_out": held,
+        # validation episodes playing an instance the fitted rows play: 0 means the validation hears
+        # only unheard voices (by construction with --val-by sounds, or with fresh training instances)
+        "val_episodes_hearing_fitted_sounds": int(sum(any(s in fitted for s in train.sounds[n]) for n in va)),
         "select": cfg.select,
         "augment": cfg.augment,
         "best": {k: best.get(k) for k in ("epoch", "val_loss", "val_events_accuracy", "val_balanced_accuracy")},
         "best_val_loss": best.get("val_loss"),
         "templates": cfg.templates,
-        "test": score(predict(model, test, cfg.categories), test, cfg.templates),
+        "decode": cfg.decode,
+        "val_balanced_accuracy_by_decoder": val_by_decoder,
+        "test": score(predict(model, test, cfg.categories, decoders[cfg.decode]), test, cfg.templates),
+        # both decoders on the test split, for the record; the one scored above was chosen on validation
+        "test_events_in_order_by_decoder": {
+            name: {g: v["events_in_order"] for g, v in score(predict(model, test, cfg.categories, sets), test, cfg.templates).items()}
+            for name, sets in decoders.items()
+        },
     }
     from echo_data.dataset.writer import atomic_write_json
 

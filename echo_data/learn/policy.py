@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from echo_data.learn import runs
-from echo_data.learn.features import FeatureError, FeatureSpec, prepare, single
+from echo_data.learn.features import FeatureError, FeatureSpec, kind_index, prepare, single
 from echo_data.records import ACTION_DIM
 
 
@@ -62,25 +62,32 @@ class BCPolicy:
         self.std = np.asarray(cfg.action_std, dtype=np.float32)
         self.execute = cfg.execute
         self.skill = cfg.skill
+        self.recurrent = cfg.recurrent
         self.observations = tuple(self.spec.columns)  # what evaluate must render for it
         self._queue: deque[np.ndarray] = deque()
         self._goal: np.ndarray | None = None
+        self._kind = -1
+        self.hidden: Any = None  # the GRU's state (recurrent runs); None = zero, as at a segment's start in training
 
     @classmethod
     def from_run(cls, folder: Path | str) -> BCPolicy:
         return cls(checkpoint=folder)
 
     def reset(self, info: Mapping[str, Any] | None = None) -> None:
-        """Start a new skill segment: forget queued actions, read the goal if the model needs it."""
+        """Start a new skill segment: forget queued actions and the recurrent state (training
+        started every segment from zero), read the goal and the target kind if the model needs them."""
+        info = info or {}
         self._queue.clear()
-        self._goal = goal_from_info(info or {}) if "target" in self.spec.inputs else None
+        self.hidden = None
+        self._goal = goal_from_info(info) if "target" in self.spec.inputs else None
+        self._kind = kind_index(self.spec, info.get("target_kind")) if "kind" in self.spec.inputs else -1
 
     def inputs(self, obs: Mapping[str, Any]) -> dict[str, Any]:
         """One observation -> the model's prepared inputs (batch of one), as training rows are."""
         import torch
 
         goal = None if self._goal is None else torch.from_numpy(self._goal[None])
-        return prepare(single(obs, self.spec), self.spec, goal=goal)
+        return prepare(single(obs, self.spec), self.spec, goal=goal, kind=np.array([self._kind]))
 
     def act(self, obs: Mapping[str, Any]) -> np.ndarray:
         """One observation (dataset keys) -> the next action, float32 (ACTION_DIM,)."""
@@ -88,7 +95,11 @@ class BCPolicy:
 
         if not self._queue:
             with torch.no_grad():
-                pred = self.model(self.inputs(obs))[0].numpy()
+                if self.recurrent:
+                    y, self.hidden = self.model({k: v[:, None] for k, v in self.inputs(obs).items()}, self.hidden)
+                    pred = y[0, 0].numpy()
+                else:
+                    pred = self.model(self.inputs(obs))[0].numpy()
             for a in pred[: self.execute]:
                 self._queue.append((a * self.std + self.mean).astype(np.float32))
         action = self._queue.popleft()
@@ -106,6 +117,7 @@ class PlannerModel:
         cfg, self.model, self.spec = _load(self.checkpoint, PlannerConfig, build_model)
         self.categories = cfg.categories
         self.templates = cfg.templates
+        self.sets = cfg.event_sets if cfg.decode == "sets" else None  # the decoder chosen on validation
         self.observations = tuple(self.spec.columns)
 
     @classmethod
@@ -120,7 +132,7 @@ class PlannerModel:
 
         with torch.no_grad():
             logits, scores = self.model(prepare(single(first_obs, self.spec), self.spec))
-        return decode(logits[0].numpy(), scores[0].numpy(), self.categories)
+        return decode(logits[0].numpy(), scores[0].numpy(), self.categories, self.sets)
 
     def plan(self, first_obs: Mapping[str, Any]) -> list[dict[str, str]]:
         from echo_data.learn.planner import chain_of

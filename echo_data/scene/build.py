@@ -22,8 +22,8 @@ from echo_data.scene.articulated import (
     build_faucet,
     has_render,
 )
+from echo_data.scene.bodies import build_object
 from echo_data.scene.floorplan import FloorPlan, Furniture, Rect, Room
-from echo_data.scene.objects import build_object
 from echo_data.scene.surfaces import Look, furniture_look, surface_look
 
 FLOOR_THICKNESS = 0.1

@@ -1,4 +1,6 @@
-"""Rigid household objects: the sounding targets (phone, alarm clock, furby) and silent clutter.
+"""The catalogue of rigid household objects (pure): the sounding targets (phone, alarm clock,
+furby) and silent clutter, their parts, sizes, masses and looks. `echo_data.scene.bodies` builds
+them in SAPIEN.
 
 Each category is a small compound of primitives with a realistic mass and a distinct look, sized
 so that a parallel gripper with a 0.1 m opening can take it from above: the grasp axis is the
@@ -19,23 +21,13 @@ from typing import TYPE_CHECKING
 
 from echo_data.categories import RELOCATION_CATEGORIES
 
-if TYPE_CHECKING:  # sapien is imported lazily so that pure callers (sampling, acoustics) stay light
-    import sapien
-
-    from echo_data.scene.floorplan import PlacedObject
+if TYPE_CHECKING:
+    pass
 
 TARGET_CATEGORIES: tuple[str, ...] = RELOCATION_CATEGORIES
 DISTRACTOR_CATEGORIES = ("mug", "can", "box", "bowl", "bottle", "book")
 CATEGORIES = TARGET_CATEGORIES + DISTRACTOR_CATEGORIES
 
-# Objects are grippy (rubber/plastic); the robot's finger pads are 2.0 (docs/SIMULATION_NOTES.md#grasping).
-OBJECT_STATIC_FRICTION = 1.0
-OBJECT_DYNAMIC_FRICTION = 0.8
-OBJECT_RESTITUTION = 0.0
-# Torsional friction (PhysX patch radius): a round object held at two points would otherwise
-# swing freely about the jaw axis while the robot drives.
-PATCH_RADIUS = 0.01
-MIN_PATCH_RADIUS = 0.005
 
 
 @dataclass(frozen=True)
@@ -246,14 +238,14 @@ def object_mass(category: str, scale: float = 1.0) -> float:
     return MODELS[category].mass * scale**3
 
 
-def _scaled(p: Part, s: float) -> Part:
+def scaled_part(p: Part, s: float) -> Part:
     """A part of an instance at uniform scale `s` about the object's bbox centre."""
     if s == 1.0:
         return p
     return replace(p, center=(p.center[0] * s, p.center[1] * s, p.center[2] * s), dims=tuple(d * s for d in p.dims))
 
 
-def _part_volume(p: Part) -> float:
+def part_volume(p: Part) -> float:
     if p.kind == "box":
         return 8.0 * p.dims[0] * p.dims[1] * p.dims[2]
     if p.kind == "sphere":
@@ -261,93 +253,8 @@ def _part_volume(p: Part) -> float:
     return math.pi * p.dims[0] ** 2 * 2.0 * p.dims[1]
 
 
-def _yaw_quat(yaw: float) -> list[float]:
-    return [math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)]
-
-
 def instance_look(category: str, name: str, seed: int) -> tuple[tuple[float, float, float], int]:
     """(body colour, texture variant) of object `name` of `category` in plan `seed`: pure."""
     h = zlib.crc32(f"{seed}:{name}".encode())
     palette = VARIANT_COLOURS.get(category, ((0.6, 0.6, 0.6),))
     return palette[h % len(palette)], (h // 7) % 4
-
-
-_Z_TO_Y = ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0), (0.0, -1.0, 0.0))
-
-
-def _visual_shape(p: Part, colour: tuple[float, float, float], variant: int, flat: bool) -> sapien.render.RenderShapeTriangleMesh:
-    """One part as a textured mesh (UVs fitted once per face / around once)."""
-    import numpy as np
-    import sapien
-
-    from echo_data.scene import meshes, textures
-
-    if p.kind == "box":
-        mesh = meshes.box(tuple(p.dims), None)
-    elif p.kind == "sphere":
-        mesh = meshes.ellipsoid((p.dims[0],) * 3)
-    else:
-        mesh = meshes.cylinder(p.dims[0], p.dims[1])
-        if p.kind == "ycyl":
-            mesh = meshes.rotated(mesh, np.asarray(_Z_TO_Y))
-    rough = 0.2 if p.pattern == "screen" else 0.6
-    mat = textures.render_material("plain" if flat else p.pattern, variant, colour, rough)
-    shape = sapien.render.RenderShapeTriangleMesh(*mesh, mat)
-    shape.local_pose = sapien.Pose(list(p.center))
-    return shape
-
-
-def build_object(
-    scene: sapien.Scene, obj: PlacedObject, seed: int = 0, flat: bool = False, mono: tuple[float, float, float] | None = None
-) -> sapien.Entity:
-    """Add `obj` to `scene` as a dynamic rigid body named `obj.name`, at rest at its pose.
-
-    Collision is the model's primitives; visuals are textured meshes in the instance's look
-    (`instance_look`; `flat`: one colour per part, no print; `mono`: every part in this one
-    colour, shape alone — the visual probe's control). Visual shapes are added only when
-    the scene has a render system (physics-only scenes for solvability checks work too).
-    """
-    import sapien
-
-    model = MODELS.get(obj.category)
-    if model is None:
-        raise KeyError(f"unknown object category {obj.category!r}; known: {', '.join(CATEGORIES)}")
-    try:
-        scene.render_system  # noqa: B018 (raises without a render system)
-        with_visuals = True
-    except RuntimeError:
-        with_visuals = False
-    mat = sapien.physx.PhysxMaterial(OBJECT_STATIC_FRICTION, OBJECT_DYNAMIC_FRICTION, OBJECT_RESTITUTION)
-    parts = [_scaled(p, obj.scale) for p in model.parts]
-    solid = [p for p in parts if p.collide]
-    density = object_mass(obj.category, obj.scale) / sum(_part_volume(p) for p in solid)
-    # upright cylinders: SAPIEN cylinders lie along x; turn x -> z (about y by -90 deg), or x -> y (about z)
-    to_z = sapien.Pose(q=[math.sqrt(0.5), 0.0, -math.sqrt(0.5), 0.0])
-    to_y = sapien.Pose(q=[math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)])
-    builder = scene.create_actor_builder()
-    for p in solid:
-        at = sapien.Pose(p.center)
-        if p.kind == "zcyl":
-            at = at * to_z
-        elif p.kind == "ycyl":
-            at = at * to_y
-        patch = {"patch_radius": PATCH_RADIUS, "min_patch_radius": MIN_PATCH_RADIUS}
-        if p.kind == "box":
-            builder.add_box_collision(at, p.dims, material=mat, density=density, **patch)
-        elif p.kind == "sphere":
-            builder.add_sphere_collision(at, p.dims[0], material=mat, density=density, **patch)
-        else:
-            builder.add_cylinder_collision(at, p.dims[0], p.dims[1], material=mat, density=density, **patch)
-    builder.set_initial_pose(sapien.Pose(list(obj.position), _yaw_quat(obj.yaw)))
-    entity = builder.build_entity()  # unlike build(), leaves pose and scene to the caller
-    entity.name = obj.name
-    entity.pose = sapien.Pose(list(obj.position), _yaw_quat(obj.yaw))
-    if with_visuals:
-        body_colour, variant = instance_look(obj.category, obj.name, seed)
-        body = sapien.render.RenderBodyComponent()
-        for p in parts:
-            colour = mono if mono is not None else body_colour if p.body else p.color
-            body.attach(_visual_shape(p, colour, variant, flat or mono is not None))
-        entity.add_component(body)
-    scene.add_entity(entity)
-    return entity

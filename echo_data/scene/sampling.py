@@ -1,10 +1,8 @@
-"""Episode sampling with solvability checks: (recipe, split, index) -> EpisodeSpec.
+"""Episode sampling: (recipe, split, index) -> EpisodeSpec, the pure draw plus the physics check.
 
-Each draw (see `echo_data.episode.attempt_draws`) takes everything from its own seed: the
-setting, the apartment, the sound events (targets, sound instances, sources), the skill
-chain and the robot's start pose. An attempt is accepted only when the episode can be
-solved: a base path from the start through every interaction pose in chain order, a free
-frontal region before doors and sinks, and objects that stay put when physics settles.
+`echo_data.scene.draw` draws an attempt from its seed and rejects what cannot be solved without
+physics; here each drawn apartment's objects are also let rest on their receptacles in a
+physics-only SAPIEN scene, and a draw whose objects slide or tip is rejected ("unstable_objects").
 Rejections are counted by reason; after `recipe.max_attempts_per_episode` failures a
 `SamplingError` carries the counts.
 """
@@ -12,139 +10,25 @@ Rejections are counted by reason; after `recipe.max_attempts_per_episode` failur
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from typing import Any, Protocol
 
 import numpy as np
-from scipy import ndimage
+import sapien
 
-from echo_data.categories import RELOCATION_CATEGORIES, STATE_CATEGORIES
-from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, attempt_draws
+from echo_data.episode import EpisodeSpec, attempt_draws
+from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
-from echo_data.scene.floorplan import FloorPlan, Rect, Vec3
-from echo_data.scene.generate import GenerationError, door_swing_zone, front_zone, generate_floorplan, place_object
-from echo_data.scene.nav import NavGrid, interaction_pose
-from echo_data.scene.objects import instance_scale
-from echo_data.target import Target
+from echo_data.scene.bodies import build_object
+from echo_data.scene.build import build_statics
+from echo_data.scene.draw import Reject, SamplingError, draw_episode
+from echo_data.scene.floorplan import FloorPlan
 
-START_MIN_DISTANCE = 2.0  # m from the first target's sound source
-START_ROOM_MARGIN = 0.4  # m from the room's wall centre lines
-START_TRIES = 200
-FRONTAL_DEPTH = 1.0  # m of free floor in front of a door / sink
-ROBOT_WIDTH = 0.64  # m, diameter of the base disc (nav's default radius 0.32)
 SETTLE_SECONDS = 0.5
 SETTLE_MAX_SHIFT = 0.01  # m
 SETTLE_MAX_TILT = math.radians(5.0)
 
 
-class SamplingError(RuntimeError):
-    """No acceptable episode within the attempt budget; `counts` holds rejections by reason."""
-
-    def __init__(self, message: str, counts: dict[str, int] | None = None) -> None:
-        super().__init__(message)
-        self.counts = dict(counts or {})
-
-    def __reduce__(self) -> tuple:
-        # picklable with its counts (it crosses process-pool boundaries)
-        return (SamplingError, (str(self), self.counts))
-
-
-class _Reject(Exception):
-    def __init__(self, reason: str) -> None:
-        super().__init__(reason)
-        self.reason = reason
-
-
-class _Library(Protocol):
-    def instances(self, category: str | None = None, split: str | None = None) -> list: ...
-
-
-def _weighted(rng: np.random.Generator, names: list[str], weights: Mapping[Any, float]) -> str:
-    """One of `names` by `weights` (missing = 0); uniform if every weight is zero."""
-    w = np.array([max(float(weights.get(n, 0.0)), 0.0) for n in names])
-    if w.sum() <= 0:
-        w = np.ones(len(names))
-    return names[int(rng.choice(len(names), p=w / w.sum()))]
-
-
-def _sound_id(library: _Library, category: str, split: str, rng: np.random.Generator) -> str:
-    """A sound instance of `category` from `split` (val uses train sounds)."""
-    sound_split = "train" if split == "val" else split
-    ids = sorted(s.id for s in library.instances(category, sound_split))
-    if not ids:
-        raise SamplingError(f"the sound library has no {sound_split!r} sounds of category {category!r}", {})
-    return ids[int(rng.integers(len(ids)))]
-
-
-# ------------------------------------------------------------------------------ geometry checks
-def _component_of(labels: np.ndarray, grid: NavGrid, xy: tuple[float, float]) -> int:
-    i, j = grid.cell(*xy)
-    if 0 <= i < labels.shape[0] and 0 <= j < labels.shape[1]:
-        return int(labels[i, j])
-    return 0
-
-
-def _stand_component(plan: FloorPlan, grid: NavGrid, labels: np.ndarray, target: str) -> int:
-    """Free-region label of the interaction pose for `target` (0 when there is none)."""
-    try:
-        x, y, _ = interaction_pose(plan, target, grid=grid)
-    except ValueError:
-        return 0
-    return _component_of(labels, grid, (x, y))
-
-
-def door_frontal_region(plan: FloorPlan, door_index: int, depth: float = FRONTAL_DEPTH) -> Rect:
-    """The floor in front of a door's doorway on the swing (approach) side: doorway wide, `depth` deep."""
-    door = plan.doors[door_index]
-    dw = plan.doorways[door.doorway]
-    t = next((w.thickness for w in plan.walls), 0.1)
-    swing = plan.rooms[door.swing_room].rect
-    if dw.axis == "x":
-        s = 1.0 if swing.center[1] > dw.center[1] else -1.0
-        v0 = dw.center[1] + s * t / 2.0
-        half = max(dw.width, ROBOT_WIDTH) / 2.0
-        return Rect(dw.center[0] - half, min(v0, v0 + s * depth), dw.center[0] + half, max(v0, v0 + s * depth))
-    s = 1.0 if swing.center[0] > dw.center[0] else -1.0
-    v0 = dw.center[0] + s * t / 2.0
-    half = max(dw.width, ROBOT_WIDTH) / 2.0
-    return Rect(min(v0, v0 + s * depth), dw.center[1] - half, max(v0, v0 + s * depth), dw.center[1] + half)
-
-
-def sink_frontal_region(plan: FloorPlan, faucet_index: int, depth: float = FRONTAL_DEPTH) -> Rect:
-    """The floor in front of the sink cabinet: `depth` deep, cabinet (or robot) wide."""
-    f = plan.furniture[plan.faucets[faucet_index].furniture]
-    z = front_zone(f, depth)
-    if z.size[0] < ROBOT_WIDTH and abs(round(math.sin(f.yaw))) == 1:
-        c = z.center[0]
-        z = Rect(c - ROBOT_WIDTH / 2.0, z.ymin, c + ROBOT_WIDTH / 2.0, z.ymax)
-    elif z.size[1] < ROBOT_WIDTH and abs(round(math.cos(f.yaw))) == 1:
-        c = z.center[1]
-        z = Rect(z.xmin, c - ROBOT_WIDTH / 2.0, z.xmax, c + ROBOT_WIDTH / 2.0)
-    return z
-
-
-def region_free(plan: FloorPlan, region: Rect, room: int, ignore_door: int | None = None) -> bool:
-    """Whether `region` lies inside `room` (less half a wall) and touches no furniture, wall or
-    other door's swing."""
-    t = next((w.thickness for w in plan.walls), 0.1)
-    inner = plan.rooms[room].rect.expanded(-t / 2.0 + 1e-6)
-    if not (inner.contains(region.xmin, region.ymin) and inner.contains(region.xmax, region.ymax)):
-        return False
-    shrunk = region.expanded(-1e-6)
-    if any(shrunk.intersects(f.footprint) for f in plan.furniture):
-        return False
-    if any(shrunk.intersects(w.footprint) for w in plan.walls):
-        return False
-    return all(shrunk.intersects(door_swing_zone(d)) is False for d in plan.doors if d.index != ignore_door)
-
-
 def settle_shift(plan: FloorPlan, physics_hz: int = 100, seconds: float = SETTLE_SECONDS) -> dict[str, tuple[float, float]]:
     """Let the objects rest on the receptacles in a physics-only scene; per object (shift m, tilt rad)."""
-    import sapien
-
-    from echo_data.scene.build import build_statics
-    from echo_data.scene.objects import build_object
-
     scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
     scene.set_timestep(1.0 / physics_hz)
     build_statics(scene, plan, with_walls=False)
@@ -162,9 +46,13 @@ def settle_shift(plan: FloorPlan, physics_hz: int = 100, seconds: float = SETTLE
     return out
 
 
-# ------------------------------------------------------------------------------ sampling
+def settles(plan: FloorPlan, physics_hz: int) -> bool:
+    """Every object stays within SETTLE_MAX_SHIFT and SETTLE_MAX_TILT when it comes to rest."""
+    return not any(shift > SETTLE_MAX_SHIFT or tilt > SETTLE_MAX_TILT for shift, tilt in settle_shift(plan, physics_hz).values())
+
+
 def sample_episode(
-    recipe: Recipe, split: str, index: int, library: _Library, attempt: int = 0
+    recipe: Recipe, split: str, index: int, library: SoundLibrary, attempt: int = 0
 ) -> tuple[EpisodeSpec, dict[str, int]]:
     """The episode (split, index) of `recipe` plus the rejected attempts counted by reason.
 
@@ -176,187 +64,10 @@ def sample_episode(
     counts: dict[str, int] = {}
     for k, seed in attempt_draws(recipe.seed, split, index, attempt, budget):
         try:
-            return _attempt(recipe, split, index, k, seed, library), counts
-        except _Reject as r:
+            spec = draw_episode(recipe, split, index, k, seed, library)
+            if not settles(spec.plan, recipe.robot.physics_hz):
+                raise Reject("unstable_objects")
+            return spec, counts
+        except Reject as r:
             counts[r.reason] = counts.get(r.reason, 0) + 1
     raise SamplingError(f"{split}-{index:06d}: no solvable episode in {budget} attempts ({counts})", counts)
-
-
-def _attempt(recipe: Recipe, split: str, index: int, attempt: int, seed: int, library: _Library) -> EpisodeSpec:
-    rng = np.random.default_rng(seed)
-    setting = recipe.setting_for(split, index, rng)
-    try:
-        plan = generate_floorplan(recipe, rng)
-    except GenerationError:
-        raise _Reject("no_floorplan") from None
-    grid = NavGrid.from_plan(plan)
-    labels, _ = ndimage.label(grid.free)
-
-    weights = dict(recipe.events.categories)
-    want_reloc = setting in ("object_relocation", "multi_event")
-    want_state = setting in ("state_transition", "multi_event")
-    state_cat = _weighted(rng, list(STATE_CATEGORIES), weights) if want_state else None
-    reloc_cat = _weighted(rng, [c for c in recipe.objects.targets if c in RELOCATION_CATEGORIES], weights) if want_reloc else None
-
-    # The robot works inside one free region of the closed-door apartment ("home"): the one
-    # in front of the state event's door / sink, else the largest.
-    state_target: str | None = None
-    if state_cat == "doorbell":
-        belled = [d.index for d in plan.doors if d.doorbell is not None]
-        door_i = belled[int(rng.integers(len(belled)))]
-        state_target = str(Target.door(door_i))
-        if not region_free(plan, door_frontal_region(plan, door_i), plan.doors[door_i].swing_room, ignore_door=door_i):
-            raise _Reject("no_frontal_region")
-    elif state_cat == "sink":
-        state_target = str(Target.faucet(0))
-        sink = plan.furniture[plan.faucets[0].furniture]
-        if not region_free(plan, sink_frontal_region(plan, 0), sink.room):
-            raise _Reject("no_frontal_region")
-    if state_target is not None:
-        try:
-            sx, sy, _ = interaction_pose(plan, state_target, grid=grid)
-        except ValueError:
-            raise _Reject("no_interaction_pose") from None
-        home = _component_of(labels, grid, (sx, sy))
-    stand = {f.index: _stand_component(plan, grid, labels, str(Target.furniture(f.index))) for f in plan.furniture if f.receptacle}
-    if state_target is None:
-        # relocation only: the region with the most receptacles (ties: the larger region)
-        sizes = np.bincount(labels.ravel())
-        regions = sorted({c for c in stand.values() if c > 0})
-        if not regions:
-            raise _Reject("no_receptacle")
-        home = max(regions, key=lambda c: (sum(v == c for v in stand.values()), int(sizes[c]), -c))
-    if home == 0:
-        raise _Reject("no_interaction_pose")
-
-    receptacles = [i for i, c in stand.items() if c == home]
-    events: list[tuple[str, str, Vec3]] = []  # (category, target, source)
-    goal: int | None = None
-    if reloc_cat is not None:
-        name = f"{reloc_cat}_0"
-        if len(receptacles) < 2:
-            raise _Reject("no_receptacle")
-        scale = instance_scale(reloc_cat, name, plan.seed) if recipe.objects.size_variants else 1.0
-        nxt = place_object(plan, reloc_cat, name, rng, sounding=True, receptacles=receptacles, scale=scale)
-        if nxt is None:
-            raise _Reject("no_receptacle")
-        plan = nxt
-        obj = plan.object_by_name(name)
-        events.append((reloc_cat, name, obj.position))
-    if state_cat == "doorbell" and state_target is not None:
-        door_i = Target.parse(state_target).index
-        bell = plan.doors[door_i].doorbell
-        assert bell is not None  # the door was drawn among those with a bell
-        events.append(("doorbell", state_target, bell))
-    elif state_cat == "sink":
-        events.append(("sink", str(Target.faucet(0)), plan.faucets[0].spout))
-
-    prio: list[str] = list(recipe.events.priority)
-    events.sort(key=lambda e: prio.index(e[0]))
-    sound_events = tuple(
-        SoundEvent(category=c, sound_id=_sound_id(library, c, split, rng), target=t, source=(float(s[0]), float(s[1]), float(s[2])), priority=k)
-        for k, (c, t, s) in enumerate(events)
-    )
-
-    # start pose: a free spot in the home region, far enough from the first sound
-    first = sound_events[0].source
-    start: tuple[float, float, float] | None = None
-    for _ in range(START_TRIES):
-        room = plan.rooms[int(rng.integers(len(plan.rooms)))].rect.expanded(-START_ROOM_MARGIN)
-        if room.xmax <= room.xmin or room.ymax <= room.ymin:
-            continue
-        x, y = float(rng.uniform(room.xmin, room.xmax)), float(rng.uniform(room.ymin, room.ymax))
-        if math.hypot(x - first[0], y - first[1]) < START_MIN_DISTANCE:
-            continue
-        if not grid.is_free(x, y) or _component_of(labels, grid, (x, y)) != home:
-            continue
-        start = (round(x, 3), round(y, 3), round(float(rng.uniform(-math.pi, math.pi)), 4))
-        break
-    if start is None:
-        raise _Reject("no_start")
-
-    chain: list[SkillCall] = []
-    for k, ev in enumerate(sound_events):
-        if ev.category in RELOCATION_CATEGORIES:
-            obj = plan.object_by_name(ev.target)
-            goal = _place_goal(plan, grid, obj.receptacle, obj.category, receptacles, ev.target)
-            chain += [SkillCall("Navigate", ev.target, k), SkillCall("Pick", ev.target, k), SkillCall("Place", str(Target.furniture(goal)), k)]
-        elif ev.category == "doorbell":
-            chain += [SkillCall("Navigate", ev.target, k), SkillCall("OpenDoor", ev.target, k)]
-        else:
-            chain += [SkillCall("Navigate", ev.target, k), SkillCall("CloseSink", ev.target, k)]
-
-    _check_paths(plan, grid, start, chain)
-    for shift, tilt in settle_shift(plan, recipe.robot.physics_hz).values():
-        if shift > SETTLE_MAX_SHIFT or tilt > SETTLE_MAX_TILT:
-            raise _Reject("unstable_objects")
-
-    return EpisodeSpec(
-        episode_id=f"{split}-{index:06d}",
-        split=split,
-        index=index,
-        attempt=attempt,
-        seed=seed,
-        setting=setting,
-        plan=plan,
-        start=start,
-        events=sound_events,
-        chain=tuple(chain),
-    )
-
-
-def _place_goal(plan: FloorPlan, grid: NavGrid, source: int, category: str, receptacles: list[int], target: str) -> int:
-    """The receptacle nearest to the pick pose (straight line) that has room for the object
-    and a collision-free path from the pick pose."""
-    try:
-        px, py, _ = interaction_pose(plan, target, grid=grid)
-    except ValueError:
-        raise _Reject("no_interaction_pose") from None
-    probe_rng = np.random.default_rng(plan.seed)
-    cands = []
-    for i in receptacles:
-        if i == source:
-            continue
-        f = plan.furniture[i]
-        cands.append((math.hypot(f.center[0] - px, f.center[1] - py), i))
-    for _, i in sorted(cands):
-        scale = plan.object_by_name(target).scale
-        if place_object(plan, category, "_probe", probe_rng, sounding=False, receptacles=[i], scale=scale) is None:
-            continue
-        try:
-            gx, gy, _ = interaction_pose(plan, str(Target.furniture(i)), grid=grid)
-        except ValueError:
-            continue
-        if grid.plan_path((px, py), (gx, gy)) is not None:
-            return i
-    raise _Reject("no_place_goal")
-
-
-def _check_paths(plan: FloorPlan, grid: NavGrid, start: tuple[float, float, float], chain: list[SkillCall]) -> None:
-    """A base path from the start through every interaction pose in chain order.
-
-    Doors are closed, except that after an OpenDoor the door counts as open at its
-    open threshold (the least a successful OpenDoor guarantees).
-    """
-    cur = (start[0], start[1])
-    door_angles: dict[int, float] = {}
-    for call in chain:
-        if call.skill in ("Pick", "CloseSink"):
-            continue
-        if call.skill == "OpenDoor":
-            i = Target.parse(call.target).index
-            door_angles[i] = plan.doors[i].open_threshold
-            grid = NavGrid.from_plan(plan, robot_radius=grid.robot_radius, resolution=grid.resolution, door_angles=door_angles)
-            # the robot ends beside the opened leaf; continue from the nearest free spot
-            moved = grid.nearest_free(*cur, radius=1.0)
-            if moved is None:
-                raise _Reject("no_path")
-            cur = moved
-            continue
-        try:
-            gx, gy, _ = interaction_pose(plan, call.target, door_angles=door_angles or None, grid=grid)
-        except ValueError:
-            raise _Reject("no_interaction_pose") from None
-        if grid.plan_path(cur, (gx, gy)) is None:
-            raise _Reject("no_path")
-        cur = (gx, gy)

@@ -2,7 +2,9 @@
 
 The built-in instances are synthesised (`synth`); a recipe may add folders of the user's own
 files per category (`user_folders`). Train and test instances are disjoint by id, so a sampler
-that draws train episodes from `instances(split="train")` never plays a test sound.
+that draws train episodes from `instances(split="train")` never plays a test sound. With
+`sounds.fresh_train_instances` a train episode plays fresh synthesised instances instead of the
+built-in train ones (`get` resolves their ids; they are train instances by construction).
 """
 
 from __future__ import annotations
@@ -97,9 +99,13 @@ class SoundLibrary:
         return [s for s in self._instances if (category is None or s.category == category) and (split is None or s.split == split)]
 
     def get(self, instance_id: str) -> SoundInstance:
+        """The instance of an id; a fresh synthesised training instance (`synth.fresh_id`) is made
+        from its id alone, in any library that holds the built-in synthesiser's instances."""
         try:
             return self._by_id[instance_id]
         except KeyError:
+            if synth.is_fresh_id(instance_id) and any(s.builtin for s in self._instances):
+                return fresh_instance(instance_id)
             raise KeyError(f"unknown sound instance id {instance_id!r}") from None
 
     def waveform(self, instance_id: str, sample_rate: int = 16000, seconds: float | None = None) -> np.ndarray:
@@ -131,6 +137,12 @@ def _builtin_instances() -> tuple[SoundInstance, ...]:
         cat, split, _ = synth.parse_builtin_id(iid)
         out.append(SoundInstance(iid, cat, split, synth.design(iid)["duration"], "builtin"))
     return tuple(out)
+
+
+def fresh_instance(instance_id: str) -> SoundInstance:
+    """A fresh training instance of the synthesiser (`synth.fresh_id`), never one of the 113."""
+    cat, split, _ = synth.parse_builtin_id(instance_id)
+    return SoundInstance(instance_id, cat, split, synth.design(instance_id)["duration"], "builtin")
 
 
 def folder_instances(category: str, folder: Path, test_fraction: float) -> list[SoundInstance]:

@@ -3,6 +3,9 @@
 An instance id ("phone-train-03") fixes everything: its index in the category selects a style
 (so a category always mixes e.g. ringtone timbres, beep patterns, chimes and buzzers), and a
 generator seeded with zlib.crc32 of the id draws the rest (melody, pitch, tempo, pattern, flow).
+A fresh training instance ("phone-fresh-3fa2b1c94d07", `fresh_id`) is one more draw from the same
+generator, outside the 113: its variant index is its number modulo VARIANT_CYCLE, so fresh draws
+cover every style of the category, and the id regenerates it anywhere.
 `design()` draws the structure (cheap; gives the loop duration without rendering), `render()`
 turns it into samples at any rate. All event randomness comes from the id, so the same instance
 has the same melody and rhythm at 16 kHz and at 48 kHz.
@@ -49,8 +52,34 @@ def builtin_ids() -> list[str]:
     return out
 
 
+# Every structural choice of a design is a function of the variant index modulo a cycle that
+# divides 240 (styles: k mod 3, 4 or 5; sub-styles, patterns, intervals, timbres: (k // styles) mod
+# 2, 3, 4 or 5), so variants drawn uniformly modulo 240 sample every structure equally often.
+VARIANT_CYCLE = 240
+FRESH = "fresh"
+FRESH_DIGITS = 12  # 48 bits of the seed: ids stay short, collisions among a build's draws negligible
+
+
+def fresh_id(category: str, seed: int) -> str:
+    """The id of the fresh training instance of `category` drawn from `seed` (an episode-derived seed)."""
+    if category not in CATEGORY_COUNTS:
+        raise KeyError(f"unknown sound category {category!r}")
+    return f"{category}-{FRESH}-{seed % 16**FRESH_DIGITS:0{FRESH_DIGITS}x}"
+
+
+def is_fresh_id(instance_id: str) -> bool:
+    parts = instance_id.split("-")
+    return len(parts) == 3 and parts[0] in CATEGORY_COUNTS and parts[1] == FRESH and len(parts[2]) == FRESH_DIGITS and all(
+        c in "0123456789abcdef" for c in parts[2]
+    )
+
+
 def parse_builtin_id(instance_id: str) -> tuple[str, str, int]:
-    """(category, split, variant) of a built-in id; variant counts train then test within the category."""
+    """(category, split, variant) of a built-in or fresh id; variant counts train then test within the
+    category (a fresh id is a train instance whose variant is its number modulo VARIANT_CYCLE)."""
+    if is_fresh_id(instance_id):
+        cat, _, num = instance_id.split("-")
+        return cat, "train", int(num, 16) % VARIANT_CYCLE
     try:
         cat, split, num = instance_id.split("-")
         i = int(num)

@@ -1,7 +1,9 @@
 """One video frame per control step, the same for a stored episode (`view`) and an evaluated one
-(`evaluate --video`): head RGB, head depth and the top-down map side by side, the binaural
-spectrogram scrolling past a cursor at the step, and a caption. Picture and sound stay in step:
-frame t shows the track at the sample where step t's observation was taken.
+(`evaluate --video`): head RGB, head depth, wrist depth and the top-down map side by side under
+their titles, with a depth colour bar in metres and the map's legend and 1 m scale bar below
+them, the binaural spectrogram scrolling past a cursor at the step, a caption and the line that
+states the sound's playback level. Picture and sound stay in step: frame t shows the track at
+the sample where step t's observation was taken.
 """
 
 from __future__ import annotations
@@ -15,9 +17,16 @@ from echo_data.viz.spectrogram import scrolling_strip, spectrogram_picture
 from echo_data.viz.topdown import Point, TopDownMap
 
 PANEL = 256  # side of the image and map panels (pixels)
+TITLES = ("head RGB", "head depth", "wrist depth", "top-down plan")
+TITLE_H = 16  # panel titles above the panels
+KEY_H = 32  # depth colour bars and the map legend below them
 SPEC_H = 128  # spectrogram strip height
-CAPTION_H = 28
-WIDTH, HEIGHT = 3 * PANEL, PANEL + SPEC_H + CAPTION_H
+CAPTION_H = 36  # caption and sound level, one line each
+WIDTH, HEIGHT = len(TITLES) * PANEL, TITLE_H + PANEL + KEY_H + SPEC_H + CAPTION_H
+PANEL_TOP, KEY_TOP = TITLE_H, TITLE_H + PANEL
+SPEC_TOP = KEY_TOP + KEY_H
+CAPTION_TOP = SPEC_TOP + SPEC_H
+WHITE = (255, 255, 255)
 SPEC_SECONDS = 4.0  # spectrogram history shown left of the cursor
 SPEC_AHEAD = 1.0  # and ahead of it
 DEPTH_RANGE_M = 6.0  # depth colour scale: 0 m .. this
@@ -43,12 +52,46 @@ def depth_colours(depth_m: np.ndarray) -> np.ndarray:
     return colour_lut("turbo")[np.clip(np.asarray(depth_m, dtype=np.float64) / DEPTH_RANGE_M * 255, 0, 255).astype(np.uint8)]
 
 
+def _depth_key(d: ImageDraw.ImageDraw, x0: int) -> None:
+    """A turbo colour bar of 0 .. DEPTH_RANGE_M under a depth panel, ticked every metre."""
+    from echo_data.media import colour_lut
+
+    lut = colour_lut("turbo")
+    left, right, top = x0 + 12, x0 + PANEL - 24, KEY_TOP + 4
+    for px in range(left, right):
+        d.line([(px, top), (px, top + 8)], fill=tuple(int(c) for c in lut[round((px - left) / (right - left - 1) * 255)]))
+    for m in range(int(DEPTH_RANGE_M) + 1):
+        tick = left + m / DEPTH_RANGE_M * (right - left - 1)
+        d.line([(tick, top + 8), (tick, top + 11)], fill=WHITE)
+        d.text((tick, top + 12), f"{m} m" if m == int(DEPTH_RANGE_M) else str(m), fill=WHITE, anchor="ma")
+
+
+def _map_key(d: ImageDraw.ImageDraw, topdown: TopDownMap, x0: int) -> None:
+    """The map's legend (robot, each source category, a silenced source) and a 1 m scale bar."""
+    from echo_data.viz import palette
+
+    bar = topdown.scale  # pixels per metre of the map panel
+    d.line([(x0 + 8, KEY_TOP + 22), (x0 + 8 + bar, KEY_TOP + 22)], fill=WHITE, width=3)
+    d.text((x0 + 14 + bar, KEY_TOP + 17), "1 m", fill=WHITE)
+    entries = [("robot", palette.ROBOT, True)] + [(c, palette.source(c), True) for c in dict.fromkeys(c for c, _ in topdown.events)] + [("silenced", palette.SILENT, False)]
+    x: float = x0 + 8
+    y = KEY_TOP + 4
+    for name, colour, filled in entries:
+        width = 11 + int(d.textlength(name)) + 10
+        if x + width > x0 + PANEL and y == KEY_TOP + 4:  # many categories: go on right of the scale bar
+            x, y = x0 + 40 + bar, KEY_TOP + 17
+        d.ellipse([x, y + 1, x + 8, y + 9], fill=colour if filled else None, outline=colour if not filled else (0, 0, 0), width=2 if not filled else 1)
+        d.text((x + 11, y), name, fill=WHITE)
+        x += width
+
+
 class EpisodeFrames:
     """Composes the frames of one episode from its map and its whole binaural track."""
 
-    def __init__(self, topdown: TopDownMap, audio: np.ndarray, fs: int) -> None:
+    def __init__(self, topdown: TopDownMap, audio: np.ndarray, fs: int, sound_note: str = "") -> None:
         self.map = topdown
         self.fs = fs
+        self.sound_note = sound_note
         self.picture, self.cols_per_s = spectrogram_picture(audio, fs)
         if topdown.width != PANEL or topdown.height != PANEL:
             raise ValueError(f"the map panel must be {PANEL} x {PANEL} px, got {topdown.width} x {topdown.height}")
@@ -62,15 +105,29 @@ class EpisodeFrames:
         sample: int,
         caption: str,
         sounding: Sequence[bool] | None = None,
+        wrist_depth_m: np.ndarray | None = None,
     ) -> np.ndarray:
         """(HEIGHT, WIDTH, 3) uint8: the step whose observation was taken at `sample` of the track."""
         canvas = np.zeros((HEIGHT, WIDTH, 3), dtype=np.uint8)
-        if rgb is not None:
-            canvas[:PANEL, :PANEL] = fit_panel(np.asarray(rgb, dtype=np.uint8))
-        if depth_m is not None:
-            canvas[:PANEL, PANEL : 2 * PANEL] = fit_panel(depth_colours(depth_m))
-        canvas[:PANEL, 2 * PANEL :] = self.map.draw(path, yaw, sounding)
-        canvas[PANEL : PANEL + SPEC_H] = scrolling_strip(self.picture, self.cols_per_s, sample / self.fs, WIDTH, SPEC_H, SPEC_SECONDS, SPEC_AHEAD)
+        panels = (
+            None if rgb is None else fit_panel(np.asarray(rgb, dtype=np.uint8)),
+            None if depth_m is None else fit_panel(depth_colours(depth_m)),
+            None if wrist_depth_m is None else fit_panel(depth_colours(wrist_depth_m)),
+            self.map.draw(path, yaw, sounding),
+        )
+        for i, panel in enumerate(panels):
+            if panel is not None:
+                canvas[PANEL_TOP : PANEL_TOP + PANEL, i * PANEL : (i + 1) * PANEL] = panel
+        canvas[SPEC_TOP:CAPTION_TOP] = scrolling_strip(self.picture, self.cols_per_s, sample / self.fs, WIDTH, SPEC_H, SPEC_SECONDS, SPEC_AHEAD)
         img = Image.fromarray(canvas)
-        ImageDraw.Draw(img).text((8, PANEL + SPEC_H + 8), caption, fill=(255, 255, 255))
+        d = ImageDraw.Draw(img)
+        for i, (title, panel) in enumerate(zip(TITLES, panels)):
+            d.text((i * PANEL + 8, 3), title if panel is not None else f"{title} (not stored)", fill=WHITE)
+        for i in (1, 2):
+            if panels[i] is not None:
+                _depth_key(d, i * PANEL)
+        _map_key(d, self.map, 3 * PANEL)
+        d.text((8, SPEC_TOP + 3), f"binaural spectrogram, left ear above right, {SPEC_SECONDS:g} s back to {SPEC_AHEAD:g} s ahead of the cursor", fill=WHITE)
+        d.text((8, CAPTION_TOP + 6), caption, fill=WHITE)
+        d.text((8, CAPTION_TOP + 21), self.sound_note, fill=WHITE)
         return np.asarray(img)

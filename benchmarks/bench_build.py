@@ -1,0 +1,107 @@
+"""Build throughput: a slice of STMM-1.9K with 1 and with 2 workers, its serial parts, and validate.
+
+Builds the first `--limit` episodes of each split of `recipes/stmm_1_9k.yaml` (3 splits of the
+paper's table interleaved by index, so any prefix keeps its proportions) once per worker count,
+into a fresh folder each time, and prints per run: episodes/s, steps/s, bytes per step, the
+projected hours for the whole recipe at that rate, and the time this process spent writing
+(`DatasetWriter` store / flush / finalize: the serial, parent-side part). Then the speed-up of
+2 workers over 1 (acceptance: >= 1.8x), `echo-data validate` of the last dataset and its ratio
+to that dataset's build time (acceptance: <= 1/3).
+
+  python benchmarks/bench_build.py [--limit 14] [--workers 1 2] [--recipe recipes/stmm_1_9k.yaml]
+
+Timings on a machine shared with other work move with its load; the ratios are measured in
+the same run, back to back.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import os
+import shutil
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("LP_NUM_THREADS", "1")
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _timed(cls: Any, names: tuple[str, ...], spent: dict[str, float]) -> None:
+    """Wrap methods of `cls` to add their wall time to `spent` (this process only)."""
+    for name in names:
+        fn: Callable[..., Any] = getattr(cls, name)
+
+        @functools.wraps(fn)
+        def wrapper(*a: Any, _fn: Callable[..., Any] = fn, _name: str = name, **k: Any) -> Any:
+            t0 = time.perf_counter()
+            try:
+                return _fn(*a, **k)
+            finally:
+                spent[_name] = spent.get(_name, 0.0) + time.perf_counter() - t0
+
+        setattr(cls, name, wrapper)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--recipe", default=str(ROOT / "recipes" / "stmm_1_9k.yaml"))
+    ap.add_argument("--limit", type=int, default=14, help="episodes per split (3 splits: 14 -> 42 episodes)")
+    ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--keep", type=Path, default=None, help="keep the datasets under this folder")
+    args = ap.parse_args()
+
+    from echo_data.app.build import build
+    from echo_data.dataset.manifest import split_sizes
+    from echo_data.dataset.validate import validate
+    from echo_data.dataset.writer import DatasetWriter
+    from echo_data.recipe import load_recipe
+
+    recipe = load_recipe(args.recipe)
+    whole = sum(split_sizes(recipe, None).values())
+    spent: dict[str, float] = {}
+    _timed(DatasetWriter, ("store", "flush", "finalize"), spent)
+    base = Path(tempfile.mkdtemp(prefix="bench_build_")) if args.keep is None else args.keep
+    rates: dict[int, float] = {}
+    last: tuple[Path, float] | None = None
+    try:
+        for w in args.workers:
+            out = base / f"w{w}"
+            if out.exists():
+                shutil.rmtree(out)
+            spent.clear()
+            t0 = time.perf_counter()
+            s = build(recipe, Path(args.recipe), out, workers=w, limit=args.limit, progress=False)
+            dt = time.perf_counter() - t0
+            n, steps = sum(s.episodes.values()), sum(s.steps.values())
+            rates[w] = n / dt
+            serial = sum(spent.values())
+            parts = ", ".join(f"{k} {v:.1f} s" for k, v in spent.items())
+            print(
+                f"workers {w}: {n} episodes, {steps} steps in {dt:.1f} s: {n / dt:.3f} episodes/s, {steps / dt:.1f} steps/s, "
+                f"{s.bytes / steps / 1e3:.1f} KB/step; whole {recipe.name} ({whole} episodes) at this rate: {whole / rates[w] / 3600:.2f} h; "
+                f"parent-side writing {serial:.1f} s ({serial / dt:.0%} of the build: {parts})"
+            )
+            last = (out, dt)
+        if 1 in rates:
+            for w, r in rates.items():
+                if w != 1:
+                    print(f"speed-up {w} workers / 1: {r / rates[1]:.2f}x (acceptance for 2: >= 1.8x)")
+        if last is not None:
+            t0 = time.perf_counter()
+            problems = validate(last[0])
+            v = time.perf_counter() - t0
+            print(f"validate {last[0].name}: {v:.1f} s = {v / last[1]:.2f} of its build time (acceptance <= 0.33); {len(problems)} problem(s)")
+            for p in problems[:5]:
+                print("  ", p)
+    finally:
+        if args.keep is None:
+            shutil.rmtree(base, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,88 @@
+"""The record of an evaluation in progress: one JSON line per finished episode, next to `--json`.
+
+Why: an evaluation of a few dozen episodes takes tens of minutes; a crash, a kill or Ctrl-C
+must not lose the episodes already run. Each finished episode's record is appended as one
+line with a single `write` and fsynced, so the file always holds whole records (a line torn
+by a kill mid-write is dropped when the file is read back). The first line names the
+evaluation (recipe hash, split, agents and their checkpoints); `--resume` continues only the
+same evaluation, and because each episode is a pure function of (recipe, split, index,
+agents) the finished JSON is the one an uninterrupted run writes (timings aside). The file is
+removed once the results JSON is written.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+SUFFIX = ".episodes.jsonl"
+
+
+class JournalError(ValueError):
+    """The record file cannot be used (another evaluation's, unreadable, not writable): one line."""
+
+
+def journal_path(json_out: Path) -> Path:
+    """Where the records of `--json OUT` go: `OUT` with `.episodes.jsonl` for its suffix."""
+    return json_out.with_name(json_out.stem + SUFFIX)
+
+
+def _read(path: Path, key: dict[str, Any]) -> tuple[dict[int, dict[str, Any]], int]:
+    """(records by index, bytes of whole lines) of an existing record file of evaluation `key`."""
+    data = path.read_bytes()
+    lines = data.split(b"\n")
+    whole = lines[:-1]  # the last piece has no newline: empty, or a line torn by a kill
+    try:
+        head = json.loads(whole[0]) if whole else None
+    except ValueError:
+        head = None
+    if not isinstance(head, dict) or "evaluation" not in head:
+        raise JournalError(f"{path}: not an evaluation record file (first line is not its header)")
+    if head["evaluation"] != key:
+        diff = sorted(k for k in set(key) | set(head["evaluation"]) if key.get(k) != head["evaluation"].get(k))
+        raise JournalError(f"{path}: records of a different evaluation ({', '.join(diff)} differ); delete it to start over")
+    records: dict[int, dict[str, Any]] = {}
+    size = len(whole[0]) + 1
+    for line in whole[1:]:
+        try:
+            rec = json.loads(line)
+        except ValueError:
+            break  # torn inside (a kill between write and fsync on another filesystem): keep what precedes
+        records[int(rec["index"])] = rec
+        size += len(line) + 1
+    return records, size
+
+
+class Journal:
+    """Append-only per-episode records of one evaluation (see the module docstring)."""
+
+    def __init__(self, path: Path, key: dict[str, Any], resume: bool) -> None:
+        self.path = path
+        self.records: dict[int, dict[str, Any]] = {}
+        try:
+            if path.exists() and not resume:
+                raise JournalError(f"{path}: records of an unfinished evaluation; --resume continues it, or delete the file to start over")
+            if path.exists():
+                self.records, size = _read(path, key)
+                os.truncate(path, size)  # drop a torn last line so the next record starts a line
+            else:
+                from echo_data.dataset.storage import atomic_write_bytes
+
+                atomic_write_bytes(path, (json.dumps({"evaluation": key}, sort_keys=True) + "\n").encode())
+            self._fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+        except OSError as e:
+            raise JournalError(f"{path}: cannot write the evaluation's records ({e.strerror or e})") from None
+
+    def append(self, rec: dict[str, Any]) -> None:
+        """Add one finished episode's record (one write, fsynced)."""
+        os.write(self._fd, (json.dumps(rec, sort_keys=True) + "\n").encode())
+        os.fsync(self._fd)
+        self.records[int(rec["index"])] = rec
+
+    def close(self, finished: bool) -> None:
+        """Stop appending; `finished`: the results JSON holds everything, remove the file."""
+        os.close(self._fd)
+        if finished:
+            self.path.unlink(missing_ok=True)

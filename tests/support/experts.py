@@ -1,0 +1,96 @@
+"""A hand-made two-room plan with a door and a sink, and helpers that run one expert in a World
+(shared by the OpenDoor and CloseSink expert tests)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
+from echo_data.scene.floorplan import Door, Doorway, Faucet, FloorPlan, Furniture, Rect, Room, WallSegment
+
+T = 0.1  # wall thickness
+
+
+def two_room_plan(hinge_low: bool = True, door_angle: float = 0.0) -> FloorPlan:
+    """Rooms [0,4]x[0,4] and [4,8]x[0,4]; a doorway at x=4, y in [1.5, 2.5] with a leaf swinging
+    west into room 0, hung on the wall face like the generator does; a sink cabinet in room 1."""
+    mats = ("linoleum_on_concrete", "plasterboard", "ceiling_plasterboard")
+    rooms = (Room(0, "hall", Rect(0, 0, 4, 4), *mats), Room(1, "kitchen", Rect(4, 0, 8, 4), *mats))
+    wall = lambda a, b, ext: WallSegment(a, b, T, 2.5, "plasterboard", ext)  # noqa: E731
+    walls = (
+        wall((-T / 2, 0.0), (8 + T / 2, 0.0), True),
+        wall((-T / 2, 4.0), (8 + T / 2, 4.0), True),
+        wall((0.0, 0.0), (0.0, 4.0), True),
+        wall((8.0, 0.0), (8.0, 4.0), True),
+        wall((4.0, 0.0), (4.0, 1.5), False),
+        wall((4.0, 2.5), (4.0, 4.0), False),
+    )
+    doorways = (Doorway(0, (4.0, 2.0), "y", 1.0, 2.1, (0, 1)),)
+    hx = 4.0 - (T / 2 + 0.012 + 0.02)  # hinge axis outside the wall face (docs/SIMULATION_NOTES.md#articulations)
+    if hinge_low:
+        hinge, closed_yaw, sign = (hx, 1.48), math.pi / 2, 1.0
+    else:
+        hinge, closed_yaw, sign = (hx, 2.52), -math.pi / 2, -1.0
+    door = Door(
+        index=0, doorway=0, hinge=hinge, closed_yaw=closed_yaw, open_sign=sign, width=1.04, thickness=0.04,
+        height=2.08, max_angle=math.radians(105), open_threshold=math.radians(60), angle=door_angle,
+        handle_height=1.0, swing_room=0, material="wooden_door", doorbell=(3.94, 2.67, 1.2),
+    )
+    sink = Furniture(0, "sink_cabinet", 1, (7.67, 1.0), (0.56, 0.9, 0.85), math.pi, "wooden_door", False)
+    faucet = Faucet(
+        index=0, furniture=0, pivot=(7.85, 1.0, 1.0), yaw=math.pi, lever_length=0.13, open_angle=math.pi / 2,
+        closed_tolerance=0.1, angle=1.2, spout=(7.72, 1.0, 0.95),
+    )
+    return FloorPlan(0, rooms, walls, doorways, (door,), (sink,), (faucet,), ())
+
+
+def make_spec(plan: FloorPlan, target: str, skill: str, start: tuple[float, float, float]) -> EpisodeSpec:
+    category = "doorbell" if target.startswith("door") else "sink"
+    event = SoundEvent(category, f"{category}_train_00", target, (0.0, 0.0, 1.0), 0)
+    return EpisodeSpec(
+        episode_id="test-000000", split="train", index=0, attempt=0, seed=0, setting="state_transition",
+        plan=plan, start=start, events=(event,), chain=(SkillCall(skill, target, 0),),
+    )
+
+
+def run_expert(world, expert, call, spec) -> tuple[object, list[np.ndarray]]:
+    """Drive an expert generator to its end; returns (outcome, actions)."""
+    gen = expert(world, call, spec)
+    actions = []
+    try:
+        while True:
+            action = next(gen)
+            actions.append(action)
+            world.step(action)
+    except StopIteration as stop:
+        return stop.value, actions
+
+
+def static_hits(world) -> set[str]:
+    """Walls / furniture (not the floor) that a robot link pushes on after the last physics step."""
+    robot_entities = {ln.entity for ln in world.robot.articulation.links}
+    statics = {e for e in world.handles.statics if e.name != "floor"}
+    hits = set()
+    for c in world.scene.get_contacts():
+        e0, e1 = c.bodies[0].entity, c.bodies[1].entity
+        other = e1 if e0 in robot_entities else e0 if e1 in robot_entities else None
+        if other in statics and any(np.linalg.norm(p.impulse) > 1e-6 for p in c.points):
+            hits.add(other.name)
+    return hits
+
+
+def rollout(world, expert, spec, probe) -> tuple[object, list[float], set[str]]:
+    """Run `expert` on the spec's only call; returns (outcome, probe() after each step, static hits)."""
+    gen = expert(world, spec.chain[0], spec)
+    values, hits = [], set()
+    while True:
+        try:
+            action = next(gen)
+        except StopIteration as stop:
+            return stop.value, values, hits
+        assert action.dtype == np.float32 and action.shape == (12,)
+        world.step(action)
+        values.append(probe())
+        hits |= static_hits(world)

@@ -1,0 +1,160 @@
+"""Learners for every skill: wrist depth, the target kind, the GRU and its per-skill reset, and the
+paper-table script, on a real quickstart build of three train episodes (object relocation, a
+sink, a door and an object: all five skills).
+
+Training runs are two optimiser steps: they check the contract (inputs, loading, acting, the
+recurrent state), not what the models learn.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch  # the test extra installs torch: a broken install must fail here, not skip
+from typer.testing import CliRunner
+
+from echo_data.agents.loading import load_policy
+from echo_data.cli import app
+from echo_data.dataset.torch import StepDataset
+from echo_data.learn import runs
+from echo_data.learn.bc import BCConfig
+from echo_data.learn.data import chain_kinds
+from echo_data.learn.features import WRIST_DEPTH, FeatureSpec, prepare
+from echo_data.learn.policy import BCPolicy
+from echo_data.records import ACTION_DIM
+
+ROOT = Path(__file__).resolve().parent.parent
+QUICK = str(ROOT / "recipes" / "quickstart.yaml")
+SKILLS = ("Navigate", "Pick", "Place", "OpenDoor", "CloseSink")
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("skills") / "qs"
+    res = runner.invoke(app, ["build", QUICK, "--out", str(out), "--split", "train", "--limit", "3", "--no-progress"])
+    assert res.exit_code == 0, res.output
+    return out
+
+
+@pytest.fixture(scope="module")
+def trained(ds: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """One GRU learner per skill, two steps each: head and wrist depth, state, target kind (+ audio and RGB for Navigate)."""
+    root = tmp_path_factory.mktemp("runs")
+    out = {}
+    for skill in SKILLS:
+        inputs = "audio,depth,rgb,state,kind" if skill == "Navigate" else "depth,wrist_depth,state,kind"
+        args = ["train", "bc", str(ds), "--skill", skill, "--inputs", inputs, "--gru", "--max-steps", "2", "--out", str(root / skill), "--no-progress"]
+        res = runner.invoke(app, args)
+        assert res.exit_code == 0, res.output
+        out[skill] = root / skill
+    return out
+
+
+def _segment(ds: Path, skill: str) -> tuple[list[dict], str]:
+    """The observations of the first segment of `skill` in the train split, and its target kind."""
+    data = StepDataset(ds, "train", skill=skill)
+    first = data[0]
+    ep, k = int(first["episode_index"]), int(first["skill_index"])
+    obs = []
+    for i in range(len(data)):
+        item = data[i]
+        if int(item["episode_index"]) != ep or int(item["skill_index"]) != k:
+            break
+        obs.append({c: v for c, v in item.items() if c.startswith("observation.")})
+    return obs, chain_kinds(ds, "train")[(ep, k)]
+
+
+@pytest.mark.parametrize("skill", SKILLS)
+def test_every_skill_learns_from_wrist_depth_and_its_target_kind(ds: Path, trained: dict[str, Path], skill: str) -> None:
+    cfg = BCConfig.from_dict(runs.read_json(trained[skill] / runs.CONFIG))
+    spec = FeatureSpec.from_dict(cfg.features)
+    obs, kind = _segment(ds, skill)
+    assert cfg.recurrent and kind in spec.kinds
+    if skill != "Navigate":
+        assert WRIST_DEPTH in spec.columns and spec.wrist_std > 0
+    policy = BCPolicy.from_run(trained[skill])
+    policy.reset({"skill": skill, "target_kind": kind})
+    x = policy.inputs(obs[0])
+    assert x["kind"][0, spec.kinds.index(kind)] == 1.0 and x["kind"].sum() == 1.0
+    a = policy.act(obs[0])
+    assert a.shape == (ACTION_DIM,) and a.dtype == np.float32 and np.isfinite(a).all()
+    policy.reset({"skill": skill, "target_kind": "a kind never trained on"})
+    assert float(policy.inputs(obs[0])["kind"].abs().sum()) == 0.0  # unknown kind: no one-hot, no error
+
+
+def test_gru_state_resets_at_each_skill_and_acting_replays_training(ds: Path, trained: dict[str, Path]) -> None:
+    obs, kind = _segment(ds, "Pick")
+    policy = BCPolicy.from_run(trained["Pick"])
+    policy.reset({"skill": "Pick", "target_kind": kind})
+    stepped = np.stack([policy.act(o) for o in obs[:6]])
+    assert policy.hidden is not None
+    # Training runs the GRU over the whole segment from a zero state: acting step by step after
+    # reset must give the same actions (same path, same history length).
+    xs = [policy.inputs(o) for o in obs[:6]]
+    with torch.no_grad():
+        y, _ = policy.model({k: torch.cat([x[k] for x in xs])[None] for k in xs[0]})
+    whole = y[0, :, 0].numpy() * policy.std + policy.mean
+    np.testing.assert_allclose(stepped, whole, rtol=1e-5, atol=1e-5)
+    # Mid-segment the history matters; after reset (a new skill) the state is zero again.
+    later = policy.act(obs[0])
+    policy.reset({"skill": "Pick", "target_kind": kind})
+    assert policy.hidden is None
+    assert np.array_equal(policy.act(obs[0]), stepped[0]) and not np.array_equal(later, stepped[0])
+    # evaluate's per-skill composition resets the learner at the start of its skill
+    dispatch = load_policy([f"Pick={trained['Pick']}", "oracle"])
+    member = dispatch.policy_for("Pick")
+    member.reset({"skill": "Pick", "target_kind": kind})
+    member.act(obs[0])
+    dispatch.reset({"skill": "Pick", "target": "furby_0", "target_kind": kind, "skill_index": 1})
+    assert member.hidden is None
+
+
+def test_runs_from_before_the_new_inputs_still_load(ds: Path, tmp_path: Path) -> None:
+    res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Pick", "--inputs", "depth,state", "--max-steps", "1", "--out", str(tmp_path / "old"), "--no-progress"])
+    assert res.exit_code == 0, res.output
+    cfg = runs.read_json(tmp_path / "old" / runs.CONFIG)
+    for key in ("recurrent", "seq_batch"):
+        del cfg[key]
+    for key in ("wrist_mean", "wrist_std", "kinds"):
+        del cfg["features"][key]
+    (tmp_path / "old" / runs.CONFIG).write_text(json.dumps(cfg))
+    obs, _ = _segment(ds, "Pick")
+    policy = BCPolicy.from_run(tmp_path / "old")
+    policy.reset({})
+    assert not policy.recurrent and policy.act(obs[0]).shape == (ACTION_DIM,)
+
+
+def test_kind_one_hot_follows_the_vocabulary() -> None:
+    spec = FeatureSpec(inputs=("kind",), kinds=("alarm", "furby", "phone"))
+    x = prepare({}, spec, kind=np.array([2, -1, 0]))["kind"]
+    assert x.tolist() == [[0, 0, 1], [0, 0, 0], [1, 0, 0]]
+
+
+def test_gru_with_chunks_is_refused(ds: Path, tmp_path: Path) -> None:
+    res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Pick", "--inputs", "state", "--gru", "--chunk", "2", "--out", str(tmp_path / "r")])
+    assert res.exit_code == 2 and "--chunk must be 1" in res.output and not (tmp_path / "r").exists()
+
+
+def test_paper_table_tiny_evaluates_a_learner_in_evaluate_and_resumes(ds: Path, trained: dict[str, Path], tmp_path: Path) -> None:
+    runs_dir, out = tmp_path / "runs", tmp_path / "table.json"
+    cmd = [sys.executable, str(ROOT / "benchmarks" / "paper_table.py"), "--tiny", "--data", str(ds), "--runs", str(runs_dir), "--out", str(out),
+           "--rows", "Pick alone", "--workers", "1"]
+    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    doc = json.loads(out.read_text())
+    assert set(doc["training"]) == {"Pick"}  # only the learners the chosen rows drive
+    row = doc["rows"]["Pick alone"]["quickstart"]
+    assert row["command"].startswith("echo-data evaluate") and "Pick=" in row["command"] and len(doc["commit"]) >= 40
+    assert row["metrics"]["episodes"] == 1 and row["skills"]["Pick"]["n"] <= 1
+    evals = sorted(runs_dir.glob("eval-*.json"))
+    stamp = [p.stat().st_mtime_ns for p in evals]
+    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)  # everything is in the JSON: nothing is run again
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert [p.stat().st_mtime_ns for p in evals] == stamp and json.loads(out.read_text())["rows"] == doc["rows"]
+    assert "| Pick |" in out.with_suffix(".md").read_text()
