@@ -2,7 +2,7 @@
 
 Why: `evaluate`, `export`, `view` and `train` used to run for minutes and then fail with a
 traceback on a read-only or impossible `--out`. Each checks its target here first (the probe
-is the build's `check_output_path`: a folder created and removed where the output would go) and
+is `outputs.check_output_path`, the build's own: a folder created and removed where the output would go) and
 turns an `OSError` while writing into one line naming the option and the file.
 """
 
@@ -17,7 +17,7 @@ class TargetError(ValueError):
 
 def check_folder(path: Path, option: str) -> None:
     """`path` can be a folder we write into (absent, or a folder, somewhere writable)."""
-    from echo_data.app.build import OutputError, check_output_path
+    from echo_data.outputs import OutputError, check_output_path
 
     try:
         check_output_path(path)
@@ -27,7 +27,7 @@ def check_folder(path: Path, option: str) -> None:
 
 def check_file(path: Path, option: str) -> None:
     """`path` can be a file we write (not a folder; its folder absent or writable)."""
-    from echo_data.app.build import OutputError, check_output_path
+    from echo_data.outputs import OutputError, check_output_path
 
     if path.is_dir():
         raise TargetError(f"{option} {path}: is a folder")
