@@ -30,10 +30,17 @@ def digest(d: dict[str, Any]) -> str:
     return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()
 
 
+def _as_drawn_then(spec: dict[str, Any]) -> dict[str, Any]:
+    """The spec as the fixture's generator wrote it: fields added since (each event's `level_db`,
+    carried in the spec since the renderer was unified, drawn from the same stream as before)
+    are left out, so the digests still compare the draws themselves."""
+    return {**spec, "events": [{k: v for k, v in e.items() if k != "level_db"} for e in spec["events"]]}
+
+
 def compute(recipe: Recipe) -> dict[str, Any]:
     lib = SoundLibrary.from_recipe(recipe)
     plans = {str(s): digest(generate_floorplan_from_seed(recipe, s).to_dict()) for s in PLAN_SEEDS}
-    episodes = {f"{sp}-{i}": digest(sample_episode(recipe, sp, i, lib)[0].to_dict()) for sp, i in EPISODES}
+    episodes = {f"{sp}-{i}": digest(_as_drawn_then(sample_episode(recipe, sp, i, lib)[0].to_dict())) for sp, i in EPISODES}
     return {"plans": plans, "episodes": episodes}
 
 
