@@ -59,6 +59,14 @@ def check_out_file(src: Path, out: Path, overwrite: bool) -> None:
         raise ExportError(f"--out {out} lies inside the source dataset {src}")
 
 
+
+def check_out_folder(src: Path, out: Path, overwrite: bool) -> None:
+    """Refuse an existing output folder (unless --overwrite replaces it), a file, the source itself or a place inside it."""
+    if out.exists() and not (overwrite and out.is_dir()):
+        raise ExportError(f"{out} already exists" + ("; use --overwrite to replace it" if out.is_dir() else " and is not a folder"))
+    if out.resolve() == src.resolve() or src.resolve() in out.resolve().parents:
+        raise ExportError(f"--out {out} lies inside the source dataset {src}")
+
 def decode_images(column: pa.ChunkedArray) -> np.ndarray:
     """PNG cells of an image column -> (T, H, W[, C]) pixels as stored (depth stays uint16 mm)."""
     from PIL import Image

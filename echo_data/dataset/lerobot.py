@@ -37,7 +37,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from echo_data.dataset.episode_arrays import ExportError, check_source, column_values, decode_images
+from echo_data.dataset.episode_arrays import ExportError, check_out_folder, check_source, column_values, decode_images
 from echo_data.dataset.schema import (
     ACTION,
     ACTION_EXECUTED,
@@ -305,10 +305,7 @@ def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False, vi
         raise ExportError("the LeRobot export needs pandas: pip install pandas") from None
     src, out = Path(src), Path(out)
     manifest = check_source(src)
-    if out.exists() and not (overwrite and out.is_dir()):
-        raise ExportError(f"{out} already exists" + ("; use --overwrite to replace it" if out.is_dir() else " and is not a folder"))
-    if out.resolve() == src.resolve() or src.resolve() in out.resolve().parents:
-        raise ExportError(f"--out {out} lies inside the source dataset {src}")
+    check_out_folder(src, out, overwrite)
     layout = StepLayout.from_dict(manifest["layout"])
     for v in video:
         if v not in VIDEO_CAMERAS:

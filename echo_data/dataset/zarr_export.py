@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import pyarrow.parquet as pq
 
-from echo_data.dataset.episode_arrays import ExportError, check_source, iter_episodes
+from echo_data.dataset.episode_arrays import check_out_folder, check_source, iter_episodes
 from echo_data.dataset.robomimic import OBS_KEYS
 from echo_data.dataset.schema import ACTION, CAMERA_POSES
 from echo_data.episode import SPLIT_KEYS
@@ -48,10 +48,7 @@ def export_zarr(src: str | Path, out: str | Path, overwrite: bool = False) -> di
 
     src, out = Path(src), Path(out)
     manifest = check_source(src)
-    if out.exists() and not (overwrite and out.is_dir()):
-        raise ExportError(f"{out} already exists" + ("; use --overwrite to replace it" if out.is_dir() else " and is not a folder"))
-    if out.resolve() == src.resolve() or src.resolve() in out.resolve().parents:
-        raise ExportError(f"--out {out} lies inside the source dataset {src}")
+    check_out_folder(src, out, overwrite)
     lengths = pq.read_table(src / "meta" / "episodes.parquet", columns=["n_steps"]).column("n_steps").to_numpy()
     chunk_steps = max(1, int(np.median(lengths)))
     total = int(lengths.sum())
