@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -75,8 +76,9 @@ def rows(planner_run: str | None) -> dict[str, dict[str, Any]]:
 
 
 def rel(p: Path) -> str:
-    """A path as the JSON stores it: relative to the repository when inside it."""
-    p = p.resolve()
+    """A path as the JSON stores it: relative to the repository when inside it (symbolic links
+    kept: a dataset folder linked in from elsewhere is still named by its place here)."""
+    p = Path(os.path.abspath(p))
     return str(p.relative_to(ROOT)) if p.is_relative_to(ROOT) else str(p)
 
 
@@ -106,7 +108,8 @@ def train(data: Path, runs: Path, name: str, tiny: bool) -> dict[str, Any] | Non
     if tiny:
         args += ["--max-steps", "2"]
     stdout, seconds = cli(*args)
-    summary = {**json.loads(stdout), "command": "echo-data " + " ".join(args), "wall_seconds": round(seconds, 1)}
+    command = "echo-data " + " ".join(rel(Path(x)) if Path(x).exists() else x for x in args)
+    summary = {**json.loads(stdout), "command": command, "wall_seconds": round(seconds, 1)}
     summary["run"] = rel(folder)
     done.write_text(json.dumps(summary, indent=1) + "\n")
     return summary
