@@ -453,8 +453,15 @@ def _block(
         if X is None:
             continue
         for key, w in kw:
-            term = (w * X)[:, None] * cache.spectrum(key, n_fft)
-            acc = term if acc is None else acc + term
+            spec = cache.spectrum(key, n_fft)
+            wx = w * X
+            term = np.empty_like(spec)  # (w X) H per ear: long contiguous loops, not (F, 1) x (F, 2) broadcasting
+            np.multiply(wx, spec[:, 0], out=term[:, 0])
+            np.multiply(wx, spec[:, 1], out=term[:, 1])
+            if acc is None:
+                acc = term
+            else:
+                acc += term
     if acc is None:
         return np.zeros((S, 2))
     return sfft.irfft(acc, n_fft, axis=0)[L - 1 : L - 1 + S]
