@@ -97,6 +97,7 @@ class Robot:
         names = [j.name for j in self.articulation.active_joints]
         self.joint_index = {n: i for i, n in enumerate(names)}
         self.base_indices = [self.joint_index[n] for n in U.BASE_JOINTS]
+        self._base_joints = [self.articulation.active_joints[i] for i in self.base_indices]  # re-aimed every substep
         self.torso_index = self.joint_index[U.TORSO_JOINT]
         self.head_indices = [self.joint_index[n] for n in U.HEAD_JOINTS]
         self.arm_indices = [self.joint_index[n] for n in U.ARM_JOINTS]
@@ -201,7 +202,7 @@ class Robot:
         vx, vy, wz = (float(v) for v in self._action[:3])
         yaw = float(self.articulation.get_qpos()[self.base_indices[2]])
         c, s = math.cos(yaw), math.sin(yaw)
-        jx, jy, jyaw = (self.articulation.active_joints[i] for i in self.base_indices)
+        jx, jy, jyaw = self._base_joints
         jx.set_drive_velocity_target(c * vx - s * vy)
         jy.set_drive_velocity_target(s * vx + c * vy)
         jyaw.set_drive_velocity_target(wz)
