@@ -1,14 +1,17 @@
 """Build throughput: a slice of STMM-1.9K with 1 and with 2 workers, its serial parts, and validate.
 
-Builds the first `--limit` episodes of each split of `recipes/stmm_1_9k.yaml` (3 splits of the
-paper's table interleaved by index, so any prefix keeps its proportions) once per worker count,
+Builds the first `--limit` episodes of each split (train, test) of `recipes/stmm_1_9k.yaml` (the
+three settings of the paper's table interleaved by index, so any prefix keeps their proportions) once per worker count,
 into a fresh folder each time, and prints per run: episodes/s, steps/s, bytes per step, the
 projected hours for the whole recipe at that rate, and the time this process spent writing
 (`DatasetWriter` store / flush / finalize: the serial, parent-side part). Then the speed-up of
 2 workers over 1 (acceptance: >= 1.8x), `echo-data validate` of the last dataset and its ratio
-to that dataset's build time (acceptance: <= 1/3).
+to that dataset's build time (acceptance: <= 1/3). Last, the floor: bare SAPIEN physics + render
+(`bench_pipeline.bare_step_render`) on the slice's first episodes, and the hours the whole recipe
+would take with each worker count if a step cost only that floor and the workers scaled
+perfectly: no build on this machine can be faster, so it says what a target in hours means here.
 
-  python benchmarks/bench_build.py [--limit 14] [--workers 1 2] [--recipe recipes/stmm_1_9k.yaml]
+  python benchmarks/bench_build.py [--limit 20] [--workers 1 2] [--recipe recipes/stmm_1_9k.yaml]
 
 Timings on a machine shared with other work move with its load; the ratios are measured in
 the same run, back to back.
@@ -47,10 +50,31 @@ def _timed(cls: Any, names: tuple[str, ...], spent: dict[str, float]) -> None:
         setattr(cls, name, wrapper)
 
 
+def _floor_ms(recipe: Any, recipe_dir: Path, episodes: int = 3, steps: int = 50) -> float:
+    """Mean bare step + render cost (ms per control step) on the recipe's first train episodes."""
+    from bench_pipeline import bare_step_render
+
+    from echo_data.scene.sampling import sample_episode
+    from echo_data.sounds import SoundLibrary
+    from echo_data.world import World
+
+    library = SoundLibrary.from_recipe(recipe, recipe_dir)
+    costs = []
+    for i in range(episodes):
+        spec, _ = sample_episode(recipe, "train", i, library)
+        world = World(spec, recipe, render=True)
+        world.observe()  # the first render's set-up is not part of the floor (as in bench_pipeline)
+        try:
+            costs.append(bare_step_render(world, steps))
+        finally:
+            world.close()
+    return 1e3 * sum(costs) / len(costs)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--recipe", default=str(ROOT / "recipes" / "stmm_1_9k.yaml"))
-    ap.add_argument("--limit", type=int, default=14, help="episodes per split (3 splits: 14 -> 42 episodes)")
+    ap.add_argument("--limit", type=int, default=20, help="episodes per split (2 splits: 20 -> 40 episodes)")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--keep", type=Path, default=None, help="keep the datasets under this folder")
     args = ap.parse_args()
@@ -98,6 +122,11 @@ def main() -> None:
             print(f"validate {last[0].name}: {v:.1f} s = {v / last[1]:.2f} of its build time (acceptance <= 0.33); {len(problems)} problem(s)")
             for p in problems[:5]:
                 print("  ", p)
+        floor = _floor_ms(recipe, Path(args.recipe).resolve().parent)
+        per_episode = steps / n
+        for w in args.workers:
+            print(f"floor: {floor:.2f} ms per step (bare SAPIEN step + render, same run); whole {recipe.name} at the floor with "
+                  f"{w} worker(s): {whole * per_episode * floor / 1e3 / w / 3600:.2f} h ({per_episode:.0f} steps per episode)")
     finally:
         if args.keep is None:
             shutil.rmtree(base, ignore_errors=True)

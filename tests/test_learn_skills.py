@@ -20,11 +20,12 @@ from typer.testing import CliRunner
 
 from echo_data.agents.loading import load_policy
 from echo_data.cli import app
+from echo_data.dataset.schema import STATE
 from echo_data.dataset.torch import StepDataset
 from echo_data.learn import runs
 from echo_data.learn.bc import BCConfig
 from echo_data.learn.data import chain_kinds
-from echo_data.learn.features import WRIST_DEPTH, FeatureSpec, prepare
+from echo_data.learn.features import DELTA_ACTION, DELTA_STATE, WRIST_DEPTH, FeatureSpec, from_action_form, prepare, to_action_form
 from echo_data.learn.policy import BCPolicy
 from echo_data.records import ACTION_DIM
 
@@ -134,6 +135,38 @@ def test_kind_one_hot_follows_the_vocabulary() -> None:
     spec = FeatureSpec(inputs=("kind",), kinds=("alarm", "furby", "phone"))
     x = prepare({}, spec, kind=np.array([2, -1, 0]))["kind"]
     assert x.tolist() == [[0, 0, 1], [0, 0, 0], [1, 0, 0]]
+
+
+def test_delta_actions_are_changes_from_the_measured_joints(ds: Path, tmp_path: Path) -> None:
+    """--action-form delta: the network's target is (joint target - measured joint) for the torso
+    and arm, normalised with the skill's own rows; acting adds the measured joints back, so the
+    env gets the dataset's kind of action (absolute targets)."""
+    out = tmp_path / "delta"
+    res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Pick", "--inputs", "depth,wrist_depth,state,kind", "--action-form", "delta",
+                              "--max-steps", "2", "--out", str(out), "--no-progress"])
+    assert res.exit_code == 0, res.output
+    cfg = BCConfig.from_dict(runs.read_json(out / runs.CONFIG))
+    data = StepDataset(ds, "train", skill="Pick")
+    rows = [data[i] for i in range(len(data))]
+    actions = np.stack([np.asarray(r["action"], dtype=np.float32) for r in rows])[:, None]
+    states = np.stack([np.asarray(r[STATE], dtype=np.float32) for r in rows])
+    delta = to_action_form(actions, states, "delta")[:, 0]
+    arm = list(DELTA_ACTION)
+    assert np.allclose(delta[:, arm], actions[:, 0, arm] - states[:, list(DELTA_STATE)])
+    assert np.array_equal(delta[:, :3], actions[:, 0, :3]) and np.array_equal(delta[:, 11], actions[:, 0, 11])  # base, gripper as stored
+    # the scale is the skill's own: the arm's changes are far smaller than its targets' spread
+    assert np.array(cfg.action_std)[arm].max() < 0.5 * np.asarray(actions[:, 0, arm]).std(axis=0).max()
+    policy = BCPolicy.from_run(out)
+    obs, kind = _segment(ds, "Pick")
+    policy.reset({"skill": "Pick", "target_kind": kind})
+    with torch.no_grad():
+        pred = policy.model(policy.inputs(obs[5]))[0, 0].numpy() * policy.std + policy.mean
+    a = policy.act(obs[5])
+    measured = np.asarray(obs[5][STATE], dtype=np.float32)
+    np.testing.assert_allclose(a[arm], pred[arm] + measured[list(DELTA_STATE)], atol=1e-6)
+    np.testing.assert_allclose(from_action_form(delta[7], states[7], "delta"), actions[7, 0], atol=1e-6)
+    res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Pick", "--inputs", "depth", "--action-form", "delta", "--out", str(tmp_path / "r")])
+    assert res.exit_code == 2 and "needs state" in res.output and not (tmp_path / "r").exists()
 
 
 def test_gru_with_chunks_is_refused(ds: Path, tmp_path: Path) -> None:

@@ -21,7 +21,7 @@ import numpy as np
 
 from echo_data.learn import runs
 from echo_data.learn.data import SkillRows, append_rows, count_rows, load_skill_rows, skill_kinds, skills_in, split_episodes
-from echo_data.learn.features import FeatureSpec, feature_spec
+from echo_data.learn.features import ACTION_FORMS, FeatureSpec, feature_spec, to_action_form
 from echo_data.learn.loop import LoopConfig, fit, setup_torch
 
 POLICY_CLASS = "echo_data.learn.policy:BCPolicy"
@@ -50,6 +50,7 @@ class BCConfig:
     recurrent: bool = False  # a GRU over the steps of a segment (models.BCRNN)
     seq_batch: int = 4  # segments per optimiser step when recurrent
     shift: int = 0  # training images shifted by up to this many pixels (random-shift augmentation); 0 = off
+    action_form: str = "absolute"  # features.ACTION_FORMS: what the network predicts
     # Filled in by train_bc:
     features: dict[str, Any] = field(default_factory=dict)
     audio_shape: list[int] | None = None
@@ -86,6 +87,10 @@ def resolve(cfg: BCConfig) -> BCConfig:
         raise runs.RunError(f"{root / 'manifest.json'}: no 'train' split to learn from")
     if cfg.chunk < 1 or not 1 <= cfg.execute <= cfg.chunk:
         raise runs.RunError(f"--chunk {cfg.chunk} / --execute {cfg.execute}: need 1 <= execute <= chunk")
+    if cfg.action_form not in ACTION_FORMS:
+        raise runs.RunError(f"--action-form: unknown form {cfg.action_form!r}; choose from {', '.join(ACTION_FORMS)}")
+    if cfg.action_form == "delta" and not {"state", "state_raw"} & set(cfg.inputs):
+        raise runs.RunError("--action-form delta adds the predicted change to the measured joints: --inputs needs state")
     if cfg.recurrent and cfg.chunk != 1:
         raise runs.RunError(f"--gru predicts one action per step: --chunk must be 1, got {cfg.chunk}")
     skills = skills_in(root, "train")
@@ -186,7 +191,7 @@ def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = F
     runs.check_out(out, resume, overwrite)
     if resume:
         saved = BCConfig.from_dict(runs.read_json(out / runs.CONFIG))
-        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "skill", "inputs", "seed", "chunk", "audio_form", "recurrent"))
+        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "skill", "inputs", "seed", "chunk", "audio_form", "recurrent", "action_form"))
         cfg = BCConfig.from_dict({**asdict(saved), "epochs": cfg.epochs, "max_steps": cfg.max_steps})
     else:
         cfg = resolve(cfg)
@@ -198,6 +203,15 @@ def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = F
         rows = load_skill_rows(root, "train", cfg.skill, spec, chunk=cfg.chunk, tick=bar.update)
     val_eps = split_episodes(rows.episodes, cfg.val_fraction, cfg.seed)
     cfg.val_episodes = [int(e) for e in val_eps]
+    if cfg.action_form != "absolute":
+        if extra is not None and len(extra):
+            raise runs.RunError(f"--action-form {cfg.action_form} does not take DAgger rows (their states are not kept)")
+        assert rows.states is not None
+        rows.actions = to_action_form(rows.actions, rows.states, cfg.action_form)
+        if not resume:  # the skill's own training rows set the scale (validation rows left out)
+            fit_rows = rows.actions[~np.isin(rows.episodes, val_eps)][~rows.action_pad[~np.isin(rows.episodes, val_eps)]]
+            cfg.action_mean = [float(v) for v in fit_rows.mean(axis=0)]
+            cfg.action_std = [float(v) if v > 1e-3 else 1.0 for v in fit_rows.std(axis=0)]
     if extra is not None and len(extra):
         rows = append_rows(rows, extra.inputs, extra.actions)
     is_val = np.isin(rows.episodes, val_eps)

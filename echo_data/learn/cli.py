@@ -82,6 +82,7 @@ def bc_cmd(
     gru: Annotated[bool, typer.Option("--gru/--no-gru", help="A GRU over the steps of a skill (BC-RNN), trained on whole segments; its state resets at each skill's start.")] = False,
     seq_batch: Annotated[int, typer.Option("--seq-batch", min=1, help="With --gru: segments per optimiser step.")] = 4,
     shift: Annotated[int, typer.Option("--shift", min=0, help="Random-shift augmentation of training images: up to N pixels (0 = off).")] = 0,
+    action_form: Annotated[str, typer.Option("--action-form", help="What the network predicts: absolute (the dataset's joint targets) or delta (torso and arm targets as the change from the measured joints; needs state).")] = "absolute",
     resume: _Resume = False,
     overwrite: _Overwrite = False,
     progress: _Progress = True,
@@ -101,7 +102,7 @@ def bc_cmd(
                             "dagger_episodes": (dagger > 0, "without --dagger"), "dagger_steps": (dagger > 0, "without --dagger")})
         folder = out or Path("runs") / f"bc-{skill}-{'-'.join(names)}"
         cfg = BCConfig(str(dataset), skill, names, seed=seed, chunk=chunk, execute=execute, batch_size=batch_size, lr=lr, max_steps=max_steps, threads=threads,
-                       audio_form=audio_form, recurrent=gru, seq_batch=seq_batch, shift=shift)
+                       audio_form=audio_form, recurrent=gru, seq_batch=seq_batch, shift=shift, action_form=action_form)
         if epochs is not None:
             cfg.epochs = epochs
         _check(dataset, folder)

@@ -36,6 +36,7 @@ class SkillRows:
     goals: np.ndarray  # (n, 3) the segment's final base pose (x, y, yaw): where the expert went
     episodes: np.ndarray  # (n,) episode_index
     segments: np.ndarray  # (n,) segment id, contiguous rows, unique over the split (-1: appended rows)
+    states: np.ndarray | None = None  # (n, STATE_DIM) the raw state each row's action was taken in (None: appended rows)
 
     def __len__(self) -> int:
         return len(self.episodes)
@@ -116,7 +117,7 @@ def load_skill_rows(
     shards = Shards.of(dataset, split)
     kinds_of = chain_kinds(dataset, split) if "kind" in spec.inputs else {}
     parts: dict[str, list[Any]] = {}
-    acts, pads, goals, eps, segs = [], [], [], [], []
+    acts, pads, goals, eps, segs, sts = [], [], [], [], [], []
     seg_base = 0
     for f in shards.files:
         pf = pq.ParquetFile(f)
@@ -140,6 +141,7 @@ def load_skill_rows(
         acts.append(a[keep])
         pads.append(p[keep])
         goals.append(state[row_end[keep]][:, [0, 1, 2]])
+        sts.append(state[keep])
         eps.append(ep[keep])
         segs.append(first_seg + seg_id[keep])
         kind = np.array([kind_index(spec, kinds_of.get((int(e), int(k)))) for e, k in zip(ep, si, strict=True)]) if kinds_of else None
@@ -154,6 +156,7 @@ def load_skill_rows(
         goals=np.concatenate(goals),
         episodes=np.concatenate(eps),
         segments=np.concatenate(segs),
+        states=np.concatenate(sts),
     )
 
 

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from echo_data.dataset.schema import IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE
-from echo_data.records import STATE_NAMES
+from echo_data.records import ACTION_NAMES, STATE_NAMES
 
 HEAD_DEPTH = IMAGE_COLUMNS["head_depth"]
 HEAD_RGB = IMAGE_COLUMNS["head_rgb"]
@@ -45,6 +45,18 @@ LEVEL_FLOOR = 1e-5  # spectrogram magnitude floor (-100 dB re 1, the log-mel's f
 LEVEL_REF_DB, LEVEL_SCALE_DB = -60.0, 20.0  # level channels: (dB - ref) / scale
 ILD_SCALE_DB = 6.0  # ILD channel: dB / scale (head-shadow ILDs reach about +-20 dB at high frequencies)
 YAW = STATE_NAMES.index("base_yaw")
+# Action forms a BC run predicts (`--action-form`). "absolute": the dataset's action (joint position
+# targets), normalised with the dataset's action statistics. "delta": the torso and arm targets as
+# the change from the joints measured at that step (target - measured; base velocities and the
+# gripper opening stay as they are), normalised with the statistics of the skill's own training
+# rows. Why: an absolute target is the measured joint plus a small step, so a network fed the
+# joints learns to copy them and under-steps, and closed loop the arm slows to a stop short of
+# the object (measured: benchmarks/skill_trace.py on a Pick run, docs/learners.md); the change
+# cannot be copied from the input. The stored `action` column is untouched: the form is the run's.
+ACTION_FORMS = ("absolute", "delta")
+DELTA_JOINTS = ("torso",) + tuple(f"arm_{i}" for i in range(7))
+DELTA_ACTION = tuple(ACTION_NAMES.index(n) for n in DELTA_JOINTS)
+DELTA_STATE = tuple(STATE_NAMES.index(n) for n in DELTA_JOINTS)
 
 
 class FeatureError(ValueError):
@@ -184,6 +196,27 @@ def canonical(key: str, value: Any) -> np.ndarray:
             x = x.transpose(2, 0, 1)
         return x.astype(np.float32) / 255.0 if np.issubdtype(x.dtype, np.integer) else x.astype(np.float32)
     return x.astype(np.float32)
+
+
+def to_action_form(actions: np.ndarray, states: np.ndarray, form: str) -> np.ndarray:
+    """Dataset actions (n, chunk, ACTION_DIM) and the states they were taken in (n, STATE_DIM) ->
+    what a run of `form` predicts (see ACTION_FORMS)."""
+    if form == "absolute":
+        return actions
+    out = np.array(actions, dtype=np.float32, copy=True)
+    out[..., list(DELTA_ACTION)] -= states[:, None, list(DELTA_STATE)]
+    return out
+
+
+def from_action_form(pred: np.ndarray, state: np.ndarray | None, form: str) -> np.ndarray:
+    """A run's prediction (ACTION_DIM,) in `form` and the state measured now -> the env's action."""
+    if form == "absolute":
+        return pred
+    if state is None:
+        raise FeatureError(f"a policy predicting {form} actions needs the state observation")
+    out = np.array(pred, dtype=np.float32, copy=True)
+    out[list(DELTA_ACTION)] += state[list(DELTA_STATE)]
+    return out
 
 
 def goal_features(state: Any, goal: Any) -> Any:

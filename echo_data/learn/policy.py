@@ -16,8 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from echo_data.dataset.schema import STATE
 from echo_data.learn import runs
-from echo_data.learn.features import FeatureError, FeatureSpec, kind_index, prepare, single
+from echo_data.learn.features import FeatureError, FeatureSpec, from_action_form, kind_index, prepare, single
 from echo_data.records import ACTION_DIM
 
 
@@ -63,6 +64,7 @@ class BCPolicy:
         self.execute = cfg.execute
         self.skill = cfg.skill
         self.recurrent = cfg.recurrent
+        self.action_form = cfg.action_form
         self.observations = tuple(self.spec.columns)  # what evaluate must render for it
         self._queue: deque[np.ndarray] = deque()
         self._goal: np.ndarray | None = None
@@ -100,8 +102,9 @@ class BCPolicy:
                     pred = y[0, 0].numpy()
                 else:
                     pred = self.model(self.inputs(obs))[0].numpy()
+            state = np.asarray(obs[STATE], dtype=np.float32) if self.action_form != "absolute" else None
             for a in pred[: self.execute]:
-                self._queue.append((a * self.std + self.mean).astype(np.float32))
+                self._queue.append(from_action_form((a * self.std + self.mean).astype(np.float32), state, self.action_form))
         action = self._queue.popleft()
         assert action.shape == (ACTION_DIM,)
         return action

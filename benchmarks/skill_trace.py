@@ -1,0 +1,87 @@
+"""Where a learned manipulation skill goes wrong, closed loop: a per-step trace of one skill.
+
+Runs episodes of a recipe's *train* or *val* split (never the test split: this is a development
+tool) with the oracle planner, the scripted experts for every other skill and the learned run for
+`--skill`, and prints for each step of that skill what its success test depends on: the hand's
+distance to the target object (3-D and horizontal), the gripper opening, whether the object is
+held, its height above its receptacle and the hand's distance to the carry pose. With `--video`
+it also writes the episode's MP4 (the evaluate frame).
+
+  python benchmarks/skill_trace.py recipes/paper_table_object_relocation.yaml --run runs/Pick \
+      --skill Pick --split train --index 0 1 2 [--every 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+os.environ.setdefault("LP_NUM_THREADS", "1")
+
+
+def trace_row(env: Any, call: Any) -> dict[str, float]:
+    """What the active manipulation skill's success test reads, now."""
+    from echo_data.skills.success import CARRY_TCP, object_bottom, receptacle_of, tcp_in_base
+
+    world = env.world
+    robot = world.robot
+    row: dict[str, float] = {"step": env.steps, "gripper": float(robot.state()[11]) if hasattr(robot, "state") else math.nan}
+    tcp = np.asarray(robot.ee_pose().p, dtype=float)
+    name = call.target
+    if name in world.handles.objects:
+        p = np.asarray(world.handles.objects[name].pose.p, dtype=float)
+        row["tcp_obj_m"] = float(np.linalg.norm(tcp - p))
+        row["tcp_obj_xy_m"] = float(np.linalg.norm(tcp[:2] - p[:2]))
+        row["tcp_above_obj_m"] = float(tcp[2] - p[2])
+        top = world.plan.furniture[receptacle_of(world, name)].top_z
+        row["obj_lift_m"] = float(object_bottom(world, name) - top)
+    row["held"] = float(robot.holding == name)
+    row["carry_dist_m"] = float(np.linalg.norm(tcp_in_base(world) - np.asarray(CARRY_TCP)))
+    return row
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("recipe")
+    ap.add_argument("--run", required=True, help="the learned run folder for --skill")
+    ap.add_argument("--skill", default="Pick")
+    ap.add_argument("--split", default="train", choices=("train", "val"))
+    ap.add_argument("--index", type=int, nargs="+", default=[0])
+    ap.add_argument("--every", type=int, default=10, help="print every Nth step of the skill")
+    ap.add_argument("--json", type=Path, default=None, help="write the full traces here")
+    args = ap.parse_args()
+
+    from echo_data.agents.loading import load_planner, load_policy
+    from echo_data.agents.runtime import run_episode
+    from echo_data.envs.env import EchoDataEnv
+
+    policy = load_policy([f"{args.skill}={args.run}", "oracle"])
+    planner = load_planner("oracle")
+    env = EchoDataEnv(args.recipe, split=args.split)
+    out: list[dict[str, Any]] = []
+    for index in args.index:
+        obs, info = env.reset(options={"split": args.split, "index": index})
+        rows: list[dict[str, float]] = []
+
+        def hook(env: Any, obs: Any, action: Any, k: int, call: Any, flags: Any, rows: list = rows) -> None:
+            if call.skill == args.skill:
+                rows.append({**trace_row(env, call), "action_gripper": float(action[11])})
+
+        run = run_episode(env, obs, info, planner, policy, on_step=hook)
+        print(f"== {args.split}[{index}] {env.episode.setting}: {run.failure or 'success'} ({run.steps} steps)")
+        for r in rows[:: args.every] + rows[-1:]:
+            print("  " + "  ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}" for k, v in r.items()))
+        out.append({"index": index, "failure": run.failure, "trace": rows})
+    env.close()
+    if args.json:
+        args.json.write_text(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()
