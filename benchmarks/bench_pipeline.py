@@ -7,6 +7,9 @@ Measured against it:
   rollout   the expert chain with observations (planning, control, proprioception, images)
   episode   the whole episode: sampling + world build + rollout + binaural audio + features
   written   the episode plus its encoding for the dataset (PNG images, Parquet-ready columns)
+For information, a second floor: the same bare step+render driven by the rollout's own actions
+(`World.step` with the recorded actions, cameras read back, nothing else), i.e. what physics of
+a moving robot in contact with its world adds to the standing robot of the floor.
 and the written cost grouped by apartment size (rooms) and by number of sounding sources.
 Each figure is given twice: wall-clock time, and this process's CPU time (`time.process_time`,
 every thread of the process). On a machine shared with other jobs the wall-clock figures move
@@ -65,6 +68,25 @@ def bare_step_render(world: object, steps: int, cpu: bool = False) -> float:
     return (proc if cpu else wall) / steps
 
 
+def replay_step_render(world: object, actions: list[np.ndarray], cpu: bool = False) -> float:
+    """Seconds per control step of `World.step(action)` for the recorded actions + render + readback."""
+    cams = [comp for comp, _ in world.robot.cameras.values()]  # type: ignore[attr-defined]
+    names = {id(comp): cfg for comp, cfg in world.robot.cameras.values()}  # type: ignore[attr-defined]
+    clock = Clock()
+    for a in actions:
+        world.step(a)  # type: ignore[attr-defined]
+        world.scene.update_render()  # type: ignore[attr-defined]
+        for c in cams:
+            c.take_picture()
+            cfg = names[id(c)]
+            if cfg.rgb:
+                c.get_picture(COLOR_PICTURE)
+            if cfg.depth:
+                c.get_picture(POSITION_PICTURE)
+    wall, proc = clock.lap()
+    return (proc if cpu else wall) / max(len(actions), 1)
+
+
 def _row(label: str, what: str, wall: float, cpu: float, floor: tuple[float, float], tail: str = "") -> str:
     return f"{label:9s} {what:36s} {wall * 1e3:7.2f} ms/step  ratio {wall / floor[0]:5.2f}x | CPU {cpu * 1e3:7.2f} ms/step  ratio {cpu / floor[1]:5.2f}x{tail}"
 
@@ -101,6 +123,7 @@ def main() -> None:
     full = np.zeros(2)
     enc = np.zeros(2)
     t_first = 0.0
+    moving: list[float] = []  # CPU seconds of the replay floor per episode
     for i in range(args.n):
         spec, _ = sample_episode(recipe, "train", i, library)
         w = World(spec, recipe, render=True)
@@ -115,6 +138,9 @@ def main() -> None:
         ro = simulate(spec, recipe, observe=True)  # experts acting in the env, cameras, no ears
         roll += clock.lap()
         roll_steps += len(ro.steps)
+        with World(spec, recipe, render=True) as w:
+            w.observe()
+            moving.append(replay_step_render(w, [s.action_executed for s in ro.steps], cpu=True) * len(ro.steps))
         clock = Clock()
         res = generate_episode(recipe, "train", i, library)
         t1 = np.array(clock.lap())
@@ -128,6 +154,8 @@ def main() -> None:
     b = (float(np.median([x[0] for x in base])), float(np.median([x[1] for x in base])))
     print(f"once per process (not in the figures below): HRTF table and kernels {t_hrtf:.1f} s, first render {t_first:.1f} s")
     print(f"floor     bare SAPIEN step+render ({ncam} cameras): {b[0] * 1e3:7.2f} ms/step              | CPU {b[1] * 1e3:7.2f} ms/step")
+    m = sum(moving) / max(roll_steps, 1)
+    print(f"          the floor driven by the rollout's actions (moving robot):  CPU {m * 1e3:7.2f} ms/step  ratio {m / b[1]:5.2f}x (information)")
     r = roll / max(roll_steps, 1)
     f = full / max(full_steps, 1)
     e = (full + enc) / max(full_steps, 1)

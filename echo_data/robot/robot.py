@@ -204,7 +204,7 @@ class Robot:
 
     def _drive_base(self) -> None:
         """Turn the robot-frame velocity command into world-frame joint velocity targets (per substep)."""
-        vx, vy, wz = (float(v) for v in self._action[:3])
+        vx, vy, wz = self._action[:3].tolist()
         yaw = float(self.articulation.get_qpos()[self.base_indices[2]])
         c, s = math.cos(yaw), math.sin(yaw)
         jx, jy, jyaw = self._base_joints
