@@ -46,43 +46,42 @@ class Clock:
         return time.perf_counter() - self.wall, time.process_time() - self.cpu
 
 
+def _cameras(world: object) -> list[tuple[object, object]]:
+    return list(world.robot.cameras.values())  # type: ignore[attr-defined]
+
+
+def _read_pictures(world: object, cams: list[tuple[object, object]]) -> None:
+    """`update_render`, then `take_picture` + `get_picture` of every robot camera (no conversion)."""
+    world.scene.update_render()  # type: ignore[attr-defined]
+    for comp, cfg in cams:
+        comp.take_picture()  # type: ignore[attr-defined]
+        if cfg.rgb:  # type: ignore[attr-defined]
+            comp.get_picture(COLOR_PICTURE)  # type: ignore[attr-defined]
+        if cfg.depth:  # type: ignore[attr-defined]
+            comp.get_picture(POSITION_PICTURE)  # type: ignore[attr-defined]
+
+
 def bare_step_render(world: object, steps: int, cpu: bool = False) -> float:
     """Seconds per control step of physics + render + picture readback only (process CPU
     seconds with `cpu`, else wall-clock)."""
     scene = world.scene  # type: ignore[attr-defined]
-    cams = [comp for comp, _ in world.robot.cameras.values()]  # type: ignore[attr-defined]
-    names = {id(comp): cfg for comp, cfg in world.robot.cameras.values()}  # type: ignore[attr-defined]
+    cams = _cameras(world)
     clock = Clock()
     for _ in range(steps):
         for _ in range(world.substeps):  # type: ignore[attr-defined]
             scene.step()
-        scene.update_render()
-        for c in cams:
-            c.take_picture()
-            cfg = names[id(c)]
-            if cfg.rgb:
-                c.get_picture(COLOR_PICTURE)
-            if cfg.depth:
-                c.get_picture(POSITION_PICTURE)
+        _read_pictures(world, cams)
     wall, proc = clock.lap()
     return (proc if cpu else wall) / steps
 
 
 def replay_step_render(world: object, actions: list[np.ndarray], cpu: bool = False) -> float:
     """Seconds per control step of `World.step(action)` for the recorded actions + render + readback."""
-    cams = [comp for comp, _ in world.robot.cameras.values()]  # type: ignore[attr-defined]
-    names = {id(comp): cfg for comp, cfg in world.robot.cameras.values()}  # type: ignore[attr-defined]
+    cams = _cameras(world)
     clock = Clock()
     for a in actions:
         world.step(a)  # type: ignore[attr-defined]
-        world.scene.update_render()  # type: ignore[attr-defined]
-        for c in cams:
-            c.take_picture()
-            cfg = names[id(c)]
-            if cfg.rgb:
-                c.get_picture(COLOR_PICTURE)
-            if cfg.depth:
-                c.get_picture(POSITION_PICTURE)
+        _read_pictures(world, cams)
     wall, proc = clock.lap()
     return (proc if cpu else wall) / max(len(actions), 1)
 
