@@ -37,7 +37,7 @@ def _make(recipe: object) -> object:
 
 def one_process(recipe: object, steps: int, episodes: int) -> tuple[np.ndarray, np.ndarray]:
     """(seconds per EchoDataEnv.step in this process, floor seconds per step), each as (wall, CPU)."""
-    from bench_pipeline import bare_step_render
+    from bench_pipeline import floor_times
 
     env = _make(recipe)
     rng = np.random.default_rng(0)
@@ -45,7 +45,7 @@ def one_process(recipe: object, steps: int, episodes: int) -> tuple[np.ndarray, 
     spent, done, floor = np.zeros(2), 0, []
     for ep in range(episodes):
         env.reset(options={"index": ep})  # type: ignore[attr-defined]
-        floor.append((bare_step_render(env.world, 30), bare_step_render(env.world, 30, cpu=True)))  # type: ignore[attr-defined]
+        floor.append(floor_times(env.world, 100))  # type: ignore[attr-defined]
         env.reset(options={"index": ep})  # type: ignore[attr-defined]
         for _ in range(steps):
             a = rng.uniform(low, high).astype(np.float32)

@@ -34,6 +34,7 @@ from echo_data.recipe import load_recipe  # noqa: E402
 from echo_data.robot.robot import COLOR_PICTURE, POSITION_PICTURE  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+FLOOR_STEPS = 200  # per episode: enough that the floor does not move with a moment's load
 
 
 class Clock:
@@ -64,6 +65,11 @@ def _read_pictures(world: object, cams: list[tuple[object, object]]) -> None:
 def bare_step_render(world: object, steps: int, cpu: bool = False) -> float:
     """Seconds per control step of physics + render + picture readback only (process CPU
     seconds with `cpu`, else wall-clock)."""
+    return floor_times(world, steps)[1 if cpu else 0]
+
+
+def floor_times(world: object, steps: int) -> tuple[float, float]:
+    """(wall-clock, process-CPU) seconds per control step of physics + render + readback, one run."""
     scene = world.scene  # type: ignore[attr-defined]
     cams = _cameras(world)
     clock = Clock()
@@ -72,7 +78,7 @@ def bare_step_render(world: object, steps: int, cpu: bool = False) -> float:
             scene.step()
         _read_pictures(world, cams)
     wall, proc = clock.lap()
-    return (proc if cpu else wall) / steps
+    return wall / steps, proc / steps
 
 
 def replay_step_render(world: object, actions: list[np.ndarray], cpu: bool = False) -> float:
@@ -130,7 +136,7 @@ def main() -> None:
         w.observe()  # first-render cost is not part of either measurement
         if i == 0:
             t_first = clock.lap()[0]
-        base.append((bare_step_render(w, 50), bare_step_render(w, 50, cpu=True)))
+        base.append(floor_times(w, FLOOR_STEPS))
         ncam = len(w.robot.cameras)
         w.close()
         clock = Clock()
