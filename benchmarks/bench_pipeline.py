@@ -11,7 +11,9 @@ For information, a second floor: the same bare step+render driven by the rollout
 (`World.step` with the recorded actions, cameras read back, nothing else), i.e. what physics of
 a moving robot in contact with its world adds to the standing robot of the floor.
 and the written cost grouped by apartment size (rooms) and by number of sounding sources.
-Each figure is given twice: wall-clock time, and this process's CPU time (`time.process_time`,
+The floor is timed before and after each episode's stages (the median of those is used) and
+the second floor over the whole episode, so a load that changes during the run moves the
+floors with the stages. Each figure is given twice: wall-clock time, and this process's CPU time (`time.process_time`,
 every thread of the process). On a machine shared with other jobs the wall-clock figures move
 with the load; the CPU ratios say what a worker costs. Once-per-process costs (the renderer's
 first picture, the HRTF table and its kernel bank) are paid before the clock starts and printed
@@ -151,6 +153,9 @@ def main() -> None:
         t1 = np.array(clock.lap())
         encode_episode(res, layout)
         t2 = np.array(clock.lap())
+        with World(spec, recipe, render=True) as w:  # the floor again after the stages: a changing load moves both
+            w.observe()
+            base.append(floor_times(w, FLOOR_STEPS))
         full += t1
         enc += t2 - t1
         full_steps += len(res.steps)
