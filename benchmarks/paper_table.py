@@ -35,17 +35,22 @@ from typing import Any
 from ablation import ROOT, _commit, cli
 
 SETTINGS = ("object_relocation", "state_transition", "multi_event")
-# Skill learners: run name -> (skill, inputs, options). Manipulation sees head and wrist depth
-# (the paper's Table 3c: both cameras decisive) and proprioception; every learner gets the target
-# kind its chain entry names. Manipulation: feed-forward with random-shift augmentation, 12 epochs
-# (on the first 32 train episodes its Pick validation loss, 0.0058 at epoch 12, beat the GRU's,
-# 0.0139 at epoch 9, in the same ~10 min; docs/learners.md). Navigate: a GRU over the skill's
-# steps (the sound is a cue to integrate over time), reset at each skill's start.
-MANIPULATION = ("--shift", "4", "--epochs", "12")
-LEARNERS: dict[str, tuple[str, str, tuple[str, ...]]] = {
-    "Navigate": ("Navigate", "audio,depth,rgb,state,kind", ("--gru", "--epochs", "30")),
-    "Navigate-target": ("Navigate", "audio,depth,rgb,state,kind,target", ("--gru", "--epochs", "30")),
-    **{s: (s, "depth,wrist_depth,state,kind", MANIPULATION) for s in ("Pick", "Place", "OpenDoor", "CloseSink")},
+# Training data: dataset (its folder under --data-root) -> recipe. Pick and Place learn from their
+# own object-relocation build (recipes/paper_table_pick_place.yaml: 100 episodes under DART noise,
+# five times the Pick segments of paper_table.yaml); the others from recipes/paper_table.yaml.
+DATASETS = {"paper_table": "paper_table.yaml", "paper_table_pick_place": "paper_table_pick_place.yaml"}
+# Skill learners: run name -> (dataset, skill, inputs, options). Manipulation sees head and wrist
+# depth (the paper's Table 3c: both cameras decisive) and proprioception, and predicts its torso
+# and arm targets as changes from the measured joints (`--action-form delta`: absolute targets
+# stalled short of the object, docs/learners.md); every learner gets the target kind its chain
+# entry names. Navigate: a GRU over the skill's steps (the sound is a cue to integrate over
+# time), reset at each skill's start.
+MANIPULATION = ("--action-form", "delta", "--shift", "4", "--epochs", "15")
+LEARNERS: dict[str, tuple[str, str, str, tuple[str, ...]]] = {
+    "Navigate": ("paper_table", "Navigate", "audio,depth,rgb,state,kind", ("--gru", "--epochs", "30")),
+    "Navigate-target": ("paper_table", "Navigate", "audio,depth,rgb,state,kind,target", ("--gru", "--epochs", "30")),
+    **{s: ("paper_table_pick_place", s, "depth,wrist_depth,state,kind", MANIPULATION) for s in ("Pick", "Place")},
+    **{s: ("paper_table", s, "depth,wrist_depth,state,kind", MANIPULATION) for s in ("OpenDoor", "CloseSink")},
 }
 SKILLS = ("Navigate", "Pick", "Place", "OpenDoor", "CloseSink")
 # Where each skill alone is scored: the single-event settings in which it occurs.
@@ -84,10 +89,11 @@ def skill_success(episodes: list[dict[str, Any]], skill: str) -> dict[str, Any]:
 
 
 def train(data: Path, runs: Path, name: str, tiny: bool) -> dict[str, Any] | None:
-    """Train learner `name` unless its run folder holds a finished run; None when its skill has no rows."""
+    """Train learner `name` on dataset `data` unless its run folder holds a finished run; None when
+    its skill has no rows."""
     from echo_data.learn.data import skills_in
 
-    skill, inputs, opts = LEARNERS[name]
+    _, skill, inputs, opts = LEARNERS[name]
     if skill not in skills_in(data, "train"):
         return None
     folder = runs / name
@@ -104,6 +110,17 @@ def train(data: Path, runs: Path, name: str, tiny: bool) -> dict[str, Any] | Non
     summary["run"] = rel(folder)
     done.write_text(json.dumps(summary, indent=1) + "\n")
     return summary
+
+
+def build(recipe: Path, out: Path, workers: int, doc: dict[str, Any]) -> Path:
+    """Build (or resume) the train split of `recipe` into `out` unless complete; records the command."""
+    manifest = out / "manifest.json"
+    if not (manifest.is_file() and json.loads(manifest.read_text()).get("complete")):
+        args = ["build", str(recipe), "--split", "train", "--workers", str(workers), "--out", str(out), "--no-progress"]
+        _, seconds = cli(*args, *(["--resume"] if manifest.is_file() else []))
+        doc.setdefault("datasets", {})[out.name] = {
+            "command": "echo-data " + " ".join(rel(Path(x)) if Path(x).exists() else x for x in args), "wall_seconds": round(seconds, 1)}
+    return out
 
 
 def evaluate(recipe: Path, row: dict[str, Any], runs: Path, n: int, workers: int, out: Path) -> dict[str, Any]:
@@ -152,8 +169,8 @@ def markdown(doc: dict[str, Any]) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--recipe", type=Path, default=ROOT / "recipes" / "paper_table.yaml", help="training recipe (built with --split train)")
-    ap.add_argument("--data", type=Path, default=ROOT / "out" / "paper_table", help="dataset folder (built or resumed here)")
+    ap.add_argument("--data-root", type=Path, default=ROOT / "out", help="the training datasets are built (or resumed) in DATA_ROOT/<recipe name>")
+    ap.add_argument("--data", type=Path, default=None, help="with --tiny: the one dataset every learner trains on")
     ap.add_argument("--runs", type=Path, default=ROOT / "runs" / "paper_table", help="run folders of the learners and evaluation JSONs")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "paper_table.json")
     ap.add_argument("-n", "--episodes", type=int, default=50, help="test episodes per setting and row")
@@ -162,22 +179,21 @@ def main() -> None:
     ap.add_argument("--rows", nargs="*", default=None, help="only these rows (names as in the JSON)")
     ap.add_argument("--tiny", action="store_true", help="the test's version: quickstart recipe, 2 training steps, 1 episode")
     a = ap.parse_args()
-    recipe, n = a.recipe, a.episodes
-    if a.tiny:
-        recipe, n = ROOT / "recipes" / "quickstart.yaml", 1
+    n = 1 if a.tiny else a.episodes
+    if a.tiny and a.data is None:
+        ap.error("--tiny needs --data (a quickstart dataset)")
     doc: dict[str, Any] = json.loads(a.out.read_text()) if a.out.is_file() else {}
     doc.setdefault("rows", {})
-    doc.update(recipe=rel(recipe), episodes_per_setting=n, commit=_commit())
+    doc.pop("recipe", None)  # one recipe per dataset now: see "datasets"
+    doc.update(episodes_per_setting=n, commit=_commit())
     a.runs.mkdir(parents=True, exist_ok=True)
 
-    manifest = a.data / "manifest.json"
-    if not (manifest.is_file() and json.loads(manifest.read_text()).get("complete")):
-        args = ["build", str(recipe), "--split", "train", "--workers", str(a.workers), "--out", str(a.data), "--no-progress"]
-        _, seconds = cli(*args, *(["--resume"] if manifest.is_file() else []))
-        doc["build"] = {"command": "echo-data " + " ".join(rel(Path(x)) if Path(x).exists() else x for x in args), "wall_seconds": round(seconds, 1)}
     chosen = {name: row for name, row in rows(a.planner_run).items() if a.rows is None or name in a.rows}
     needed = [n for n in LEARNERS if any(n in row["policy"].values() for row in chosen.values())]  # only what the rows drive
-    doc.setdefault("training", {}).update({name: s for name in needed if (s := train(a.data, a.runs, name, a.tiny)) is not None})
+    data: dict[str, Path] = {}
+    for key in dict.fromkeys(LEARNERS[name][0] for name in needed):
+        data[key] = a.data if a.tiny else build(ROOT / "recipes" / DATASETS[key], a.data_root / key, a.workers, doc)
+    doc.setdefault("training", {}).update({name: s for name in needed if (s := train(data[LEARNERS[name][0]], a.runs, name, a.tiny)) is not None})
     a.out.parent.mkdir(parents=True, exist_ok=True)
     for name, row in chosen.items():
         if any(r not in doc["training"] for r in row["policy"].values()):
@@ -185,7 +201,7 @@ def main() -> None:
         for setting in row["settings"] if not a.tiny else ("quickstart",):
             if setting in doc["rows"].get(name, {}):
                 continue  # measured already: evaluations are the long part
-            rec = recipe if a.tiny else ROOT / "recipes" / f"paper_table_{setting}.yaml"
+            rec = ROOT / "recipes" / ("quickstart.yaml" if a.tiny else f"paper_table_{setting}.yaml")
             res = evaluate(rec, row, a.runs, n, a.workers, a.runs / f"eval-{name.replace(' ', '_').replace('*', 'star')}-{setting}.json")
             doc["rows"].setdefault(name, {})[setting] = res
             a.out.write_text(json.dumps(doc, indent=1) + "\n")  # after every evaluation: a kill loses at most one
