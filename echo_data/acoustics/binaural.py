@@ -114,67 +114,97 @@ def binaural_length(response: AcousticResponse, hrtf: Hrtf) -> int:
     return int(response.length) + max(_bank(hrtf).taps, hrtf.diffuse_taps) - 1
 
 
+class Binauraliser:
+    """The yaw-independent part of rendering one response, computed once: each arrival's kernel
+    start, delay phase and band weights, the tail's spectrum and the openings' noise spectra.
+    A receiver's RIRs are asked for one head-yaw bin at a time (`RirCache`), so the cache keeps
+    one per response and `irs(yaws)` does only the work that depends on the head."""
+
+    def __init__(self, response: AcousticResponse, hrtf: Hrtf) -> None:
+        if response.fs != hrtf.fs:
+            raise ValueError(f"response at {response.fs} Hz but HRTF at {hrtf.fs} Hz")
+        self.field_seed, self.hrtf = response.field_seed, hrtf
+        self.length = binaural_length(response, hrtf)
+        arrivals = response.arrivals
+        self.n_arrivals = len(arrivals)
+        if arrivals:
+            delay = np.array([a.delay_s for a in arrivals]) * hrtf.fs - _bank(hrtf).centre
+            q = np.floor(delay * SUBSAMPLE + 0.5).astype(np.int64)
+            self.start, self.phase = np.divmod(q, SUBSAMPLE)
+            weights = np.array([a.gain for a in arrivals])[:, None] * np.array(
+                [a.band_gains for a in arrivals], dtype=np.float64
+            ).reshape(len(arrivals), len(BAND_CENTERS))
+            self.w32 = weights.astype(np.float32)
+            world = np.array([a.direction for a in arrivals], dtype=np.float64)
+            self.world = world / np.linalg.norm(world, axis=1, keepdims=True)
+        tail = np.asarray(response.tail, dtype=np.float64)
+        self.tail_spec: np.ndarray | None = None
+        if tail.size and np.any(tail):
+            self.tail_n = min(len(tail) + hrtf.diffuse_taps - 1, self.length)
+            self.tail_fft = sfft.next_fast_len(len(tail) + hrtf.diffuse_taps - 1, real=True)
+            self.tail_spec = sfft.rfft(tail, self.tail_fft)
+        self.apertures = [_Aperture(ap, hrtf) for ap in response.apertures]
+
+    def irs(self, head_yaws: Sequence[float]) -> np.ndarray:
+        """(len(head_yaws), length, 2) float32 binaural IRs for these head yaws."""
+        hrtf, length = self.hrtf, self.length
+        yaws = np.asarray(list(head_yaws), dtype=np.float64)
+        n_y = len(yaws)
+        out = np.zeros((n_y, length, 2), dtype=np.float32)
+        if self.n_arrivals:
+            bank = _bank(hrtf)
+            T, n_arr, start = bank.taps, self.n_arrivals, self.start
+            dirs = hrtf.nearest(np.stack([head_relative(self.world, y) for y in yaws]))  # (n_y, n_arr)
+            rows = (dirs * SUBSAMPLE + self.phase[None, :]).ravel()  # row gather on a 2-D view is fast
+            sel = np.take(bank.rows, rows, axis=0).reshape(n_y, n_arr, len(BAND_CENTERS), T * 2)
+            # band-weighted sum as plain element-wise float32 ops (bit-identical on any CPU, unlike BLAS)
+            w32 = self.w32
+            contrib = sel[:, :, 0] * w32[None, :, 0, None]
+            for b in range(1, len(BAND_CENTERS)):
+                contrib += sel[:, :, b] * w32[None, :, b, None]
+            contrib = contrib.reshape(n_y, n_arr, T, 2)
+            for i in range(n_arr):
+                lo, hi = max(int(start[i]), 0), min(int(start[i]) + T, length)
+                if lo < hi:
+                    out[:, lo:hi] += contrib[:, i, lo - start[i] : hi - start[i]]
+        if self.tail_spec is not None:
+            dec = hrtf.diffuse_field(self.field_seed, yaws).astype(np.float64)  # (n_y, taps, 2)
+            spec = self.tail_spec[None, :, None] * sfft.rfft(dec, self.tail_fft, axis=1)
+            out[:, : self.tail_n] += sfft.irfft(spec, self.tail_fft, axis=1)[:, : self.tail_n].astype(np.float32)
+        for ap in self.apertures:
+            out += ap.render(yaws, length)
+        return out
+
+
 def binaural_irs(response: AcousticResponse, head_yaws: Sequence[float], hrtf: Hrtf) -> np.ndarray:
     """(len(head_yaws), length, 2) float32 binaural IRs of one response for several head yaws.
 
-    The yaw-independent work (delays, band weights, the diffuse tail) is shared.
+    The yaw-independent work (delays, band weights, the diffuse tail) is shared (`Binauraliser`).
     """
-    if response.fs != hrtf.fs:
-        raise ValueError(f"response at {response.fs} Hz but HRTF at {hrtf.fs} Hz")
-    yaws = np.asarray(list(head_yaws), dtype=np.float64)
-    n_y = len(yaws)
-    length = binaural_length(response, hrtf)
-    out = np.zeros((n_y, length, 2), dtype=np.float32)
-    arrivals = response.arrivals
-    if arrivals:
-        bank = _bank(hrtf)
-        T = bank.taps
-        delay = np.array([a.delay_s for a in arrivals]) * hrtf.fs - bank.centre
-        q = np.floor(delay * SUBSAMPLE + 0.5).astype(np.int64)
-        start, phase = np.divmod(q, SUBSAMPLE)
-        weights = np.array([a.gain for a in arrivals])[:, None] * np.array(
-            [a.band_gains for a in arrivals], dtype=np.float64
-        ).reshape(len(arrivals), len(BAND_CENTERS))
-        world = np.array([a.direction for a in arrivals], dtype=np.float64)
-        world /= np.linalg.norm(world, axis=1, keepdims=True)
-        dirs = hrtf.nearest(np.stack([head_relative(world, y) for y in yaws]))  # (n_y, n_arr)
-        rows = (dirs * SUBSAMPLE + phase[None, :]).ravel()  # row gather on a 2-D view is fast
-        sel = np.take(bank.rows, rows, axis=0).reshape(n_y, len(arrivals), len(BAND_CENTERS), T * 2)
-        # band-weighted sum as plain element-wise float32 ops (bit-identical on any CPU, unlike BLAS)
-        w32 = weights.astype(np.float32)
-        contrib = sel[:, :, 0] * w32[None, :, 0, None]
-        for b in range(1, len(BAND_CENTERS)):
-            contrib += sel[:, :, b] * w32[None, :, b, None]
-        contrib = contrib.reshape(n_y, len(arrivals), T, 2)
-        for i in range(len(arrivals)):
-            lo, hi = max(int(start[i]), 0), min(int(start[i]) + T, length)
-            if lo < hi:
-                out[:, lo:hi] += contrib[:, i, lo - start[i] : hi - start[i]]
-    tail = np.asarray(response.tail, dtype=np.float64)
-    if tail.size and np.any(tail):
-        dec = hrtf.diffuse_field(response.field_seed, yaws).astype(np.float64)  # (n_y, taps, 2)
-        n = min(len(tail) + dec.shape[1] - 1, length)
-        n_fft = sfft.next_fast_len(len(tail) + dec.shape[1] - 1, real=True)
-        spec = sfft.rfft(tail, n_fft)[None, :, None] * sfft.rfft(dec, n_fft, axis=1)
-        out[:, :n] += sfft.irfft(spec, n_fft, axis=1)[:, :n].astype(np.float32)
-    for ap in response.apertures:
-        out += _aperture(ap, yaws, hrtf, length)
-    return out
+    return Binauraliser(response, hrtf).irs(head_yaws)
 
 
-def _aperture(ap: ApertureTail, yaws: np.ndarray, hrtf: Hrtf, length: int) -> np.ndarray:
-    """(n_y, length, 2) late energy through an opening: each of its points' noise through the
-    HRIR of that point's direction relative to the head."""
-    sig = np.asarray(ap.signals, dtype=np.float64)
-    n_fft = sfft.next_fast_len(sig.shape[1] + hrtf.taps - 1, real=True)
-    S = sfft.rfft(sig, n_fft, axis=1)  # (k, F)
-    out = np.zeros((len(yaws), length, 2), dtype=np.float32)
-    n = min(sig.shape[1] + hrtf.taps - 1, length)
-    for i, yaw in enumerate(yaws):
-        idx = hrtf.nearest(head_relative(ap.directions, float(yaw)))
-        H = sfft.rfft(hrtf.table[idx].astype(np.float64), n_fft, axis=1)  # (k, F, 2)
-        out[i, :n] = sfft.irfft(np.einsum("kf,kfc->fc", S, H), n_fft, axis=0)[:n]
-    return out
+class _Aperture:
+    """Late energy through an opening: each of its points' noise through the HRIR of that
+    point's direction relative to the head (noise spectra computed once, HRIR spectra looked
+    up per direction, `Hrtf.spectra_at`)."""
+
+    def __init__(self, ap: ApertureTail, hrtf: Hrtf) -> None:
+        sig = np.asarray(ap.signals, dtype=np.float64)
+        self.directions, self.hrtf = ap.directions, hrtf
+        self.n = sig.shape[1] + hrtf.taps - 1
+        self.n_fft = sfft.next_fast_len(self.n, real=True)
+        self.S = sfft.rfft(sig, self.n_fft, axis=1)  # (k, F)
+
+    def render(self, yaws: np.ndarray, length: int) -> np.ndarray:
+        """(n_y, length, 2) for these head yaws."""
+        out = np.zeros((len(yaws), length, 2), dtype=np.float32)
+        n = min(self.n, length)
+        for i, yaw in enumerate(yaws):
+            idx = self.hrtf.nearest(head_relative(self.directions, float(yaw)))
+            H = self.hrtf.spectra_at(idx, self.n_fft)  # (k, F, 2)
+            out[i, :n] = sfft.irfft(np.einsum("kf,kfc->fc", self.S, H), self.n_fft, axis=0)[:n]
+        return out
 
 
 def binaural_ir(response: AcousticResponse, head_yaw: float, hrtf: Hrtf) -> np.ndarray:

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
+import scipy.fft as sfft
 from scipy.signal import resample_poly
 from scipy.spatial import cKDTree
 
@@ -58,6 +59,7 @@ class Hrtf:
         self.delay_s = float(delay_s)  # head-centre latency inside every HRIR: the frontal response's onset
         self._spec: tuple[np.ndarray, int] | None = None
         self._draws: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._padded: dict[tuple[int, int], np.ndarray] = {}  # (n_fft, direction) -> HRIR spectrum
         self._tree = cKDTree(self.directions)  # Euclidean nearest on the unit sphere = largest dot product
         self.table.setflags(write=False)
         self.directions.setflags(write=False)
@@ -76,6 +78,18 @@ class Hrtf:
         v = np.asarray(vectors, dtype=np.float64)
         v = v / np.linalg.norm(v, axis=-1, keepdims=True)
         return self._tree.query(v)[1]
+
+    def spectra_at(self, idx: np.ndarray, n_fft: int) -> np.ndarray:
+        """(len(idx), n_fft // 2 + 1, 2) complex128: `scipy.fft.rfft` of the HRIRs of directions
+        `idx`, zero-padded to `n_fft`; each direction's is computed once and kept (the openings
+        of a scene are heard from a few directions at many head yaws)."""
+        keys = [(int(n_fft), int(i)) for i in np.asarray(idx).ravel()]
+        todo = sorted({k[1] for k in keys if k not in self._padded})
+        if todo:
+            spec = sfft.rfft(self.table[todo].astype(np.float64), n_fft, axis=1)
+            for i, row in zip(todo, spec):
+                self._padded[(int(n_fft), i)] = row
+        return np.stack([self._padded[k] for k in keys])
 
     def hrir(self, azimuth_rad: float, elevation_rad: float = 0.0) -> np.ndarray:
         """(taps, 2) float32 HRIR for a head-relative direction (nearest tabulated one)."""

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import scipy.fft as sfft
 
-from echo_data.acoustics.binaural import binaural_irs, binaural_length
+from echo_data.acoustics.binaural import Binauraliser, binaural_length
 from echo_data.acoustics.hrtf import Hrtf
 from echo_data.acoustics.levels import to_full_scale
 from echo_data.acoustics.noise import NoiseFloor
@@ -67,6 +67,7 @@ class RirCache:
         self.plan = getattr(scene, "plan", None)
         self._margin = 0.1 + (max((w.thickness for w in self.plan.walls), default=0.0) / 2 if self.plan else 0.0)
         self._responses: dict[tuple[int, int, int, int, int], AcousticResponse] = {}
+        self._binaural: dict[tuple[int, int, int, int, int], Binauraliser] = {}  # per response: its yaw-independent part
         self._rirs: dict[CacheKey, np.ndarray] = {}
         self._spectra: dict[tuple[CacheKey, int], np.ndarray] = {}
         self.length: int | None = None  # binaural RIR length, fixed by the first response
@@ -135,12 +136,19 @@ class RirCache:
             self.responses_computed += 1
         return resp
 
+    def binauraliser(self, key: CacheKey) -> Binauraliser:
+        """The yaw-independent part of the binaural RIRs of `key`'s response (kept per response)."""
+        b = self._binaural.get(key[:5])
+        if b is None:
+            b = self._binaural[key[:5]] = Binauraliser(self.response(key), self.hrtf)
+        return b
+
     def rir(self, key: CacheKey) -> np.ndarray:
         """(length, 2) float32 binaural RIR for `key` (read-only)."""
         ir = self._rirs.get(key)
         if ir is None:
             _, yaw = self.receiver(key)
-            self._store(key, binaural_irs(self.response(key), [yaw], self.hrtf)[0])
+            self._store(key, self.binauraliser(key).irs([yaw])[0])
             ir = self._rirs[key]
         return ir
 
@@ -191,7 +199,7 @@ class RirCache:
             ks = [(*k5, b) for b in range(int(self.cfg.yaws))]
             if all(k in self._rirs for k in ks):
                 continue
-            irs = binaural_irs(self.response((*k5, 0)), yaws, self.hrtf)
+            irs = self.binauraliser((*k5, 0)).irs(yaws)
             for key, ir in zip(ks, irs):
                 if key not in self._rirs:
                     self._store(key, np.ascontiguousarray(ir))
@@ -445,8 +453,15 @@ def _block(
         if X is None:
             continue
         for key, w in kw:
-            term = (w * X)[:, None] * cache.spectrum(key, n_fft)
-            acc = term if acc is None else acc + term
+            spec = cache.spectrum(key, n_fft)
+            wx = w * X
+            term = np.empty_like(spec)  # (w X) H per ear: long contiguous loops, not (F, 1) x (F, 2) broadcasting
+            np.multiply(wx, spec[:, 0], out=term[:, 0])
+            np.multiply(wx, spec[:, 1], out=term[:, 1])
+            if acc is None:
+                acc = term
+            else:
+                acc += term
     if acc is None:
         return np.zeros((S, 2))
     return sfft.irfft(acc, n_fft, axis=0)[L - 1 : L - 1 + S]

@@ -97,6 +97,7 @@ class Robot:
         names = [j.name for j in self.articulation.active_joints]
         self.joint_index = {n: i for i, n in enumerate(names)}
         self.base_indices = [self.joint_index[n] for n in U.BASE_JOINTS]
+        self._base_joints = [self.articulation.active_joints[i] for i in self.base_indices]  # re-aimed every substep
         self.torso_index = self.joint_index[U.TORSO_JOINT]
         self.head_indices = [self.joint_index[n] for n in U.HEAD_JOINTS]
         self.arm_indices = [self.joint_index[n] for n in U.ARM_JOINTS]
@@ -167,16 +168,21 @@ class Robot:
         self.scene.update_render()
         for name, (comp, cam) in self.cameras.items():
             comp.take_picture()
+            # Conversions in place on whole contiguous pictures (the same values as the plain
+            # expressions, several times faster on 128 x 128 frames).
             if cam.rgb:
-                rgba = comp.get_picture(COLOR_PICTURE)
-                out[f"{name}_rgb"] = np.clip(rgba[..., :3] * 255.0 + 0.5, 0, 255).astype(np.uint8)
+                t = comp.get_picture(COLOR_PICTURE) * 255.0  # RGBA; alpha is dropped after the cast
+                t += 0.5
+                np.clip(t, 0, 255, out=t)
+                out[f"{name}_rgb"] = np.ascontiguousarray(t.astype(np.uint8)[..., :3])
             if cam.depth:
                 pos = comp.get_picture(POSITION_PICTURE)
-                z = -np.asarray(pos[..., 2], dtype=np.float64)
-                if pos.dtype.kind == "f":
-                    z = z * 1000.0
-                z = np.where(z > 0, z, 0.0)
-                out[f"{name}_depth"] = np.clip(np.rint(z), 0, 65535).astype(np.uint16)
+                z = np.array(pos[..., 2], dtype=np.float64)
+                np.multiply(z, -1000.0 if pos.dtype.kind == "f" else -1.0, out=z)  # metres (or mm) along -z -> mm
+                np.fmax(z, 0.0, out=z)  # nothing hit (0), behind or NaN -> 0
+                np.rint(z, out=z)
+                np.minimum(z, 65535.0, out=z)
+                out[f"{name}_depth"] = z.astype(np.uint16)
         return out
 
     # ------------------------------------------------------------------ base
@@ -198,10 +204,10 @@ class Robot:
 
     def _drive_base(self) -> None:
         """Turn the robot-frame velocity command into world-frame joint velocity targets (per substep)."""
-        vx, vy, wz = (float(v) for v in self._action[:3])
+        vx, vy, wz = self._action[:3].tolist()
         yaw = float(self.articulation.get_qpos()[self.base_indices[2]])
         c, s = math.cos(yaw), math.sin(yaw)
-        jx, jy, jyaw = (self.articulation.active_joints[i] for i in self.base_indices)
+        jx, jy, jyaw = self._base_joints
         jx.set_drive_velocity_target(c * vx - s * vy)
         jy.set_drive_velocity_target(s * vx + c * vy)
         jyaw.set_drive_velocity_target(wz)

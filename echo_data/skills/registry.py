@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from echo_data.skills import success as S
@@ -35,6 +35,7 @@ class Situation:
 
     spec: EpisodeSpec
     nav_grid: Callable[[], Any]
+    poses: dict[Any, Any] = field(default_factory=dict)  # navigate_success's interaction points, per episode
 
 
 SuccessTest = Callable[["World", "SkillCall", Situation], bool]
@@ -67,7 +68,7 @@ def carried_object(spec: EpisodeSpec, call: SkillCall) -> str | None:
 
 
 def _navigated(world: World, call: SkillCall, at: Situation) -> bool:
-    return S.navigate_success(world, call.target, grid=at.nav_grid())
+    return S.navigate_success(world, call.target, grid=at.nav_grid(), poses=at.poses)
 
 
 def _picked(world: World, call: SkillCall, at: Situation) -> bool:

@@ -77,12 +77,14 @@ NAV_SUCCESS_DIST = 1.5  # m from the target's interaction point (Habitat's crite
 NAV_SUCCESS_YAW = math.radians(15)  # base heading vs the bearing to the target
 
 
-def navigate_success(world: World, target: str, grid: Any = None) -> bool:
+def navigate_success(world: World, target: str, grid: Any = None, poses: dict[Any, Any] | None = None) -> bool:
     """Base within NAV_SUCCESS_DIST of the target's interaction point and facing the target.
 
     Facing: the base heading points at the target (object centre, swing-side door handle,
     faucet lever, furniture centre) within NAV_SUCCESS_YAW. Doors count where they stand now.
-    `grid`: a NavGrid of the doors' current angles to reuse (the test is then cheap per step).
+    `grid`: a NavGrid of the doors' current angles to reuse (the test is then cheap per step);
+    `poses`: a dict the caller keeps per episode, in which the interaction and target points are
+    kept per (target, door angles, grid) (both are functions of the plan and those alone).
     """
     from echo_data.scene.nav import NavGrid, interaction_pose, target_point
 
@@ -91,11 +93,21 @@ def navigate_success(world: World, target: str, grid: Any = None) -> bool:
     if grid is None:
         grid = NavGrid.from_plan(plan, robot_radius=world.nav.robot_radius, door_angles=angles)
     x, y, yaw = world.robot.base_pose()
-    try:
-        px, py, _ = interaction_pose(plan, target, door_angles=angles or None, grid=grid)
-    except ValueError:
+    key = (target, tuple(sorted(angles.items())), id(grid))
+    hit: tuple[float | None, float | None, float, float] | None = poses.get(key) if poses is not None else None
+    if hit is None:
+        try:
+            stand = interaction_pose(plan, target, door_angles=angles or None, grid=grid)
+            hit = (stand[0], stand[1], *target_point(plan, target, angles or None))
+        except ValueError:  # no free interaction pose: never a success
+            hit = (None, None, 0.0, 0.0)
+        if poses is not None:
+            if len(poses) > 4096:  # a swinging door gives new angles every step
+                poses.clear()
+            poses[key] = hit
+    if hit[0] is None or hit[1] is None:
         return False
-    tx, ty = target_point(plan, target, angles or None)
+    px, py, tx, ty = hit[0], hit[1], hit[2], hit[3]
     heading_error = abs(math.remainder(math.atan2(ty - y, tx - x) - yaw, 2.0 * math.pi))
     return math.hypot(px - x, py - y) <= NAV_SUCCESS_DIST and heading_error <= NAV_SUCCESS_YAW
 
