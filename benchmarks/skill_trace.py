@@ -4,7 +4,8 @@ Runs episodes of a recipe's *train* or *val* split (never the test split: this i
 tool) with the oracle planner, the scripted experts for every other skill and the learned run for
 `--skill`, and prints for each step of that skill what its success test depends on: the hand's
 distance to the target object (3-D and horizontal), the gripper opening, whether the object is
-held, its height above its receptacle and the hand's distance to the carry pose. With `--video`
+held, its height above its receptacle and the hand's distance to the carry pose; for a target
+that is furniture (Place), a door or a sink, the base's distance to the expert's interaction pose. With `--video`
 it also writes the episode's MP4 (the evaluate frame).
 
   python benchmarks/skill_trace.py recipes/paper_table_object_relocation.yaml --run runs/Pick \
@@ -41,7 +42,14 @@ def trace_row(env: Any, call: Any) -> dict[str, float]:
         row["tcp_above_obj_m"] = float(tcp[2] - p[2])
         top = world.plan.furniture[receptacle_of(world, name)].top_z
         row["obj_lift_m"] = float(object_bottom(world, name) - top)
-    row["held"] = float(robot.holding == name)
+    else:  # a receptacle, door or sink: how far the base stands from where the expert would stand
+        from echo_data.scene.nav import interaction_pose
+
+        px, py, _ = interaction_pose(world.plan, name, door_angles=world.door_angles())
+        bx, by, _ = robot.base_pose()
+        row["base_to_goal_m"] = float(np.hypot(px - bx, py - by))
+    held = robot.holding
+    row["held"] = float(held == name) if name in world.handles.objects else float(held is not None)
     row["carry_dist_m"] = float(np.linalg.norm(tcp_in_base(world) - np.asarray(CARRY_TCP)))
     return row
 
