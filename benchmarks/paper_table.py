@@ -38,8 +38,11 @@ from ablation import ROOT, _commit, cli
 SETTINGS = ("object_relocation", "state_transition", "multi_event")
 # Training data: dataset (its folder under --data-root) -> recipe. Pick and Place learn from their
 # own object-relocation build (recipes/paper_table_pick_place.yaml: 100 episodes under DART noise,
-# five times the Pick segments of paper_table.yaml); the others from recipes/paper_table.yaml.
-DATASETS = {"paper_table": "paper_table.yaml", "paper_table_pick_place": "paper_table_pick_place.yaml"}
+# five times the Pick segments of paper_table.yaml), OpenDoor and CloseSink from a
+# state-transition build (recipes/paper_table_door_sink.yaml: 60 episodes, same noise), Navigate
+# from recipes/paper_table.yaml (all three settings: it serves every chain).
+DATASETS = {"paper_table": "paper_table.yaml", "paper_table_pick_place": "paper_table_pick_place.yaml",
+            "paper_table_door_sink": "paper_table_door_sink.yaml"}
 # Skill learners: run name -> (dataset, skill, inputs, options). Manipulation sees head and wrist
 # depth (the paper's Table 3c: both cameras decisive) and proprioception, and predicts its torso
 # and arm targets as changes from the measured joints (`--action-form delta`: absolute targets
@@ -51,7 +54,7 @@ LEARNERS: dict[str, tuple[str, str, str, tuple[str, ...]]] = {
     "Navigate": ("paper_table", "Navigate", "audio,depth,rgb,state,kind", ("--gru", "--epochs", "30")),
     "Navigate-target": ("paper_table", "Navigate", "audio,depth,rgb,state,kind,target", ("--gru", "--epochs", "30")),
     **{s: ("paper_table_pick_place", s, "depth,wrist_depth,state,kind", MANIPULATION) for s in ("Pick", "Place")},
-    **{s: ("paper_table", s, "depth,wrist_depth,state,kind", MANIPULATION) for s in ("OpenDoor", "CloseSink")},
+    **{s: ("paper_table_door_sink", s, "depth,wrist_depth,state,kind", MANIPULATION) for s in ("OpenDoor", "CloseSink")},
 }
 SKILLS = ("Navigate", "Pick", "Place", "OpenDoor", "CloseSink")
 # Where each skill alone is scored: the single-event settings in which it occurs.
@@ -131,6 +134,8 @@ def evaluate(recipe: Path, row: dict[str, Any], runs: Path, n: int, workers: int
     pol = [f"{s}={runs / r}" for s, r in row["policy"].items()]
     args = ["evaluate", str(recipe), "--split", "test", "-n", str(n), *(f"--policy={p}" for p in pol), "--policy", "oracle",
             "--planner", row["planner"], "--workers", str(workers), "--json", str(out)]
+    if out.with_suffix(".episodes.jsonl").is_file():  # a killed evaluation's journal: continue it
+        args.append("--resume")
     _, seconds = cli(*args)
     return scored(json.loads(out.read_text()), "echo-data " + " ".join(rel(Path(a)) if Path(a).exists() else a for a in args), seconds)
 
