@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 from pathlib import Path
 from typing import Any
@@ -28,11 +27,12 @@ os.environ.setdefault("LP_NUM_THREADS", "1")
 
 def trace_row(env: Any, call: Any) -> dict[str, float]:
     """What the active manipulation skill's success test reads, now."""
+    from echo_data.records import STATE_NAMES
     from echo_data.skills.success import CARRY_TCP, object_bottom, receptacle_of, tcp_in_base
 
     world = env.world
     robot = world.robot
-    row: dict[str, float] = {"step": env.steps, "gripper": float(robot.state()[11]) if hasattr(robot, "state") else math.nan}
+    row: dict[str, float] = {"step": env.steps, "gripper": float(robot.state()[STATE_NAMES.index("gripper")])}
     tcp = np.asarray(robot.ee_pose().p, dtype=float)
     name = call.target
     if name in world.handles.objects:

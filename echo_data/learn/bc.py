@@ -209,7 +209,8 @@ def train_bc(cfg: BCConfig, out: Path, resume: bool = False, overwrite: bool = F
         assert rows.states is not None
         rows.actions = to_action_form(rows.actions, rows.states, cfg.action_form)
         if not resume:  # the skill's own training rows set the scale (validation rows left out)
-            fit_rows = rows.actions[~np.isin(rows.episodes, val_eps)][~rows.action_pad[~np.isin(rows.episodes, val_eps)]]
+            kept = ~np.isin(rows.episodes, val_eps)
+            fit_rows = rows.actions[kept][~rows.action_pad[kept]]
             cfg.action_mean = [float(v) for v in fit_rows.mean(axis=0)]
             cfg.action_std = [float(v) if v > 1e-3 else 1.0 for v in fit_rows.std(axis=0)]
     if extra is not None and len(extra):

@@ -31,17 +31,13 @@ class RecordingTargetError(ValueError):
 
 
 def check_rerun_target(target: Path) -> None:
-    """Refuse a target that is not a writable `.rrd` file path, before anything is read."""
-    from echo_data.outputs import OutputError, check_output_path
+    """Refuse a target that is not a writable `.rrd` file path, before anything is read (the
+    folder and writability checks are `targets.check_file`'s, raising its `TargetError`)."""
+    from echo_data.targets import check_file
 
     if target.suffix != ".rrd":
         raise RecordingTargetError(f"--rerun {target}: must end in .rrd (the file `rerun` opens)")
-    if target.is_dir():
-        raise RecordingTargetError(f"--rerun {target}: is a folder")
-    try:
-        check_output_path(target.parent)
-    except OutputError as e:
-        raise RecordingTargetError(f"--rerun {e}") from None
+    check_file(target, "--rerun")
 
 
 def _grid_step(h: int, w: int) -> int:
