@@ -41,8 +41,15 @@ SETTINGS = ("object_relocation", "state_transition", "multi_event")
 # five times the Pick segments of paper_table.yaml), OpenDoor and CloseSink from a
 # state-transition build (recipes/paper_table_door_sink.yaml: 60 episodes, same noise), Navigate
 # from recipes/paper_table.yaml (all three settings: it serves every chain).
-DATASETS = {"paper_table": "paper_table.yaml", "paper_table_pick_place": "paper_table_pick_place.yaml",
-            "paper_table_door_sink": "paper_table_door_sink.yaml"}
+# The planner learns from recipes/planner_fresh.yaml (episodes cut after 10 frames, a fresh
+# synthesised voice per training event; built whole: `train planner` scores its own test split).
+# Dataset -> (recipe, split built: None = every split).
+DATASETS: dict[str, tuple[str, str | None]] = {
+    "paper_table": ("paper_table.yaml", "train"), "paper_table_pick_place": ("paper_table_pick_place.yaml", "train"),
+    "paper_table_door_sink": ("paper_table_door_sink.yaml", "train"), "planner_fresh": ("planner_fresh.yaml", None)}
+# The planner run: audio only, the checkpoint of the best balanced validation accuracy of 20
+# epochs (chosen on validation among the planner_fresh runs: benchmarks/results/planner_fresh.json).
+PLANNER = ("planner_fresh", ("--inputs", "audio", "--select", "accuracy", "--epochs", "20"))
 # Skill learners: run name -> (dataset, skill, inputs, options). Manipulation sees head and wrist
 # depth (the paper's Table 3c: both cameras decisive) and proprioception, and predicts its torso
 # and arm targets as changes from the measured joints (`--action-form delta`: absolute targets
@@ -63,7 +70,9 @@ ALONE_SETTINGS = {"Navigate": ("object_relocation", "state_transition"), "Pick":
 
 
 def rows(planner_run: str | None) -> dict[str, dict[str, Any]]:
-    """Row name -> {"policy": run names per skill ("oracle" = expert), "planner", "settings"}."""
+    """Row name -> {"policy": run names per skill ("oracle" = expert), "planner", "settings"}.
+
+    `planner_run`: the learned planner's run folder (None: the learned-planner rows are left out)."""
     learned = {s: s for s in SKILLS}
     out: dict[str, dict[str, Any]] = {
         "oracle planner + scripted experts": {"policy": {}, "planner": "oracle", "settings": SETTINGS},
@@ -114,19 +123,38 @@ def train(data: Path, runs: Path, name: str, tiny: bool) -> dict[str, Any] | Non
     command = "echo-data " + " ".join(rel(Path(x)) if Path(x).exists() else x for x in args)
     summary = {**json.loads(stdout), "command": command, "wall_seconds": round(seconds, 1)}
     summary["run"] = rel(folder)
+    summary["commit"] = _commit()
     done.write_text(json.dumps(summary, indent=1) + "\n")
     return summary
 
 
-def build(recipe: Path, out: Path, workers: int, doc: dict[str, Any]) -> Path:
-    """Build (or resume) the train split of `recipe` into `out` unless complete; records the command."""
+def build(recipe: Path, split: str | None, out: Path, workers: int, doc: dict[str, Any]) -> Path:
+    """Build (or resume) `split` of `recipe` (None: every split) into `out` unless complete; records the command."""
     manifest = out / "manifest.json"
     if not (manifest.is_file() and json.loads(manifest.read_text()).get("complete")):
-        args = ["build", str(recipe), "--split", "train", "--workers", str(workers), "--out", str(out), "--no-progress"]
+        args = ["build", str(recipe), *(["--split", split] if split else []), "--workers", str(workers), "--out", str(out), "--no-progress"]
         _, seconds = cli(*args, *(["--resume"] if manifest.is_file() else []))
         doc.setdefault("datasets", {})[out.name] = {
-            "command": "echo-data " + " ".join(rel(Path(x)) if Path(x).exists() else x for x in args), "wall_seconds": round(seconds, 1)}
+            "command": "echo-data " + " ".join(rel(Path(x)) if Path(x).exists() else x for x in args), "wall_seconds": round(seconds, 1), "commit": _commit()}
     return out
+
+
+def train_planner(data: Path, runs: Path, tiny: bool) -> dict[str, Any]:
+    """Train the planner (`echo-data train planner`) unless its run folder holds a finished run;
+    its summary: the command and the test-split scores of its own dataset (eval.json)."""
+    folder = runs / "planner"
+    done = folder / "summary.json"
+    if done.is_file():
+        return json.loads(done.read_text())
+    args = ["train", "planner", str(data), *PLANNER[1], "--out", str(folder), "--overwrite", "--no-progress"]
+    if tiny:
+        args += ["--max-steps", "2"]
+    stdout, seconds = cli(*args)
+    report = json.loads(stdout)
+    summary = {"command": "echo-data " + " ".join(rel(Path(x)) if Path(x).exists() else x for x in args), "wall_seconds": round(seconds, 1),
+               "run": rel(folder), "commit": _commit(), **{k: report[k] for k in ("episodes", "best", "test") if k in report}}
+    done.write_text(json.dumps(summary, indent=1) + "\n")
+    return summary
 
 
 def evaluate(recipe: Path, row: dict[str, Any], runs: Path, n: int, workers: int, out: Path) -> dict[str, Any]:
@@ -142,8 +170,8 @@ def evaluate(recipe: Path, row: dict[str, Any], runs: Path, n: int, workers: int
 
 def scored(doc: dict[str, Any], command: str, seconds: float) -> dict[str, Any]:
     """A row's entry from `echo-data evaluate --json`'s document: metrics, per-skill success, the command."""
-    metrics = doc["metrics"].get("all") or next(iter(doc["metrics"].values()), {})
-    return {"command": command, "wall_seconds": round(seconds, 1),
+    metrics: dict[str, Any] = doc["metrics"].get("all") or next(iter(doc["metrics"].values()), {})
+    return {"command": command, "wall_seconds": round(seconds, 1), "commit": _commit(),
             "metrics": {k: metrics[k] for k in ("episodes", "task_planning", "skill_completion", "progressive", "navigate_success") if k in metrics},
             "skills": {s: skill_success(doc["episodes"], s) for s in SKILLS}}
 
@@ -155,24 +183,69 @@ def cell(p: dict[str, Any] | None) -> str:
     return f"{p['k']}/{p['n']} = {p['value']:.2f} [{lo:.2f}, {hi:.2f}]"
 
 
+PAPER_ORDER = ("state_transition", "object_relocation", "multi_event")  # the paper's column order
+
+
+def short(p: dict[str, Any] | None) -> str:
+    """A proportion as a table cell of the paper-shaped table: value [95 % interval] (k/n)."""
+    if not p or p.get("value") is None:
+        return "–"
+    lo, hi = p["ci95"]
+    return f"{p['value']:.2f} [{lo:.2f}, {hi:.2f}] ({p['k']}/{p['n']})"
+
+
 def markdown(doc: dict[str, Any]) -> str:
-    """The README tables: chain rows per setting (planning / completion / progressive), then skills alone."""
-    lines = ["| row | setting | planning | completion | progressive (through skill 1, 2, ...) |", "|---|---|---|---|---|"]
+    """The README tables: the paper's layout (a row per planner/skills combination, planning and
+    completion per setting), the progressive success of each row and setting, the skills alone."""
+    from echo_data.evaluation.metrics import proportion
+
+    chain = {name: per for name, per in doc["rows"].items() if not name.endswith(" alone")}
+    head = ["| row | " + " | ".join(f"{s.replace('_', ' ')}: planning | completion" for s in PAPER_ORDER) + " |",
+            "|---|" + "---|---|" * len(PAPER_ORDER)]
+    for name, per in chain.items():
+        cells = []
+        for setting in PAPER_ORDER:
+            m = per.get(setting, {}).get("metrics", {})
+            cells += [short(m.get("task_planning")), short(m.get("skill_completion"))]
+        head.append(f"| {name} | " + " | ".join(cells) + " |")
+    prog = ["| row | setting | progressive success (through skill 1, 2, ...) |", "|---|---|---|"]
+    for name, per in chain.items():
+        for setting in PAPER_ORDER:
+            if setting in per:
+                prog.append(f"| {name} | {setting.replace('_', ' ')} | " + "; ".join(cell(p) for p in per[setting]["metrics"].get("progressive", [])) + " |")
     alone = ["| skill alone | settings | success |", "|---|---|---|"]
     for name, per in doc["rows"].items():
         if name.endswith(" alone"):
             skill = name.removesuffix(" alone")
             tries = [r["skills"][skill] for r in per.values()]
             k, n = sum(t["k"] for t in tries), sum(t["n"] for t in tries)
-            from echo_data.evaluation.metrics import proportion
+            alone.append(f"| {skill} | {', '.join(s.replace('_', ' ') for s in per)} | {cell(proportion(k, n))} |")
+    return "\n".join(head) + "\n\n" + "\n".join(prog) + "\n\n" + "\n".join(alone) + "\n"
 
-            alone.append(f"| {skill} | {', '.join(per)} | {cell(proportion(k, n))} |")
-            continue
-        for setting, r in per.items():
-            m = r["metrics"]
-            prog = "; ".join(f"{cell(p)}" for p in m.get("progressive", []))
-            lines.append(f"| {name} | {setting} | {cell(m.get('task_planning'))} | {cell(m.get('skill_completion'))} | {prog} |")
-    return "\n".join(lines) + "\n\n" + "\n".join(alone) + "\n"
+
+def save(out: Path, mine: dict[str, Any]) -> dict[str, Any]:
+    """Merge this run's datasets, training and rows into the JSON on disk and write it atomically,
+    under a lock: several runs of this script (one row each, on their own cores) share one JSON,
+    and each only adds what it measured. Returns the merged document."""
+    import fcntl
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with (out.parent / (out.name + ".lock")).open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        doc: dict[str, Any] = json.loads(out.read_text()) if out.is_file() else {}
+        for key in ("datasets", "training", "rows"):
+            doc.setdefault(key, {}).update(mine.get(key, {}) if key != "rows" else {})
+        for name, per in mine.get("rows", {}).items():
+            doc.setdefault("rows", {}).setdefault(name, {}).update(per)
+        doc.pop("recipe", None)  # one recipe per dataset now: see "datasets"
+        doc.update({k: v for k, v in mine.items() if k not in ("datasets", "training", "rows")})
+        tmp = out.with_name(out.name + ".tmp")
+        tmp.write_text(json.dumps(doc, indent=1) + "\n")
+        os.replace(tmp, out)
+        md = out.with_suffix(".md")
+        md.with_name(md.name + ".tmp").write_text(markdown(doc))
+        os.replace(md.with_name(md.name + ".tmp"), md)
+    return doc
 
 
 def main() -> None:
@@ -183,40 +256,45 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "paper_table.json")
     ap.add_argument("-n", "--episodes", type=int, default=50, help="test episodes per setting and row")
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--planner-run", default=None, help="a trained planner run folder: adds the learned-planner rows")
+    ap.add_argument("--planner-run", default=None, help="a trained planner run folder for the learned-planner rows (default: the planner this script trains, RUNS/planner)")
+    ap.add_argument("--no-planner", action="store_true", help="leave out the learned-planner rows (and the planner's data and training)")
     ap.add_argument("--rows", nargs="*", default=None, help="only these rows (names as in the JSON)")
     ap.add_argument("--tiny", action="store_true", help="the test's version: quickstart recipe, 2 training steps, 1 episode")
     a = ap.parse_args()
     n = 1 if a.tiny else a.episodes
     if a.tiny and a.data is None:
         ap.error("--tiny needs --data (a quickstart dataset)")
-    doc: dict[str, Any] = json.loads(a.out.read_text()) if a.out.is_file() else {}
-    doc.setdefault("rows", {})
-    doc.pop("recipe", None)  # one recipe per dataset now: see "datasets"
-    doc.update(episodes_per_setting=n, commit=_commit())
+    mine: dict[str, Any] = {"episodes_per_setting": n, "commit": _commit(), "datasets": {}, "training": {}, "rows": {}}
+    trained = dict(json.loads(a.out.read_text()).get("training", {})) if a.out.is_file() else {}
     a.runs.mkdir(parents=True, exist_ok=True)
 
-    chosen = {name: row for name, row in rows(a.planner_run).items() if a.rows is None or name in a.rows}
+    planner_run = None if a.no_planner else a.planner_run or str(a.runs / "planner")
+    chosen = {name: row for name, row in rows(planner_run).items() if a.rows is None or name in a.rows}
     needed = [n for n in LEARNERS if any(n in row["policy"].values() for row in chosen.values())]  # only what the rows drive
+    wants_planner = a.planner_run is None and any(row["planner"] == planner_run for row in chosen.values())
     data: dict[str, Path] = {}
-    for key in dict.fromkeys(LEARNERS[name][0] for name in needed):
-        data[key] = a.data if a.tiny else build(ROOT / "recipes" / DATASETS[key], a.data_root / key, a.workers, doc)
-    doc.setdefault("training", {}).update({name: s for name in needed if (s := train(data[LEARNERS[name][0]], a.runs, name, a.tiny)) is not None})
-    a.out.parent.mkdir(parents=True, exist_ok=True)
+    for key in dict.fromkeys([*(LEARNERS[name][0] for name in needed), *([PLANNER[0]] if wants_planner else [])]):
+        recipe, split = DATASETS[key]
+        data[key] = a.data if a.tiny else build(ROOT / "recipes" / recipe, split, a.data_root / key, a.workers, mine)
+    mine["training"].update({name: s for name in needed if (s := train(data[LEARNERS[name][0]], a.runs, name, a.tiny)) is not None})
+    if wants_planner:
+        mine["training"]["planner"] = train_planner(data[PLANNER[0]], a.runs, a.tiny)
+    trained.update(mine["training"])
+    save(a.out, mine)
     for name, row in chosen.items():
-        if any(r not in doc["training"] for r in row["policy"].values()):
+        if any(r not in trained for r in row["policy"].values()):
             continue
+        done = json.loads(a.out.read_text()).get("rows", {}).get(name, {})  # another run of this script may have measured it
         for setting in row["settings"] if not a.tiny else ("quickstart",):
-            if setting in doc["rows"].get(name, {}):
+            if setting in done:
                 continue  # measured already: evaluations are the long part
             rec = ROOT / "recipes" / ("quickstart.yaml" if a.tiny else f"paper_table_{setting}.yaml")
             res = evaluate(rec, row, a.runs, n, a.workers, a.runs / f"eval-{name.replace(' ', '_').replace('*', 'star')}-{setting}.json")
-            doc["rows"].setdefault(name, {})[setting] = res
-            a.out.write_text(json.dumps(doc, indent=1) + "\n")  # after every evaluation: a kill loses at most one
+            mine["rows"] = {name: {setting: res}}
+            save(a.out, mine)  # after every evaluation: a kill loses at most the one running (its journal resumes it)
             print(f"{name} / {setting}: {cell(res['metrics'].get('skill_completion'))}", file=sys.stderr)
-    a.out.write_text(json.dumps(doc, indent=1) + "\n")
-    a.out.with_suffix(".md").write_text(markdown(doc))
-    print(markdown(doc))
+    mine["rows"] = {}
+    print(markdown(save(a.out, mine)))
 
 
 if __name__ == "__main__":
