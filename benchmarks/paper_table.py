@@ -259,6 +259,7 @@ def main() -> None:
     ap.add_argument("--planner-run", default=None, help="a trained planner run folder for the learned-planner rows (default: the planner this script trains, RUNS/planner)")
     ap.add_argument("--no-planner", action="store_true", help="leave out the learned-planner rows (and the planner's data and training)")
     ap.add_argument("--rows", nargs="*", default=None, help="only these rows (names as in the JSON)")
+    ap.add_argument("--learners", nargs="*", default=None, help="only build the data of and train these learners (names as in LEARNERS, or planner); no evaluation")
     ap.add_argument("--tiny", action="store_true", help="the test's version: quickstart recipe, 2 training steps, 1 episode")
     a = ap.parse_args()
     n = 1 if a.tiny else a.episodes
@@ -270,8 +271,13 @@ def main() -> None:
 
     planner_run = None if a.no_planner else a.planner_run or str(a.runs / "planner")
     chosen = {name: row for name, row in rows(planner_run).items() if a.rows is None or name in a.rows}
-    needed = [n for n in LEARNERS if any(n in row["policy"].values() for row in chosen.values())]  # only what the rows drive
-    wants_planner = a.planner_run is None and any(row["planner"] == planner_run for row in chosen.values())
+    if a.learners is not None:  # training only: one lane of a table filled by several runs of this script
+        unknown = sorted(set(a.learners) - {*LEARNERS, "planner"})
+        if unknown:
+            ap.error(f"--learners: unknown {unknown} (known: {', '.join([*LEARNERS, 'planner'])})")
+        chosen = {}
+    needed = [n for n in LEARNERS if any(n in row["policy"].values() for row in chosen.values()) or n in (a.learners or ())]  # only what the rows drive
+    wants_planner = a.planner_run is None and (any(row["planner"] == planner_run for row in chosen.values()) or "planner" in (a.learners or ()))
     data: dict[str, Path] = {}
     for key in dict.fromkeys([*(LEARNERS[name][0] for name in needed), *([PLANNER[0]] if wants_planner else [])]):
         recipe, split = DATASETS[key]
