@@ -238,12 +238,28 @@ def planning_without_place_target(episodes: list[dict[str, Any]]) -> dict[str, A
     return proportion(sum(e["planned_chain"] is not None and blank(e["planned_chain"]) == blank(e["true_chain"]) for e in eps), len(eps))
 
 
+def handover(episodes: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """Where the first Navigate handed over: per successful first Navigate, the expert's planned
+    path from the skill's start minus the path the base drove (m; > 0: stopped short of where the
+    expert stops, the pose every manipulation demonstration starts from), as quartiles and N.
+    docs/learners.md, "In the chain", says why this decides the chain."""
+    import statistics
+
+    short = [nv["expert_length"] - nv["path_length"] for e in episodes if "skipped" not in e
+             for nv in e["navigate"][:1] if nv["skill_index"] == 0 and nv["success"] and nv["expert_length"] is not None]
+    if len(short) < 2:
+        return None
+    q1, median, q3 = statistics.quantiles(short, n=4)
+    return {"n": len(short), "quartiles_m": [round(q1, 3), round(median, 3), round(q3, 3)]}
+
+
 def scored(doc: dict[str, Any], command: str, seconds: float) -> dict[str, Any]:
     """A row's entry from `echo-data evaluate --json`'s document: metrics, per-skill success, the command."""
     metrics: dict[str, Any] = doc["metrics"].get("all") or next(iter(doc["metrics"].values()), {})
     return {"command": command, "wall_seconds": round(seconds, 1), "commit": _commit(),
             "metrics": {**{k: metrics[k] for k in ("episodes", "task_planning", "skill_completion", "progressive", "navigate_success") if k in metrics},
-                        "planning_without_place_target": planning_without_place_target(doc["episodes"])},
+                        "planning_without_place_target": planning_without_place_target(doc["episodes"]),
+                        "navigate_shortfall": handover(doc["episodes"])},
             "skills": {s: skill_success(doc["episodes"], s) for s in SKILLS}}
 
 
@@ -396,8 +412,9 @@ def main() -> None:
     mine["rows"] = {}  # entries measured before a metric was added get it from their evaluation's episodes
     for name, per in json.loads(a.out.read_text()).get("rows", {}).items():
         for setting, entry in per.items():
-            if "metrics" in entry and "planning_without_place_target" not in entry["metrics"] and (p := eval_json(a.runs, name, setting)).is_file():
-                entry["metrics"]["planning_without_place_target"] = planning_without_place_target(json.loads(p.read_text())["episodes"])
+            if "metrics" in entry and "navigate_shortfall" not in entry["metrics"] and (p := eval_json(a.runs, name, setting)).is_file():
+                episodes = json.loads(p.read_text())["episodes"]
+                entry["metrics"].update(planning_without_place_target=planning_without_place_target(episodes), navigate_shortfall=handover(episodes))
                 mine["rows"].setdefault(name, {})[setting] = entry
     print(markdown(save(a.out, mine)))
 

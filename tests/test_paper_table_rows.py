@@ -60,3 +60,12 @@ def test_a_derived_skill_alone_row_counts_the_skills_attempts() -> None:
     pt = _paper_table()
     row = pt.derived({"episodes": [_record(0, True, 2), _record(1, True, 0), _record(2, True, 1)]}, "Navigate", "test")
     assert (row["skills"]["Navigate"]["k"], row["skills"]["Navigate"]["n"]) == (2, 3)
+
+
+def test_the_handover_is_the_experts_path_minus_the_driven_one_over_successful_first_navigates() -> None:
+    pt = _paper_table()
+    eps = [_record(i, True, 2) for i in range(3)] + [_record(3, True, 0)]  # the last Navigate failed: not counted
+    for e, driven in zip(eps, (0.5, 0.8, 1.0, 0.1), strict=True):
+        e["navigate"][0]["path_length"] = driven
+    h = pt.handover(eps)
+    assert h is not None and h["n"] == 3 and h["quartiles_m"][1] == 0.2  # 1.0 - 0.8
