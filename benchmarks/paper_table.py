@@ -8,7 +8,9 @@ Rows, as the paper lays them out (planning / completion / progressive success pe
   and with it ("Oracle*", `--inputs ...,target`): the paper gives it to Navigate; here Place
   gets it too, because our Place drives the held object to its receptacle (named only by its
   kind otherwise), which is a navigation of its own;
-- learned planner (`--planner-run`, the planner helper's run) + learned skills, without / with;
+- learned planner (trained here from recipes/planner_fresh.yaml, or `--planner-run`) + scripted
+  experts, measured; + learned skills without / with the target, composed from that row and the
+  oracle-planner rows (`composed` says why that is the closed-loop result);
 - each skill alone: the learner drives that skill, the scripted experts do the others; success =
   the skill's success test over every attempt of it.
 
