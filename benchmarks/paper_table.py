@@ -291,7 +291,7 @@ def markdown(doc: dict[str, Any]) -> str:
     chain = {name: per for name, per in doc["rows"].items() if not name.endswith(" alone")}
     head = ["| row | " + " | ".join(f"{s.replace('_', ' ')}: planning | completion" for s in PAPER_ORDER) + " |",
             "|---|" + "---|---|" * len(PAPER_ORDER)]
-    mark = {name: " †" if any(r["command"].startswith("python benchmarks/") for r in per.values()) else "" for name, per in doc["rows"].items()}
+    mark = {name: " †" if any("computed_from" in r for r in per.values()) else "" for name, per in doc["rows"].items()}
     for name, per in chain.items():
         cells = []
         for setting in PAPER_ORDER:
@@ -335,10 +335,11 @@ def save(out: Path, mine: dict[str, Any]) -> dict[str, Any]:
     with (out.parent / (out.name + ".lock")).open("w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         doc: dict[str, Any] = json.loads(out.read_text()) if out.is_file() else {}
-        for key in ("datasets", "training", "rows"):
-            doc.setdefault(key, {}).update(mine.get(key, {}) if key != "rows" else {})
-        for name, per in mine.get("rows", {}).items():
+        for key in ("datasets", "training"):
+            doc.setdefault(key, {}).update(mine.get(key, {}))
+        for name, per in mine.get("rows", {}).items():  # per setting: a row's other settings stay
             doc.setdefault("rows", {}).setdefault(name, {}).update(per)
+        doc.setdefault("rows", {})
         doc.pop("recipe", None)  # one recipe per dataset now: see "datasets"
         doc.update({k: v for k, v in mine.items() if k not in ("datasets", "training", "rows")})
         tmp = out.with_name(out.name + ".tmp")
@@ -403,7 +404,8 @@ def main() -> None:
                     continue
                 docs = [json.loads(p.read_text()) for p in sources]
                 how = f"python benchmarks/paper_table.py --rows '{name}' (from {' and '.join(rel(p) for p in sources)})"
-                mine["rows"] = {name: {setting: composed(docs[0], docs[1], how) if "compose" in row else derived(docs[0], row["skill"], how)}}
+                entry = composed(docs[0], docs[1], how) if "compose" in row else derived(docs[0], row["skill"], how)
+                mine["rows"] = {name: {setting: {**entry, "computed_from": [rel(p) for p in sources]}}}
                 save(a.out, mine)
                 continue
             rec = ROOT / "recipes" / ("quickstart.yaml" if a.tiny else f"paper_table_{setting}.yaml")
