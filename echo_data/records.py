@@ -36,6 +36,29 @@ STATE_NAMES: tuple[str, ...] = (
 )
 STATE_DIM = len(STATE_NAMES)  # 25
 
+# The end-effector form of the same command (`robot.action_space: ee_delta`, the env's
+# `action_mode`; docs/action_spaces.md): base velocities and torso target as in ACTION_NAMES, then
+# the tool-centre-point change this step, expressed in the base frame's axes and applied to the
+# commanded TCP pose relative to the torso (m, and a rotation vector in rad), and a binary
+# gripper command (1 = close, 0 = open). Every step row stores both forms (`action`, `action.ee`).
+EE_ACTION_NAMES: tuple[str, ...] = (
+    ("base_vx", "base_vy", "base_wz", "torso")
+    + ("ee_dx", "ee_dy", "ee_dz", "ee_drx", "ee_dry", "ee_drz")
+    + ("gripper_close",)
+)
+EE_ACTION_DIM = len(EE_ACTION_NAMES)  # 11
+ACTION_SPACES: tuple[str, ...] = ("joint", "ee_delta")
+
+# Where the robot is in the world says which apartment it is in, not what to do: a learner's
+# default proprioception leaves the world pose out (issue: no scene memorising).
+WORLD_POSE_STATE: tuple[str, ...] = ("base_x", "base_y", "base_yaw")
+BASE_FRAME_STATE: tuple[str, ...] = tuple(n for n in STATE_NAMES if n not in WORLD_POSE_STATE)
+
+# Step-row columns that only a simulator knows (the target's pose, the handle's angle, ...):
+# their names start with this prefix, the schema flags them privileged, and no learner reads
+# them unless asked by name (the privileged sanity learner does).
+PRIVILEGED_PREFIX = "observation.privileged."
+
 
 @dataclass
 class StepRecord:
