@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sapien
@@ -25,8 +25,15 @@ from echo_data.recipe import CameraConfig, RobotConfig
 from echo_data.records import ACTION_DIM, STATE_DIM
 from echo_data.robot import urdf as U
 
+if TYPE_CHECKING:
+    from echo_data.robot.ee_control import EeController
+
 # Fetch's tuck: the arm folded beside the torso, inside the base footprint (drive with this).
 TUCK_QPOS = np.array([1.32, 1.40, -0.2, 1.72, 0.0, 1.66, 0.0], dtype=np.float64)
+# READY / carry configuration: torso up, TCP 0.27 m ahead of the base centre at 1.15 m, pointing
+# down (found once with ArmPlanner.ik; reached from the tuck without self-collision via
+# UNTUCK_LIFT, and from it straight joint paths reach pre-grasps over 0.6-0.9 m tops).
+READY_GROUP = np.array([0.386, 0.605, -0.379, -2.618, 2.145, 0.556, 2.065, 1.102], dtype=np.float64)  # (torso, 7 arm)
 HEAD_PAN = 0.0
 HEAD_TILT = 0.45  # rad, looking down: sees the floor ahead and table tops (the action has no head)
 GRIPPER_OPEN = 0.1  # m, full opening
@@ -117,6 +124,7 @@ class Robot:
             j.set_drive_properties(gains[0], gains[1], gains[2], "force")
             j.set_friction(0.0)
         self._intent: np.ndarray | None = None  # see intend()
+        self._ee: EeController | None = None  # see `ee`
         self._action = self.rest_action_for(np.zeros(3), 0.0, self.tuck_qpos, GRIPPER_OPEN)
         q = np.zeros(len(names))
         q[self.head_indices] = (HEAD_PAN, HEAD_TILT)
@@ -274,6 +282,15 @@ class Robot:
         """Record the controller's own command for the last applied action (DART: the applied one
         was this plus noise). Read only through `last_action`/`rest_action`; physics never sees it."""
         self._intent = self.clip_action(action)
+
+    @property
+    def ee(self) -> EeController:
+        """The end-effector action map of this robot (`echo_data.robot.ee_control`), made on first use."""
+        if self._ee is None:
+            from echo_data.robot.ee_control import EeController
+
+            self._ee = EeController(self)
+        return self._ee
 
     # ------------------------------------------------------------------ proprioception
     def torso(self) -> float:

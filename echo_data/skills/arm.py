@@ -28,7 +28,7 @@ import sapien
 
 from echo_data.robot import urdf as U
 from echo_data.robot.planner import ArmPlanner, Box
-from echo_data.robot.robot import GRIPPER_OPEN, HEAD_PAN, HEAD_TILT, TUCK_QPOS, Robot
+from echo_data.robot.robot import GRIPPER_OPEN, HEAD_PAN, HEAD_TILT, READY_GROUP, TUCK_QPOS, Robot
 from echo_data.scene.objects import object_size
 
 if TYPE_CHECKING:
@@ -205,10 +205,6 @@ def tuck_group(torso: float) -> np.ndarray:
     return np.concatenate([[torso], TUCK_QPOS])
 
 
-# READY / carry configuration: torso up, TCP 0.27 m ahead of the base centre at 1.15 m, pointing
-# down (found once with ArmPlanner.ik; reached from the tuck without self-collision via
-# UNTUCK_LIFT, and from it straight joint paths reach pre-grasps over 0.6-0.9 m tops).
-READY_GROUP = np.array([0.386, 0.605, -0.379, -2.618, 2.145, 0.556, 2.065, 1.102])
 UNTUCK_LIFT = -0.5  # shoulder_lift while leaving / entering the tuck (upper arm raised)
 
 

@@ -1,0 +1,125 @@
+"""Closed-loop motion primitives in end-effector space, shared by the manipulation experts.
+
+Every primitive here yields `action.ee` vectors (`echo_data.records.EE_ACTION_NAMES`) and
+recomputes its command at every control step from the state it is in: the goal is read again
+(a callable goal re-reads the object, handle or lever pose from the world each step), the error
+is taken from the commanded tool-centre-point (TCP) pose, and the step towards the goal is a
+clipped proportional command (at most `speed` m/s and `turn` rad/s, the whole remaining error
+when it is smaller). So a perturbation of the arm (DART noise on the executed action, a learner
+handing over from elsewhere) is corrected by the very next label, and a moved object is
+followed. Joint targets come from `echo_data.robot.ee_control` (the one ee <-> joint map).
+
+Typical use in an expert::
+
+    ok = yield from servo(world, lambda: above_object(world, name), max_steps=60)
+    if not ok:
+        raise SkillFailed("pre-grasp not reached")
+    yield from grip(world, close=True, steps=8)
+
+Poses are 4x4 numpy matrices in the world frame unless a name says `_in_base`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Generator
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from echo_data.records import EE_ACTION_DIM
+from echo_data.robot.ee_control import world_to_base
+
+if TYPE_CHECKING:
+    from echo_data.world import World
+
+EeActions = Generator[np.ndarray, None, Any]
+Goal = np.ndarray | Callable[[], np.ndarray]
+
+SPEED = 0.20  # m/s of the TCP on transit moves (Fetch's arm: ~1 m/s max; slow enough for 10 Hz control)
+SLOW_SPEED = 0.06  # m/s on the last centimetres to a grasp, a handle, a lever or a surface
+TURN = 0.8  # rad/s of the TCP's orientation
+POS_TOL = 0.004  # m: the commanded TCP is at the goal ...
+ROT_TOL = 0.02  # rad
+SETTLE_TOL = 0.015  # m: ... and the measured TCP has followed to within this
+
+
+def gripper_closed(world: World) -> bool:
+    """The gripper's command now (what the drives hold), as the binary `gripper_close`."""
+    robot = world.robot
+    return bool(robot.applied_action()[11] < robot.ee.gripper_open / 2.0)
+
+
+def ee_command(
+    world: World, base: tuple[float, float, float] = (0.0, 0.0, 0.0), torso: float | None = None,
+    delta: np.ndarray | None = None, close: bool | None = None,
+) -> np.ndarray:
+    """One `action.ee`: base velocity (robot frame), torso target (default: as commanded), TCP
+    change (default: none, the arm holds exactly) and gripper (default: as commanded)."""
+    robot = world.robot
+    a = np.zeros(EE_ACTION_DIM, dtype=np.float32)
+    a[:3] = base
+    a[3] = float(robot.applied_action()[3]) if torso is None else torso
+    if delta is not None:
+        a[4:10] = delta
+    a[10] = 1.0 if (gripper_closed(world) if close is None else close) else 0.0
+    return a
+
+
+def in_base(world: World, pose_world: np.ndarray) -> np.ndarray:
+    """A world pose (4x4) in the frame of the base where it stands now (measured)."""
+    return world_to_base(pose_world, world.robot.base_pose())
+
+
+def measured_tcp(world: World) -> np.ndarray:
+    """The TCP's measured world pose (4x4)."""
+    return world.robot.ee_pose().to_transformation_matrix()
+
+
+def step_towards(delta: np.ndarray, speed: float, turn: float, dt: float) -> np.ndarray:
+    """The clipped proportional command: the whole error when within one step's reach, else the
+    error scaled (position and rotation separately) to `speed` and `turn` for one step."""
+    d = np.asarray(delta, dtype=np.float64).copy()
+    n_p = float(np.linalg.norm(d[:3]))
+    n_r = float(np.linalg.norm(d[3:]))
+    if n_p > speed * dt:
+        d[:3] *= speed * dt / n_p
+    if n_r > turn * dt:
+        d[3:] *= turn * dt / n_r
+    return d
+
+
+def servo(
+    world: World, goal: Goal, *, speed: float = SPEED, turn: float = TURN, max_steps: int = 100,
+    close: bool | None = None, torso: float | None = None, pos_tol: float = POS_TOL, rot_tol: float = ROT_TOL,
+    settle_tol: float = SETTLE_TOL, orient: bool = True,
+) -> Generator[np.ndarray, None, bool]:
+    """Move the TCP to `goal` (4x4 world pose, or a callable re-read every step); returns True
+    once the commanded TCP is within `pos_tol`/`rot_tol` of it and the measured TCP within
+    `settle_tol`, False after `max_steps` actions. `orient=False` servos the position only.
+    `torso`: a torso target to hold (or move to) meanwhile; the TCP change accounts for it."""
+    robot = world.robot
+    dt = 1.0 / robot.cfg.control_hz
+    for _ in range(max_steps):
+        g = goal() if callable(goal) else goal
+        d = robot.ee.delta_towards(in_base(world, g), torso=torso)
+        if not orient:
+            d[3:] = 0.0
+        here = float(np.linalg.norm(d[:3])) <= pos_tol and float(np.linalg.norm(d[3:])) <= rot_tol
+        if here and float(np.linalg.norm(measured_tcp(world)[:3, 3] - g[:3, 3])) <= settle_tol:
+            return True
+        yield ee_command(world, torso=torso, delta=np.zeros(6) if here else step_towards(d, speed, turn, dt), close=close)
+    return False
+
+
+def grip(world: World, close: bool, steps: int = 8) -> EeActions:
+    """Hold the arm and open or close the gripper for `steps` control steps (the jaws move meanwhile)."""
+    for _ in range(steps):
+        yield ee_command(world, close=close)
+    return steps
+
+
+def hold(world: World, steps: int) -> EeActions:
+    """Everything held where it is commanded, base still, for `steps` control steps."""
+    for _ in range(steps):
+        yield ee_command(world)
+    return steps
