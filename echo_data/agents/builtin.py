@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from echo_data.dataset.schema import STATE
-from echo_data.records import ACTION_DIM
+from echo_data.records import ACTION_DIM, EE_ACTION_DIM
 
 
 class OracleSkills:
@@ -32,19 +32,32 @@ class OracleSkills:
         self.experts = experts
         self._gen: Any = None
         self.outcome: Any = None
+        self.last_ee: np.ndarray | None = None  # the expert's own end-effector command of the last act()
+        self._robot: Any = None
 
     def reset(self, info: dict[str, Any]) -> None:
         self.close()
         self.outcome = None
+        self.last_ee = None
+        self._robot = info["world"].robot
         self._gen = self.experts[info["skill"]](info["world"], info["call"], info["spec_object"])
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray | None:
+        """The expert's next command as a joint action. Experts compute theirs in end-effector form
+        (`action.ee`, docs/action_spaces.md): it is kept in `last_ee` and turned into joint targets by
+        the robot's one ee map, so the recorded ee form replays exactly. (Experts still yielding joint
+        actions pass through: the transition while they are rewritten.)"""
         try:
-            return np.asarray(next(self._gen), dtype=np.float32)
+            a = np.asarray(next(self._gen), dtype=np.float32)
         except StopIteration as stop:
             self.outcome = stop.value
             self._gen = None
             return None
+        if a.shape == (EE_ACTION_DIM,):
+            self.last_ee = a
+            return self._robot.ee.to_joint(a)
+        self.last_ee = None
+        return a
 
     def close(self) -> None:
         """Stop a running expert (it releases what it holds: planners, door attachments)."""
