@@ -66,7 +66,7 @@ def test_bc_run_loads_as_a_policy_and_acts(ds: Path, tmp_path: Path) -> None:
     for name in (runs.CONFIG, runs.POLICY, runs.AGENT, runs.CHECKPOINT, runs.BEST):
         assert (run / name).is_file()
     meta = json.loads((run / runs.POLICY).read_text())
-    assert meta["kind"] == "policy" and meta["class"] == "echo_data.learn.policy:BCPolicy"
+    assert meta["kind"] == "policy" and meta["class"] == "echo_data.learn.policy:SkillPolicy" and meta["algo"] == "bc"
     agent = json.loads((run / runs.AGENT).read_text())  # evaluate's checkpoint folder: Class(checkpoint=folder)
     assert agent == {"class": meta["class"], "kwargs": {}}
     module, cls = agent["class"].split(":")
@@ -363,7 +363,7 @@ def test_evaluate_runs_a_trained_planner_and_a_per_skill_bc_run(ds: Path, tmp_pa
     doc = json.loads(out.read_text())
     nav = doc["episodes"][0]["skills"][0]
     assert nav["skill"] == "Navigate" and nav["steps"] > 0
-    assert doc["policy"]["skills"]["Navigate"]["class"] == "echo_data.learn.policy:BCPolicy"
+    assert doc["policy"]["skills"]["Navigate"]["class"] == "echo_data.learn.policy:SkillPolicy"
 
 
 def test_dagger_labeller_answers_as_the_expert_from_its_start(ds: Path) -> None:
