@@ -403,3 +403,18 @@ def test_dagger_round_adds_expert_labelled_rows_and_retrains(ds: Path, tmp_path:
     again = _train(ds, tmp_path / "from_bc", "--inputs", "state", "--epochs", "1", "--dagger", "1", "--dagger-episodes", "1", "--dagger-steps", "5", "--resume")
     assert (tmp_path / "from_bc" / "dagger.csv").read_text().splitlines()[1].split(",")[:4] == ["1", "0", "5", "5"]
     assert again["rows"] == summary["rows"] and again["best_val_loss"] == summary["best_val_loss"]
+
+
+def test_checkpoint_chosen_closed_loop_on_validation_episodes(ds: Path, tmp_path: Path) -> None:
+    """--select-every 1: after each epoch the policy runs on validation-split episodes (the
+    dataset's recipe, split "val", never "test"); best.pt carries the success that chose it."""
+    from echo_data.learn.select import SELECT_DIR, validation_recipe
+
+    run = tmp_path / "sel"
+    summary = _train(ds, run, "--inputs", "state", "--epochs", "1", "--select-every", "1", "--select-episodes", "1", "--skill", "Pick")
+    assert summary["last"]["val_success"] in (0.0, 1.0)  # one Pick attempt, scored
+    best = runs.load_torch(run / runs.BEST)
+    assert best["val_success"] == summary["last"]["val_success"]
+    assert json.loads((run / SELECT_DIR / runs.CONFIG).read_text())["skill"] == "Pick"
+    recipe = validation_recipe(ds, "Pick", 2)
+    assert recipe.splits["val"] == 2 and recipe.splits["test"] == json.loads((ds / "manifest.json").read_text())["recipe"]["splits"]["test"]

@@ -56,12 +56,12 @@ class _Shards:
     """The shards of one split and lazy, per-process access to their rows."""
 
     def __init__(self, root: Path, split: str) -> None:
-        manifest = load_manifest(root)
+        from echo_data.dataset.reader import DatasetMeta
+
+        meta = DatasetMeta.of(root)  # the one reader's metadata: manifest, layout, the split's files
         self.root = root
-        self.layout = StepLayout.from_dict(manifest["layout"])
-        self.files = [root / e["file"] for e in manifest["shards"] if e["split"] == split]
-        if split not in manifest["splits"]:
-            raise ValueError(f"{root}: no split {split!r} (has {', '.join(manifest['splits'])})")
+        self.layout = meta.layout
+        self.files = meta.files(split)
         self.all_columns = [f.name for f in self.layout.schema()]
         if self.files:  # a dataset built before a column existed (e.g. action.executed) offers what it has
             present = set(pq.read_schema(self.files[0]).names)

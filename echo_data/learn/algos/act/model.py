@@ -3,8 +3,9 @@ a transformer encoder over them, and `chunk` learned queries decoded against it 
 actions (L1 loss as in ACT; binary entries by cross-entropy).
 
 Why our own and not LeRobot's or ACT's code: LeRobot >= 0.5 needs Python 3.12 and numpy 2 (our
-stack pins numpy < 2 for mplib), its earlier releases pin other torch versions, and ACT's repository is not a
-package. Left out on purpose: ACT's CVAE latent (it models the variability of human
+stack pins numpy < 2 for mplib), LeRobot 0.4.4 (the last for Python 3.11) requires torch < 2.11 and
+torchvision (we pin torch 2.13), robomimic 0.3.0's models import torchvision, and ACT's repository
+is not a package. Left out on purpose: ACT's CVAE latent (it models the variability of human
 demonstrations; our demonstrations are scripted and consistent, and ACT's ablation shows it
 matters little on scripted data) and ResNet feature-map tokens (one token per encoder here; the
 spatial-softmax encoder supplies keypoints). No dropout: a resumed run then draws exactly what an

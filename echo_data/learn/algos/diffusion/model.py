@@ -5,8 +5,8 @@ the noise added at a random level of a squared-cosine schedule), DDIM sampling w
 gripper) are not diffused: a classification head on the observation code predicts them over the
 horizon (cross-entropy), so the gripper command is a decision, not a denoised real number.
 
-Why our own: LeRobot >= 0.5 needs Python 3.12 and numpy 2, earlier LeRobot pins other torch
-versions, `diffusers` is not in our environment and the reference code is not a package; the
+Why our own: LeRobot >= 0.5 needs Python 3.12 and numpy 2, LeRobot 0.4.4 (the last for Python
+3.11) requires torch < 2.11 and torchvision (we pin torch 2.13), `diffusers` is not in our environment and the reference code is not a package; the
 pieces (schedule, U-Net, DDIM step) are short and tested here (tests/test_learn_algos.py)."""
 
 from __future__ import annotations
