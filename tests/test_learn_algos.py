@@ -25,7 +25,7 @@ from echo_data.learn.algos import ALGORITHMS, algorithm, config_from_run
 from echo_data.learn.algos.base import ACTION_COLUMNS, action_loss
 from echo_data.learn.features import BC_INPUTS, feature_spec, parse_inputs
 from echo_data.learn.policy import SkillPolicy
-from echo_data.records import ACTION_DIM, BASE_FRAME_STATE, PRIVILEGED_PREFIX, STATE_NAMES
+from echo_data.records import ACTION_DIM, BASE_FRAME_STATE, EE_ACTION_NAMES, PRIVILEGED_PREFIX, STATE_NAMES
 
 ROOT = Path(__file__).resolve().parent.parent
 QUICK = str(ROOT / "recipes" / "quickstart.yaml")
@@ -204,3 +204,37 @@ def _count(policy: SkillPolicy) -> list[int]:
     predict = policy.model.predict
     policy.model.predict = lambda *a: calls.append(1) or predict(*a)  # type: ignore[method-assign]
     return calls
+
+
+def test_every_algorithm_clones_the_end_effector_form_with_a_binary_gripper(ds: Path, tmp_path: Path) -> None:
+    """A copy of the dataset given an `action.ee` column (11 floats, `gripper_close` 0/1, as the
+    end-effector action space stores it): every algorithm trains on it and acts in its form."""
+    import shutil
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from echo_data.learn.fit import train_skill
+
+    copy = tmp_path / "ee"
+    shutil.copytree(ds, copy)
+    rng = np.random.default_rng(0)
+    for f in sorted(copy.rglob("*.parquet")):
+        table = pq.read_table(f)
+        if ACTION not in table.column_names:
+            continue
+        joint = np.asarray(table.column(ACTION).to_pylist(), dtype=np.float32)
+        ee = np.concatenate([joint[:, :4], rng.normal(0, 0.01, (len(joint), 6)), (np.arange(len(joint)) % 3 == 0)[:, None]], axis=1).astype(np.float32)
+        col = pa.FixedSizeListArray.from_arrays(pa.array(ee.reshape(-1)), len(EE_ACTION_NAMES))
+        pq.write_table(table.append_column("action.ee", col), f)
+    obs = _observations(copy)
+    for name in ALGORITHMS:
+        cfg = algorithm(name).config(dataset=str(copy), skill="Navigate", inputs=("state",), action_column="action.ee", max_steps=2,
+                                     **{k.lstrip("-").replace("-", "_"): float(v) if "." in v else int(v) for k, v in zip(SMALL[name][::2], SMALL[name][1::2], strict=True)})
+        train_skill(cfg, tmp_path / name, progress=False)
+        policy = SkillPolicy.from_run(tmp_path / name)
+        assert policy.config.binary == (len(EE_ACTION_NAMES) - 1,) and policy.std[-1] == 1.0 and policy.mean[-1] == 0.0
+        policy.reset({})
+        for o in obs[:3]:
+            a = policy.act(o)
+            assert a.shape == (len(EE_ACTION_NAMES),) and a[-1] in (0.0, 1.0) and np.isfinite(a).all(), name
