@@ -238,3 +238,20 @@ def test_every_algorithm_clones_the_end_effector_form_with_a_binary_gripper(ds: 
         for o in obs[:3]:
             a = policy.act(o)
             assert a.shape == (len(EE_ACTION_NAMES),) and a[-1] in (0.0, 1.0) and np.isfinite(a).all(), name
+
+
+def test_spatial_softmax_finds_the_peak_and_trains_at_stored_resolution(ds: Path, tmp_path: Path) -> None:
+    from echo_data.learn.models import SpatialSoftmaxEncoder
+
+    enc = SpatialSoftmaxEncoder(1, (16, 24), keypoints=2)  # feature maps of 8 x 12 after the stride-2 convolution
+    f = torch.zeros(1, 2, 8, 12)
+    f[0, 0, 0, 11] = f[0, 1, 7, 0] = 60.0  # top right, bottom left
+    np.testing.assert_allclose(enc.keypoints(f)[0].numpy(), [[1.0, -1.0], [-1.0, 1.0]], atol=1e-4)
+    run = tmp_path / "ss"
+    _train(ds, run, "act", "--inputs", "depth,wrist_depth,state", "--image-size", "0", "--encoder", "spatial_softmax", "--shift", "2", "--max-steps", "1", *SMALL["act"])
+    policy = SkillPolicy.from_run(run)
+    assert policy.spec.side("depth") == (16, 24) and policy.spec.side("wrist_depth") == (16, 16)
+    reader = StepReader(ds, "train")
+    row = reader.read(list(policy.observations), np.array([0]))
+    policy.reset({})
+    assert policy.act({k: v[0] for k, v in row.items()}).shape == (ACTION_DIM,)

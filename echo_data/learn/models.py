@@ -104,11 +104,12 @@ class SpatialSoftmaxEncoder(nn.Module):
         self.register_buffer("grid", torch.stack([xs.reshape(-1), ys.reshape(-1)], dim=1), persistent=False)  # (HW, 2)
         self.fc = nn.Sequential(nn.Linear(2 * keypoints, out), nn.ReLU())
 
+    def keypoints(self, f: torch.Tensor) -> torch.Tensor:
+        """(B, K, h, w) feature maps -> (B, K, 2): the expected (x, y) in [-1, 1] of each map's softmax."""
+        return torch.softmax(f.flatten(2), dim=-1) @ self.grid
+
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        f = self.cnn(x)
-        attn = torch.softmax(f.flatten(2), dim=-1)  # (B, K, HW)
-        points = attn @ self.grid  # (B, K, 2): expected x, y per keypoint
-        return self.fc(points.flatten(1))
+        return self.fc(self.keypoints(self.cnn(x)).flatten(1))
 
 
 IMAGE_ENCODERS = {"cnn": ImageEncoder, "spatial_softmax": SpatialSoftmaxEncoder}
