@@ -411,10 +411,14 @@ def test_checkpoint_chosen_closed_loop_on_validation_episodes(ds: Path, tmp_path
     from echo_data.learn.select import SELECT_DIR, validation_recipe
 
     run = tmp_path / "sel"
-    summary = _train(ds, run, "--inputs", "state", "--epochs", "1", "--select-every", "1", "--select-episodes", "1", "--skill", "Pick")
-    assert summary["last"]["val_success"] in (0.0, 1.0)  # one Pick attempt, scored
-    best = runs.load_torch(run / runs.BEST)
-    assert best["val_success"] == summary["last"]["val_success"]
-    assert json.loads((run / SELECT_DIR / runs.CONFIG).read_text())["skill"] == "Pick"
+    summary = _train(ds, run, "--inputs", "state", "--epochs", "2", "--select-every", "1", "--select-episodes", "1", "--skill", "Pick")
+    import csv
+
+    scores = [float(r["val_success"]) for r in csv.DictReader((run / runs.LOSSES).read_text().splitlines())]
+    assert len(scores) == 2 and set(scores) <= {0.0, 1.0} and summary["last"]["val_success"] == scores[-1]  # one Pick attempt per epoch
+    assert runs.load_torch(run / runs.BEST)["val_success"] == max(scores)
+    first, second = (run / SELECT_DIR / f"scored-00{i}" for i in (1, 2))  # each epoch's weights scored as they were
+    assert json.loads((first / runs.CONFIG).read_text())["skill"] == "Pick"
+    assert not _same(_weights(first, runs.BEST), _weights(second, runs.BEST))
     recipe = validation_recipe(ds, "Pick", 2)
     assert recipe.splits["val"] == 2 and recipe.splits["test"] == json.loads((ds / "manifest.json").read_text())["recipe"]["splits"]["test"]

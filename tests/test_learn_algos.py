@@ -255,3 +255,8 @@ def test_spatial_softmax_finds_the_peak_and_trains_at_stored_resolution(ds: Path
     row = reader.read(list(policy.observations), np.array([0]))
     policy.reset({})
     assert policy.act({k: v[0] for k, v in row.items()}).shape == (ACTION_DIM,)
+
+
+def test_planner_seed_is_bounded_too(ds: Path, tmp_path: Path) -> None:
+    res = runner.invoke(app, ["train", "planner", str(ds), "--seed", "-1", "--out", str(tmp_path / "p")])
+    assert res.exit_code == 2 and "--seed -1: must be within [0, 2**64)" in res.output and not (tmp_path / "p").exists(), res.output

@@ -208,11 +208,14 @@ def planner_cmd(
 ) -> None:
     """Train the planner on the train split, score it on the test split (unheard sounds); prints and saves eval.json."""
     _need_torch()
+    from echo_data.learn.algos.base import SEED_LIMIT
     from echo_data.learn.features import PLANNER_INPUTS, parse_inputs
     from echo_data.learn.planner import PlannerConfig, train_planner
 
     try:
         names = parse_inputs(inputs, PLANNER_INPUTS)
+        if not 0 <= seed < SEED_LIMIT:
+            raise _fail(f"--seed {seed}: must be within [0, 2**64)")
         _not_applying(ctx, {"audio": ("audio" in names, "without audio in --inputs"), "augment": ("audio" in names, "without audio in --inputs")})
         folder = out or Path("runs") / f"planner-{'-'.join(names)}"
         cfg = PlannerConfig(str(dataset), names, seed=seed, audio=audio, max_steps=max_steps, threads=threads, train_frames=train_frames, train_episodes=train_episodes,

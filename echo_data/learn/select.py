@@ -17,7 +17,7 @@ from typing import Any
 
 from echo_data.learn import runs
 
-SELECT_DIR = "select"  # the run folder of the weights being scored (overwritten each time)
+SELECT_DIR = "select"  # select/scored-NNN: the weights scored at the N-th selection, each a run folder
 
 
 def validation_recipe(dataset: Path, skill: str, episodes: int) -> Any:
@@ -45,7 +45,10 @@ def closed_loop_success(cfg: Any, model: Any, out: Path) -> float:
     from echo_data.evaluation.run import evaluate
     from echo_data.learn.fit import POLICY_CLASS
 
-    folder = out / SELECT_DIR
+    scored = out / SELECT_DIR
+    # One folder per scoring: evaluate keeps a loaded policy per (recipe, split, policy path) in
+    # its in-process worker, so a reused path would score the first weights again.
+    folder = scored / f"scored-{len(list(scored.glob('scored-*'))) + 1:03d}"
     runs.write_run_files(folder, "policy", POLICY_CLASS, cfg.to_dict(), {"algo": cfg.ALGO, "skill": cfg.skill})
     runs.save_torch(folder / runs.BEST, {"model": {k: v.detach().cpu() for k, v in model.state_dict().items()}})
     recipe = validation_recipe(Path(cfg.dataset), cfg.skill, cfg.select_episodes)
