@@ -260,3 +260,26 @@ def test_spatial_softmax_finds_the_peak_and_trains_at_stored_resolution(ds: Path
 def test_planner_seed_is_bounded_too(ds: Path, tmp_path: Path) -> None:
     res = runner.invoke(app, ["train", "planner", str(ds), "--seed", "-1", "--out", str(tmp_path / "p")])
     assert res.exit_code == 2 and "--seed -1: must be within [0, 2**64)" in res.output and not (tmp_path / "p").exists(), res.output
+
+
+def test_diffusion_reads_the_last_two_observations_as_it_trained(ds: Path, trained: dict[str, Path]) -> None:
+    """obs_steps 2: training conditions row t on rows (t-1, t) clamped to the segment's first row;
+    acting on the observations (t-1, t), the first one repeated right after a reset."""
+    from echo_data.learn.data import SkillRows
+    from echo_data.learn.fit import Units
+
+    seg = np.array([0, 0, 0, 1, 1])
+    rows = SkillRows({}, np.zeros((5, 1, 12)), np.zeros((5, 1), bool), np.zeros((5, 3)), np.zeros(5), seg)
+    assert Units(rows, False, "cpu", history=2).history.tolist() == [[0, 0], [0, 1], [1, 2], [3, 3], [3, 4]]
+    obs = _observations(ds)
+    policy = SkillPolicy.from_run(trained["diffusion"])
+    assert policy.config.history() == 2
+    policy.reset({})
+    acts = [policy.act(o) for o in obs[:5]]  # predicts at steps 0 and 4 (execute 4)
+    x = [policy.inputs(o) for o in obs[:5]]
+    gen = torch.Generator().manual_seed(policy.config.seed)
+    with torch.no_grad():
+        first, _ = policy.model.predict({k: torch.stack([x[0][k], x[0][k]], dim=1) for k in x[0]}, None, gen)
+        later, _ = policy.model.predict({k: torch.stack([x[3][k], x[4][k]], dim=1) for k in x[0]}, None, gen)
+    np.testing.assert_allclose(acts[0], first[0, 0].numpy() * policy.std + policy.mean, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(acts[4], later[0, 0].numpy() * policy.std + policy.mean, rtol=1e-5, atol=1e-6)

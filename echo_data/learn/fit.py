@@ -85,8 +85,14 @@ class Units:
     draw becomes (model inputs, row index (N,), real (N,) bool; padding rows of a short segment
     are not real)."""
 
-    def __init__(self, rows: SkillRows, sequence: bool, device: str) -> None:
+    def __init__(self, rows: SkillRows, sequence: bool, device: str, history: int = 1) -> None:
         self.rows, self.sequence, self.device = rows, sequence, device
+        self.history = None
+        if history > 1:  # rows t-history+1 .. t of each row, clamped to its segment's first row (as acting pads)
+            _, first, inverse = np.unique(rows.segments, return_index=True, return_inverse=True)
+            start = first[inverse]
+            start[rows.segments < 0] = np.flatnonzero(rows.segments < 0)  # appended rows: no history
+            self.history = np.maximum(np.arange(len(rows))[:, None] + np.arange(1 - history, 1)[None, :], start[:, None])
         if sequence:
             if (rows.segments < 0).any():
                 raise runs.RunError("a recurrent model trains on whole segments: appended (DAgger) rows have none")
@@ -109,7 +115,7 @@ class Units:
         gen = torch.Generator().manual_seed(int(rng.integers(2**63)))
         src = self.rows.inputs
         if not self.sequence:
-            t = torch.from_numpy(units)
+            t = torch.from_numpy(units if self.history is None else self.history[units])
             x = {k: shifted(v[t], shift, rng) if k in IMAGE_INPUTS else v[t] for k, v in src.items()}
             return {k: v.to(self.device) for k, v in x.items()}, units, np.ones(len(units), dtype=bool), gen
         spans = [self.spans[int(s)] for s in units]
@@ -195,7 +201,7 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
     model = build_model(cfg).to(device)
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     runs.write_run_files(out, "policy", POLICY_CLASS, cfg.to_dict(), {"algo": cfg.ALGO, "skill": cfg.skill, "inputs": list(cfg.inputs)})
-    units = Units(rows, cfg.SEQUENCE, device)
+    units = Units(rows, cfg.SEQUENCE, device, cfg.history())
     tr_units, va_units = units.split(is_val)
     tr, va = np.flatnonzero(~is_val), np.flatnonzero(is_val)
     scale = torch.from_numpy(std)

@@ -87,6 +87,7 @@ class SkillPolicy:
         self._goal: np.ndarray | None = None
         self._kind = -1
         self._gen: Any = None
+        self._history: deque[dict[str, Any]] = deque(maxlen=cfg.history())  # the last observations' inputs (history > 1)
         self.hidden: Any = None  # the GRU's state (recurrent runs); None = zero, as at a segment's start in training
 
     @classmethod
@@ -102,6 +103,7 @@ class SkillPolicy:
         info = info or {}
         self._queue.clear()
         self._past.clear()
+        self._history.clear()
         self.hidden = None
         self._gen = torch.Generator().manual_seed(self.config.seed % 2**63)
         self._goal = goal_from_info(info) if "target" in self.spec.inputs else None
@@ -114,18 +116,30 @@ class SkillPolicy:
         goal = None if self._goal is None else torch.from_numpy(self._goal[None])
         return prepare(single(obs, self.spec), self.spec, goal=goal, kind=np.array([self._kind]))
 
+    def _stacked(self) -> dict[str, Any]:
+        """The remembered steps as (1, history, ...) inputs: the segment's first observation repeated
+        until there are enough, as training clamps a window at the segment's start."""
+        import torch
+
+        steps = list(self._history)
+        steps = [steps[0]] * (int(self._history.maxlen or 1) - len(steps)) + steps
+        return {k: torch.stack([s[k] for s in steps], dim=1) for k in steps[0]}
+
     def _predict(self, obs: Mapping[str, Any]) -> np.ndarray:
         """The model's chunk for this observation, (window, A) in the cloned action's units."""
         import torch
 
-        if self._gen is None:
-            self.reset({})
+        x = self.inputs(obs) if not self._history else self._stacked()
         with torch.no_grad():
-            pred, self.hidden = self.model.predict(self.inputs(obs), self.hidden, self._gen)
+            pred, self.hidden = self.model.predict(x, self.hidden, self._gen)
         return pred[0].cpu().numpy() * self.std + self.mean
 
     def act(self, obs: Mapping[str, Any]) -> np.ndarray:
         """One observation (dataset keys) -> the next action, float32 (A,)."""
+        if self._gen is None:  # acting without a reset: a segment's start
+            self.reset({})
+        if self._history.maxlen and self._history.maxlen > 1:  # every step is remembered, predicted on or not
+            self._history.append(self.inputs(obs))
         if self.ensemble is not None:
             chunk = self._predict(obs)
             self._past.append(chunk)

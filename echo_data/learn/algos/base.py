@@ -93,6 +93,10 @@ class SkillConfig:
         """Predicted actions executed before predicting again."""
         return 1
 
+    def history(self) -> int:
+        """Observation steps a prediction reads (t-history+1 .. t, clamped to the segment's start)."""
+        return 1
+
     def ensemble_weight(self) -> float | None:
         """ACT's temporal ensembling weight m (None: off)."""
         return None

@@ -13,7 +13,7 @@ from echo_data.learn.algos.base import ConfigError, SkillConfig, opt
 @dataclass
 class DiffusionConfig(SkillConfig):
     """Defaults after Diffusion Policy's CNN variant, smaller (two U-Net levels, 100 training
-    steps, 10 DDIM steps when acting); one observation step (no history)."""
+    steps, 10 DDIM steps when acting); two observation steps as theirs."""
 
     ALGO: ClassVar[str] = "diffusion"
 
@@ -22,6 +22,7 @@ class DiffusionConfig(SkillConfig):
     train_steps: int = opt(100, "DDPM noise levels in training.")
     sample_steps: int = opt(10, "DDIM steps when acting (deterministic, eta 0).")
     width: int = opt(64, "Channels of the U-Net's first level (the second has twice as many).")
+    obs_steps: int = opt(2, "Observation steps the denoiser is conditioned on (Diffusion Policy's 2: t-1 and t).")
 
     def window(self) -> int:
         return self.horizon
@@ -29,9 +30,14 @@ class DiffusionConfig(SkillConfig):
     def execute_steps(self) -> int:
         return self.execute
 
+    def history(self) -> int:
+        return self.obs_steps
+
     def check(self) -> None:
         super().check()
         if self.horizon < 4 or self.horizon % 4 or not 1 <= self.execute <= self.horizon:
             raise ConfigError(f"--horizon {self.horizon} / --execute {self.execute}: need a horizon multiple of 4 and 1 <= execute <= horizon")
+        if self.obs_steps < 1:
+            raise ConfigError(f"--obs-steps {self.obs_steps}: must be >= 1")
         if not 1 <= self.sample_steps <= self.train_steps:
             raise ConfigError(f"--sample-steps {self.sample_steps}: need 1 <= sample-steps <= train-steps ({self.train_steps})")

@@ -88,17 +88,26 @@ class DiffusionModel(nn.Module):
         self.horizon, self.dim, self.binary = cfg.horizon, len(cfg.action_names), cfg.binary
         self.cont = [i for i in range(self.dim) if i not in self.binary]
         self.sample_steps = cfg.sample_steps
+        self.history = cfg.history()
         self.enc = Encoders(spec, audio_shape, encoder=cfg.encoder)
-        self.unet = UNet1D(len(self.cont), self.enc.out_dim, cfg.width)
-        self.gripper = mlp(self.enc.out_dim, 128, cfg.horizon * len(self.binary)) if self.binary else None
+        cond = self.enc.out_dim * self.history
+        self.unet = UNet1D(len(self.cont), cond, cfg.width)
+        self.gripper = mlp(cond, 128, cfg.horizon * len(self.binary)) if self.binary else None
         self.alpha_bar: torch.Tensor
         self.register_buffer("alpha_bar", cosine_alpha_bar(cfg.train_steps))
+
+    def _code(self, x: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The condition: each observation step encoded, concatenated ((B, history, ...) inputs)."""
+        if self.history == 1:
+            return self.enc(x)
+        b = next(iter(x.values())).shape[0]
+        return self.enc({k: v.flatten(0, 1) for k, v in x.items()}).view(b, -1)
 
     def _noise(self, shape: tuple[int, ...], gen: torch.Generator | None, device: torch.device) -> torch.Tensor:
         return torch.randn(shape, generator=gen).to(device)  # drawn on the CPU: the same numbers on any device
 
     def loss(self, x: dict[str, torch.Tensor], target: torch.Tensor, valid: torch.Tensor, gen: torch.Generator | None = None) -> torch.Tensor:
-        code = self.enc(x)
+        code = self._code(x)
         a0 = target[..., self.cont]
         b, dev = a0.shape[0], a0.device
         t = torch.randint(0, len(self.alpha_bar), (b,), generator=gen).to(dev)
@@ -114,7 +123,7 @@ class DiffusionModel(nn.Module):
 
     def predict(self, x: dict[str, torch.Tensor], state: Any = None, gen: torch.Generator | None = None) -> tuple[torch.Tensor, Any]:
         """DDIM (Song et al. 2021, eq. 12 with sigma 0) over `sample_steps` evenly spaced levels."""
-        code = self.enc(x)
+        code = self._code(x)
         b, dev = code.shape[0], code.device
         a = self._noise((b, self.horizon, len(self.cont)), gen, dev)
         levels = torch.linspace(len(self.alpha_bar) - 1, 0, self.sample_steps).round().long().unique_consecutive()
