@@ -103,7 +103,7 @@ def _make_train_command(name: str) -> Callable[..., None]:
     for f in fields:
         default = cls.default_of(f)
         shown = ",".join(default) if isinstance(default, tuple) else default
-        help_text = f.metadata["help"] + ("" if f.metadata.get("required") else f" [default: {shown}]")
+        help_text = f.metadata["help"] + (" (required)" if f.metadata.get("required") else f" (default {shown})")
         params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, annotation=_option_type(hints[f.name]) | None,
                                         default=typer.Option(None, f"--{f.name.replace('_', '-')}", help=help_text, show_default=False)))
     params += [
@@ -120,7 +120,7 @@ def _make_train_command(name: str) -> Callable[..., None]:
             inspect.Parameter("dagger", inspect.Parameter.KEYWORD_ONLY, annotation=int, default=typer.Option(
                 0, "--dagger", min=0, help="DAgger rounds after BC (Navigate only): roll the learner on train episodes, label with the expert, retrain. With --resume: start from the BC run in --out.")),
             inspect.Parameter("dagger_episodes", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
-                None, "--dagger-episodes", min=1, help="Train episodes rolled per DAgger round [default: 8].")),
+                None, "--dagger-episodes", min=1, help="Train episodes rolled per DAgger round (default 8).")),
             inspect.Parameter("dagger_steps", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
                 None, "--dagger-steps", min=1, help="Learner steps per rollout (default: the Navigate budget).")),
         ]
