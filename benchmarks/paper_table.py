@@ -63,8 +63,8 @@ PLANNER = ("planner_fresh", ("--inputs", "audio", "--select", "accuracy", "--epo
 # time), reset at each skill's start.
 MANIPULATION = ("--action-form", "delta", "--shift", "4", "--epochs", "15")
 LEARNERS: dict[str, tuple[str, str, str, tuple[str, ...]]] = {
-    "Navigate": ("paper_table", "Navigate", "audio,depth,rgb,state,kind", ("--gru", "--epochs", "30")),
-    "Navigate-target": ("paper_table", "Navigate", "audio,depth,rgb,state,kind,target", ("--gru", "--epochs", "30")),
+    "Navigate": ("paper_table", "Navigate", "audio,depth,rgb,state,kind", ("bc-rnn", "--epochs", "30")),
+    "Navigate-target": ("paper_table", "Navigate", "audio,depth,rgb,state,kind,target", ("bc-rnn", "--epochs", "30")),
     **{s: ("paper_table_pick_place", s, "depth,wrist_depth,state,kind", MANIPULATION) for s in ("Pick", "Place")},
     "Place-target": ("paper_table_pick_place", "Place", "depth,wrist_depth,state,kind,target", MANIPULATION),
     **{s: ("paper_table_door_sink", s, "depth,wrist_depth,state,kind", MANIPULATION) for s in ("OpenDoor", "CloseSink")},
@@ -175,7 +175,8 @@ def train(data: Path, runs: Path, name: str, tiny: bool) -> dict[str, Any] | Non
         return json.loads(done.read_text())
     if folder.exists():
         shutil.rmtree(folder)  # unfinished: train again (a resumed run would need its exact options)
-    args = ["train", "bc", str(data), "--skill", skill, "--inputs", inputs, *opts, "--out", str(folder), "--no-progress"]
+    algo, opts = (opts[0], opts[1:]) if opts and not opts[0].startswith("--") else ("bc", opts)  # `echo-data train <algo>`; bc unless named first
+    args = ["train", algo, str(data), "--skill", skill, "--inputs", inputs, *opts, "--out", str(folder), "--no-progress"]
     if tiny:
         args += ["--max-steps", "2"]
     stdout, seconds = cli(*args)

@@ -11,16 +11,15 @@ t / fps seconds, the sample at `audio_offset` of step t), raised by the playback
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
-from PIL import Image
 
 from echo_data.camera import DEPTH_UNIT_M
+from echo_data.dataset.encode import decode_png
 from echo_data.dataset.manifest import load_manifest
 from echo_data.dataset.schema import IMAGE_COLUMNS, STATE
 from echo_data.viz.frames import PANEL, EpisodeFrames
@@ -83,7 +82,7 @@ def render_episode_video(root: str | Path, index: int, out: str | Path, split: s
 
     def frames() -> Any:
         for t, row in enumerate(rows):
-            rgb = np.asarray(Image.open(io.BytesIO(row[rgb_col]["bytes"])).convert("RGB"))
+            rgb = decode_png(row[rgb_col], rgb=True)
             depth, wrist = (_depth_m(row, col) for col in (depth_col, wrist_col))
             k = int(row["skill_index"])
             target = chain[k]["target_kind"] if k < len(chain) else ""
@@ -106,4 +105,4 @@ def _depth_m(row: dict[str, Any], col: str) -> np.ndarray | None:
     """A stored depth image (16-bit PNG of millimetres) in metres, None where not stored."""
     if col not in row:
         return None
-    return np.asarray(Image.open(io.BytesIO(row[col]["bytes"]))).astype(np.float64) * DEPTH_UNIT_M
+    return decode_png(row[col]).astype(np.float64) * DEPTH_UNIT_M

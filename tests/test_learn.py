@@ -66,7 +66,7 @@ def test_bc_run_loads_as_a_policy_and_acts(ds: Path, tmp_path: Path) -> None:
     for name in (runs.CONFIG, runs.POLICY, runs.AGENT, runs.CHECKPOINT, runs.BEST):
         assert (run / name).is_file()
     meta = json.loads((run / runs.POLICY).read_text())
-    assert meta["kind"] == "policy" and meta["class"] == "echo_data.learn.policy:BCPolicy"
+    assert meta["kind"] == "policy" and meta["class"] == "echo_data.learn.policy:SkillPolicy" and meta["algo"] == "bc"
     agent = json.loads((run / runs.AGENT).read_text())  # evaluate's checkpoint folder: Class(checkpoint=folder)
     assert agent == {"class": meta["class"], "kwargs": {}}
     module, cls = agent["class"].split(":")
@@ -363,7 +363,7 @@ def test_evaluate_runs_a_trained_planner_and_a_per_skill_bc_run(ds: Path, tmp_pa
     doc = json.loads(out.read_text())
     nav = doc["episodes"][0]["skills"][0]
     assert nav["skill"] == "Navigate" and nav["steps"] > 0
-    assert doc["policy"]["skills"]["Navigate"]["class"] == "echo_data.learn.policy:BCPolicy"
+    assert doc["policy"]["skills"]["Navigate"]["class"] == "echo_data.learn.policy:SkillPolicy"
 
 
 def test_dagger_labeller_answers_as_the_expert_from_its_start(ds: Path) -> None:
@@ -403,3 +403,22 @@ def test_dagger_round_adds_expert_labelled_rows_and_retrains(ds: Path, tmp_path:
     again = _train(ds, tmp_path / "from_bc", "--inputs", "state", "--epochs", "1", "--dagger", "1", "--dagger-episodes", "1", "--dagger-steps", "5", "--resume")
     assert (tmp_path / "from_bc" / "dagger.csv").read_text().splitlines()[1].split(",")[:4] == ["1", "0", "5", "5"]
     assert again["rows"] == summary["rows"] and again["best_val_loss"] == summary["best_val_loss"]
+
+
+def test_checkpoint_chosen_closed_loop_on_validation_episodes(ds: Path, tmp_path: Path) -> None:
+    """--select-every 1: after each epoch the policy runs on validation-split episodes (the
+    dataset's recipe, split "val", never "test"); best.pt carries the success that chose it."""
+    from echo_data.learn.select import SELECT_DIR, validation_recipe
+
+    run = tmp_path / "sel"
+    summary = _train(ds, run, "--inputs", "state", "--epochs", "2", "--select-every", "1", "--select-episodes", "1", "--skill", "Pick")
+    import csv
+
+    scores = [float(r["val_success"]) for r in csv.DictReader((run / runs.LOSSES).read_text().splitlines())]
+    assert len(scores) == 2 and set(scores) <= {0.0, 1.0} and summary["last"]["val_success"] == scores[-1]  # one Pick attempt per epoch
+    assert runs.load_torch(run / runs.BEST)["val_success"] == max(scores)
+    first, second = (run / SELECT_DIR / f"scored-00{i}" for i in (1, 2))  # each epoch's weights scored as they were
+    assert json.loads((first / runs.CONFIG).read_text())["skill"] == "Pick"
+    assert not _same(_weights(first, runs.BEST), _weights(second, runs.BEST))
+    recipe = validation_recipe(ds, "Pick", 2)
+    assert recipe.splits["val"] == 2 and recipe.splits["test"] == json.loads((ds / "manifest.json").read_text())["recipe"]["splits"]["test"]

@@ -23,7 +23,7 @@ from echo_data.cli import app
 from echo_data.dataset.schema import STATE
 from echo_data.dataset.torch import StepDataset
 from echo_data.learn import runs
-from echo_data.learn.bc import BCConfig
+from echo_data.learn.algos import config_from_run
 from echo_data.learn.data import chain_kinds
 from echo_data.learn.features import DELTA_ACTION, DELTA_STATE, WRIST_DEPTH, FeatureSpec, from_action_form, prepare, to_action_form
 from echo_data.learn.policy import BCPolicy
@@ -50,7 +50,7 @@ def trained(ds: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Pat
     out = {}
     for skill in SKILLS:
         inputs = "audio,depth,rgb,state,kind" if skill == "Navigate" else "depth,wrist_depth,state,kind"
-        args = ["train", "bc", str(ds), "--skill", skill, "--inputs", inputs, "--gru", "--max-steps", "2", "--out", str(root / skill), "--no-progress"]
+        args = ["train", "bc-rnn", str(ds), "--skill", skill, "--inputs", inputs, "--max-steps", "2", "--out", str(root / skill), "--no-progress"]
         res = runner.invoke(app, args)
         assert res.exit_code == 0, res.output
         out[skill] = root / skill
@@ -73,10 +73,10 @@ def _segment(ds: Path, skill: str) -> tuple[list[dict], str]:
 
 @pytest.mark.parametrize("skill", SKILLS)
 def test_every_skill_learns_from_wrist_depth_and_its_target_kind(ds: Path, trained: dict[str, Path], skill: str) -> None:
-    cfg = BCConfig.from_dict(runs.read_json(trained[skill] / runs.CONFIG))
+    cfg = config_from_run(runs.read_json(trained[skill] / runs.CONFIG))
     spec = FeatureSpec.from_dict(cfg.features)
     obs, kind = _segment(ds, skill)
-    assert cfg.recurrent and kind in spec.kinds
+    assert cfg.ALGO == "bc_rnn" and cfg.SEQUENCE and kind in spec.kinds
     if skill != "Navigate":
         assert WRIST_DEPTH in spec.columns and spec.wrist_std > 0
     policy = BCPolicy.from_run(trained[skill])
@@ -120,9 +120,10 @@ def test_runs_from_before_the_new_inputs_still_load(ds: Path, tmp_path: Path) ->
     res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Pick", "--inputs", "depth,state", "--max-steps", "1", "--out", str(tmp_path / "old"), "--no-progress"])
     assert res.exit_code == 0, res.output
     cfg = runs.read_json(tmp_path / "old" / runs.CONFIG)
-    for key in ("recurrent", "seq_batch"):
+    for key in ("algo", "action_column", "select_every", "select_episodes", "device", "encoder", "hidden"):  # a run from before the registry
         del cfg[key]
-    for key in ("wrist_mean", "wrist_std", "kinds"):
+    cfg["recurrent"], cfg["seq_batch"] = False, 4
+    for key in ("wrist_mean", "wrist_std", "kinds", "sides", "privileged"):
         del cfg["features"][key]
     (tmp_path / "old" / runs.CONFIG).write_text(json.dumps(cfg))
     obs, _ = _segment(ds, "Pick")
@@ -145,7 +146,7 @@ def test_delta_actions_are_changes_from_the_measured_joints(ds: Path, tmp_path: 
     res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Pick", "--inputs", "depth,wrist_depth,state,kind", "--action-form", "delta",
                               "--max-steps", "2", "--out", str(out), "--no-progress"])
     assert res.exit_code == 0, res.output
-    cfg = BCConfig.from_dict(runs.read_json(out / runs.CONFIG))
+    cfg = config_from_run(runs.read_json(out / runs.CONFIG))
     data = StepDataset(ds, "train", skill="Pick")
     rows = [data[i] for i in range(len(data))]
     actions = np.stack([np.asarray(r["action"], dtype=np.float32) for r in rows])[:, None]
@@ -170,8 +171,8 @@ def test_delta_actions_are_changes_from_the_measured_joints(ds: Path, tmp_path: 
 
 
 def test_gru_with_chunks_is_refused(ds: Path, tmp_path: Path) -> None:
-    res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Pick", "--inputs", "state", "--gru", "--chunk", "2", "--out", str(tmp_path / "r")])
-    assert res.exit_code == 2 and "--chunk must be 1" in res.output and not (tmp_path / "r").exists()
+    res = runner.invoke(app, ["train", "bc-rnn", str(ds), "--skill", "Pick", "--inputs", "state", "--chunk", "2", "--out", str(tmp_path / "r")])
+    assert res.exit_code == 2 and "--chunk" in res.output and not (tmp_path / "r").exists()
 
 
 def test_paper_table_tiny_evaluates_a_learner_in_evaluate_and_resumes(ds: Path, trained: dict[str, Path], tmp_path: Path) -> None:

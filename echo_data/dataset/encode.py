@@ -79,6 +79,23 @@ def encode_png(image: np.ndarray) -> bytes:
     return _PNG_SIGNATURE + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(filtered.tobytes(), PNG_COMPRESS_LEVEL)) + chunk(b"IEND", b"")
 
 
+def decode_png(data: bytes | dict[str, Any], rgb: bool = False) -> np.ndarray:
+    """PNG bytes (or a Hugging Face Image cell {"bytes": ...}) -> the stored pixels: uint8 (H, W, 3)
+    RGB or uint16 (H, W) depth in millimetres (`rgb`: converted to 3-channel RGB whatever it
+    holds). The package's one PNG reader (training, loaders, exports and viewers decode through
+    it), so a stored frame means one thing everywhere."""
+    from PIL import Image
+
+    raw = data["bytes"] if isinstance(data, dict) else data
+    with Image.open(io.BytesIO(raw)) as im:
+        return np.asarray(im.convert("RGB") if rgb else im)
+
+
+def decode_pngs(cells: list[Any]) -> np.ndarray:
+    """A column's PNG cells -> (n, H, W[, 3]) stacked pixels."""
+    return np.stack([decode_png(c) for c in cells])
+
+
 def encode_wav(audio: np.ndarray, sample_rate: int, what: str = "audio") -> bytes:
     """float (n, channels) -> 16-bit PCM WAV bytes; ClippingError if it would clip (see pcm)."""
     import soundfile as sf

@@ -7,7 +7,6 @@ keep their (T, F, time, ear) shape; every other fixed-size column becomes (T, ..
 
 from __future__ import annotations
 
-import io
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,9 +68,9 @@ def check_out_folder(src: Path, out: Path, overwrite: bool) -> None:
 
 def decode_images(column: pa.ChunkedArray) -> np.ndarray:
     """PNG cells of an image column -> (T, H, W[, C]) pixels as stored (depth stays uint16 mm)."""
-    from PIL import Image
+    from echo_data.dataset.encode import decode_pngs
 
-    return np.stack([np.asarray(Image.open(io.BytesIO(p["bytes"]))) for p in column.to_pylist()])
+    return decode_pngs(column.to_pylist())
 
 
 def column_values(data: pa.ChunkedArray, n: int) -> np.ndarray:

@@ -11,7 +11,6 @@ float tensors (RGB (3, H, W) in [0, 1], depth (1, H, W) in metres), spectrograms
 
 from __future__ import annotations
 
-import io
 import os
 from collections import OrderedDict
 from collections.abc import Iterator, Sequence
@@ -57,12 +56,12 @@ class _Shards:
     """The shards of one split and lazy, per-process access to their rows."""
 
     def __init__(self, root: Path, split: str) -> None:
-        manifest = load_manifest(root)
+        from echo_data.dataset.reader import DatasetMeta
+
+        meta = DatasetMeta.of(root)  # the one reader's metadata: manifest, layout, the split's files
         self.root = root
-        self.layout = StepLayout.from_dict(manifest["layout"])
-        self.files = [root / e["file"] for e in manifest["shards"] if e["split"] == split]
-        if split not in manifest["splits"]:
-            raise ValueError(f"{root}: no split {split!r} (has {', '.join(manifest['splits'])})")
+        self.layout = meta.layout
+        self.files = meta.files(split)
         self.all_columns = [f.name for f in self.layout.schema()]
         if self.files:  # a dataset built before a column existed (e.g. action.executed) offers what it has
             present = set(pq.read_schema(self.files[0]).names)
@@ -107,7 +106,7 @@ class _Shards:
         if hit is not None:
             self._decoded.move_to_end(key)
             return hit
-        from PIL import Image
+        from echo_data.dataset.encode import decode_pngs
 
         torch = _torch()
         table = self._open[shard][0].read_row_group(group, columns=list(columns))
@@ -115,7 +114,7 @@ class _Shards:
         for col in columns:
             arr = table.column(col)
             if col in self.layout.images:
-                stack = np.stack([np.asarray(Image.open(io.BytesIO(c["bytes"]))) for c in arr.to_pylist()])
+                stack = decode_pngs(arr.to_pylist())
                 if self.layout.images[col][0] == "rgb":
                     out[col] = torch.from_numpy(stack)
                 else:

@@ -1,10 +1,15 @@
-"""`echo-data train`: behaviour cloning per skill and the audio planner (needs the torch extra)."""
+"""`echo-data train`: one command per skill-learning algorithm (its options generated from the
+algorithm's config) and the audio planner (needs the torch extra)."""
 
 from __future__ import annotations
 
+import inspect
 import json
+import types
+import typing
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -63,61 +68,122 @@ def _need_torch() -> None:
         raise _fail("training needs PyTorch: pip install 'echo-data[torch]'") from None
 
 
-@train_app.command("bc")
-def bc_cmd(
-    ctx: typer.Context,
-    dataset: _Dataset,
-    skill: Annotated[str, typer.Option("--skill", help="Skill whose step rows are cloned (Navigate, Pick, Place, OpenDoor, CloseSink).")],
-    inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, depth (head), wrist_depth, rgb (head), state (velocities left out), state_raw (all 25), target (the goal position: the paper's * rows), kind (the chain's target kind, one-hot).")] = "audio,depth,state",
-    epochs: _Epochs = None,
-    seed: _Seed = 0,
-    out: Annotated[Path | None, typer.Option("--out", help="Run folder (default runs/bc-<skill>-<inputs>).")] = None,
-    chunk: Annotated[int, typer.Option("--chunk", min=1, help="Actions predicted per step (action chunking).")] = 1,
-    execute: Annotated[int, typer.Option("--execute", min=1, help="Predicted actions executed before predicting again.")] = 1,
-    audio_form: Annotated[str, typer.Option("--audio-form", help="How audio is fed: level_ild (each ear in dB plus their difference) or stored (the dataset's spectrogram, normalised).")] = "level_ild",
-    batch_size: Annotated[int, typer.Option("--batch-size", min=1)] = 64,
-    lr: Annotated[float, typer.Option("--lr", min=0.0)] = 1e-3,
-    max_steps: _MaxSteps = None,
-    threads: _Threads = 1,
-    gru: Annotated[bool, typer.Option("--gru/--no-gru", help="A GRU over the steps of a skill (BC-RNN), trained on whole segments; its state resets at each skill's start.")] = False,
-    seq_batch: Annotated[int, typer.Option("--seq-batch", min=1, help="With --gru: segments per optimiser step.")] = 4,
-    shift: Annotated[int, typer.Option("--shift", min=0, help="Random-shift augmentation of training images: up to N pixels (0 = off).")] = 0,
-    action_form: Annotated[str, typer.Option("--action-form", help="What the network predicts: absolute (the dataset's joint targets) or delta (torso and arm targets as the change from the measured joints; needs state).")] = "absolute",
-    resume: _Resume = False,
-    overwrite: _Overwrite = False,
-    progress: _Progress = True,
-    dagger: Annotated[int, typer.Option("--dagger", min=0, help="DAgger rounds after BC (Navigate only): roll the learner on train episodes, label with the expert, retrain. With --resume: start from the BC run in --out.")] = 0,
-    dagger_episodes: Annotated[int, typer.Option("--dagger-episodes", min=1, help="Train episodes rolled per DAgger round.")] = 8,
-    dagger_steps: Annotated[int | None, typer.Option("--dagger-steps", min=1, help="Learner steps per rollout (default: the Navigate budget).")] = None,
-) -> None:
-    """Behaviour-clone one skill from the dataset's step rows; the run folder loads as a policy."""
-    _need_torch()
-    from echo_data.learn import runs
-    from echo_data.learn.bc import BCConfig, train_bc
-    from echo_data.learn.features import BC_INPUTS, parse_inputs
+def _option_type(hint: Any) -> Any:
+    """A config field's type as the command line takes it (tuples as comma lists)."""
+    if hint == tuple[str, ...]:
+        return str
+    args = [a for a in typing.get_args(hint) if a is not type(None)]
+    return args[0] if args and typing.get_origin(hint) in (typing.Union, types.UnionType) else hint
+
+
+def _read_config_file(path: Path) -> dict[str, Any]:
+    """--config FILE: a JSON or YAML mapping of option names (underscores or dashes) to values."""
+    import yaml
 
     try:
-        names = parse_inputs(inputs, BC_INPUTS)
-        _not_applying(ctx, {"audio_form": ("audio" in names, "without audio in --inputs"),
-                            "dagger_episodes": (dagger > 0, "without --dagger"), "dagger_steps": (dagger > 0, "without --dagger")})
-        folder = out or Path("runs") / f"bc-{skill}-{'-'.join(names)}"
-        cfg = BCConfig(str(dataset), skill, names, seed=seed, chunk=chunk, execute=execute, batch_size=batch_size, lr=lr, max_steps=max_steps, threads=threads,
-                       audio_form=audio_form, recurrent=gru, seq_batch=seq_batch, shift=shift, action_form=action_form)
-        if epochs is not None:
-            cfg.epochs = epochs
-        _check(dataset, folder)
-        if dagger:
-            from echo_data.learn.dagger import run_dagger
+        doc = yaml.safe_load(path.read_text())  # JSON is YAML
+    except (OSError, yaml.YAMLError) as e:
+        raise _fail(f"--config {path}: cannot read ({' '.join(str(e).split())})"[:300]) from None
+    if not isinstance(doc, dict):
+        raise _fail(f"--config {path}: expected a mapping of option names to values")
+    return {str(k).replace("-", "_"): v for k, v in doc.items()}
 
-            runs.check_out(folder, resume, overwrite)
-            summary = run_dagger(cfg, folder, dagger, dagger_episodes, dagger_steps, progress, resume=resume)
-        else:
-            summary = train_bc(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)
-    except _errors() as e:
-        raise _fail(str(e)) from None
-    except OSError as e:
-        raise _fail(write_failed("--out", folder, e)) from None
-    typer.echo(json.dumps(summary, indent=1))
+
+def _make_train_command(name: str) -> Callable[..., None]:
+    """`echo-data train <algo>`: one option per field of the algorithm's config (defaults from the
+    config class, then `--config FILE`, then the command line), plus the run-folder options."""
+    from echo_data.learn.algos import algorithm
+
+    algo = algorithm(name)
+    cls = algo.config
+    hints = typing.get_type_hints(cls)
+    fields = cls.options()
+    params = [inspect.Parameter("dataset", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation=Path,
+                                default=typer.Argument(..., metavar="DATASET", help="Dataset folder (out/<name>)."))]
+    for f in fields:
+        default = cls.default_of(f)
+        shown = ",".join(default) if isinstance(default, tuple) else default
+        help_text = f.metadata["help"] + (" (required)" if f.metadata.get("required") else f" (default {shown})")
+        params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, annotation=_option_type(hints[f.name]) | None,
+                                        default=typer.Option(None, f"--{f.name.replace('_', '-')}", help=help_text, show_default=False)))
+    params += [
+        inspect.Parameter("config", inspect.Parameter.KEYWORD_ONLY, annotation=Path | None,
+                          default=typer.Option(None, "--config", help="JSON or YAML file of option values (the command line wins).")),
+        inspect.Parameter("out", inspect.Parameter.KEYWORD_ONLY, annotation=Path | None,
+                          default=typer.Option(None, "--out", help=f"Run folder (default runs/{name}-<skill>-<inputs>).")),
+        inspect.Parameter("resume", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(False, "--resume", help="Continue the run in --out from its last checkpoint.")),
+        inspect.Parameter("overwrite", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(False, "--overwrite", help="Replace the run in --out.")),
+        inspect.Parameter("progress", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(True, "--progress/--no-progress", help="Show progress bars.")),
+    ]
+    if name == "bc":
+        params += [
+            inspect.Parameter("dagger", inspect.Parameter.KEYWORD_ONLY, annotation=int, default=typer.Option(
+                0, "--dagger", min=0, help="DAgger rounds after BC (Navigate only): roll the learner on train episodes, label with the expert, retrain. With --resume: start from the BC run in --out.")),
+            inspect.Parameter("dagger_episodes", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
+                None, "--dagger-episodes", min=1, help="Train episodes rolled per DAgger round (default 8).")),
+            inspect.Parameter("dagger_steps", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
+                None, "--dagger-steps", min=1, help="Learner steps per rollout (default: the Navigate budget).")),
+        ]
+
+    def command(**kw: Any) -> None:
+        _need_torch()
+        from echo_data.learn import runs
+        from echo_data.learn.algos.base import ConfigError
+        from echo_data.learn.features import BC_INPUTS, parse_inputs
+
+        values: dict[str, Any] = {}
+        if kw["config"] is not None:
+            values.update(_read_config_file(kw["config"]))
+            unknown = sorted(set(values) - {f.name for f in fields})
+            if unknown:
+                raise _fail(f"--config {kw['config']}: unknown option {unknown[0]!r} for train {name.replace('_', '-')}")
+        values.update({f.name: kw[f.name] for f in fields if kw[f.name] is not None})
+        dataset = kw["dataset"]
+        folder = kw["out"] or Path("runs")
+        try:
+            if not values.get("skill"):
+                raise ConfigError("--skill: required (on the command line or in --config)")
+            inputs = values.get("inputs", cls.default_of(next(f for f in fields if f.name == "inputs")))
+            names = parse_inputs(inputs if isinstance(inputs, str) else ",".join(inputs), BC_INPUTS)
+            if "audio_form" in values and "audio" not in names:
+                raise ConfigError("--audio-form: does not apply without audio in --inputs")
+            if not kw.get("dagger") and (kw.get("dagger_episodes") is not None or kw.get("dagger_steps") is not None):
+                raise ConfigError("--dagger-episodes / --dagger-steps: do not apply without --dagger")
+            cfg = cls(**{**values, "dataset": str(dataset), "inputs": names})
+            folder = kw["out"] or Path("runs") / f"{name}-{cfg.skill}-{'-'.join(n.rsplit('.', 1)[-1] for n in names)}"
+            cfg.check()
+            _check(dataset, folder)
+            if kw.get("dagger"):
+                from echo_data.learn.dagger import run_dagger
+
+                runs.check_out(folder, kw["resume"], kw["overwrite"])
+                summary = run_dagger(cfg, folder, kw["dagger"], kw.get("dagger_episodes") or 8, kw.get("dagger_steps"), kw["progress"], resume=kw["resume"])
+            else:
+                from echo_data.learn.fit import train_skill
+
+                summary = train_skill(cfg, folder, resume=kw["resume"], overwrite=kw["overwrite"], progress=kw["progress"])
+        except _errors() + (ConfigError,) as e:
+            raise _fail(str(e)) from None
+        except OSError as e:
+            raise _fail(write_failed("--out", folder, e)) from None
+        typer.echo(json.dumps(summary, indent=1))
+
+    command.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
+    command.__annotations__ = {p.name: p.annotation for p in params}
+    command.__doc__ = f"{algo.summary} Clones one skill from the dataset's step rows; the run folder loads as a policy."
+    command.__name__ = f"train_{name}"
+    return command
+
+
+def register_algorithms() -> None:
+    """One `echo-data train <algo>` per registered algorithm."""
+    from echo_data.learn.algos import ALGORITHMS
+
+    for name in ALGORITHMS:
+        train_app.command(name.replace("_", "-"))(_make_train_command(name))
+
+
+register_algorithms()
 
 
 @train_app.command("planner")
@@ -142,11 +208,14 @@ def planner_cmd(
 ) -> None:
     """Train the planner on the train split, score it on the test split (unheard sounds); prints and saves eval.json."""
     _need_torch()
+    from echo_data.learn.algos.base import SEED_LIMIT
     from echo_data.learn.features import PLANNER_INPUTS, parse_inputs
     from echo_data.learn.planner import PlannerConfig, train_planner
 
     try:
         names = parse_inputs(inputs, PLANNER_INPUTS)
+        if not 0 <= seed < SEED_LIMIT:
+            raise _fail(f"--seed {seed}: must be within [0, 2**64)")
         _not_applying(ctx, {"audio": ("audio" in names, "without audio in --inputs"), "augment": ("audio" in names, "without audio in --inputs")})
         folder = out or Path("runs") / f"planner-{'-'.join(names)}"
         cfg = PlannerConfig(str(dataset), names, seed=seed, audio=audio, max_steps=max_steps, threads=threads, train_frames=train_frames, train_episodes=train_episodes,

@@ -164,12 +164,12 @@ def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_st
     `resume`: the BC run already in `out` (finished or not) is continued instead of trained anew,
     so an existing behaviour-cloning run can be DAgger'd without paying for it twice. Rounds
     themselves always start from the first."""
-    from echo_data.learn.bc import train_bc
+    from echo_data.learn.fit import train_skill as train_bc
 
     if cfg.skill != "Navigate":
         raise DaggerError(f"--dagger: only Navigate's expert can act from any state (not {cfg.skill!r}; see docs/learners.md)")
-    if cfg.chunk != 1:
-        raise DaggerError("--dagger: the expert labels one action per state; use --chunk 1")
+    if cfg.window() != 1 or cfg.SEQUENCE:
+        raise DaggerError("--dagger: the expert labels one action per state: train bc with --chunk 1")
     _, n_train = recipe_of(Path(cfg.dataset))
     if episodes_per_round > n_train:
         raise DaggerError(f"--dagger-episodes {episodes_per_round}: the train split of {cfg.dataset} has {n_train} episodes")

@@ -11,7 +11,6 @@ same (episode_index, skill_index) (a chain may Navigate twice). The target kind 
 
 from __future__ import annotations
 
-import io
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,10 +19,13 @@ from typing import Any
 import numpy as np
 import pyarrow.parquet as pq
 
-from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.schema import ACTION, STATE, StepLayout, column_to_numpy
-from echo_data.learn.features import FeatureSpec, canonical, kind_index, prepare
-from echo_data.records import ACTION_DIM, STATE_DIM
+from echo_data.dataset.encode import decode_pngs
+from echo_data.dataset.reader import DatasetMeta, StepReader
+from echo_data.dataset.schema import ACTION, IMAGE_COLUMNS, STATE, StepLayout, column_to_numpy
+from echo_data.learn.features import FeatureError, FeatureSpec, canonical, kind_index, prepare
+from echo_data.records import STATE_DIM
+
+ROWS_PER_DECODE = 256  # rows decoded at once: memory stays bounded by this many frames
 
 
 @dataclass
@@ -31,7 +33,7 @@ class SkillRows:
     """Everything training needs for the rows of one skill in one split."""
 
     inputs: dict[str, Any]  # prepared tensors, leading dimension = rows
-    actions: np.ndarray  # (n, chunk, ACTION_DIM) raw actions t..t+chunk-1 within the segment
+    actions: np.ndarray  # (n, chunk, A) raw actions t..t+chunk-1 within the segment (A: the cloned column's size)
     action_pad: np.ndarray  # (n, chunk) True where the chunk ran past the segment's end
     goals: np.ndarray  # (n, 3) the segment's final base pose (x, y, yaw): where the expert went
     episodes: np.ndarray  # (n,) episode_index
@@ -51,21 +53,15 @@ class Shards:
 
     @staticmethod
     def of(dataset: Path, split: str) -> Shards:
-        manifest = load_manifest(dataset)
-        if split not in manifest["splits"]:
-            raise ValueError(f"{dataset}: no split {split!r} (has {', '.join(manifest['splits'])})")
-        files = [dataset / e["file"] for e in manifest["shards"] if e["split"] == split]
-        return Shards(files, StepLayout.from_dict(manifest["layout"]))
+        meta = DatasetMeta.of(dataset)
+        return Shards(meta.files(split), meta.layout)
 
     def decode(self, table: Any, columns: list[str]) -> dict[str, np.ndarray]:
         """Arrow rows -> {column: (rows, ...)} in the loaders' form, via the world's arrays."""
-        from PIL import Image
-
         out: dict[str, np.ndarray] = {}
         for col in columns:
             if col in self.layout.images:
-                cells = table.column(col).to_pylist()
-                out[col] = np.stack([canonical(col, np.asarray(Image.open(io.BytesIO(c["bytes"])))) for c in cells])
+                out[col] = loader_form(col, decode_pngs(table.column(col).to_pylist()))
             elif col in self.layout.arrays:
                 out[col] = column_to_numpy(table.column(col), self.layout.arrays[col]).astype(np.float32)
             elif col == STATE:
@@ -73,6 +69,13 @@ class Shards:
             else:
                 raise KeyError(f"unknown observation column {col!r}")
         return out
+
+
+def loader_form(column: str, stored: np.ndarray) -> np.ndarray:
+    """Stored pixels of many rows -> the loaders' form row by row (`features.canonical`)."""
+    if column not in IMAGE_COLUMNS.values():
+        return stored.astype(np.float32)
+    return np.stack([canonical(column, x) for x in stored]) if len(stored) else stored.astype(np.float32)
 
 
 def skills_in(dataset: Path, split: str) -> list[str]:
@@ -100,63 +103,42 @@ def skill_kinds(dataset: Path, split: str, skill: str) -> tuple[str, ...]:
                          if sp == split for c in chain if c["skill"] == skill}))
 
 
-def _chunks(actions: np.ndarray, seg_start: np.ndarray, seg_end: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray]:
-    """Actions t..t+chunk-1 clamped to each row's segment [start, end] (inclusive), with pad mask."""
-    t = np.arange(len(actions))[:, None] + np.arange(chunk)[None, :]
-    pad = t > seg_end[:, None]
-    t = np.minimum(t, seg_end[:, None])
-    return actions[t], pad
-
-
 def load_skill_rows(
-    dataset: Path, split: str, skill: str, spec: FeatureSpec, chunk: int = 1, tick: Callable[[int], object] | None = None
+    dataset: Path, split: str, skill: str, spec: FeatureSpec, chunk: int = 1, tick: Callable[[int], object] | None = None, action_column: str = ACTION,
 ) -> SkillRows:
-    """Decode and prepare every row of `skill` in `split` (in shard order)."""
+    """Decode and prepare every row of `skill` in `split` (in shard order), with its next `chunk`
+    actions of `action_column` within its segment (`dataset.reader`'s windows)."""
     import torch
 
-    shards = Shards.of(dataset, split)
-    kinds_of = chain_kinds(dataset, split) if "kind" in spec.inputs else {}
-    parts: dict[str, list[Any]] = {}
-    acts, pads, goals, eps, segs, sts = [], [], [], [], [], []
-    seg_base = 0
-    for f in shards.files:
-        pf = pq.ParquetFile(f)
-        idx = pf.read(columns=["episode_index", "skill", "skill_index", ACTION, STATE])
-        ep = idx.column("episode_index").to_numpy()
-        sk = np.asarray(idx.column("skill").to_pylist())
-        si = idx.column("skill_index").to_numpy()
-        action = column_to_numpy(idx.column(ACTION), (ACTION_DIM,)).astype(np.float32)
-        state = column_to_numpy(idx.column(STATE), (STATE_DIM,)).astype(np.float32)
-        # Segments: runs of equal (episode, skill_index).
-        new = np.concatenate([[True], (ep[1:] != ep[:-1]) | (si[1:] != si[:-1])])
-        seg_id = np.cumsum(new) - 1
-        starts = np.flatnonzero(new)
-        ends = np.concatenate([starts[1:], [len(ep)]]) - 1
-        row_end = ends[seg_id]
-        keep = np.flatnonzero(sk == skill)
-        seg_base, first_seg = seg_base + len(starts), seg_base
-        if len(keep) == 0:
-            continue
-        a, p = _chunks(action, starts[seg_id], row_end, chunk)
-        acts.append(a[keep])
-        pads.append(p[keep])
-        goals.append(state[row_end[keep]][:, [0, 1, 2]])
-        sts.append(state[keep])
-        eps.append(ep[keep])
-        segs.append(first_seg + seg_id[keep])
-        kind = np.array([kind_index(spec, kinds_of.get((int(e), int(k)))) for e, k in zip(ep, si, strict=True)]) if kinds_of else None
-        for k, v in prepare_rows(pf, shards, keep, spec, state[row_end][:, [0, 1, 2]], tick, kind).items():
-            parts.setdefault(k, []).append(v)
-    if not eps:
+    reader = StepReader(dataset, split)
+    idx = reader.index
+    keep = np.flatnonzero(idx.skill == skill)
+    if len(keep) == 0:
         raise ValueError(f"{dataset}: no {skill!r} rows in split {split!r}")
+    if action_column not in reader.meta.columns:
+        raise FeatureError(f"--action-column {action_column}: {dataset} stores no such column (it has {', '.join(c for c in reader.meta.columns if c.startswith(ACTION))})")
+    windows, pad = reader.windows(keep, {action_column: range(chunk)})
+    states = reader.read([STATE], keep)[STATE]
+    _, last = idx.bounds("segment")
+    goals = reader.read([STATE], last[keep])[STATE][:, [0, 1, 2]]
+    kinds_of = chain_kinds(dataset, split) if "kind" in spec.inputs else {}
+    kind = np.array([kind_index(spec, kinds_of.get((int(e), int(k)))) for e, k in zip(idx.episode[keep], idx.skill_index[keep], strict=True)]) if kinds_of else None
+    parts: dict[str, list[Any]] = {}
+    for lo in range(0, len(keep), ROWS_PER_DECODE):
+        sel = slice(lo, lo + ROWS_PER_DECODE)
+        decoded = {c: loader_form(c, v) for c, v in reader.read(spec.columns, keep[sel]).items()}
+        for k, v in prepare(decoded, spec, goal=torch.from_numpy(goals[sel]), kind=None if kind is None else kind[sel]).items():
+            parts.setdefault(k, []).append(v)
+        if tick is not None:
+            tick(len(keep[sel]))
     return SkillRows(
         inputs={k: torch.cat(v) for k, v in parts.items()},
-        actions=np.concatenate(acts),
-        action_pad=np.concatenate(pads),
-        goals=np.concatenate(goals),
-        episodes=np.concatenate(eps),
-        segments=np.concatenate(segs),
-        states=np.concatenate(sts),
+        actions=windows[action_column].astype(np.float32),
+        action_pad=pad[action_column],
+        goals=goals,
+        episodes=idx.episode[keep],
+        segments=idx.segment[keep],
+        states=states,
     )
 
 

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from echo_data.dataset.schema import IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE
-from echo_data.records import ACTION_NAMES, STATE_NAMES
+from echo_data.records import ACTION_NAMES, BASE_FRAME_STATE, PRIVILEGED_PREFIX, STATE_NAMES
 
 HEAD_DEPTH = IMAGE_COLUMNS["head_depth"]
 HEAD_RGB = IMAGE_COLUMNS["head_rgb"]
@@ -33,7 +33,7 @@ AUDIO_COLUMNS = {"spectrogram": SPECTROGRAM, "mel": MEL}
 
 # State entries that echo the previous command (see module doc): never fed by `state`.
 LEAKING_STATE = tuple(n for n in STATE_NAMES if n in ("base_vx", "base_vy", "base_wz") or n.endswith("_vel"))
-BC_INPUTS = ("audio", "depth", "wrist_depth", "rgb", "state", "state_raw", "target", "kind")
+BC_INPUTS = ("audio", "depth", "wrist_depth", "rgb", "state", "state_raw", "target", "kind", PRIVILEGED_PREFIX)  # the prefix: any privileged column by name
 PLANNER_INPUTS = ("audio", "image")
 DEPTH_MAX_M = 10.0  # farther readings (and the renderer's 0 = nothing hit) carry no more cue
 GOAL_SCALE_M = 5.0  # goal offsets are divided by this: apartments are a few rooms across
@@ -78,13 +78,22 @@ class FeatureSpec:
     depth_std: float = 1.0
     wrist_mean: float = 0.0
     wrist_std: float = 1.0
-    image_size: int = 64  # depth / RGB are area-downsampled to this side
+    image_size: int = 64  # depth / RGB are area-downsampled to this side; 0 = kept at the stored resolution
     rgb_mean: tuple[float, ...] = (0.0, 0.0, 0.0)
     rgb_std: tuple[float, ...] = (1.0, 1.0, 1.0)
     image_key: str = HEAD_RGB
     audio_form: str = "stored"  # one of AUDIO_FORMS
     kinds: tuple[str, ...] = ()  # "kind": the target kinds this skill serves in training (one-hot, unknown = zeros)
     extra: dict[str, Any] = field(default_factory=dict)
+    sides: dict[str, Any] = field(default_factory=dict)  # image input -> stored (H, W), read when image_size is 0
+    privileged: dict[str, Any] = field(default_factory=dict)  # privileged column -> {"dim", "mean", "std"}
+
+    def side(self, name: str) -> int | tuple[int, int]:
+        """The (H, W) an image input reaches its encoder at."""
+        if self.image_size:
+            return self.image_size
+        h, w = self.sides[name]
+        return (int(h), int(w))
 
     @property
     def audio_channels(self) -> int:
@@ -105,7 +114,7 @@ class FeatureSpec:
             cols.append(self.image_key)
         if any(i in self.inputs for i in ("state", "state_raw", "target")):
             cols.append(STATE)
-        return cols
+        return cols + list(self.privileged)
 
     @property
     def state_dim(self) -> int:
@@ -123,7 +132,7 @@ class FeatureSpec:
 def parse_inputs(text: str, allowed: tuple[str, ...]) -> tuple[str, ...]:
     """"audio,depth,state" -> ("audio", "depth", "state"); unknown names raise FeatureError."""
     names = tuple(dict.fromkeys(t.strip() for t in text.split(",") if t.strip()))
-    bad = [n for n in names if n not in allowed]
+    bad = [n for n in names if n not in allowed and not (PRIVILEGED_PREFIX in allowed and n.startswith(PRIVILEGED_PREFIX) and n != PRIVILEGED_PREFIX)]
     if not names or bad:
         raise FeatureError(f"--inputs: unknown {bad or 'empty list'}; choose from {', '.join(allowed)}")
     if "state" in names and "state_raw" in names:
@@ -148,6 +157,9 @@ def feature_spec(
         return stats[key]
 
     kw: dict[str, Any] = {"inputs": inputs, "image_size": image_size, "kinds": tuple(kinds) if "kind" in inputs else ()}
+    if not image_size:
+        kw["sides"] = stored_sides(dataset, inputs)
+    kw["privileged"] = {c: privileged_stats(dataset, c, stats) for c in inputs if c.startswith(PRIVILEGED_PREFIX)}
     if "audio" in inputs:
         if audio not in AUDIO_COLUMNS:
             raise FeatureError(f"--audio: unknown feature {audio!r}; choose from {', '.join(AUDIO_COLUMNS)}")
@@ -167,7 +179,7 @@ def feature_spec(
         kw.update(rgb_mean=tuple(s["mean"]), rgb_std=tuple(max(v, 1e-6) for v in s["std"]))
     if "state" in inputs or "state_raw" in inputs:
         s = need(STATE)
-        keep = [i for i, n in enumerate(STATE_NAMES) if "state_raw" in inputs or n not in LEAKING_STATE]
+        keep = [i for i, n in enumerate(STATE_NAMES) if "state_raw" in inputs or (n in BASE_FRAME_STATE and n not in LEAKING_STATE)]
         # Constant entries (std 0 in the data) are centred but not scaled up.
         kw.update(
             state_names=tuple(STATE_NAMES[i] for i in keep),
@@ -177,6 +189,39 @@ def feature_spec(
     elif "target" in inputs:
         need(STATE)
     return FeatureSpec(**kw)
+
+
+def stored_sides(dataset: Path, inputs: tuple[str, ...]) -> dict[str, tuple[int, int]]:
+    """(H, W) of each image input as the dataset stores it (manifest layout)."""
+    from echo_data.dataset.schema import StepLayout
+
+    try:
+        layout = StepLayout.from_dict(json.loads((dataset / "manifest.json").read_text())["layout"])
+    except (OSError, ValueError, KeyError) as e:
+        raise FeatureError(f"{dataset / 'manifest.json'}: cannot read the step layout ({e})") from None
+    cols = {"depth": HEAD_DEPTH, "wrist_depth": WRIST_DEPTH, "rgb": HEAD_RGB, "image": HEAD_RGB}
+    out = {}
+    for name, col in cols.items():
+        if name in inputs:
+            if col not in layout.images:
+                raise FeatureError(f"--inputs {name}: the dataset stores no {col}")
+            out[name] = (int(layout.images[col][1]), int(layout.images[col][2]))
+    return out
+
+
+def privileged_stats(dataset: Path, column: str, stats: Mapping[str, Any]) -> dict[str, Any]:
+    """Size and normalisation of a privileged column: its stats.json moments when the dataset has
+    them, else its size from the shards' schema with mean 0 and scale 1."""
+    if column in stats:
+        mean, std = list(stats[column]["mean"]), list(stats[column]["std"])
+        return {"dim": len(mean), "mean": mean, "std": [v if v > 1e-6 else 1.0 for v in std]}
+    from echo_data.dataset.reader import DatasetMeta
+
+    meta = DatasetMeta.of(dataset)
+    dim = meta.vector_size(column)
+    if dim is None:
+        raise FeatureError(f"--inputs {column}: no such column in {dataset} (its step rows have {', '.join(c for c in meta.columns if c.startswith(PRIVILEGED_PREFIX)) or 'no privileged columns'})")
+    return {"dim": dim, "mean": [0.0] * dim, "std": [1.0] * dim}
 
 
 def canonical(key: str, value: Any) -> np.ndarray:
@@ -254,9 +299,10 @@ def _level_ild(a: Any, key: str) -> Any:
 
 
 def _area(x: Any, size: int) -> Any:
+    """Area-downsample to `size` x `size`; 0 keeps the stored resolution."""
     import torch.nn.functional as F
 
-    return x if x.shape[-1] == size and x.shape[-2] == size else F.adaptive_avg_pool2d(x, size)
+    return x if size == 0 or (x.shape[-1] == size and x.shape[-2] == size) else F.adaptive_avg_pool2d(x, size)
 
 
 def kind_index(spec: FeatureSpec, kind: str | None) -> int:
@@ -311,6 +357,9 @@ def prepare(batch: Mapping[str, Any], spec: FeatureSpec, goal: Any | None = None
         out["kind"] = torch.zeros(len(k), max(len(spec.kinds), 1))
         known = k >= 0
         out["kind"][known, k[known]] = 1.0
+    for col, p in spec.privileged.items():
+        v = t(col).reshape(len(t(col)), -1)
+        out[col.replace(".", "__")] = (v - torch.tensor(p["mean"])) / torch.tensor(p["std"])
     return out
 
 

@@ -26,6 +26,15 @@ from echo_data.learn import runs
 CHECKPOINT_SECONDS = 30.0  # tiny epochs (the planner's) would otherwise spend their time on disk
 
 
+def check_finite(model: Any, out: Path, step: int) -> None:
+    """Refuse to save weights that are not finite (a diverged run would otherwise load and act NaN)."""
+    import torch
+
+    for name, p in model.state_dict().items():
+        if p.is_floating_point() and not bool(torch.isfinite(p).all()):
+            raise runs.RunError(f"{out}: weight {name} is not finite at optimiser step {step}; nothing saved (lower --lr?)")
+
+
 def setup_torch(seed: int, threads: int) -> Any:
     """Deterministic CPU training: fixed thread count, deterministic kernels, seeded init.
 
@@ -35,7 +44,7 @@ def setup_torch(seed: int, threads: int) -> Any:
 
     torch.set_num_threads(threads)
     torch.use_deterministic_algorithms(True)
-    torch.manual_seed(seed)
+    torch.manual_seed(seed % 2**63)  # torch takes 64-bit seeds; the config allows [0, 2**64)
     return torch
 
 
@@ -77,6 +86,7 @@ def fit(
         state = ck["state"]
 
     def checkpoint() -> None:
+        check_finite(model, out, state["step"])
         runs.save_torch(out / runs.CHECKPOINT, {"model": model.state_dict(), "optim": opt.state_dict(), "state": state})
 
     per_epoch = math.ceil(len(train_ix) / cfg.batch_size)
@@ -90,6 +100,9 @@ def fit(
         while state["batch"] < per_epoch and state["step"] < total:
             ix = order[state["batch"] * cfg.batch_size : (state["batch"] + 1) * cfg.batch_size]
             loss = loss_fn(ix)
+            if not math.isfinite(float(loss.detach())):
+                raise runs.RunError(f"{out}: the training loss diverged at optimiser step {state['step'] + 1} (loss {float(loss.detach())}); "
+                                    "no weights were saved from there on (lower --lr?)")
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
@@ -108,9 +121,10 @@ def fit(
         state["history"].append({"epoch": state["epoch"] + 1, "step": state["step"], "train_loss": train_loss, **val, "seconds": round(state["seconds"], 2)})
         bar.set_postfix(train=f"{train_loss:.4f}", val=f"{val.get('val_loss', float('nan')):.4f}")
         v = cfg.badness(val)
-        if math.isnan(v) or v < state["best_val"]:
+        if (math.isnan(v) and state["best_val"] == math.inf) or v < state["best_val"]:  # unscored epochs stand in only until one is scored
             if not math.isnan(v):
                 state["best_val"] = v
+            check_finite(model, out, state["step"])
             runs.save_torch(out / runs.BEST, {"model": model.state_dict(), "step": state["step"], "epoch": state["epoch"] + 1, **val})
         state.update(epoch=state["epoch"] + 1, batch=0, running=[0.0, 0])
         if time.perf_counter() - saved >= CHECKPOINT_SECONDS:

@@ -1,4 +1,5 @@
-"""The networks: encoders per modality, the behaviour-cloning head and the planner heads.
+"""The networks shared by the learners: encoders per modality and the planner heads (each skill
+algorithm's own network lives in `learn/algos/<name>/`).
 
 Small on purpose (trainable in minutes on two CPU cores). The audio encoder follows the layout of
 SoundSpaces' AudioNav audio CNN: three convolutions 2 -> 32 -> 64 -> 64 channels with kernels
@@ -15,7 +16,6 @@ import torch
 from torch import nn
 
 from echo_data.learn.features import GOAL_DIM, FeatureSpec
-from echo_data.records import ACTION_DIM
 
 
 def _conv_out(net: nn.Module, shape: tuple[int, ...]) -> int:
@@ -59,10 +59,11 @@ class AudioEncoder(nn.Module):
 
 
 class ImageEncoder(nn.Module):
-    """(B, C, S, S) normalised depth or RGB -> (B, out): three strided convolutions."""
+    """(B, C, H, W) normalised depth or RGB -> (B, out): three strided convolutions, flattened."""
 
-    def __init__(self, channels: int, size: int, out: int = 128) -> None:
+    def __init__(self, channels: int, size: int | tuple[int, int], out: int = 128) -> None:
         super().__init__()
+        h, w = (size, size) if isinstance(size, int) else size
         self.cnn = nn.Sequential(
             nn.Conv2d(channels, 16, 5, stride=2),
             nn.ReLU(),
@@ -72,10 +73,46 @@ class ImageEncoder(nn.Module):
             nn.ReLU(),
             nn.Flatten(),
         )
-        self.fc = nn.Sequential(nn.Linear(_conv_out(self.cnn, (channels, size, size)), out), nn.ReLU())
+        self.fc = nn.Sequential(nn.Linear(_conv_out(self.cnn, (channels, h, w)), out), nn.ReLU())
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.fc(self.cnn(x))
+
+
+class SpatialSoftmaxEncoder(nn.Module):
+    """(B, C, H, W) -> (B, out): convolutions, then each of `keypoints` feature maps becomes the
+    expected image position (x, y in [-1, 1]) under a softmax over its pixels (Levine et al. 2016,
+    "End-to-end training of deep visuomotor policies"; robomimic's default image encoder).
+
+    Why: a flattened CNN code mixes what and where; keypoints are where things are, which is what
+    an arm needs to reach an object it sees. Convolutions keep the stored resolution to stride 2,
+    so a few-pixel object still owns a peak."""
+
+    def __init__(self, channels: int, size: int | tuple[int, int], out: int = 128, keypoints: int = 32) -> None:
+        super().__init__()
+        h, w = (size, size) if isinstance(size, int) else size
+        self.cnn = nn.Sequential(
+            nn.Conv2d(channels, 32, 5, stride=2, padding=2),
+            nn.ReLU(),
+            nn.Conv2d(32, 32, 3, padding=1),
+            nn.ReLU(),
+            nn.Conv2d(32, keypoints, 3, padding=1),
+        )
+        fh, fw = (h + 1) // 2, (w + 1) // 2
+        ys, xs = torch.meshgrid(torch.linspace(-1, 1, fh), torch.linspace(-1, 1, fw), indexing="ij")
+        self.grid: torch.Tensor
+        self.register_buffer("grid", torch.stack([xs.reshape(-1), ys.reshape(-1)], dim=1), persistent=False)  # (HW, 2)
+        self.fc = nn.Sequential(nn.Linear(2 * keypoints, out), nn.ReLU())
+
+    def keypoints(self, f: torch.Tensor) -> torch.Tensor:
+        """(B, K, h, w) feature maps -> (B, K, 2): the expected (x, y) in [-1, 1] of each map's softmax."""
+        return torch.softmax(f.flatten(2), dim=-1) @ self.grid
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.fc(self.keypoints(self.cnn(x)).flatten(1))
+
+
+IMAGE_ENCODERS = {"cnn": ImageEncoder, "spatial_softmax": SpatialSoftmaxEncoder}
 
 
 def mlp(inp: int, hidden: int, out: int, layers: int = 2) -> nn.Sequential:
@@ -87,66 +124,47 @@ def mlp(inp: int, hidden: int, out: int, layers: int = 2) -> nn.Sequential:
 
 
 class Encoders(nn.Module):
-    """One encoder per input of a FeatureSpec; `forward` concatenates their codes. Head and
-    wrist depth get separate encoders (they see different things: the room, the grasp); the
-    target kind is a one-hot fed as is."""
+    """One encoder per input of a FeatureSpec; `forward` concatenates their codes, `codes` keeps
+    them apart (ACT reads one token per input). Head and wrist depth get separate encoders (they
+    see different things: the room, the grasp); the target kind is a one-hot fed as is; each
+    privileged column (a vector) gets a small MLP."""
 
-    def __init__(self, spec: FeatureSpec, audio_shape: tuple[int, int] | None, width: int = 128) -> None:
+    def __init__(self, spec: FeatureSpec, audio_shape: tuple[int, int] | None, width: int = 128, encoder: str = "cnn") -> None:
         super().__init__()
         self.parts = nn.ModuleDict()
-        dims: dict[str, int] = {}
+        self.dims: dict[str, int] = {}
         if "audio" in spec.inputs:
             assert audio_shape is not None
             self.parts["audio"] = AudioEncoder(*audio_shape, out=width, channels=spec.audio_channels)
         for name, channels in (("depth", 1), ("wrist_depth", 1), ("image", 3), ("rgb", 3)):
             if name in spec.inputs:
-                self.parts[name] = ImageEncoder(channels, spec.image_size, out=width)
+                self.parts[name] = IMAGE_ENCODERS[encoder](channels, spec.side(name), out=width)
         if spec.state_names:
             self.parts["state"] = nn.Sequential(mlp(spec.state_dim, 64, 64, layers=1), nn.ReLU())
-            dims["state"] = 64
+            self.dims["state"] = 64
         if "target" in spec.inputs:
             self.parts["target"] = nn.Sequential(mlp(GOAL_DIM, 64, 64, layers=1), nn.ReLU())
-            dims["target"] = 64
+            self.dims["target"] = 64
         if "kind" in spec.inputs:
             self.parts["kind"] = nn.Identity()
-            dims["kind"] = max(len(spec.kinds), 1)
-        self.out_dim = sum(dims.get(name, width) for name in self.parts)
+            self.dims["kind"] = max(len(spec.kinds), 1)
+        for col, p in spec.privileged.items():
+            self.parts[part_name(col)] = nn.Sequential(mlp(int(p["dim"]), 64, 64, layers=1), nn.ReLU())
+            self.dims[part_name(col)] = 64
+        for name in self.parts:
+            self.dims.setdefault(name, width)
+        self.out_dim = sum(self.dims.values())
+
+    def codes(self, x: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        return {name: enc(x[name]) for name, enc in self.parts.items()}
 
     def forward(self, x: dict[str, torch.Tensor]) -> torch.Tensor:
-        return torch.cat([enc(x[name]) for name, enc in self.parts.items()], dim=1)
+        return torch.cat(list(self.codes(x).values()), dim=1)
 
 
-class BCNet(nn.Module):
-    """Encoders -> MLP -> `chunk` future actions (normalised), shape (B, chunk, ACTION_DIM)."""
-
-    def __init__(self, spec: FeatureSpec, audio_shape: tuple[int, int] | None, chunk: int = 1, hidden: int = 256) -> None:
-        super().__init__()
-        self.chunk = chunk
-        self.enc = Encoders(spec, audio_shape)
-        self.head = mlp(self.enc.out_dim, hidden, chunk * ACTION_DIM)
-
-    def forward(self, x: dict[str, torch.Tensor]) -> torch.Tensor:
-        return self.head(self.enc(x)).view(-1, self.chunk, ACTION_DIM)
-
-
-class BCRNN(nn.Module):
-    """Encoders -> GRU over the steps of a skill segment -> next action (normalised): robomimic's
-    BC-RNN, SoundSpaces' recurrent state. Inputs carry (B, T, ...) tensors; the hidden state is
-    zero at a segment's first step in training, as a policy's is after `reset` at a skill's start.
-    Returns ((B, T, 1, ACTION_DIM), hidden)."""
-
-    def __init__(self, spec: FeatureSpec, audio_shape: tuple[int, int] | None, hidden: int = 256) -> None:
-        super().__init__()
-        self.chunk = 1
-        self.enc = Encoders(spec, audio_shape)
-        self.gru = nn.GRU(self.enc.out_dim, hidden, batch_first=True)
-        self.head = mlp(hidden, hidden, ACTION_DIM, layers=1)
-
-    def forward(self, x: dict[str, torch.Tensor], h: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
-        b, t = next(iter(x.values())).shape[:2]
-        code = self.enc({k: v.reshape(b * t, *v.shape[2:]) for k, v in x.items()}).view(b, t, -1)
-        y, h = self.gru(code, h)
-        return self.head(y).view(b, t, 1, ACTION_DIM), h
+def part_name(column: str) -> str:
+    """A privileged column's encoder name (ModuleDict keys may not hold dots)."""
+    return column.replace(".", "__")
 
 
 class PlannerNet(nn.Module):

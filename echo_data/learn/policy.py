@@ -1,7 +1,8 @@
 """Trained run folders as the objects `echo-data evaluate` drives (see docs/learners.md).
 
-`BCPolicy.from_run(folder)` (or `BCPolicy(checkpoint=folder)`, how an `agent.json` checkpoint
-folder is constructed): `reset(info)`, then `act(obs) -> float32 (12,)` per control step,
+`SkillPolicy.from_run(folder)` (or `SkillPolicy(checkpoint=folder)`, how an `agent.json` checkpoint
+folder is constructed) for a skill run of any algorithm: `reset(info)`, then `act(obs) -> float32
+(A,)` per control step (A: the cloned action column's size),
 with `obs` holding the dataset's observation keys. Observations go through the same
 `features.prepare` as the training rows did. `PlannerModel.from_run(folder).plan(first_obs)`
 returns the skill chain in the planner export's JSON shape.
@@ -19,7 +20,6 @@ import numpy as np
 from echo_data.dataset.schema import STATE
 from echo_data.learn import runs
 from echo_data.learn.features import FeatureError, FeatureSpec, from_action_form, kind_index, prepare, single
-from echo_data.records import ACTION_DIM
 
 
 def _load(folder: Path, config_cls: Any, build: Any) -> tuple[Any, Any, FeatureSpec]:
@@ -51,36 +51,61 @@ def goal_from_info(info: Mapping[str, Any]) -> np.ndarray:
     return np.asarray(interaction_pose(spec.plan, str(target), door_angles=doors), dtype=np.float32)
 
 
-class BCPolicy:
-    """A behaviour-cloned skill policy loaded from its run folder."""
+class SkillPolicy:
+    """A trained skill run of any algorithm (config.json's "algo"), loaded from its run folder.
+
+    Acting follows the algorithm's config: a recurrent model carries its hidden state from step
+    to step (zero after `reset`, as at a segment's start in training); a chunking model predicts
+    `window` actions and either executes the first `execute_steps` of them before predicting
+    again (a queue) or, with ACT's temporal ensembling, predicts at every step and executes the
+    weighted mean of every prediction made for this step (w_i = exp(-m i), i = 0 the oldest).
+    Binary action entries are thresholded at 0.5 after averaging."""
 
     def __init__(self, checkpoint: Path | str) -> None:
-        from echo_data.learn.bc import BCConfig, build_model
+        from echo_data.learn.algos import build_model, config_from_run
 
         self.checkpoint = Path(checkpoint)
-        cfg, self.model, self.spec = _load(self.checkpoint, BCConfig, build_model)
+        self.config = cfg = config_from_run(runs.read_json(self.checkpoint / runs.CONFIG))
+        model = build_model(cfg)
+        path = self.checkpoint / runs.BEST if (self.checkpoint / runs.BEST).is_file() else self.checkpoint / runs.CHECKPOINT
+        model.load_state_dict(runs.load_torch(path)["model"])
+        self.model = model.eval()
+        self.spec = FeatureSpec.from_dict(cfg.features)
+        self.algo = cfg.ALGO
         self.mean = np.asarray(cfg.action_mean, dtype=np.float32)
         self.std = np.asarray(cfg.action_std, dtype=np.float32)
-        self.execute = cfg.execute
+        self.binary = list(cfg.binary)
+        self.execute = cfg.execute_steps()
+        self.ensemble = cfg.ensemble_weight()
         self.skill = cfg.skill
-        self.recurrent = cfg.recurrent
+        self.recurrent = cfg.SEQUENCE
         self.action_form = cfg.action_form
+        self.action_dim = len(cfg.action_names)
         self.observations = tuple(self.spec.columns)  # what evaluate must render for it
         self._queue: deque[np.ndarray] = deque()
+        self._past: deque[np.ndarray] = deque()  # temporal ensembling: earlier chunks, each shifted to start at the next step
         self._goal: np.ndarray | None = None
         self._kind = -1
+        self._gen: Any = None
+        self._history: deque[dict[str, Any]] = deque(maxlen=cfg.history())  # the last observations' inputs (history > 1)
         self.hidden: Any = None  # the GRU's state (recurrent runs); None = zero, as at a segment's start in training
 
     @classmethod
-    def from_run(cls, folder: Path | str) -> BCPolicy:
+    def from_run(cls, folder: Path | str) -> SkillPolicy:
         return cls(checkpoint=folder)
 
     def reset(self, info: Mapping[str, Any] | None = None) -> None:
-        """Start a new skill segment: forget queued actions and the recurrent state (training
-        started every segment from zero), read the goal and the target kind if the model needs them."""
+        """Start a new skill segment: forget queued and ensembled actions and the recurrent state
+        (training started every segment from zero), reseed sampling, read the goal and the
+        target kind if the model needs them."""
+        import torch
+
         info = info or {}
         self._queue.clear()
+        self._past.clear()
+        self._history.clear()
         self.hidden = None
+        self._gen = torch.Generator().manual_seed(self.config.seed % 2**63)
         self._goal = goal_from_info(info) if "target" in self.spec.inputs else None
         self._kind = kind_index(self.spec, info.get("target_kind")) if "kind" in self.spec.inputs else -1
 
@@ -91,23 +116,57 @@ class BCPolicy:
         goal = None if self._goal is None else torch.from_numpy(self._goal[None])
         return prepare(single(obs, self.spec), self.spec, goal=goal, kind=np.array([self._kind]))
 
-    def act(self, obs: Mapping[str, Any]) -> np.ndarray:
-        """One observation (dataset keys) -> the next action, float32 (ACTION_DIM,)."""
+    def _stacked(self) -> dict[str, Any]:
+        """The remembered steps as (1, history, ...) inputs: the segment's first observation repeated
+        until there are enough, as training clamps a window at the segment's start."""
         import torch
 
+        steps = list(self._history)
+        steps = [steps[0]] * (int(self._history.maxlen or 1) - len(steps)) + steps
+        return {k: torch.stack([s[k] for s in steps], dim=1) for k in steps[0]}
+
+    def _predict(self, obs: Mapping[str, Any]) -> np.ndarray:
+        """The model's chunk for this observation, (window, A) in the cloned action's units."""
+        import torch
+
+        x = self.inputs(obs) if not self._history else self._stacked()
+        with torch.no_grad():
+            pred, self.hidden = self.model.predict(x, self.hidden, self._gen)
+        return pred[0].cpu().numpy() * self.std + self.mean
+
+    def act(self, obs: Mapping[str, Any]) -> np.ndarray:
+        """One observation (dataset keys) -> the next action, float32 (A,)."""
+        if self._gen is None:  # acting without a reset: a segment's start
+            self.reset({})
+        if self._history.maxlen and self._history.maxlen > 1:  # every step is remembered, predicted on or not
+            self._history.append(self.inputs(obs))
+        if self.ensemble is not None:
+            chunk = self._predict(obs)
+            self._past.append(chunk)
+            while len(self._past[0]) == 0:
+                self._past.popleft()
+            now = np.stack([c[0] for c in self._past])  # oldest first
+            w = np.exp(-self.ensemble * np.arange(len(now)))
+            pred = (w[:, None] * now).sum(axis=0) / w.sum()
+            self._past = deque(c[1:] for c in self._past)
+            return self._finish(pred, obs)
         if not self._queue:
-            with torch.no_grad():
-                if self.recurrent:
-                    y, self.hidden = self.model({k: v[:, None] for k, v in self.inputs(obs).items()}, self.hidden)
-                    pred = y[0, 0].numpy()
-                else:
-                    pred = self.model(self.inputs(obs))[0].numpy()
-            state = np.asarray(obs[STATE], dtype=np.float32) if self.action_form != "absolute" else None
-            for a in pred[: self.execute]:
-                self._queue.append(from_action_form((a * self.std + self.mean).astype(np.float32), state, self.action_form))
-        action = self._queue.popleft()
-        assert action.shape == (ACTION_DIM,)
+            for a in self._predict(obs)[: self.execute]:
+                self._queue.append(a)
+        return self._finish(self._queue.popleft(), obs)
+
+    def _finish(self, pred: np.ndarray, obs: Mapping[str, Any]) -> np.ndarray:
+        """Threshold binary entries; turn the run's action form back into the env's action."""
+        out = np.array(pred, dtype=np.float32)
+        if self.binary:
+            out[self.binary] = (out[self.binary] > 0.5).astype(np.float32)
+        state = np.asarray(obs[STATE], dtype=np.float32) if self.action_form != "absolute" else None
+        action = from_action_form(out, state, self.action_form).astype(np.float32)
+        assert action.shape == (self.action_dim,)
         return action
+
+
+BCPolicy = SkillPolicy  # run folders written before the registry name this class in agent.json
 
 
 class PlannerModel:

@@ -16,6 +16,7 @@ import csv
 import io
 import json
 import os
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -134,3 +135,5 @@ def check_out(folder: Path, resume: bool, overwrite: bool) -> None:
         for name in (CONFIG, POLICY, AGENT, CHECKPOINT, BEST, LOSSES, CURVES, "eval.json"):
             if (folder / name).exists():
                 os.remove(folder / name)
+        if (folder / "select").is_dir():  # learn.select's scored weights
+            shutil.rmtree(folder / "select")

@@ -46,12 +46,11 @@ def _grid_step(h: int, w: int) -> int:
 
 def write_recording(root: Path, index: int, target: Path, split: str = "train") -> dict[str, Any]:
     """Write episode `index` of `split` to `target` (.rrd); return its entities and step range."""
-    import io
 
     import rerun as rr
-    from PIL import Image
 
     from echo_data.camera import depth_to_world
+    from echo_data.dataset.encode import decode_png
     from echo_data.dataset.manifest import load_manifest
     from echo_data.dataset.schema import ACTION, CAMERA_POSES, IMAGE_COLUMNS, SPECTROGRAM, STATE
     from echo_data.records import ACTION_NAMES, STATE_NAMES
@@ -110,11 +109,11 @@ def write_recording(root: Path, index: int, target: Path, split: str = "train") 
                 rgb_col = IMAGE_COLUMNS.get(f"{cam}_rgb")
                 if rgb_col in row:
                     rec.log(f"world/{cam}/rgb", rr.EncodedImage(contents=row[rgb_col]["bytes"], media_type="image/png"))
-                    rgb = np.asarray(Image.open(io.BytesIO(row[rgb_col]["bytes"])).convert("RGB")) if cam == "head" else None
+                    rgb = decode_png(row[rgb_col], rgb=True) if cam == "head" else None
                 depth_col = IMAGE_COLUMNS.get(f"{cam}_depth")
                 if depth_col not in row:
                     continue
-                depth = np.asarray(Image.open(io.BytesIO(row[depth_col]["bytes"])))
+                depth = decode_png(row[depth_col])
                 rec.log(f"world/{cam}/depth", rr.DepthImage(depth, meter=1.0 / float(info["depth_unit_m"]), colormap="turbo"))
                 g = _grid_step(*depth.shape)
                 pts = depth_to_world(depth, np.asarray(info["K"]), pose, float(info["depth_unit_m"]))[::g, ::g]

@@ -1,0 +1,1 @@
+"""ACT-style action chunking: a small transformer, chunk size k, temporal ensembling when acting."""

@@ -1,0 +1,1 @@
+"""BC (MLP): behaviour cloning with an MLP head and optional open-loop action chunks."""

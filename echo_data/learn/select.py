@@ -1,0 +1,59 @@
+"""Choosing a checkpoint closed loop: the policy as it is now, run on a few episodes of the
+validation split (never the test split) with the oracle planner and the oracle for the other
+skills; its skill's success rate is the score that picks best.pt (`--select-every`).
+
+Why: robomimic found the checkpoint with the lowest validation loss 50-100 % worse closed loop
+than the best one (Mandlekar et al. 2021, "What Matters in Learning from Offline Human
+Demonstrations for Robot Manipulation"). Validation episodes are sampled from the dataset's own
+recipe under the split name "val" (their own seeds); when the recipe builds no val episodes,
+`select_episodes` of them are added to one setting whose train episodes hold the skill.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from echo_data.learn import runs
+
+SELECT_DIR = "select"  # select/scored-NNN: the weights scored at the N-th selection, each a run folder
+
+
+def validation_recipe(dataset: Path, skill: str, episodes: int) -> Any:
+    """The dataset's recipe with at least `episodes` val episodes in a setting that holds `skill`."""
+    import pyarrow.parquet as pq
+
+    from echo_data.learn.dagger import recipe_of
+
+    recipe, _ = recipe_of(dataset)
+    if recipe.splits.get("val", 0) >= episodes:
+        return recipe
+    if not recipe.composition:
+        return recipe.model_copy(update={"splits": {**recipe.splits, "val": episodes}})
+    table = pq.read_table(dataset / "meta" / "episodes.parquet", columns=["split", "setting", "chain"]).to_pylist()
+    having = sorted({r["setting"] for r in table if r["split"] == "train" and any(c["skill"] == skill for c in r["chain"])})
+    if not having:
+        raise runs.RunError(f"--select-every: no train episode of {dataset} holds {skill}")
+    comp = {s: {**c, "val": episodes if s == having[0] else 0} for s, c in recipe.composition.items()}
+    return recipe.model_copy(update={"composition": comp, "splits": {**recipe.splits, "val": episodes}})
+
+
+def closed_loop_success(cfg: Any, model: Any, out: Path) -> float:
+    """Success rate of `cfg.skill` over `cfg.select_episodes` validation episodes with the
+    model's current weights (nan when no episode reached the skill)."""
+    from echo_data.evaluation.run import evaluate
+    from echo_data.learn.fit import POLICY_CLASS
+
+    scored = out / SELECT_DIR
+    # One folder per scoring: evaluate keeps a loaded policy per (recipe, split, policy path) in
+    # its in-process worker, so a reused path would score the first weights again.
+    folder = scored / f"scored-{len(list(scored.glob('scored-*'))) + 1:03d}"
+    runs.write_run_files(folder, "policy", POLICY_CLASS, cfg.to_dict(), {"algo": cfg.ALGO, "skill": cfg.skill})
+    runs.save_torch(folder / runs.BEST, {"model": {k: v.detach().cpu() for k, v in model.state_dict().items()}})
+    recipe = validation_recipe(Path(cfg.dataset), cfg.skill, cfg.select_episodes)
+    was_training = model.training
+    doc = evaluate(recipe, None, "val", cfg.select_episodes, (f"{cfg.skill}={folder}", "oracle"), "oracle")
+    model.train(was_training)
+    outcomes = [s["success"] for e in doc["episodes"] if "skipped" not in e for s in e["skills"] if s["skill"] == cfg.skill]
+    return sum(outcomes) / len(outcomes) if outcomes else math.nan

@@ -1,0 +1,285 @@
+"""The skill learners of the registry (bc, bc-rnn, act, diffusion), the dataset reader's windows,
+the training-input checks and the binary gripper head.
+
+Training runs a few optimiser steps on the shared synthetic dataset (real shapes, seconds to
+build); each run then loads through evaluate's loader and drives the robot closed loop for a few
+steps of a real quickstart episode (no rendering: the learners read the state).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch  # the test extra installs torch: a broken install must fail here, not skip
+from typer.testing import CliRunner
+
+from echo_data.cli import app
+from echo_data.dataset.reader import StepReader
+from echo_data.dataset.schema import ACTION, STATE
+from echo_data.learn import runs
+from echo_data.learn.algos import ALGORITHMS, algorithm, config_from_run
+from echo_data.learn.algos.base import ACTION_COLUMNS, action_loss
+from echo_data.learn.features import BC_INPUTS, feature_spec, parse_inputs
+from echo_data.learn.policy import SkillPolicy
+from echo_data.records import ACTION_DIM, BASE_FRAME_STATE, EE_ACTION_NAMES, PRIVILEGED_PREFIX, STATE_NAMES
+
+ROOT = Path(__file__).resolve().parent.parent
+QUICK = str(ROOT / "recipes" / "quickstart.yaml")
+runner = CliRunner()
+SMALL = {"bc": [], "bc_rnn": [], "act": ["--chunk", "4", "--d-model", "32", "--heads", "2", "--layers", "1"],
+         "diffusion": ["--horizon", "8", "--execute", "4", "--width", "16", "--train-steps", "20", "--sample-steps", "4"]}
+
+
+@pytest.fixture(scope="module")
+def ds(synth_dataset: Callable[[dict[str, int]], Path]) -> Path:
+    return synth_dataset({"train": 3, "test": 1})
+
+
+def _train(ds: Path, out: Path, algo: str, *extra: str, code: int = 0) -> dict:
+    args = ["train", algo.replace("_", "-"), str(ds), "--skill", "Navigate", "--inputs", "state", "--out", str(out), "--no-progress", *extra]
+    res = runner.invoke(app, args)
+    assert res.exit_code == code, res.output
+    return json.loads(res.stdout) if code == 0 else {"output": res.output}
+
+
+@pytest.fixture(scope="module")
+def trained(ds: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("algos")
+    for name in ALGORITHMS:
+        _train(ds, root / name, name, "--max-steps", "2", *SMALL[name])
+    return {name: root / name for name in ALGORITHMS}
+
+
+def test_every_algorithm_names_itself_and_drives_the_robot_closed_loop(trained: dict[str, Path]) -> None:
+    from echo_data.agents.builtin import OraclePlanner
+    from echo_data.agents.loading import load_policy
+    from echo_data.agents.runtime import run_episode
+    from echo_data.envs.env import EchoDataEnv
+
+    env = EchoDataEnv(QUICK, split="test", images=False, audio=False)
+    try:
+        spec = env.sample_spec("test", 0)
+        for name, run in trained.items():
+            assert runs.read_json(run / runs.CONFIG)["algo"] == name and runs.read_json(run / runs.POLICY)["algo"] == name
+            policy = load_policy(str(run))  # what `evaluate --policy RUN_DIR` constructs
+            assert isinstance(policy, SkillPolicy) and policy.algo == name and policy.observations == (STATE,)
+            obs, info = env.reset(options={"spec": spec})
+            result = run_episode(env, obs, info, OraclePlanner(), policy, max_steps=3, skills=1)
+            assert result.steps == 3, (name, result)
+    finally:
+        env.close()
+
+
+def test_chunked_policies_queue_or_ensemble_their_predictions(ds: Path, trained: dict[str, Path]) -> None:
+    obs = _observations(ds)
+    # Diffusion, horizon 8, execute 4: one prediction per four steps, and reset empties the queue.
+    policy = SkillPolicy.from_run(trained["diffusion"])
+    calls = _count(policy)
+    policy.reset({})
+    first = [policy.act(o) for o in obs[:5]]
+    assert len(calls) == 2 and all(a.shape == (ACTION_DIM,) and np.isfinite(a).all() for a in first)
+    policy.reset({})
+    assert np.array_equal(policy.act(obs[0]), first[0])  # sampling reseeded: the same first action
+    # ACT with temporal ensembling: a prediction every step; the action at step 2 is the weighted
+    # mean of what the chunks of steps 0, 1 and 2 said for step 2 (w_i = exp(-m i), oldest first).
+    policy = SkillPolicy.from_run(trained["act"])
+    chunks: list[np.ndarray] = []
+    predict = policy._predict
+    policy._predict = lambda o: chunks.append(predict(o)) or chunks[-1]  # type: ignore[method-assign]
+    policy.reset({})
+    acts = [policy.act(o) for o in obs[:3]]
+    m = policy.ensemble
+    assert m is not None and len(chunks) == 3
+    w = np.exp(-m * np.arange(3))
+    want = (w[:, None] * np.stack([chunks[0][2], chunks[1][1], chunks[2][0]])).sum(axis=0) / w.sum()
+    np.testing.assert_allclose(acts[2], want, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(acts[0], chunks[0][0], rtol=1e-6)
+
+
+def test_resumed_runs_equal_uninterrupted_ones_for_act_and_diffusion(ds: Path, tmp_path: Path) -> None:
+    for name in ("act", "diffusion"):
+        straight, split = tmp_path / f"{name}-a", tmp_path / f"{name}-b"
+        _train(ds, straight, name, "--max-steps", "4", *SMALL[name])
+        _train(ds, split, name, "--max-steps", "2", *SMALL[name])
+        _train(ds, split, name, "--max-steps", "4", "--resume", *SMALL[name])
+        a, b = (runs.load_torch(f / runs.CHECKPOINT)["model"] for f in (straight, split))
+        assert all(torch.equal(a[k], b[k]) for k in a), name
+
+
+def test_reader_windows_equal_the_rows_they_index(ds: Path) -> None:
+    reader = StepReader(ds, "train")
+    idx = reader.index
+    rows = np.arange(len(idx))
+    deltas = (-2, -1, 0, 1, 3)
+    values, pads = reader.windows(rows, {ACTION: deltas, STATE: (-1, 0)})
+    every = reader.read([ACTION, STATE])
+    first, last = idx.bounds("segment")
+    for i in rows:
+        for j, d in enumerate(deltas):
+            want = int(np.clip(i + d, first[i], last[i]))
+            assert np.array_equal(values[ACTION][i, j], every[ACTION][want])
+            assert pads[ACTION][i, j] == (not first[i] <= i + d <= last[i])
+            assert idx.segment[want] == idx.segment[i]
+        assert np.array_equal(values[STATE][i, 1], every[STATE][i])
+    shuffled = np.array(rows[::-1])
+    assert np.array_equal(reader.read([ACTION], shuffled)[ACTION], every[ACTION][shuffled])
+
+
+def test_default_inputs_hold_no_world_pose_and_no_privileged_column(ds: Path) -> None:
+    for algo in ALGORITHMS.values():
+        default = algo.config.default_of(next(f for f in algo.config.options() if f.name == "inputs"))
+        assert not any(n.startswith(PRIVILEGED_PREFIX) for n in default)
+    spec = feature_spec(ds, ("state",))
+    assert set(spec.state_names) <= set(BASE_FRAME_STATE) and not {"base_x", "base_y", "base_yaw"} & set(spec.state_names)
+    assert parse_inputs(f"state,{PRIVILEGED_PREFIX}target_pose", BC_INPUTS) == ("state", f"{PRIVILEGED_PREFIX}target_pose")
+    res = runner.invoke(app, ["train", "act", str(ds), "--skill", "Pick", "--inputs", f"state,{PRIVILEGED_PREFIX}nothing", "--out", str(ds.parent / "r")])
+    assert res.exit_code == 2 and f"--inputs {PRIVILEGED_PREFIX}nothing: no such column" in res.output
+    assert "base_x" in STATE_NAMES  # (the raw state still holds it: only the default input leaves it out)
+
+
+def test_binary_gripper_is_classified() -> None:
+    names, binary = ACTION_COLUMNS["action.ee"]
+    assert names[-1] == "gripper_close" and binary == ("gripper_close",)
+    cfg = algorithm("bc").config(skill="Pick", action_column="action.ee")
+    assert cfg.binary == (len(names) - 1,) and algorithm("bc").config(skill="Pick").binary == ()
+    pred = torch.zeros(2, 1, len(names))
+    pred[0, 0, -1], pred[1, 0, -1] = 3.0, -3.0
+    target = torch.zeros(2, 1, len(names))
+    target[0, 0, -1] = 1.0
+    got = action_loss(pred, target, torch.ones(2, 1), cfg.binary)
+    bce = torch.nn.functional.binary_cross_entropy_with_logits(torch.tensor([3.0, -3.0]), torch.tensor([1.0, 0.0]), reduction="sum") / 2
+    assert float(got) == pytest.approx(float(bce) / len(names), rel=1e-6)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--lr", "inf"], "--lr inf: must be a finite number > 0"),
+        (["--lr", "0"], "--lr 0.0: must be a finite number > 0"),
+        (["--seed", str(2**64)], "--seed 18446744073709551616: must be within [0, 2**64)"),
+        (["--inputs", "depth", "--image-size", "0", "--encoder", "spatial_softmax", "--shift", "16"], "--shift 16: must be below the image side (16 px)"),
+        (["--action-column", "action.ee"], "--action-column action.ee: "),
+        (["--device", "tpu"], "--device 'tpu': choose from cpu, cuda, auto"),
+    ],
+)
+def test_training_inputs_are_checked_before_anything_is_written(ds: Path, tmp_path: Path, args: list[str], message: str) -> None:
+    out = tmp_path / "run"
+    res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Navigate", "--out", str(out), "--no-progress", *args])
+    assert res.exit_code == 2 and message in res.output and len(res.output.strip().splitlines()) == 1, res.output
+    assert not (out / runs.BEST).exists() and not (out / runs.CHECKPOINT).exists()
+
+
+def test_a_diverging_run_names_the_step_and_saves_no_weights(ds: Path, tmp_path: Path) -> None:
+    out = tmp_path / "nan"
+    got = _train(ds, out, "bc", "--lr", "1e30", "--max-steps", "4", code=2)
+    assert "diverged at optimiser step" in got["output"] or "is not finite at optimiser step" in got["output"], got
+    for name in (runs.BEST, runs.CHECKPOINT):
+        if (out / name).exists():
+            assert all(torch.isfinite(v).all() for v in runs.load_torch(out / name)["model"].values())
+
+
+def test_config_file_and_overrides(ds: Path, tmp_path: Path) -> None:
+    conf = tmp_path / "act.yaml"
+    conf.write_text("chunk: 3\nd-model: 16\nheads: 2\nlayers: 1\nmax_steps: 1\nensemble: -1\nexecute: 2\n")
+    _train(ds, tmp_path / "run", "act", "--config", str(conf), "--execute", "3")
+    cfg = config_from_run(runs.read_json(tmp_path / "run" / runs.CONFIG))
+    assert (cfg.chunk, cfg.d_model, cfg.execute, cfg.ensemble_weight()) == (3, 16, 3, None)
+    conf.write_text("chunk: 3\nflavour: mint\n")
+    got = _train(ds, tmp_path / "bad", "act", "--config", str(conf), code=2)
+    assert "unknown option 'flavour'" in got["output"]
+
+
+def _observations(ds: Path) -> list[dict]:
+    reader = StepReader(ds, "train")
+    rows = np.flatnonzero(reader.index.skill == "Navigate")[:5]
+    return [{STATE: s} for s in reader.read([STATE], rows)[STATE]]
+
+
+def _count(policy: SkillPolicy) -> list[int]:
+    calls: list[int] = []
+    predict = policy.model.predict
+    policy.model.predict = lambda *a: calls.append(1) or predict(*a)  # type: ignore[method-assign]
+    return calls
+
+
+def test_every_algorithm_clones_the_end_effector_form_with_a_binary_gripper(ds: Path, tmp_path: Path) -> None:
+    """A copy of the dataset given an `action.ee` column (11 floats, `gripper_close` 0/1, as the
+    end-effector action space stores it): every algorithm trains on it and acts in its form."""
+    import shutil
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from echo_data.learn.fit import train_skill
+
+    copy = tmp_path / "ee"
+    shutil.copytree(ds, copy)
+    rng = np.random.default_rng(0)
+    for f in sorted(copy.rglob("*.parquet")):
+        table = pq.read_table(f)
+        if ACTION not in table.column_names:
+            continue
+        joint = np.asarray(table.column(ACTION).to_pylist(), dtype=np.float32)
+        ee = np.concatenate([joint[:, :4], rng.normal(0, 0.01, (len(joint), 6)), (np.arange(len(joint)) % 3 == 0)[:, None]], axis=1).astype(np.float32)
+        col = pa.FixedSizeListArray.from_arrays(pa.array(ee.reshape(-1)), len(EE_ACTION_NAMES))
+        pq.write_table(table.append_column("action.ee", col), f)
+    obs = _observations(copy)
+    for name in ALGORITHMS:
+        cfg = algorithm(name).config(dataset=str(copy), skill="Navigate", inputs=("state",), action_column="action.ee", max_steps=2,
+                                     **{k.lstrip("-").replace("-", "_"): float(v) if "." in v else int(v) for k, v in zip(SMALL[name][::2], SMALL[name][1::2], strict=True)})
+        train_skill(cfg, tmp_path / name, progress=False)
+        policy = SkillPolicy.from_run(tmp_path / name)
+        assert policy.config.binary == (len(EE_ACTION_NAMES) - 1,) and policy.std[-1] == 1.0 and policy.mean[-1] == 0.0
+        policy.reset({})
+        for o in obs[:3]:
+            a = policy.act(o)
+            assert a.shape == (len(EE_ACTION_NAMES),) and a[-1] in (0.0, 1.0) and np.isfinite(a).all(), name
+
+
+def test_spatial_softmax_finds_the_peak_and_trains_at_stored_resolution(ds: Path, tmp_path: Path) -> None:
+    from echo_data.learn.models import SpatialSoftmaxEncoder
+
+    enc = SpatialSoftmaxEncoder(1, (16, 24), keypoints=2)  # feature maps of 8 x 12 after the stride-2 convolution
+    f = torch.zeros(1, 2, 8, 12)
+    f[0, 0, 0, 11] = f[0, 1, 7, 0] = 60.0  # top right, bottom left
+    np.testing.assert_allclose(enc.keypoints(f)[0].numpy(), [[1.0, -1.0], [-1.0, 1.0]], atol=1e-4)
+    run = tmp_path / "ss"
+    _train(ds, run, "act", "--inputs", "depth,wrist_depth,state", "--image-size", "0", "--encoder", "spatial_softmax", "--shift", "2", "--max-steps", "1", *SMALL["act"])
+    policy = SkillPolicy.from_run(run)
+    assert policy.spec.side("depth") == (16, 24) and policy.spec.side("wrist_depth") == (16, 16)
+    reader = StepReader(ds, "train")
+    row = reader.read(list(policy.observations), np.array([0]))
+    policy.reset({})
+    assert policy.act({k: v[0] for k, v in row.items()}).shape == (ACTION_DIM,)
+
+
+def test_planner_seed_is_bounded_too(ds: Path, tmp_path: Path) -> None:
+    res = runner.invoke(app, ["train", "planner", str(ds), "--seed", "-1", "--out", str(tmp_path / "p")])
+    assert res.exit_code == 2 and "--seed -1: must be within [0, 2**64)" in res.output and not (tmp_path / "p").exists(), res.output
+
+
+def test_diffusion_reads_the_last_two_observations_as_it_trained(ds: Path, trained: dict[str, Path]) -> None:
+    """obs_steps 2: training conditions row t on rows (t-1, t) clamped to the segment's first row;
+    acting on the observations (t-1, t), the first one repeated right after a reset."""
+    from echo_data.learn.data import SkillRows
+    from echo_data.learn.fit import Units
+
+    seg = np.array([0, 0, 0, 1, 1])
+    rows = SkillRows({}, np.zeros((5, 1, 12)), np.zeros((5, 1), bool), np.zeros((5, 3)), np.zeros(5), seg)
+    assert Units(rows, False, "cpu", history=2).history.tolist() == [[0, 0], [0, 1], [1, 2], [3, 3], [3, 4]]
+    obs = _observations(ds)
+    policy = SkillPolicy.from_run(trained["diffusion"])
+    assert policy.config.history() == 2
+    policy.reset({})
+    acts = [policy.act(o) for o in obs[:5]]  # predicts at steps 0 and 4 (execute 4)
+    x = [policy.inputs(o) for o in obs[:5]]
+    gen = torch.Generator().manual_seed(policy.config.seed)
+    with torch.no_grad():
+        first, _ = policy.model.predict({k: torch.stack([x[0][k], x[0][k]], dim=1) for k in x[0]}, None, gen)
+        later, _ = policy.model.predict({k: torch.stack([x[3][k], x[4][k]], dim=1) for k in x[0]}, None, gen)
+    np.testing.assert_allclose(acts[0], first[0, 0].numpy() * policy.std + policy.mean, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(acts[4], later[0, 0].numpy() * policy.std + policy.mean, rtol=1e-5, atol=1e-6)
