@@ -21,7 +21,10 @@ Episode-level rules live here:
 
 from __future__ import annotations
 
+import os
+import threading
 from collections.abc import Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -37,6 +40,23 @@ from echo_data.recipe import Recipe
 
 # The event has been sounding for this long when the robot's first observation is taken.
 PRE_ROLL_SECONDS = 1.0
+
+Heard = tuple[np.ndarray, np.ndarray, np.ndarray]  # (block (hop, 2), spectrogram, log-mel) of one control step
+
+_LISTENERS: dict[int, ThreadPoolExecutor] = {}
+_LISTENERS_LOCK = threading.Lock()
+
+
+def listener() -> ThreadPoolExecutor:
+    """This process's one listening thread (made on first use, so a forked or spawned worker
+    makes its own). Environments hand it the step's audio so that it runs while the main
+    thread renders the cameras: SAPIEN's picture calls and scipy's FFTs release the GIL."""
+    pid = os.getpid()
+    with _LISTENERS_LOCK:
+        ex = _LISTENERS.get(pid)
+        if ex is None:
+            ex = _LISTENERS[pid] = ThreadPoolExecutor(max_workers=1, thread_name_prefix="echo-data-ears")
+    return ex
 
 
 def step_samples(recipe: Recipe) -> int:
@@ -109,6 +129,33 @@ class OnlineTrack(StreamRenderer):
         """Render the pre-roll with the head at `pose` [x, y, z, yaw]."""
         for _ in range(self.pre_steps):
             self.step(pose)
+
+    def hear(self, pose: Sequence[float], doors: Sequence[dict[int, float]] = (), silenced: Sequence[int] = ()) -> Heard:
+        """One control step as the environment hears it: the doors found open at this step's end
+        (one new epoch each, from the next step boundary), the block heard at `pose` [x, y, z, yaw],
+        the events resolved at this step falling silent from the next block, and the features of
+        the last second. The same calls, in the same order, as a caller making them one by one."""
+        for angles in doors:
+            self.open_doors(angles, at=self.samples + self.hop)
+        block = self.step(pose)
+        for e in silenced:
+            self.stop(e)
+        spec, mel = self.features()
+        return block, spec, mel
+
+    def hear_soon(self, pose: Sequence[float], doors: Sequence[dict[int, float]] = (), silenced: Sequence[int] = ()) -> Future[Heard]:
+        """`hear` on this process's listening thread; the caller renders meanwhile and takes
+        `.result()` before touching the track again (values identical to `hear`: same calls,
+        same order, one thread at a time)."""
+        return listener().submit(self.hear, tuple(float(v) for v in pose), [dict(d) for d in doors], list(silenced))
+
+    def heard(self) -> Future[Heard]:
+        """The last block rendered and the features of the last second, as a finished `Future`
+        (the observation of a reset, after the pre-roll)."""
+        f: Future[Heard] = Future()
+        spec, mel = self.features()
+        f.set_result((self.blocks[-1], spec, mel))
+        return f
 
     def last_second(self) -> np.ndarray:
         """The last second rendered, (fs, 2) float32, zero-padded in front."""
