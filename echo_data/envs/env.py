@@ -159,6 +159,9 @@ class EchoDataEnv(gym.Env):
         recipe_dir: str | Path | None = None,
         render_mode: str | None = None,
     ) -> None:
+        from echo_data.envs.workers import pin_worker_threads
+
+        pin_worker_threads()  # a vector env's worker process: one thread per pool (no-op in the main process)
         self.recipe, rdir = resolve_recipe(recipe)
         self.recipe_dir = Path(recipe_dir) if recipe_dir is not None else rdir
         if split not in ("train", "val", "test"):
