@@ -31,8 +31,8 @@ part() {  # part NAME SECONDS CMD...: run CMD with at most SECONDS (less if the 
 
 # --- the bundle and the environment -----------------------------------------------------------
 GS=/tmp/gs
-if [ ! -d "$GS/site" ]; then
-  mkdir -p "$GS" && tar -xJf .gpu_bundle/site312.tar.xz -C "$GS" || echo "BUNDLE UNPACK FAILED"
+if [ ! -f "$GS/.unpacked" ]; then
+  rm -rf "$GS" && mkdir -p "$GS" && tar -xJf .gpu_bundle/site312.tar.xz -C "$GS" && touch "$GS/.unpacked" || echo "BUNDLE UNPACK FAILED"
 fi
 export PYTHONPATH=$GS/site:$PWD:$PWD/benchmarks
 J=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
