@@ -7,7 +7,7 @@ projected hours for the whole recipe at that rate, and the time this process spe
 (`DatasetWriter` store / flush / finalize: the serial, parent-side part). Then the speed-up of
 2 workers over 1 (acceptance: >= 1.8x), `echo-data validate` of the last dataset and its ratio
 to that dataset's build time (acceptance: <= 1/3). Last, the floor: bare SAPIEN physics + render
-(`bench_pipeline.bare_step_render`) on the slice's first episodes, and the hours the whole recipe
+(`timing.bare_step_render`) on the slice's first episodes, and the hours the whole recipe
 would take with each worker count if a step cost only that floor and the workers scaled
 perfectly: no build on this machine can be faster, so it says what a target in hours means here.
 
@@ -52,7 +52,7 @@ def _timed(cls: Any, names: tuple[str, ...], spent: dict[str, float]) -> None:
 
 def _floor_ms(recipe: Any, recipe_dir: Path, episodes: int = 3, steps: int = 50) -> float:
     """Mean bare step + render cost (ms per control step) on the recipe's first train episodes."""
-    from bench_pipeline import bare_step_render
+    from timing import bare_step_render
 
     from echo_data.scene.sampling import sample_episode
     from echo_data.sounds import SoundLibrary

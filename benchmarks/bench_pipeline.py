@@ -25,77 +25,17 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
 from pathlib import Path
 
 os.environ.setdefault("LP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+from timing import Clock, floor_times, ratio_row, replay_step_render  # noqa: E402
 
 from echo_data.recipe import load_recipe  # noqa: E402
-from echo_data.robot.robot import COLOR_PICTURE, POSITION_PICTURE  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 FLOOR_STEPS = 200  # per episode: enough that the floor does not move with a moment's load
-
-
-class Clock:
-    """Wall-clock and process-CPU seconds since it was made."""
-
-    def __init__(self) -> None:
-        self.wall, self.cpu = time.perf_counter(), time.process_time()
-
-    def lap(self) -> tuple[float, float]:
-        return time.perf_counter() - self.wall, time.process_time() - self.cpu
-
-
-def _cameras(world: object) -> list[tuple[object, object]]:
-    return list(world.robot.cameras.values())  # type: ignore[attr-defined]
-
-
-def _read_pictures(world: object, cams: list[tuple[object, object]]) -> None:
-    """`update_render`, then `take_picture` + `get_picture` of every robot camera (no conversion)."""
-    world.scene.update_render()  # type: ignore[attr-defined]
-    for comp, cfg in cams:
-        comp.take_picture()  # type: ignore[attr-defined]
-        if cfg.rgb:  # type: ignore[attr-defined]
-            comp.get_picture(COLOR_PICTURE)  # type: ignore[attr-defined]
-        if cfg.depth:  # type: ignore[attr-defined]
-            comp.get_picture(POSITION_PICTURE)  # type: ignore[attr-defined]
-
-
-def bare_step_render(world: object, steps: int, cpu: bool = False) -> float:
-    """Seconds per control step of physics + render + picture readback only (process CPU
-    seconds with `cpu`, else wall-clock)."""
-    return floor_times(world, steps)[1 if cpu else 0]
-
-
-def floor_times(world: object, steps: int) -> tuple[float, float]:
-    """(wall-clock, process-CPU) seconds per control step of physics + render + readback, one run."""
-    scene = world.scene  # type: ignore[attr-defined]
-    cams = _cameras(world)
-    clock = Clock()
-    for _ in range(steps):
-        for _ in range(world.substeps):  # type: ignore[attr-defined]
-            scene.step()
-        _read_pictures(world, cams)
-    wall, proc = clock.lap()
-    return wall / steps, proc / steps
-
-
-def replay_step_render(world: object, actions: list[np.ndarray], cpu: bool = False) -> float:
-    """Seconds per control step of `World.step(action)` for the recorded actions + render + readback."""
-    cams = _cameras(world)
-    clock = Clock()
-    for a in actions:
-        world.step(a)  # type: ignore[attr-defined]
-        _read_pictures(world, cams)
-    wall, proc = clock.lap()
-    return (proc if cpu else wall) / max(len(actions), 1)
-
-
-def _row(label: str, what: str, wall: float, cpu: float, floor: tuple[float, float], tail: str = "") -> str:
-    return f"{label:9s} {what:36s} {wall * 1e3:7.2f} ms/step  ratio {wall / floor[0]:5.2f}x | CPU {cpu * 1e3:7.2f} ms/step  ratio {cpu / floor[1]:5.2f}x{tail}"
 
 
 def main() -> None:
@@ -169,15 +109,15 @@ def main() -> None:
     r = roll / max(roll_steps, 1)
     f = full / max(full_steps, 1)
     e = (full + enc) / max(full_steps, 1)
-    print(_row("rollout", "experts + observations:", r[0], r[1], b))
-    print(_row("episode", "sampling+world+rollout+audio:", f[0], f[1], b))
-    print(_row("written", "episode + dataset encoding:", e[0], e[1], b, "  (acceptance <= 1.5x, goal 1.3x)"))
+    print(ratio_row("rollout", "experts + observations:", r[0], r[1], b))
+    print(ratio_row("episode", "sampling+world+rollout+audio:", f[0], f[1], b))
+    print(ratio_row("written", "episode + dataset encoding:", e[0], e[1], b, "  (acceptance <= 1.5x, goal 1.3x)"))
     for label, col in (("rooms", 0), ("sounding sources", 1)):
         for k in sorted({row[col] for row in rows}):
             sel = [row for row in rows if row[col] == k]
             steps = sum(row[2] for row in sel)
             wall, cpu = sum(row[3] for row in sel) / steps, sum(row[4] for row in sel) / steps
-            print(_row(f"by {label} = {k}:", f"{len(sel)} episodes, {steps} steps, written", wall, cpu, b))
+            print(ratio_row(f"by {label} = {k}:", f"{len(sel)} episodes, {steps} steps, written", wall, cpu, b))
     print(f"throughput: {(full[0] + enc[0]) / args.n:.1f} s/episode on one process, {full_steps / max(full[0] + enc[0], 1e-9):.1f} steps/s")
 
 

@@ -265,6 +265,8 @@ class FeatureStream:
     previous window are kept (in window order, with their start in the track) and only the new
     ones and the window's four edge frames are analysed. Every frame is computed by the same
     functions as `step_features`, so the result is bit for bit the batch result on the finished track.
+    Kept frames are stored frame-major ((frames, 2, 257) magnitudes, (frames, n_mels, 2) log-mel),
+    so carrying them from one window to the next copies whole rows, not strided columns.
     """
 
     def __init__(self, fs: int, n_mels: int) -> None:
@@ -276,8 +278,8 @@ class FeatureStream:
         self._edge_rel = self._rel[~self._inner]
         n_frames, n_bins = len(self._rel), N_FFT // 2 + 1
         self._starts = np.zeros(0, dtype=np.int64)  # track start of each kept interior frame
-        self._mag = np.zeros((2, n_bins, n_frames), dtype=np.float32)  # the last window's frames, in order
-        self._mel = np.zeros((self.n_mels, n_frames, 2), dtype=np.float32)
+        self._mag = np.zeros((n_frames, 2, n_bins), dtype=np.float32)  # the last window's frames, in order
+        self._mel = np.zeros((n_frames, self.n_mels, 2), dtype=np.float32)
         self.reused = 0  # interior frames taken from the previous window (all calls)
 
     def features(self, window: np.ndarray, offset: int) -> tuple[np.ndarray, np.ndarray]:
@@ -290,19 +292,19 @@ class FeatureStream:
         pos = np.searchsorted(self._starts, starts)
         old = pos < len(self._starts)
         old[old] = self._starts[pos[old]] == starts[old]
-        cols = self._inner_at[old]
-        mag[:, :, cols] = self._mag[:, :, self._inner_at[pos[old]]]
-        mel[:, cols] = self._mel[:, self._inner_at[pos[old]]]
-        self.reused += int(old.sum())
+        cols, src = self._inner_at[old], self._inner_at[pos[old]]
+        mag[cols] = self._mag[src]
+        mel[cols] = self._mel[src]
+        self.reused += len(cols)
         new = np.flatnonzero(~old)
         view = np.lib.stride_tricks.sliding_window_view(w, N_FFT, axis=-1)
         frames = np.concatenate([view[:, self._inner_rel[new]], self._edges(w)], axis=1)
         m = _frame_mag(frames)  # (2, 257, new + edges)
-        ml = _mel_from_mag(m, self.fs, self.n_mels)
+        ml = _mel_from_mag(m, self.fs, self.n_mels)  # (n_mels, new + edges, 2)
         at = np.concatenate([self._inner_at[new], self._edge_at])
-        mag[:, :, at], mel[:, at] = m, ml
+        mag[at], mel[at] = m.transpose(2, 0, 1), ml.transpose(1, 0, 2)
         self._starts, self._mag, self._mel = starts, mag, mel
-        return _spectrogram_from_mag(mag), mel.copy()
+        return _spectrogram_from_mag(mag.transpose(1, 2, 0)), np.ascontiguousarray(mel.transpose(1, 0, 2))
 
     def _edges(self, w: np.ndarray) -> np.ndarray:
         """(2, E, N_FFT) frames of the window that reach past it (zeros outside), as `_edge_frames`."""

@@ -172,6 +172,10 @@ class RirCache:
             self._spectra[(key, n_fft)] = s
         return s
 
+    def has_spectrum(self, key: CacheKey, n_fft: int) -> bool:
+        """Whether `spectrum(key, n_fft)` is already computed."""
+        return (key, n_fft) in self._spectra
+
     def expected_length(self) -> int:
         """Binaural RIR length: fixed from cfg.rir_seconds unless an RIR already fixed it."""
         if self.length is None:

@@ -21,7 +21,10 @@ Episode-level rules live here:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+import threading
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Future
 from typing import Any
 
 import numpy as np
@@ -31,12 +34,14 @@ from echo_data.acoustics.hrtf import Hrtf
 from echo_data.acoustics.levels import pascal_gain
 from echo_data.acoustics.noise import NoiseFloor
 from echo_data.acoustics.room import AcousticScene
-from echo_data.acoustics.stream import StreamRenderer, epoch_window  # noqa: F401  (epoch_window re-exported)
+from echo_data.acoustics.stream import CacheKey, StreamRenderer, epoch_window  # noqa: F401  (epoch_window re-exported)
 from echo_data.episode import EpisodeSpec
 from echo_data.recipe import Recipe
 
 # The event has been sounding for this long when the robot's first observation is taken.
 PRE_ROLL_SECONDS = 1.0
+
+Heard = tuple[np.ndarray, np.ndarray, np.ndarray]  # (block (hop, 2), spectrogram, log-mel) of one control step
 
 
 def step_samples(recipe: Recipe) -> int:
@@ -97,6 +102,26 @@ class OnlineTrack(StreamRenderer):
         self.plan = spec.plan
         self.pre_steps = pre_roll_steps(recipe)
         self._features = FeatureStream(fs, cfg.mel_bands)
+        self._lock = threading.RLock()  # the listening thread's idle work and the caller take turns
+        self._turn = 0.0  # the head's last yaw change (rad): which way the next yaw bins lie
+
+    def step(self, pose: Sequence[float]) -> np.ndarray:
+        with self._lock:
+            if self._last_pose is not None:
+                self._turn = math.remainder(float(pose[3]) - float(self._last_pose[3]), 2 * math.pi)
+            return super().step(pose)
+
+    def stop(self, i: int, at: int | None = None) -> None:
+        with self._lock:
+            super().stop(i, at)
+
+    def new_epoch(self, scene: Any, at: int) -> None:
+        with self._lock:
+            super().new_epoch(scene, at)
+
+    def finish(self) -> np.ndarray:
+        with self._lock:
+            return super().finish()
 
     def open_doors(self, door_angles: dict[int, float], at: int) -> None:
         """The doors stand at `door_angles` from sample `at` on (a new acoustic epoch, crossfaded over
@@ -109,6 +134,64 @@ class OnlineTrack(StreamRenderer):
         """Render the pre-roll with the head at `pose` [x, y, z, yaw]."""
         for _ in range(self.pre_steps):
             self.step(pose)
+
+    def hear(self, pose: Sequence[float], doors: Sequence[dict[int, float]] = (), silenced: Sequence[int] = ()) -> Heard:
+        """One control step as the environment hears it: the doors found open at this step's end
+        (one new epoch each, from the next step boundary), the block heard at `pose` [x, y, z, yaw],
+        the events resolved at this step falling silent from the next block, and the features of
+        the last second. The same calls, in the same order, as a caller making them one by one."""
+        for angles in doors:
+            self.open_doors(angles, at=self.samples + self.hop)
+        block = self.step(pose)
+        for e in silenced:
+            self.stop(e)
+        spec, mel = self.features()
+        return block, spec, mel
+
+    def hear_soon(self, pose: Sequence[float], doors: Sequence[dict[int, float]] = (), silenced: Sequence[int] = ()) -> Future[Heard]:
+        """`hear` on this process's listening thread; the caller renders meanwhile and takes
+        `.result()` before touching the track again (values identical to `hear`: same calls,
+        same order, one thread at a time)."""
+        from echo_data.envs.listener import listener, listener_enabled, run_now
+
+        args = (tuple(float(v) for v in pose), [dict(d) for d in doors], list(silenced))
+        if not listener_enabled():
+            return run_now(self.hear, *args)
+        return listener().submit(self.hear, *args, idle=self)
+
+    def prefetch_one(self) -> bool:
+        """Idle-time work (`echo_data.envs.listener`): the RIR and spectrum of one key the head will
+        probably need next (at the last pose's cell, the yaw bins beyond the two in use, nearest
+        first, ahead of the last turn before behind it); False when they are all cached. A key's
+        RIR is a pure function of the key, so this changes when it is computed, never its value."""
+        with self._lock:
+            if self._last_pose is None:
+                return False
+            cache = self.epochs[-1].cache
+            for key in self._next_keys():
+                if not cache.has_spectrum(key, self.n_fft):
+                    cache.spectrum(key, self.n_fft)
+                    return True
+            return False
+
+    def _next_keys(self) -> Iterator[CacheKey]:
+        """Per source, the bins next to the pair in use: +1, +2 in the direction of the last turn, then -1."""
+        assert self._last_pose is not None
+        cache, n = self.epochs[0].cache, int(self.cfg.yaws)
+        ahead = 1 if self._turn >= 0 else -1
+        in_use = [cache.keys(i, self._last_pose) for i in range(len(self.positions))]
+        for offset in (1, 2, -1):
+            for kw in in_use:
+                bins = [k[5] for k, _ in kw]  # ascending yaw (mod n): one bin, or the pair around the yaw
+                edge = bins[-1] if offset * ahead > 0 else bins[0]
+                yield (*kw[0][0][:5], (edge + offset * ahead) % n)
+
+    def heard(self) -> Future[Heard]:
+        """The last block rendered and the features of the last second, as a finished `Future`
+        (the observation of a reset, after the pre-roll)."""
+        from echo_data.envs.listener import run_now
+
+        return run_now(lambda: (self.blocks[-1], *self.features()))
 
     def last_second(self) -> np.ndarray:
         """The last second rendered, (fs, 2) float32, zero-padded in front."""

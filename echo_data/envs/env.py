@@ -22,6 +22,7 @@ dataset episode replays here action by action to the same states, images and aud
 
 from __future__ import annotations
 
+from concurrent.futures import Future
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -38,6 +39,7 @@ from echo_data.skills.registry import SKILLS, Situation, carried_object, skill_b
 from echo_data.target import Target
 
 if TYPE_CHECKING:
+    from echo_data.envs.audio import Heard
     from echo_data.world import World
 
 SHIPPED_RECIPES = Path(__file__).resolve().parents[2] / "recipes"
@@ -157,6 +159,9 @@ class EchoDataEnv(gym.Env):
         recipe_dir: str | Path | None = None,
         render_mode: str | None = None,
     ) -> None:
+        from echo_data.envs.workers import pin_worker_threads
+
+        pin_worker_threads()  # a vector env's worker process: one thread per pool (no-op in the main process)
         self.recipe, rdir = resolve_recipe(recipe)
         self.recipe_dir = Path(recipe_dir) if recipe_dir is not None else rdir
         if split not in ("train", "val", "test"):
@@ -247,15 +252,15 @@ class EchoDataEnv(gym.Env):
         self._situation = Situation(spec, self.nav_grid)
         self.success_flags = self._evaluate()
         self.track = None
-        block = None
+        heard = None
         if self.audio:
             from echo_data.envs.audio import OnlineTrack
 
             self.track = OnlineTrack(spec, self.recipe, self.library)
             self.track.pre_roll(self.ear_pose())
-            block = self.track.blocks[-1]
+            heard = self.track.heard()
         self._advance()  # a skill whose test holds from the start counts from the start
-        self._obs = self._observe(block)
+        self._obs = self._observe(heard)
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         if self._world is None:
@@ -272,20 +277,16 @@ class EchoDataEnv(gym.Env):
         self.steps += 1
         self.success_flags = self._evaluate()  # the one evaluation of this step: events, progress, reward, info
         newly = self._update_events()
-        block = None
-        if self.track is not None:
-            for e in newly:
-                if self.episode.chain[self._resolver[e]].skill == "OpenDoor":
-                    self.track.open_doors(self.world.door_angles(), at=self.track.samples + self.track.hop)
-            block = self.track.step(pose)
-            for e in newly:
-                self.track.stop(e)
+        heard = None
+        if self.track is not None:  # heard on the listening thread while the cameras render (`_observe` waits for it)
+            doors = [self.world.door_angles() for e in newly if self.episode.chain[self._resolver[e]].skill == "OpenDoor"]
+            heard = self.track.hear_soon(pose, doors, newly)
         for e in newly:
             if self.episode.chain[self._resolver[e]].skill == "OpenDoor":
                 self.door_changes.append((self.steps, self.world.door_angles()))
         before = self.progress
         self._advance()
-        self._obs = self._observe(block)
+        self._obs = self._observe(heard)
         terminated = self.progress == len(self.episode.chain)
         truncated = not terminated and self.steps >= self.max_episode_steps
         self.ended = "terminated" if terminated else "truncated" if truncated else ""
@@ -316,7 +317,7 @@ class EchoDataEnv(gym.Env):
         (x, y, z), yaw = self.world.robot.ear_pose()
         return (float(x), float(y), float(z), float(yaw))
 
-    def _observe(self, block: np.ndarray | None) -> dict[str, np.ndarray]:
+    def _observe(self, heard: Future[Heard] | None) -> dict[str, np.ndarray]:
         from echo_data.dataset.schema import IMAGE_COLUMNS
 
         obs: dict[str, np.ndarray] = {}
@@ -326,9 +327,9 @@ class EchoDataEnv(gym.Env):
                 if col in self.observation_space.spaces:
                     obs[col] = pics[key]
         obs[STATE] = self.world.robot.state().astype(np.float32)
-        if self.track is not None:
+        if heard is not None:
+            block, spec, mel = heard.result()
             obs[BINAURAL] = np.asarray(block, dtype=np.float32)
-            spec, mel = self.track.features()
             if SPECTROGRAM in self.observation_space.spaces:
                 obs[SPECTROGRAM] = spec
             if MEL in self.observation_space.spaces:
