@@ -314,7 +314,9 @@ def build(
     # Read the sound library once before anything is written: an unreadable user WAV is bad
     # input (exit 2, nothing written), not a crash inside a worker halfway through the build.
     try:
-        (make_library or default_library)(recipe, Path(recipe_path).resolve().parent)
+        library = (make_library or default_library)(recipe, Path(recipe_path).resolve().parent)
+        if hasattr(library, "check_covers"):  # protocols.SoundLibrary does not require the check of a caller's library
+            library.check_covers(recipe)
     except Exception as e:
         if type(e).__name__ != "SoundLibraryError":
             raise

@@ -83,7 +83,7 @@ def run_evaluate(
     from echo_data.sounds import SoundLibrary, SoundLibraryError
 
     try:  # an unusable sound folder is bad input now, not a failed episode in a worker
-        SoundLibrary.from_recipe(recipe, recipe_path.resolve().parent)
+        SoundLibrary.from_recipe(recipe, recipe_path.resolve().parent).check_covers(recipe)
     except SoundLibraryError as e:
         return _fail(str(e).splitlines()[0])
     if not isinstance(policy, str) and not is_composite(policy):

@@ -79,13 +79,12 @@ class SoundLibrary:
             if cat in cfg.folders:
                 folder = Path(cfg.folders[cat])
                 out += folder_instances(cat, folder if folder.is_absolute() else base / folder, cfg.folder_test_fraction)
-        library = cls(out)
-        library._check_covers(recipe)
-        return library
+        return cls(out)
 
-    def _check_covers(self, recipe: Recipe) -> None:
-        """Every category the recipe can draw has a sound for every split it builds (val plays
-        train sounds): found now, not as an episode that can never be sampled mid-build."""
+    def check_covers(self, recipe: Recipe) -> None:
+        """Every category `recipe` can draw has a sound for every split it has (val plays train
+        sounds), or `SoundLibraryError`: the build and `evaluate` ask before the first episode,
+        so a folder of one file is bad input, not an episode that can never be sampled."""
         needed = sorted({"test" if s == "test" else "train" for s, n in recipe.splits.items() if n > 0}, key=SPLITS.index)
         for cat in recipe.categories_drawn():
             for split in needed:
