@@ -51,6 +51,7 @@ MAX_NAME_LENGTH = 100  # the name becomes a folder and file names (at most 255 b
 # written to crash the loader: 2,000 nested brackets overflowed Python's stack in a traceback).
 MAX_EXTENDS_DEPTH = 16
 MAX_NESTING = 32
+MIN_ROOM_SIZE_SPAN = 0.1  # m
 
 
 def _has_bool(v: Any) -> bool:
@@ -151,6 +152,8 @@ class SceneConfig(_Strict):
         _check_range(v)
         if v[0] < 2.5 or v[1] > 12.0:
             raise ValueError(f"room_size must lie within [2.5, 12] m, got {list(v)}")
+        if v[1] - v[0] < MIN_ROOM_SIZE_SPAN:  # the layouts draw sides strictly inside the range (scene/layouts.py)
+            raise ValueError(f"room_size must span at least {MIN_ROOM_SIZE_SPAN} m (high - low), got {list(v)}")
         return v
 
     @field_validator("furniture_per_room")
