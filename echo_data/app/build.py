@@ -338,7 +338,7 @@ def build(
         where = e.filename or out
         raise OutputWriteError(
             f"{where}: {e.strerror or e}; every finished episode is kept: "
-            f"{'free space' if e.errno in (errno.ENOSPC, errno.EDQUOT) else 'make the folder writable'} and rerun with --resume"
+            f"{'free space' if e.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG) else 'make the folder writable'} and rerun with --resume"
         ) from None
     except OutputError:
         if missing and [p.name for p in out.iterdir()] == [LOCK_NAME]:  # refused before writing: leave no trace
