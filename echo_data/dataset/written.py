@@ -40,9 +40,9 @@ class NotWrittenByUs(ValueError):
 def write_marker(folder: Path, kind: str, fmt: str, files: Iterable[str] | None = None) -> None:
     """Mark `folder` as echo-data's `kind` output in format `fmt`; `files`: every file written
     there (relative, '/'-separated), for outputs whose names no manifest implies."""
-    from echo_data import __version__
+    from echo_data.dataset.manifest import versions  # the installed version, as the manifest records it
 
-    record: dict[str, Any] = {"kind": kind, "format": fmt, "version": __version__}
+    record: dict[str, Any] = {"kind": kind, "format": fmt, "version": versions()["echo-data"]}
     if files is not None:
         record["files"] = sorted(files)
     atomic_write_json(folder / MARKER, record)
