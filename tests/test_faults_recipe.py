@@ -134,16 +134,16 @@ def _folder_recipe(tmp_path: Path, files: dict[str, np.ndarray], extra: str = ""
 RING = 0.4 * np.sin(np.arange(16000) * 0.2)
 
 
-@pytest.mark.parametrize("command", ["build", "evaluate"])
+@pytest.mark.parametrize("command", ["build", "evaluate", "trial", "preview"])
 def test_a_silent_user_wav_is_exit_2(command: str, tmp_path: Path) -> None:
     recipe = _folder_recipe(tmp_path, {"ring.wav": RING, "quiet.wav": np.zeros(16000)})
     one_line_exit_2([a.format(r=recipe, tmp=tmp_path) for a in COMMANDS[command]], "quiet.wav", "silent")
-    assert not (tmp_path / "out").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["phones", "r.yaml"]
 
 
-@pytest.mark.parametrize("command", ["build", "evaluate"])
+@pytest.mark.parametrize("command", ["build", "evaluate", "trial", "preview"])
 def test_a_one_file_folder_without_built_ins_has_no_test_sound_exit_2(command: str, tmp_path: Path) -> None:
     recipe = _folder_recipe(tmp_path, {"ring.wav": RING}, ", builtin: false")
     recipe.write_text(recipe.read_text() + "events: {categories: {phone: 1, alarm: 0, furby: 0, doorbell: 0, sink: 0}}\n")
     one_line_exit_2([a.format(r=recipe, tmp=tmp_path) for a in COMMANDS[command]], "sounds.folders.phone", "no test sound")
-    assert not (tmp_path / "out").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["phones", "r.yaml"]
