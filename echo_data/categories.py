@@ -19,6 +19,11 @@ RELOCATION_CATEGORIES: tuple[RelocationCategory, ...] = ("phone", "alarm", "furb
 STATE_CATEGORIES: tuple[StateCategory, ...] = ("doorbell", "sink")
 CATEGORIES: tuple[Category, ...] = (*RELOCATION_CATEGORIES, *STATE_CATEGORIES)
 
+# Silent clutter (`objects.distractor_shapes`): written here too so that the recipe can refuse an
+# unknown shape when it is loaded; scene/objects.py builds each of them.
+DistractorShape = Literal["mug", "can", "box", "bowl", "bottle", "book"]
+DISTRACTOR_SHAPES: tuple[DistractorShape, ...] = ("mug", "can", "box", "bowl", "bottle", "book")
+
 # The paper's distinct sound instances per category, (train, test): 113 in all, split about 2:1
 # so that test sounds are never heard in training.
 CATEGORY_COUNTS: dict[str, tuple[int, int]] = {

@@ -62,6 +62,18 @@ def _load(recipe_path: Path) -> Recipe:
         raise typer.Exit(2) from None
 
 
+def _check_sounds(recipe: Recipe, recipe_path: Path) -> None:
+    """An unusable sound folder (unreadable, silent or NaN file; no sound for a split) is one
+    line and exit 2 before any episode, as in `build` and `evaluate`."""
+    from echo_data.sounds import SoundLibrary, SoundLibraryError
+
+    try:
+        SoundLibrary.from_recipe(recipe, recipe_path.resolve().parent).check_covers(recipe)
+    except SoundLibraryError as e:
+        typer.echo(f"error: {str(e).splitlines()[0]}", err=True)
+        raise typer.Exit(2) from None
+
+
 @app.command()
 def trial(
     recipe_path: Path = typer.Argument(..., metavar="RECIPE", help="Recipe YAML."),
@@ -78,6 +90,7 @@ def trial(
     recipe = _load(recipe_path)
     if seed is not None:
         recipe = recipe.model_copy(update={"seed": seed})
+    _check_sounds(recipe, recipe_path)
 
     def tick(e: TrialEpisode) -> None:
         if not as_json:
@@ -114,6 +127,7 @@ def preview(
     except OutputError as e:
         typer.echo(f"error: --out {e}", err=True)
         raise typer.Exit(2) from None
+    _check_sounds(recipe, recipe_path)
     try:
         summary = write_preview(recipe, recipe_path.resolve().parent, seed, out)
     except OSError as e:

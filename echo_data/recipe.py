@@ -19,7 +19,15 @@ if TYPE_CHECKING:
     import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from echo_data.categories import CATEGORIES, RELOCATION_CATEGORIES, Category, RelocationCategory
+from echo_data.categories import (
+    CATEGORIES,
+    DISTRACTOR_SHAPES,
+    RELOCATION_CATEGORIES,
+    STATE_CATEGORIES,
+    Category,
+    DistractorShape,
+    RelocationCategory,
+)
 
 SETTINGS = ("object_relocation", "state_transition", "multi_event")
 SkillName = Literal["Navigate", "Pick", "Place", "OpenDoor", "CloseSink"]
@@ -39,6 +47,11 @@ class RecipeError(ValueError):
 # for months on a workstation (a typo of a few zeros should not start such a build).
 MAX_SPLIT_EPISODES = 1_000_000
 MAX_NAME_LENGTH = 100  # the name becomes a folder and file names (at most 255 bytes each)
+# A recipe is a few levels deep and extends one or two files; far more is a mistake (or a file
+# written to crash the loader: 2,000 nested brackets overflowed Python's stack in a traceback).
+MAX_EXTENDS_DEPTH = 16
+MAX_NESTING = 32
+MIN_ROOM_SIZE_SPAN = 0.1  # m
 
 
 def _has_bool(v: Any) -> bool:
@@ -139,6 +152,8 @@ class SceneConfig(_Strict):
         _check_range(v)
         if v[0] < 2.5 or v[1] > 12.0:
             raise ValueError(f"room_size must lie within [2.5, 12] m, got {list(v)}")
+        if v[1] - v[0] < MIN_ROOM_SIZE_SPAN:  # the layouts draw sides strictly inside the range (scene/layouts.py)
+            raise ValueError(f"room_size must span at least {MIN_ROOM_SIZE_SPAN} m (high - low), got {list(v)}")
         return v
 
     @field_validator("furniture_per_room")
@@ -155,7 +170,7 @@ class ObjectsConfig(_Strict):
 
     targets: tuple[RelocationCategory, ...] = RELOCATION_CATEGORIES
     distractors: tuple[int, int] = (1, 3)
-    distractor_shapes: tuple[str, ...] = ("mug", "can", "box", "bowl", "bottle", "book")
+    distractor_shapes: tuple[DistractorShape, ...] = DISTRACTOR_SHAPES
     # each instance drawn at its own size within its category's range (scene/objects.py
     # SIZE_RANGES); false: every instance at the category's base size (before this key)
     size_variants: bool = True
@@ -167,6 +182,19 @@ class ObjectsConfig(_Strict):
         if v[0] < 0 or v[1] > 12:
             raise ValueError(f"distractors must lie within [0, 12], got {list(v)}")
         return v
+
+    @field_validator("targets", "distractor_shapes")
+    @classmethod
+    def _no_repeats(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        if len(set(v)) != len(v):
+            raise ValueError(f"each name at most once, got {list(v)}")
+        return v
+
+    @model_validator(mode="after")
+    def _shapes_for_distractors(self) -> ObjectsConfig:
+        if self.distractors[1] > 0 and not self.distractor_shapes:
+            raise ValueError(f"distractor_shapes is empty but distractors asks for up to {self.distractors[1]} (give shapes or distractors: [0, 0])")
+        return self
 
 
 class SoundsConfig(_Strict):
@@ -361,12 +389,13 @@ class Recipe(_Strict):
         if isinstance(data, dict) and isinstance(data.get("composition"), dict):
             totals: dict[str, int] = {}
             for per_split in data["composition"].values():
-                if isinstance(per_split, dict):
-                    for split, n in per_split.items():
-                        if isinstance(n, int) and not isinstance(n, bool) and 0 <= n <= MAX_SPLIT_EPISODES:
-                            totals[split] = totals.get(split, 0) + n
-                        else:  # let the composition validator name the bad count
-                            return data
+                if not isinstance(per_split, dict):  # `object_relocation: 5`: the validator names composition.object_relocation
+                    return data
+                for split, n in per_split.items():
+                    if isinstance(n, int) and not isinstance(n, bool) and 0 <= n <= MAX_SPLIT_EPISODES:
+                        totals[split] = totals.get(split, 0) + n
+                    else:  # let the composition validator name the bad count
+                        return data
             if "splits" in data and data["splits"] != totals:
                 raise ValueError(f"splits {data['splits']} disagree with composition totals {totals}; give one of them")
             data = {**data, "splits": totals}
@@ -392,6 +421,22 @@ class Recipe(_Strict):
         weights = self.setting_weights()
         names = sorted(weights)
         return str(rng.choice(names, p=[weights[n] for n in names]))
+
+    def settings_drawn(self) -> list[str]:
+        """The settings an episode of this recipe can have (positive weight or count)."""
+        if self.composition:
+            return [s for s in SETTINGS if any(n > 0 for n in self.composition.get(s, {}).values())]  # type: ignore[call-overload]
+        return [s for s in SETTINGS if s in self.setting_weights()]
+
+    def categories_drawn(self) -> list[str]:
+        """The sound categories an event of this recipe can have (drawn setting, positive weight)."""
+        drawn = self.settings_drawn()
+        pool: list[str] = []
+        if {"object_relocation", "multi_event"} & set(drawn):
+            pool += [c for c in self.objects.targets if c in RELOCATION_CATEGORIES]
+        if {"state_transition", "multi_event"} & set(drawn):
+            pool += list(STATE_CATEGORIES)
+        return [c for c in CATEGORIES if c in pool and self.events.categories.get(c, 0.0) > 0]
 
     def setting_weights(self) -> dict[str, float]:
         """The setting mix as normalised weights."""
@@ -441,11 +486,36 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+def _resolve(path: Path, chain: tuple[Path, ...]) -> Path:
+    """The real path of a recipe file; a symlink loop is one line naming the file that led there."""
+    try:
+        return path.resolve()
+    except (RuntimeError, OSError):  # RuntimeError before Python 3.13, OSError (ELOOP) after
+        where = f"{chain[-1]}: extends: {path}" if chain else str(path)
+        raise RecipeError(f"{where}: symlink loop (the link points back to itself)") from None
+
+
+def _deepest(data: Any, limit: int) -> str | None:
+    """The key path of the first value nested deeper than `limit` levels (None when none is);
+    iterative, so no nesting can exhaust Python's stack."""
+    stack: list[tuple[Any, str, int]] = [(data, "", 0)]
+    while stack:
+        v, where, depth = stack.pop()
+        if depth > limit:
+            return where or "<root>"
+        items = v.items() if isinstance(v, dict) else enumerate(v) if isinstance(v, list) else ()
+        for k, x in items:
+            stack.append((x, f"{where}.{k}" if where else str(k), depth + 1))
+    return None
+
+
 def _read_yaml(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     """Read a recipe file and resolve its `extends:` chain into one mapping."""
-    path = path.resolve()
+    path = _resolve(path, chain)
     if path in chain:
         raise RecipeError(f"{path}: extends: circular chain {' -> '.join(str(p) for p in chain + (path,))}")
+    if len(chain) >= MAX_EXTENDS_DEPTH:
+        raise RecipeError(f"{chain[0]}: extends: a chain of more than {MAX_EXTENDS_DEPTH} files (at {path})")
     try:
         mode = path.stat().st_mode
         if not stat.S_ISREG(mode) and not stat.S_ISDIR(mode):  # a FIFO or device would block or stream forever
@@ -462,10 +532,15 @@ def _read_yaml(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = getattr(e, "problem", None) or str(e).splitlines()[0]
         raise RecipeError(f"{path}: malformed YAML{where}: {problem}") from None
+    except RecursionError:  # PyYAML composes nested nodes recursively
+        raise RecipeError(f"{path}: nested more than {MAX_NESTING} levels deep") from None
     if data is None:
         data = {}
     if not isinstance(data, dict):
         raise RecipeError(f"{path}: a recipe must be a mapping of keys, got {type(data).__name__}")
+    deep = _deepest(data, MAX_NESTING)
+    if deep is not None:
+        raise RecipeError(f"{path}: {deep}: nested more than {MAX_NESTING} levels deep")
     parent = data.pop("extends", None)
     if parent is not None:
         if not isinstance(parent, str):
@@ -498,7 +573,29 @@ def recipe_from_mapping(data: dict[str, Any], source: str = "<recipe>") -> Recip
         more = f" (+{len(e.errors()) - 1} more)" if len(e.errors()) > 1 else ""
         raise RecipeError(f"{source}: {key}: {msg}{more}") from None
     _check_sound_folders(recipe, source)
+    _check_draws(recipe, source)
     return recipe
+
+
+def _check_draws(recipe: Recipe, source: str) -> None:
+    """Weights that leave a drawn setting nothing to draw: refused, never replaced by a uniform
+    draw (a category given weight 0 must never appear in an episode)."""
+    weights = recipe.events.categories
+    for setting in recipe.settings_drawn():
+        if setting in ("object_relocation", "multi_event"):
+            targets = [c for c in recipe.objects.targets if c in RELOCATION_CATEGORIES]
+            if not targets:
+                raise RecipeError(f"{source}: objects.targets: empty, but setting {setting} draws a sounding object")
+            if not any(weights.get(c, 0.0) > 0 for c in targets):
+                raise RecipeError(
+                    f"{source}: events.categories.{targets[0]}: every target of objects.targets ({', '.join(targets)}) "
+                    f"has weight 0, but setting {setting} draws one of them"
+                )
+        if setting in ("state_transition", "multi_event") and not any(weights.get(c, 0.0) > 0 for c in STATE_CATEGORIES):
+            raise RecipeError(
+                f"{source}: events.categories.{STATE_CATEGORIES[0]}: {' and '.join(STATE_CATEGORIES)} have weight 0, "
+                f"but setting {setting} draws one of them"
+            )
 
 
 def _check_sound_folders(recipe: Recipe, source: str) -> None:

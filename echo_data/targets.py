@@ -42,6 +42,7 @@ def write_failed(option: str, path: Path, e: OSError) -> str:
     outside the target was being read, not written."""
     name = Path(e.filename) if e.filename else path
     inside = name.absolute().is_relative_to(path.absolute()) or name.absolute() == path.absolute().parent
+    inside = inside or (name.absolute().parent == path.absolute().parent and name.name.startswith(f".{path.name}."))  # its temporary sibling
     if not inside:
         return f"{option} {path}: cannot read {name} ({e.strerror or e})"
     return f"{option} {path}: cannot write {name} ({e.strerror or e})"

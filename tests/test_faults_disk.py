@@ -4,8 +4,11 @@ kept, and `--resume` (once there is room) ends with the same bytes as an undistu
 from __future__ import annotations
 
 import errno
+import hashlib
+import resource
 import shutil
 import subprocess
+import sys
 import uuid
 from pathlib import Path
 
@@ -84,3 +87,76 @@ def test_real_full_disk_on_a_small_tmpfs(reference: Path, tmp_path: Path) -> Non
         assert validate(out) == []
     finally:
         subprocess.run(["umount", "-l", str(disk)])
+
+
+# ---------------------------------------------------------------- every command that writes
+
+def _limited(limit: int, argv: list[str]) -> subprocess.CompletedProcess[str]:
+    """ARGV run in a process whose files may not grow past `limit` bytes (RLIMIT_FSIZE): every
+    write beyond fails with EFBIG inside the real writers (Arrow, zarr, HDF5, the MP4 muxer,
+    libsndfile), as it would on a full disk. Python ignores SIGXFSZ, so the write returns an error."""
+
+    def limit_files() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    return subprocess.run([sys.executable, *argv], preexec_fn=limit_files, capture_output=True, text=True, timeout=600)
+
+
+def _one_line_exit_2(res: subprocess.CompletedProcess[str], *needles: str) -> None:
+    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("error:")]
+    assert res.returncode == 2 and len(errors) == 1 and "Traceback" not in res.stderr, (res.returncode, res.stderr[-3000:])
+    for n in needles:
+        assert n in errors[0], (n, errors[0])
+
+
+def _tree(root: Path) -> dict[str, str]:
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.parametrize("fmt, out, limit", [("zarr", "export", 4000), ("lerobot", "export", 60000), ("robomimic", "export.hdf5", 60000)])
+def test_export_onto_a_full_disk_is_one_line_and_keeps_the_old_export(fmt: str, out: str, limit: int, reference: Path, tmp_path: Path) -> None:
+    target = tmp_path / out
+    cli = ["-m", "echo_data.cli", "export", str(reference), "--format", fmt, "--out", str(target)]
+    assert subprocess.run([sys.executable, *cli], capture_output=True, text=True, timeout=600).returncode == 0
+    before = _tree(target) if target.is_dir() else {"": hashlib.sha256(target.read_bytes()).hexdigest()}
+    _one_line_exit_2(_limited(limit, [*cli, "--overwrite"]), "--out", "File too large")
+    after = _tree(target) if target.is_dir() else {"": hashlib.sha256(target.read_bytes()).hexdigest()}
+    assert after == before  # the old export, whole
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out]  # no temporary sibling left
+
+
+@pytest.mark.parametrize("argv, made", [
+    (["view", "{ds}", "--out", "{tmp}/ep.mp4"], 20000),
+    (["view", "{ds}", "--rerun", "{tmp}/ep.rrd"], 3000),
+    (["sounds", "export", "{tmp}/sounds", "-c", "phone"], 5000),
+])
+def test_view_and_sounds_onto_a_full_disk_are_one_line(argv: list[str], made: int, reference: Path, tmp_path: Path) -> None:
+    args = [a.format(ds=reference, tmp=tmp_path) for a in argv]
+    _one_line_exit_2(_limited(made, ["-m", "echo_data.cli", *args]), "cannot write")
+    assert list(tmp_path.iterdir()) == []  # nothing half-written, no temporary file
+
+
+_BUILD = """
+import sys
+from pathlib import Path
+sys.path.insert(0, {tests!r})
+from support.synth import null_library, synth_generate, synth_recipe
+from echo_data.app.build import OutputError, build
+try:
+    build(synth_recipe(), Path({tests!r}), Path({out!r}), generate=synth_generate, make_library=null_library, progress=False)
+except OutputError as e:
+    print(f"error: {{e}}", file=sys.stderr)
+    sys.exit(2)
+"""
+
+
+def test_build_onto_a_real_write_limit_is_one_line_and_resumes(reference: Path, tmp_path: Path) -> None:
+    """Not an injected error: the build's writers meet EFBIG from the kernel; a resume with room
+    ends with the same bytes (that finished episodes are kept is the injected test's above)."""
+    out = tmp_path / "synth"
+    smallest = min(p.stat().st_size for p in (reference / "data").glob("*.parquet"))
+    res = _limited(smallest // 2, ["-c", _BUILD.format(tests=str(TESTS), out=str(out))])
+    _one_line_exit_2(res, str(out), "File too large", "free space", "--resume")
+    _build(out, mode="resume")
+    assert file_digests(out) == file_digests(reference)
+    assert validate(out) == []

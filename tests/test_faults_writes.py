@@ -20,6 +20,8 @@ def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.mark.parametrize("command", [
     ["export", "{ds}", "--out", "{ro}/export"],
+    ["export", "{ds}", "--format", "zarr", "--out", "{ro}/export"],
+    ["export", "{ds}", "--format", "robomimic", "--out", "{ro}/export.hdf5"],
     ["view", "{ds}", "--out", "{ro}/ep.mp4"],
     ["train", "bc", "{ds}", "--skill", "Navigate", "--inputs", "state", "--out", "{ro}/run", "--no-progress"],
     ["train", "planner", "{ds}", "--out", "{ro}/run", "--no-progress"],

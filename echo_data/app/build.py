@@ -12,7 +12,6 @@ build -> writer -> shards (`echo_data.dataset.shards`) / manifest -> storage.
 from __future__ import annotations
 
 import errno
-import shutil
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -24,7 +23,6 @@ from echo_data.app.executors import ExecutorError, make_executor
 from echo_data.dataset.encode import EncodedEpisode
 from echo_data.dataset.lock import LOCK_NAME, BuildLock, BuildLockedError
 from echo_data.dataset.manifest import (
-    MANIFEST,
     ManifestError,
     ShardPlans,
     load_manifest,
@@ -33,8 +31,9 @@ from echo_data.dataset.manifest import (
     split_sizes,
     write_manifest,
 )
-from echo_data.dataset.schema import StepLayout
+from echo_data.dataset.schema import FORMAT_VERSION, StepLayout
 from echo_data.dataset.writer import DatasetWriter
+from echo_data.dataset.written import DATASET, NotWrittenByUs, dataset_files, read_marker, remove_written, write_marker
 from echo_data.episode import attempt_draws
 from echo_data.outputs import OutputError, check_output_path
 from echo_data.pcm import ClippingError
@@ -214,22 +213,21 @@ def _prepare(
             raise OutputError(f"{out} was built with --limit {manifest.get('limit')}, not {limit}; pass the same --limit or --overwrite")
         if manifest.get("only_splits") != (None if only is None else list(plan_shards(recipe, limit, only))):
             raise OutputError(f"{out} was built with --split {manifest.get('only_splits') or 'all'}, not {only or 'all'}; pass the same --split or --overwrite")
+        if read_marker(out) is None:  # built before the marker existed
+            write_marker(out, DATASET, FORMAT_VERSION)
         manifest["build"].update({"workers": workers, "executor": executor})
         manifest["build"]["resumes"] = manifest["build"].get("resumes", 0) + 1
         return manifest
     if has_content and mode == "overwrite":
-        if not (out / MANIFEST).is_file():
-            raise OutputError(f"{out} is not empty and holds no {MANIFEST}; refusing to overwrite what is not an echo-data dataset")
-        for child in out.iterdir():  # all but the lock this build holds
-            if child.name == LOCK_NAME:
-                continue
-            if child.is_dir() and not child.is_symlink():
-                shutil.rmtree(child)
-            else:
-                child.unlink()
+        try:  # every file is checked before the first is deleted
+            files = dataset_files(out)
+        except NotWrittenByUs as e:
+            raise OutputError(str(e)) from None
+        remove_written(out, files, keep=(LOCK_NAME,))  # all but the lock this build holds
     out.mkdir(parents=True, exist_ok=True)
     manifest = new_manifest(recipe, limit, layout, workers, executor, only)
     write_manifest(out, manifest)
+    write_marker(out, DATASET, FORMAT_VERSION)  # after the manifest: a folder holding only a marker is never left
     return manifest
 
 
@@ -316,12 +314,15 @@ def build(
     # Read the sound library once before anything is written: an unreadable user WAV is bad
     # input (exit 2, nothing written), not a crash inside a worker halfway through the build.
     try:
-        (make_library or default_library)(recipe, Path(recipe_path).resolve().parent)
+        library = (make_library or default_library)(recipe, Path(recipe_path).resolve().parent)
+        if hasattr(library, "check_covers"):  # protocols.SoundLibrary does not require the check of a caller's library
+            library.check_covers(recipe)
     except Exception as e:
         if type(e).__name__ != "SoundLibraryError":
             raise
         raise OutputError(str(e).splitlines()[0]) from None
     missing = [d for d in (out, *out.absolute().parents) if not d.exists()]  # folders the lock creates
+    had_lock = (out / LOCK_NAME).exists()
     lock = BuildLock(out)
     try:
         lock.acquire()
@@ -337,13 +338,15 @@ def build(
         where = e.filename or out
         raise OutputWriteError(
             f"{where}: {e.strerror or e}; every finished episode is kept: "
-            f"{'free space' if e.errno in (errno.ENOSPC, errno.EDQUOT) else 'make the folder writable'} and rerun with --resume"
+            f"{'free space' if e.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG) else 'make the folder writable'} and rerun with --resume"
         ) from None
     except OutputError:
         if missing and [p.name for p in out.iterdir()] == [LOCK_NAME]:  # refused before writing: leave no trace
             (out / LOCK_NAME).unlink()
             for d in missing:
                 d.rmdir()
+        elif not had_lock:  # refused in a folder that is not ours: leave it as it was
+            (out / LOCK_NAME).unlink(missing_ok=True)
         raise
     finally:
         lock.release()

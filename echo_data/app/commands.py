@@ -57,10 +57,15 @@ def build_cmd(
 
 def validate_cmd(path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")]) -> None:
     """Check every shard, WAV, index and metadata file of a dataset against its manifest."""
+    from echo_data.dataset.manifest import ManifestError, load_manifest
     from echo_data.dataset.validate import validate
 
     if not (path / "manifest.json").is_file():
         raise _fail(f"{path}: not an echo-data dataset (no manifest.json)", 2)
+    try:  # a manifest that cannot be read is bad input (one line, exit 2), as a missing one is
+        load_manifest(path)
+    except ManifestError as e:
+        raise _fail(str(e), 2) from None
     problems = validate(path)
     for p in problems:
         typer.echo(p)

@@ -50,21 +50,51 @@ def check_source(src: Path) -> dict[str, Any]:
     return manifest
 
 
+def _check_apart(src: Path, out: Path) -> None:
+    """An export is never written into its source dataset, onto it, or around it (an
+    `--overwrite` of a parent folder would delete the dataset and its neighbours)."""
+    s, o = src.resolve(), out.resolve()
+    if o == s or s in o.parents:
+        raise ExportError(f"--out {out} lies inside the source dataset {src}")
+    if o in s.parents:
+        raise ExportError(f"--out {out} contains the source dataset {src}")
+
+
 def check_out_file(src: Path, out: Path, overwrite: bool) -> None:
-    """Refuse an existing output (unless --overwrite replaces a file) or one inside the source."""
+    """Refuse an output inside or around the source, an existing one without --overwrite, and
+    with it any file that is not an echo-data robomimic export (checked by its HDF5 attributes)."""
+    _check_apart(src, out)
     if out.exists() and not (overwrite and out.is_file()):
         raise ExportError(f"{out} already exists" + ("; use --overwrite to replace it" if out.is_file() else " and is a folder"))
-    if src.resolve() in out.resolve().parents:
-        raise ExportError(f"--out {out} lies inside the source dataset {src}")
+    if out.exists() and not _is_our_hdf5(out):
+        raise ExportError(f"{out}: not an echo-data robomimic export; --overwrite replaces only what echo-data wrote (nothing was touched)")
 
 
+def _is_our_hdf5(path: Path) -> bool:
+    """Whether `path` is an HDF5 file whose `data` group carries echo-data's format attribute."""
+    import h5py
 
-def check_out_folder(src: Path, out: Path, overwrite: bool) -> None:
-    """Refuse an existing output folder (unless --overwrite replaces it), a file, the source itself or a place inside it."""
+    try:
+        with h5py.File(path, "r") as f:
+            return isinstance(f.get("data"), h5py.Group) and "echo_data_format" in f["data"].attrs
+    except Exception:  # h5py raises OSError, KeyError, ... for files that are no HDF5
+        return False
+
+
+def check_out_folder(src: Path, out: Path, overwrite: bool, kind: str) -> None:
+    """Refuse an output inside or around the source, a file, an existing folder without
+    --overwrite, and with it a folder holding anything echo-data's `kind` export did not write."""
+    from echo_data.dataset.written import NotWrittenByUs, written_files
+
+    _check_apart(src, out)
     if out.exists() and not (overwrite and out.is_dir()):
         raise ExportError(f"{out} already exists" + ("; use --overwrite to replace it" if out.is_dir() else " and is not a folder"))
-    if out.resolve() == src.resolve() or src.resolve() in out.resolve().parents:
-        raise ExportError(f"--out {out} lies inside the source dataset {src}")
+    if out.exists():
+        try:
+            written_files(out, kind)
+        except NotWrittenByUs as e:
+            raise ExportError(str(e)) from None
+
 
 def decode_images(column: pa.ChunkedArray) -> np.ndarray:
     """PNG cells of an image column -> (T, H, W[, C]) pixels as stored (depth stays uint16 mm)."""

@@ -52,11 +52,13 @@ from echo_data.dataset.schema import (
 from echo_data.dataset.shards import conform
 from echo_data.dataset.stats import episode_feature_values, finalize, merge, summarize
 from echo_data.dataset.storage import atomic_write_bytes, canonical_json, fsync_dir
+from echo_data.dataset.written import mark_export, replace_folder
 from echo_data.episode import SPLIT_KEYS
 from echo_data.recipe import SETTINGS
 from echo_data.records import ACTION_NAMES, STATE_NAMES
 
 CODEBASE_VERSION = "v3.0"
+KIND = "lerobot export"  # the folder marker's kind (echo_data.dataset.written)
 CHUNKS_SIZE = 1000  # files per chunk folder (LeRobot's default)
 DATA_FILES_SIZE_IN_MB = 100  # a data file is closed once its rows reach this size
 VIDEO_FILES_SIZE_IN_MB = 200  # LeRobot's default (one MP4 per episode here stays far below it)
@@ -305,7 +307,7 @@ def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False, vi
         raise ExportError("the LeRobot export needs pandas: pip install pandas") from None
     src, out = Path(src), Path(out)
     manifest = check_source(src)
-    check_out_folder(src, out, overwrite)
+    check_out_folder(src, out, overwrite, KIND)
     layout = StepLayout.from_dict(manifest["layout"])
     for v in video:
         if v not in VIDEO_CAMERAS:
@@ -370,13 +372,8 @@ def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False, vi
             dst.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(src / e["audio_path"], dst)
         (tmp / "echo_data_manifest.json").write_bytes(canonical_json({k: manifest[k] for k in ("name", "recipe_hash", "format", "versions", "counts")}))
-        if out.exists():
-            old = out.with_name(f".{out.name}.old-{os.getpid()}")
-            os.replace(out, old)
-            os.replace(tmp, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out)
+        mark_export(tmp, KIND, CODEBASE_VERSION)
+        replace_folder(tmp, out, KIND)
         fsync_dir(out.parent)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -206,16 +206,92 @@ def write_manifest(out: Path, manifest: dict[str, Any]) -> None:
 
 
 def load_manifest(out: Path) -> dict[str, Any]:
+    """The manifest of the dataset at `out`, its shape checked: a damaged or hand-edited file is
+    one `ManifestError` naming the file and the key, never a TypeError deep inside a reader."""
     path = out / MANIFEST
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
         raise ManifestError(f"{out}: no {MANIFEST} (not an echo-data dataset)") from None
-    except (OSError, json.JSONDecodeError) as e:
+    except IsADirectoryError:
+        raise ManifestError(f"{path}: is a folder, not a manifest (not an echo-data dataset)") from None
+    except UnicodeDecodeError as e:
+        raise ManifestError(f"{path}: unreadable manifest (not UTF-8 text: byte {e.start})") from None
+    except (OSError, json.JSONDecodeError, RecursionError) as e:
         raise ManifestError(f"{path}: unreadable manifest ({e.__class__.__name__}: {e})") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT_VERSION:
         fmt = data.get("format") if isinstance(data, dict) else None
         if isinstance(fmt, str) and fmt.startswith("echo-data/"):
             raise ManifestError(f"{path}: dataset format {fmt}; this echo-data reads {FORMAT_VERSION} (rebuild with --overwrite)")
         raise ManifestError(f"{path}: not an {FORMAT_VERSION} manifest")
+    wrong = manifest_shape_problem(data)
+    if wrong:
+        raise ManifestError(f"{path}: {wrong}")
     return data
+
+
+def _kind(v: Any) -> str:
+    return "null" if v is None else "true/false" if isinstance(v, bool) else type(v).__name__
+
+
+def _is_int(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+# What the readers (validate, info, build --resume, export, view, train, evaluate) take from a
+# manifest, as (key, test, what it must be). Keys a newer writer adds are not listed: they are
+# not read, so their shape cannot break a reader.
+_TOP: tuple[tuple[str, Any, str], ...] = (
+    ("name", lambda v: isinstance(v, str), "text"),
+    ("recipe_hash", lambda v: isinstance(v, str), "text"),
+    ("recipe", lambda v: isinstance(v, dict), "a mapping"),
+    ("limit", lambda v: v is None or (_is_int(v) and v >= 1), "null or an integer >= 1"),
+    ("seed", lambda v: _is_int(v) and v >= 0, "an integer >= 0"),
+    ("layout", lambda v: isinstance(v, dict), "a mapping"),
+    ("audio", lambda v: isinstance(v, dict), "a mapping"),
+    ("splits", lambda v: isinstance(v, dict) and all(isinstance(x, dict) for x in v.values()), "a mapping of split -> mapping"),
+    ("shards", lambda v: isinstance(v, list) and all(isinstance(x, dict) for x in v), "a list of mappings"),
+    ("complete", lambda v: isinstance(v, bool), "true or false"),
+    ("build", lambda v: isinstance(v, dict), "a mapping"),
+    ("counts", lambda v: isinstance(v, dict), "a mapping"),
+    ("skills", lambda v: isinstance(v, dict), "a mapping"),
+    ("rejected", lambda v: isinstance(v, dict), "a mapping"),
+    ("failed_episodes", lambda v: isinstance(v, list), "a list"),
+    ("versions", lambda v: isinstance(v, dict), "a mapping"),
+)
+_SHARD: tuple[tuple[str, Any, str], ...] = (
+    ("file", lambda v: isinstance(v, str), "text"),
+    ("split", lambda v: isinstance(v, str), "text"),
+    ("sha256", lambda v: isinstance(v, str), "text"),
+    ("rows", lambda v: _is_int(v) and v >= 0, "an integer >= 0"),
+    ("bytes", lambda v: _is_int(v) and v >= 0, "an integer >= 0"),
+    ("episodes", lambda v: isinstance(v, list) and len(v) == 2 and all(_is_int(x) for x in v), "[first, last] integers"),
+    ("settings", lambda v: isinstance(v, dict) and all(_is_int(x) for x in v.values()), "a mapping of integers"),
+    ("skills", lambda v: isinstance(v, dict) and all(isinstance(x, list) and len(x) == 2 and all(_is_int(y) for y in x) for x in v.values()), "a mapping of [attempts, successes]"),
+    ("rejected", lambda v: isinstance(v, dict) and all(_is_int(x) for x in v.values()), "a mapping of integers"),
+    ("failures", lambda v: isinstance(v, list), "a list"),
+)
+
+
+def manifest_shape_problem(data: dict[str, Any]) -> str | None:
+    """The first key of a manifest whose value has the wrong type ("key: must be ..., got ..."),
+    or None when every key a reader uses has the shape the writer gives it."""
+    for key, ok, what in _TOP:
+        if key not in data:
+            return f"{key}: missing"
+        if not ok(data[key]):
+            return f"{key}: must be {what}, got {_kind(data[key])} {str(data[key])[:40]!r}"
+    only = data.get("only_splits")
+    if only is not None and not (isinstance(only, list) and all(isinstance(s, str) and s in SPLIT_KEYS for s in only)):
+        return f"only_splits: must be a list of split names, got {_kind(only)}"
+    for split, entry in data["splits"].items():
+        for k in ("requested", "episodes", "shards", "episodes_per_shard"):
+            if k in entry and not (_is_int(entry[k]) and entry[k] >= 0):
+                return f"splits.{split}.{k}: must be an integer >= 0, got {_kind(entry[k])}"
+    for i, shard in enumerate(data["shards"]):
+        for key, ok, what in _SHARD:
+            if key in shard and not ok(shard[key]):
+                return f"shards[{i}].{key}: must be {what}, got {_kind(shard[key])}"
+            if key not in shard and key in ("file", "split", "sha256", "rows"):
+                return f"shards[{i}].{key}: missing"
+    return None

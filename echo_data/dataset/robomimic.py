@@ -92,6 +92,50 @@ def _write_demo(data: Any, name: str, ep: EpisodeArrays) -> None:
     )
 
 
+class _KeepsFirstWriteError:
+    """The file object h5py writes through (its `fileobj` driver). A failed write (full disk,
+    quota, file size limit) is recorded and later writes are dropped, so HDF5 never sees an
+    error: when HDF5's own writes fail, h5py 3 crashes at close (SIGSEGV, measured under
+    RLIMIT_FSIZE). The export asks `check` after each demo and after the close, and raises the
+    recorded `OSError` (the temporary file is then removed)."""
+
+    def __init__(self, raw: Any) -> None:
+        self.raw = raw
+        self.error: OSError | None = None
+
+    def write(self, b: Any) -> int:
+        n = len(memoryview(b).cast("B"))
+        if self.error is None:
+            try:
+                return int(self.raw.write(b))
+            except OSError as e:
+                self.error = e
+        return n
+
+    def flush(self) -> None:
+        if self.error is None:
+            try:
+                self.raw.flush()
+            except OSError as e:
+                self.error = e
+
+    def truncate(self, size: int | None = None) -> int:
+        if self.error is None:
+            try:
+                return int(self.raw.truncate(size))
+            except OSError as e:
+                self.error = e
+        return size or 0
+
+    def __getattr__(self, name: str) -> Any:  # read, readinto, seek, tell: the real file's
+        return getattr(self.raw, name)
+
+    def check(self) -> None:
+        """Raise the first write error, if a write failed."""
+        if self.error is not None:
+            raise self.error
+
+
 def export_robomimic(src: str | Path, out: str | Path, overwrite: bool = False) -> dict[str, Any]:
     """Write the robomimic HDF5 of the echo-data dataset `src` to the file `out` (written to a
     temporary name, then renamed); return a summary. Raises ExportError on bad input."""
@@ -106,23 +150,27 @@ def export_robomimic(src: str | Path, out: str | Path, overwrite: bool = False) 
     masks: dict[str, list[str]] = {}
     total = 0
     try:
-        with h5py.File(tmp, "w") as f:
-            data = f.create_group("data")
-            for i, ep in enumerate(iter_episodes(src, manifest)):
-                _write_demo(data, f"demo_{i}", ep)
-                masks.setdefault(MASKS[ep.split], []).append(f"demo_{i}")
-                total += ep.length
-            env_kwargs = {"recipe": manifest["name"], "recipe_hash": manifest["recipe_hash"], "control_hz": layout.fps, "sample_rate": layout.sample_rate}
-            data.attrs.update(
-                total=total,
-                env_args=json.dumps({"env_name": "EchoData", "type": 4, "env_kwargs": env_kwargs}),  # type 4: not a robomimic-built env
-                source_dataset=f"out/{manifest['name']}",
-                echo_data_format=manifest["format"],
-                obs_keys=json.dumps(sorted(set(OBS_KEYS.values()) & set(data["demo_0"]["obs"].keys())) if len(data) else "[]"),
-            )
-            mask = f.create_group("mask")
-            for name, demos in masks.items():
-                mask.create_dataset(name, data=np.array(demos, dtype="S"))
+        with open(tmp, "wb+") as raw:
+            guard = _KeepsFirstWriteError(raw)
+            with h5py.File(guard, "w") as f:
+                data = f.create_group("data")
+                for i, ep in enumerate(iter_episodes(src, manifest)):
+                    _write_demo(data, f"demo_{i}", ep)
+                    guard.check()  # a full disk stops the export at the demo it fills
+                    masks.setdefault(MASKS[ep.split], []).append(f"demo_{i}")
+                    total += ep.length
+                env_kwargs = {"recipe": manifest["name"], "recipe_hash": manifest["recipe_hash"], "control_hz": layout.fps, "sample_rate": layout.sample_rate}
+                data.attrs.update(
+                    total=total,
+                    env_args=json.dumps({"env_name": "EchoData", "type": 4, "env_kwargs": env_kwargs}),  # type 4: not a robomimic-built env
+                    source_dataset=f"out/{manifest['name']}",
+                    echo_data_format=manifest["format"],
+                    obs_keys=json.dumps(sorted(set(OBS_KEYS.values()) & set(data["demo_0"]["obs"].keys())) if len(data) else "[]"),
+                )
+                mask = f.create_group("mask")
+                for name, demos in masks.items():
+                    mask.create_dataset(name, data=np.array(demos, dtype="S"))
+            guard.check()  # what the flush and the close wrote
         os.replace(tmp, out)
     finally:
         if tmp.exists():

@@ -25,14 +25,18 @@ from typing import Any
 import numpy as np
 import pyarrow.parquet as pq
 
+from echo_data.dataset.episode_arrays import ExportError as ExportError  # the CLI catches `module.ExportError`
 from echo_data.dataset.episode_arrays import check_out_folder, check_source, iter_episodes
 from echo_data.dataset.robomimic import OBS_KEYS
 from echo_data.dataset.schema import ACTION, CAMERA_POSES
+from echo_data.dataset.written import mark_export, replace_folder
 from echo_data.episode import SPLIT_KEYS
 
 SPLIT_CODES = {"train": 0, "val": 1, "test": 2}
 EXTRA = ("timestamp", "frame_index", "skill_index", "audio_offset", "done", "skill_success")
 KEYS = {ACTION: "action", **OBS_KEYS, **{c: c for c in EXTRA}}
+KIND = "zarr export"  # the folder marker's kind (echo_data.dataset.written)
+FORMAT = "Diffusion Policy replay buffer (Zarr format 2)"
 
 
 def _as_stored(col: str, x: np.ndarray) -> np.ndarray:
@@ -48,7 +52,7 @@ def export_zarr(src: str | Path, out: str | Path, overwrite: bool = False) -> di
 
     src, out = Path(src), Path(out)
     manifest = check_source(src)
-    check_out_folder(src, out, overwrite)
+    check_out_folder(src, out, overwrite, KIND)
     lengths = pq.read_table(src / "meta" / "episodes.parquet", columns=["n_steps"]).column("n_steps").to_numpy()
     chunk_steps = max(1, int(np.median(lengths)))
     total = int(lengths.sum())
@@ -92,10 +96,9 @@ def export_zarr(src: str | Path, out: str | Path, overwrite: bool = False) -> di
                 "episodes": episodes,
             }
         )
-        if out.exists():
-            shutil.rmtree(out)
-        os.replace(tmp, out)
+        mark_export(tmp, KIND, FORMAT)
+        replace_folder(tmp, out, KIND)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     counts = {s: splits.count(c) for s, c in sorted(SPLIT_CODES.items(), key=lambda kv: SPLIT_KEYS[kv[0]]) if splits.count(c)}
-    return {"codebase_version": "Diffusion Policy replay buffer (Zarr format 2)", "total_episodes": len(ends), "total_frames": row, "splits": counts}
+    return {"codebase_version": FORMAT, "total_episodes": len(ends), "total_frames": row, "splits": counts}

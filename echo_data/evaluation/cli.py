@@ -80,6 +80,12 @@ def run_evaluate(
     why = _check_targets(json_out, video, resume)
     if why:
         return _fail(why)
+    from echo_data.sounds import SoundLibrary, SoundLibraryError
+
+    try:  # an unusable sound folder is bad input now, not a failed episode in a worker
+        SoundLibrary.from_recipe(recipe, recipe_path.resolve().parent).check_covers(recipe)
+    except SoundLibraryError as e:
+        return _fail(str(e).splitlines()[0])
     if not isinstance(policy, str) and not is_composite(policy):
         policy = policy[0]  # one plain policy: as before
     try:

@@ -59,10 +59,11 @@ class Reject(Exception):
 
 
 def _weighted(rng: np.random.Generator, names: list[str], weights: Mapping[Any, float]) -> str:
-    """One of `names` by `weights` (missing = 0); uniform if every weight is zero."""
+    """One of `names` by `weights` (missing = 0). Every weight zero is refused (the recipe loader
+    refuses such a recipe first): a category given weight 0 is never drawn."""
     w = np.array([max(float(weights.get(n, 0.0)), 0.0) for n in names])
     if w.sum() <= 0:
-        w = np.ones(len(names))
+        raise ValueError(f"every one of {names} has weight 0 in events.categories")
     return names[int(rng.choice(len(names), p=w / w.sum()))]
 
 

@@ -19,13 +19,13 @@ import zlib
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
-from echo_data.categories import RELOCATION_CATEGORIES
+from echo_data.categories import DISTRACTOR_SHAPES, RELOCATION_CATEGORIES
 
 if TYPE_CHECKING:
     pass
 
 TARGET_CATEGORIES: tuple[str, ...] = RELOCATION_CATEGORIES
-DISTRACTOR_CATEGORIES = ("mug", "can", "box", "bowl", "bottle", "book")
+DISTRACTOR_CATEGORIES: tuple[str, ...] = DISTRACTOR_SHAPES
 CATEGORIES = TARGET_CATEGORIES + DISTRACTOR_CATEGORIES
 
 

@@ -82,10 +82,13 @@ def export_sounds(
     except OutputError as e:
         typer.echo(f"error: {e}", err=True)
         raise typer.Exit(2) from None
+    created = not out_dir.exists()
+    name = out_dir
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         for s in items:
             x = lib.waveform(s.id, sample_rate=sample_rate, seconds=seconds)
+            name = out_dir / f"{s.id}.wav"
             tmp = out_dir / f".{s.id}.wav.tmp"
             try:
                 sf.write(str(tmp), x, sample_rate, subtype="PCM_16", format="WAV")
@@ -93,6 +96,8 @@ def export_sounds(
             finally:
                 tmp.unlink(missing_ok=True)
     except (OSError, RuntimeError) as e:  # soundfile reports a failed open as a RuntimeError (LibsndfileError)
-        typer.echo(f"error: {out_dir}: cannot write ({getattr(e, 'strerror', None) or ' '.join(str(e).split())})", err=True)
+        if created and out_dir.is_dir() and not any(out_dir.iterdir()):  # leave no empty folder behind
+            out_dir.rmdir()
+        typer.echo(f"error: {out_dir}: cannot write {name} ({getattr(e, 'strerror', None) or ' '.join(str(e).split())})", err=True)
         raise typer.Exit(2) from None
     typer.echo(f"wrote {len(items)} files to {out_dir}")

@@ -24,7 +24,7 @@ from echo_data.sounds.user_folders import (
     AUDIO_SUFFIXES,
     SoundLibraryError,
     audio_files,
-    check_finite,
+    check_samples,
     crossfade_loop,
     file_duration,
     read_mono,
@@ -80,6 +80,24 @@ class SoundLibrary:
                 folder = Path(cfg.folders[cat])
                 out += folder_instances(cat, folder if folder.is_absolute() else base / folder, cfg.folder_test_fraction)
         return cls(out)
+
+    def check_covers(self, recipe: Recipe) -> None:
+        """Every category `recipe` can draw has a sound for every split it has (val plays train
+        sounds), or `SoundLibraryError`: the build and `evaluate` ask before the first episode,
+        so a folder of one file is bad input, not an episode that can never be sampled."""
+        needed = sorted({"test" if s == "test" else "train" for s, n in recipe.splits.items() if n > 0}, key=SPLITS.index)
+        for cat in recipe.categories_drawn():
+            for split in needed:
+                if self.instances(cat, split):
+                    continue
+                folder = recipe.sounds.folders.get(cat)  # type: ignore[call-overload]
+                if folder is None:
+                    raise SoundLibraryError(f"sounds: category {cat} has no sounds (builtin is false and sounds.folders names no {cat} folder)")
+                n = len(self.instances(cat))
+                raise SoundLibraryError(
+                    f"sounds.folders.{cat}: {folder} holds {n} file{'s' if n != 1 else ''}, which leaves no {split} sound for the "
+                    f"{'test' if split == 'test' else 'train/val'} split (give at least 2 files, or set sounds.builtin: true)"
+                )
 
     def __len__(self) -> int:
         return len(self._instances)
@@ -159,7 +177,7 @@ def folder_instances(category: str, folder: Path, test_fraction: float) -> list[
             iid, i = f"{base}-{i}", i + 1
         used.add(iid)
         duration = file_duration(p)
-        check_finite(p)
+        check_samples(p)
         out.append(SoundInstance(iid, category, splits[p], round(duration, 4), str(p)))
     return out
 

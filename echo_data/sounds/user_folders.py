@@ -2,7 +2,7 @@
 
 Any sample rate and channel count is accepted: channels are averaged to mono and the signal is
 resampled to the requested rate. A file that cannot be read raises `SoundLibraryError` with a
-one-line message naming the file: so does a file longer than `MAX_FILE_SECONDS` or one with
+one-line message naming the file: so does a silent file, a file longer than `MAX_FILE_SECONDS` or one with
 NaN or infinite samples (float WAVs can hold them; they would poison every render).
 """
 
@@ -23,6 +23,7 @@ LOOP_CROSSFADE_S = 0.05
 # needs seconds, not hours; a longer file is refused from its header, before any sample is read
 # (a 10-hour WAV would take gigabytes in every worker).
 MAX_FILE_SECONDS = 60.0
+SILENT_PEAK = 1e-6  # a mono peak at or below this (of full scale) is silence: it cannot be levelled to an event's loudness
 
 
 class SoundLibraryError(ValueError):
@@ -63,20 +64,23 @@ def file_duration(path: Path) -> float:
     return seconds
 
 
-def check_finite(path: Path) -> None:
-    """Refuse a file with NaN or infinite samples when the library is loaded, not mid-build
-    (read in blocks: memory stays small whatever the file's length)."""
+def check_samples(path: Path) -> None:
+    """Refuse a file with NaN or infinite samples, or a silent one, when the library is loaded,
+    not mid-build inside a worker (read in blocks: memory stays small whatever the file's length)."""
     try:
-        start = 0
+        start, peak = 0, 0.0
         for block in sf.blocks(str(path), blocksize=1 << 16, dtype="float64", always_2d=True):
             bad = np.flatnonzero(~np.isfinite(block).all(axis=1))
             if bad.size:
                 raise SoundLibraryError(f"{path}: samples are NaN or infinite (first at sample {start + int(bad[0])})")
+            peak = max(peak, float(np.abs(block.mean(axis=1)).max(initial=0.0)))
             start += len(block)
     except SoundLibraryError:
         raise
     except Exception as e:
         raise SoundLibraryError(f"{path}: unreadable audio file ({_reason(e)})") from None
+    if peak <= SILENT_PEAK:
+        raise SoundLibraryError(f"{path}: audio file is silent (peak {peak:.1e} of full scale)")
 
 
 def slug(stem: str) -> str:
@@ -97,7 +101,7 @@ def read_mono(path: Path, sr: int) -> np.ndarray:
     if bad.size:
         raise SoundLibraryError(f"{path}: samples are NaN or infinite (first at sample {int(bad[0])})")
     x = resample(data.mean(axis=1), int(file_sr), int(sr))
-    if not np.any(np.abs(x) > 1e-6):
+    if not np.any(np.abs(x) > SILENT_PEAK):
         raise SoundLibraryError(f"{path}: audio file is silent")
     return x
 

@@ -72,8 +72,15 @@ def write_recording(root: Path, index: int, target: Path, split: str = "train") 
     rec = rr.RecordingStream("echo-data", recording_id=ep["episode_id"])
     tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
     target.parent.mkdir(parents=True, exist_ok=True)
+    # Not rec.save(path): Rerun's file sink logs a failed write (a full disk) and carries on, so
+    # a truncated .rrd would be reported as written. The recording is encoded in memory (one
+    # episode: tens of MB) and written here, where a failed write raises OSError (one line, exit
+    # 2, no file left). Read once: each read of a binary stream starts a new stream header, and
+    # Rerun's loader reads only the first of several concatenated streams (measured, rerun 0.23).
+    sink = tmp.open("wb")
     try:
-        rec.save(tmp, default_blueprint=_blueprint(cameras))
+        stream = rr.binary_stream(recording=rec)
+        rr.send_blueprint(_blueprint(cameras), make_active=False, make_default=True, recording=rec)
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         rec.log("episode", rr.TextDocument(_describe(ep)), static=True)
         index_cols = [rr.TimeColumn("step", sequence=steps), rr.TimeColumn("time", duration=seconds)]
@@ -121,9 +128,12 @@ def write_recording(root: Path, index: int, target: Path, split: str = "train") 
                 colours = rgb[::g, ::g][ok] if cam == "head" and rgb is not None and rgb.shape[:2] == depth.shape else None
                 rec.log(f"world/points/{cam}", rr.Points3D(pts[ok], colors=colours, radii=0.01))
         rec.flush(blocking=True)
+        sink.write(stream.read() or b"")
         rec.disconnect()
+        sink.close()
         os.replace(tmp, target)
     finally:
+        sink.close()
         if tmp.exists():
             tmp.unlink()
     return {"path": str(target), "steps": len(rows), "episode_id": ep["episode_id"], "cameras": sorted(cameras)}
