@@ -227,7 +227,7 @@ def run_episode(
                 reason = "timeout"
                 break
             try:
-                a = as_action(action)
+                a = as_action(action, int(np.prod(env.action_space.shape)))  # 12 in joint mode, 11 in ee mode
             except EnvInputError as e:
                 raise AgentActionError(f"policy {e} at step {env.steps}") from None
             if on_step is not None:

@@ -22,8 +22,8 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.schema import ACTION, ACTION_EXECUTED, CHAIN_SLOTS, POSE_DIM, STATE, StepLayout, column_to_numpy
-from echo_data.records import ACTION_DIM, STATE_DIM
+from echo_data.dataset.schema import ACTION, CHAIN_SLOTS, POSE_DIM, SKILL_STOP, STATE, VECTOR_COLUMNS, StepLayout, column_to_numpy
+from echo_data.records import PRIVILEGED_COLUMNS
 
 _INDEX_COLUMNS = ["episode_index", "frame_index", "setting", "skill"]
 _SCALARS = {
@@ -36,6 +36,7 @@ _SCALARS = {
     "audio_sample_rate": "int64",
     "timestamp": "float32",
     "done": "bool",
+    SKILL_STOP: "int8",
 }
 _STRINGS = ("setting", "skill", "audio_path")
 # Decoded row groups a StepDataset keeps per worker process: at least the shuffle sampler's
@@ -133,10 +134,10 @@ class _Shards:
 
     def shape(self, col: str) -> tuple[int, ...]:
         """Per-row shape of a fixed-shape list column."""
-        if col in (ACTION, ACTION_EXECUTED):
-            return (ACTION_DIM,)
-        if col == STATE:
-            return (STATE_DIM,)
+        if col in VECTOR_COLUMNS:
+            return (VECTOR_COLUMNS[col],)
+        if col in PRIVILEGED_COLUMNS:
+            return (PRIVILEGED_COLUMNS[col],)
         if col == "skill_success":
             return (CHAIN_SLOTS,)
         if col in self.layout.pose_columns:

@@ -44,6 +44,8 @@ def _schema_problems(name: str, got: pa.Schema, want: pa.Schema) -> list[str]:
     for g, w in zip(got, want):
         if not _plain(g.type).equals(_plain(w.type)):
             out.append(f"{name}: column {g.name} has type {_plain(g.type)}, expected {_plain(w.type)}")
+        if (g.metadata or {}).get(b"privileged") != (w.metadata or {}).get(b"privileged"):
+            out.append(f"{name}: column {g.name} is not flagged privileged as the layout says")
     md = got.metadata or {}
     hf = md.get(b"huggingface")
     if hf is None:
