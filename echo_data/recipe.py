@@ -434,6 +434,8 @@ class Recipe(_Strict):
             del data["experts"]
         if not data["sounds"]["fresh_train_instances"]:  # library voices only: as before the key existed
             del data["sounds"]["fresh_train_instances"]
+        if data["robot"]["action_space"] == "joint":  # the env's default action form: as before the key existed
+            del data["robot"]["action_space"]
         blob = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(blob.encode()).hexdigest()
 

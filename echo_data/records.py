@@ -74,14 +74,15 @@ PRIVILEGED_NOTES: dict[str, str] = {
     PRIVILEGED_PREFIX + "target_pose": (
         "the current skill's target in the base frame: position (m) and orientation as a unit quaternion "
         "(w, x, y, z; w >= 0). Object: its body pose; door: the swing-side handle bar's centre, yawed with "
-        "the leaf; faucet: the lever's tip, yawed with the lever; furniture: `place_spot`'s point, yaw 0"
+        "the leaf; faucet: the lever's tip, yawed with the lever; furniture: in a Place `place_spot`, else the "
+        "top's point nearest the base; yaw 0"
     ),
     PRIVILEGED_PREFIX + "tcp_to_target": "target position minus the measured tool-centre-point position (m), in the base frame's axes",
     PRIVILEGED_PREFIX + "joint_angle": "the target door's hinge angle or the faucet lever's angle (rad, 0 = closed); 0 for objects and furniture",
     PRIVILEGED_PREFIX + "place_spot": (
-        "where the skill's event puts its object, in the base frame (m, z = the top's height): the Place "
+        "in a Place, where the object goes, in the base frame (m, z = the top's height): the Place "
         "expert's best free spot on the goal receptacle from where the base stands (else the top's point "
-        "nearest the base); zeros in events without a Place (door, faucet)"
+        "nearest the base); zeros in every other skill"
     ),
 }
 

@@ -80,10 +80,16 @@ def test_target_pose_is_the_world_pose_seen_from_the_base(multi_event_env: EchoD
             assert got[JOINT_ANGLE][0] == np.float32(angle)
             pivot = _in_base(np.asarray(faucet.pivot), base)
             assert math.isclose(float(np.linalg.norm(pose[:3] - pivot)), faucet.lever_length, abs_tol=1e-5)
-        else:  # furniture: the place spot, on the top
+        else:  # furniture: a point of its top (a Place's place spot)
             f = world.plan.furniture[t.index]
             assert math.isclose(pose[2], f.top_z, abs_tol=1e-5)
+            c, s = math.cos(base[2]), math.sin(base[2])
+            wx, wy = base[0] + c * pose[0] - s * pose[1], base[1] + s * pose[0] + c * pose[1]  # back in the world
+            assert f.footprint.contains(float(wx), float(wy))
+        if call.skill == "Place":
             assert np.allclose(pose[:3], got[PLACE_SPOT], atol=1e-6)
+        else:
+            assert not got[PLACE_SPOT].any()
     assert {"object", "furniture"} <= kinds and kinds & {"door", "faucet"}
 
 

@@ -63,15 +63,21 @@ def place_spot_world(world: World, name: str | None, furniture: int) -> np.ndarr
     return np.array([x, y, top])
 
 
-def target_world(world: World, spec: EpisodeSpec, call: SkillCall) -> tuple[np.ndarray, float]:
+def top_point_world(world: World, furniture: int) -> np.ndarray:
+    """The top's point nearest the base (`EDGE_MARGIN` inside its edges), at the top's height."""
+    from echo_data.skills.place import EDGE_MARGIN
+
+    return np.array([*nearest_top_point(world, furniture, EDGE_MARGIN), world.plan.furniture[furniture].top_z])
+
+
+def target_world(world: World, spec: EpisodeSpec, call: SkillCall, spot: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """The 4x4 world pose of what `call` acts on, and that thing's joint angle (0 for objects and furniture).
 
     Object: its body pose. Door: the centre of the handle bar on the swing side, yawed with the
-    leaf. Faucet: the lever's tip, yawed with the lever. Furniture: the place spot of the object
-    carried there (`place_spot_world`), yaw 0."""
+    leaf. Faucet: the lever's tip, yawed with the lever. Furniture: `spot` (a Place's place spot)
+    or else the top's point nearest the base, yaw 0."""
     from echo_data.scene.articulated import lever_tip_world
     from echo_data.scene.door_handle import door_handle_world
-    from echo_data.skills.registry import carried_object
 
     t = Target.parse(call.target)
     if t.kind == "object":
@@ -86,9 +92,17 @@ def target_world(world: World, spec: EpisodeSpec, call: SkillCall) -> tuple[np.n
         a = float(world.handles.faucets[t.index].get_qpos()[0])
         p = lever_tip_world(faucet, a)
         return _yaw_pose(float(p[0]), float(p[1]), float(p[2]), faucet.yaw + a), a
-    place = next((c for c in spec.chain if c.skill == "Place" and c.event == call.event), call)
-    p = place_spot_world(world, carried_object(spec, place), t.index)
+    p = top_point_world(world, t.index) if spot is None else spot
     return _yaw_pose(float(p[0]), float(p[1]), float(p[2]), 0.0), 0.0
+
+
+def rigid_inverse(m: np.ndarray) -> np.ndarray:
+    """The inverse of a rigid 4x4 transform (R^T, -R^T t): exact, and no LAPACK call (whose
+    threads cost more than the whole probe on a busy machine)."""
+    out = np.eye(4)
+    out[:3, :3] = m[:3, :3].T
+    out[:3, 3] = -(m[:3, :3].T @ m[:3, 3])
+    return out
 
 
 def pose_vector(m: np.ndarray) -> np.ndarray:
@@ -101,24 +115,34 @@ def pose_vector(m: np.ndarray) -> np.ndarray:
 
 
 class PrivilegedProbe:
-    """Computes a step's privileged columns (one per episode; stateless between calls)."""
+    """Computes a step's privileged columns. Its one memory is the last place spot with the base
+    pose and call it was computed for: searching the top's free spots costs ~5 ms, and during a
+    Place the base mostly stands still (a pure cache: the answer is the same without it)."""
+
+    def __init__(self) -> None:
+        self._spot: tuple[tuple, np.ndarray] | None = None
+
+    def place_spot(self, world: World, spec: EpisodeSpec, call: SkillCall) -> np.ndarray:
+        """`place_spot_world` for a Place call, from where the base stands."""
+        from echo_data.skills.registry import carried_object
+
+        name = carried_object(spec, call)
+        furniture = Target.parse(call.target).index
+        key = (world.robot.base_pose(), name, furniture)
+        if self._spot is None or self._spot[0] != key:
+            self._spot = (key, place_spot_world(world, name, furniture))
+        return self._spot[1]
 
     def __call__(self, world: World, spec: EpisodeSpec, call: SkillCall) -> dict[str, np.ndarray]:
         base = world.robot.base_pose()
-        to_base = np.linalg.inv(base_frame(*base))
-        target, angle = target_world(world, spec, call)
+        to_base = rigid_inverse(base_frame(*base))
+        spot = self.place_spot(world, spec, call) if call.skill == "Place" else None
+        target, angle = target_world(world, spec, call, spot)
         target_b = to_base @ target
         tcp = np.asarray(world.robot.ee_pose().p, dtype=np.float64)
         c, s = math.cos(base[2]), math.sin(base[2])
         rot = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # world axes -> base axes
-        place = next((c for c in spec.chain if c.skill == "Place" and c.event == call.event), None)
-        if place is not None:
-            from echo_data.skills.registry import carried_object
-
-            spot = place_spot_world(world, carried_object(spec, place), Target.parse(place.target).index)
-            spot_b = (to_base @ np.append(spot, 1.0))[:3]
-        else:
-            spot_b = np.zeros(3)
+        spot_b = np.zeros(3) if spot is None else (to_base @ np.append(spot, 1.0))[:3]
         return {
             TARGET_POSE: pose_vector(target_b).astype(np.float32),
             TCP_TO_TARGET: (rot @ (target[:3, 3] - tcp)).astype(np.float32),

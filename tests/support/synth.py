@@ -104,7 +104,7 @@ def synth_generate(
                 skill_success=tuple(j < k for j in range(len(chain))),
                 done=t == n - 1,
                 camera_poses={"head": _pose(rng), "wrist": _pose(rng)},
-                action_ee=extra.normal(size=EE_ACTION_DIM).astype(np.float32),
+                action_ee=np.append(extra.normal(size=EE_ACTION_DIM - 1), float(t % 2)).astype(np.float32),  # binary gripper_close
                 privileged={col: extra.normal(size=d).astype(np.float32) for col, d in PRIVILEGED_COLUMNS.items()},
                 skill_stop=t == n - 1 or min((t + 1) * len(chain) // n, len(chain) - 1) != k,
             )
