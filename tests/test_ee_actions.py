@@ -171,3 +171,23 @@ def test_perturbed_labels_correct_toward_the_goal(ee_rollout: tuple) -> None:
         against += float(nxt.action_ee[4:7] @ side) < 0.0
     assert total >= 5
     assert against / total > 0.8, f"{against}/{total} next labels steer against the knock"
+
+
+@pytest.mark.parametrize("policy", ["still", "random", "oracle"])
+def test_builtin_policies_act_in_the_envs_mode(policy: str) -> None:
+    """The runtime tells a policy the env's action form (`info["action_mode"]`): the built-in
+    policies then return 11-float `action.ee` vectors to an ee-mode env."""
+    from echo_data.agents.builtin import BUILTIN_POLICIES, OraclePlanner
+    from echo_data.agents.runtime import run_episode
+
+    recipe = load_recipe(ROOT / "recipes" / "quickstart.yaml")
+    env = EchoDataEnv(recipe, split="test", images=False, audio=False, action_mode="ee_delta")
+    seen: list[np.ndarray] = []
+    try:
+        obs, info = env.reset(options={"split": "test", "index": 0})
+        run = run_episode(env, obs, info, OraclePlanner(), BUILTIN_POLICIES[policy](), max_steps=4,
+                          on_step=lambda e, o, a, k, c, f: seen.append(a))
+    finally:
+        env.close()
+    assert run.truncated_at == 4 and len(seen) == 4
+    assert all(a.shape == (EE_ACTION_DIM,) for a in seen)

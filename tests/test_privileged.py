@@ -117,3 +117,5 @@ def test_no_loader_reads_privileged_columns_by_default(synth_dataset: Callable[[
     named = SequenceDataset(out, "train", observations=["observation.state", TARGET_POSE])  # read by name
     assert tuple(named[0][TARGET_POSE].shape)[-1] == 7
     assert tuple(StepDataset(out, "train", columns=[PLACE_SPOT])[0][PLACE_SPOT].shape) == (3,)
+    ee = SequenceDataset(out, "train", action_chunk=4, action="action.ee")  # chunks of the end-effector form
+    assert tuple(ee[0]["action.ee"].shape) == (4, 11) and "action" not in ee[0]

@@ -205,6 +205,7 @@ def run_episode(
         policy.reset({
             "skill": call.skill, "target": call.target, "target_kind": truth[k]["target"], "skill_index": k,
             "event": call.event, "budget": budget, "episode_seed": spec.seed,
+            "action_mode": getattr(env, "action_mode", "joint"),  # the form act() must return (12 joint or 11 ee floats)
             # privileged: for scripted experts only
             "call": call, "spec_object": spec, "world": env.world,
         })

@@ -285,7 +285,9 @@ class ShuffledSteps(_IterableBase):
 class SequenceDataset:
     """Windows for behaviour cloning: for each step t, observations of steps t-history+1..t and
     actions of steps t..t+action_chunk-1, clamped to the episode (with `observation_is_pad` /
-    `action_is_pad` masks, LeRobot style). Windows never cross episodes (nor shards)."""
+    `action_is_pad` masks, LeRobot style). Windows never cross episodes (nor shards).
+    `action`: the column the chunk is read from (`action`, or its end-effector form `action.ee`),
+    returned under its own name."""
 
     def __init__(
         self,
@@ -296,6 +298,7 @@ class SequenceDataset:
         setting: str | None = None,
         skill: str | None = None,
         observations: Sequence[str] | None = None,
+        action: str = ACTION,
     ) -> None:
         if history < 1 or action_chunk < 1:
             raise ValueError("history and action_chunk must be >= 1")
@@ -304,7 +307,8 @@ class SequenceDataset:
         default_obs = [STATE] + list(self.shards.layout.images) + list(self.shards.layout.arrays)
         self.observations = _check_columns(self.shards, observations, default_obs)
         # every step of the split, in shard order: windows are gathered from it
-        self._steps = StepDataset(root, split, columns=list(dict.fromkeys(self.observations + [ACTION, "episode_index", "frame_index", "index"])))
+        self.action = _check_columns(self.shards, [action], [])[0]
+        self._steps = StepDataset(root, split, columns=list(dict.fromkeys(self.observations + [self.action, "episode_index", "frame_index", "index"])))
         self._offset = np.concatenate([[0], np.cumsum([len(c["episode_index"]) for c in self.shards.index_columns()])])
         shard_parts: list[np.ndarray] = []
         row_parts: list[np.ndarray] = []
@@ -345,7 +349,7 @@ class SequenceDataset:
         base = int(self._offset[shard])
         obs = self._steps.take(base + obs_rows.clip(first, last))  # its last row is step t
         item = {c: obs[c] for c in self.observations}
-        item[ACTION] = self._steps.take(base + act_rows.clip(first, last))[ACTION]
+        item[self.action] = self._steps.take(base + act_rows.clip(first, last))[self.action]
         item.update({k: obs[k][-1] for k in ("episode_index", "frame_index", "index")})
         item["observation_is_pad"] = torch.from_numpy(obs_pad)
         item["action_is_pad"] = torch.from_numpy(act_pad)
