@@ -260,6 +260,11 @@ class RobotConfig(_Strict):
     max_steps: dict[SkillName, int] = Field(
         default_factory=lambda: dict(_MAX_STEPS)
     )
+    # The form a policy acts in by default in `EchoDataEnv` (its `action_mode`):
+    # "joint" = `action` (12: base, torso, 7 arm joint targets, gripper opening),
+    # "ee_delta" = `action.ee` (11: base, torso, TCP change in the base frame, binary gripper).
+    # The dataset stores both forms either way (docs/action_spaces.md).
+    action_space: Literal["joint", "ee_delta"] = "joint"
 
     @field_validator("max_steps")
     @classmethod
@@ -315,6 +320,20 @@ class OutputsConfig(_Strict):
     max_frames: int | None = Field(None, ge=1, le=100_000)
 
 
+class Perturbation(_Strict):
+    """Standard deviations of the end-effector perturbation, per control step (`experts.perturbation`)."""
+
+    # cm per axis of the TCP's translation this step; the base's travel this step likewise (its
+    # vx, vy noise is this distance per control period)
+    position_cm: float = Field(0.0, ge=0.0, le=5.0)
+    # degrees per axis of the TCP's rotation this step; the base's turn this step likewise
+    rotation_deg: float = Field(0.0, ge=0.0, le=20.0)
+
+    @property
+    def active(self) -> bool:
+        return self.position_cm > 0.0 or self.rotation_deg > 0.0
+
+
 class ExpertsConfig(_Strict):
     """How the scripted experts demonstrate."""
 
@@ -323,6 +342,12 @@ class ExpertsConfig(_Strict):
     # `echo_data.agents.dart.NOISE_STD` (units there); the `action` column keeps the expert's own
     # command from the perturbed state, `action.executed` what the robot did. 0 = no noise.
     action_noise: float = Field(0.0, ge=0.0, le=4.0)
+    # Perturbations in end-effector space (echo_data.agents.dart): the executed `action.ee` is the
+    # expert's plus zero-mean Gaussian noise per control step, on the TCP change while the expert
+    # moves the hand and on the base velocities while it drives; the label is the expert's own
+    # command from the perturbed state. Off when both are 0. Applies to commands born in ee form;
+    # `action_noise` keeps perturbing joint-born commands (experts not yet rewritten).
+    perturbation: Perturbation = Field(default_factory=lambda: Perturbation())
 
 
 class Recipe(_Strict):
@@ -454,6 +479,8 @@ class Recipe(_Strict):
             del data["experts"]
         if not data["sounds"]["fresh_train_instances"]:  # library voices only: as before the key existed
             del data["sounds"]["fresh_train_instances"]
+        if data["robot"]["action_space"] == "joint":  # the env's default action form: as before the key existed
+            del data["robot"]["action_space"]
         blob = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(blob.encode()).hexdigest()
 

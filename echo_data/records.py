@@ -58,6 +58,33 @@ BASE_FRAME_STATE: tuple[str, ...] = tuple(n for n in STATE_NAMES if n not in WOR
 # their names start with this prefix, the schema flags them privileged, and no learner reads
 # them unless asked by name (the privileged sanity learner does).
 PRIVILEGED_PREFIX = "observation.privileged."
+# The privileged step columns (float32 vectors; computed by `echo_data.envs.privileged` from the
+# world, docs/privileged_observations.md). "Target" is the current skill's target: the object
+# (Pick, Place's carried object is the hand's business), the handle bar of a door, the faucet
+# lever's tip, the place spot on a piece of furniture. Base frame: x forward, y left, z up from
+# the floor under the base centre (the frame `action.ee` moves the hand in).
+PRIVILEGED_COLUMNS: dict[str, int] = {
+    PRIVILEGED_PREFIX + "target_pose": 7,
+    PRIVILEGED_PREFIX + "tcp_to_target": 3,
+    PRIVILEGED_PREFIX + "joint_angle": 1,
+    PRIVILEGED_PREFIX + "place_spot": 3,
+}
+# What each privileged column holds (the dataset card and docs/privileged_observations.md say it).
+PRIVILEGED_NOTES: dict[str, str] = {
+    PRIVILEGED_PREFIX + "target_pose": (
+        "the current skill's target in the base frame: position (m) and orientation as a unit quaternion "
+        "(w, x, y, z; w >= 0). Object: its body pose; door: the swing-side handle bar's centre, yawed with "
+        "the leaf; faucet: the lever's tip, yawed with the lever; furniture: in a Place `place_spot`, else the "
+        "top's point nearest the base; yaw 0"
+    ),
+    PRIVILEGED_PREFIX + "tcp_to_target": "target position minus the measured tool-centre-point position (m), in the base frame's axes",
+    PRIVILEGED_PREFIX + "joint_angle": "the target door's hinge angle or the faucet lever's angle (rad, 0 = closed); 0 for objects and furniture",
+    PRIVILEGED_PREFIX + "place_spot": (
+        "in a Place, where the object goes, in the base frame (m, z = the top's height): the Place "
+        "expert's best free spot on the goal receptacle from where the base stands (else the top's point "
+        "nearest the base); zeros in every other skill"
+    ),
+}
 
 
 @dataclass
@@ -80,14 +107,28 @@ class StepRecord:
     done: bool = False
     # camera name ("head", "wrist") -> 4x4 camera-to-world, OpenCV axes (echo_data.camera)
     camera_poses: dict[str, np.ndarray] = field(default_factory=dict)
-    # float32 (ACTION_DIM,) the robot executed, when it differs from `action` (DART noise,
-    # echo_data.agents.dart); None: the action itself was executed
+    # float32 (ACTION_DIM,) the robot executed, when it differs from `action` (DART noise or an
+    # end-effector perturbation, echo_data.agents.dart); None: the action itself was executed
     executed: np.ndarray | None = None
+    # The end-effector form of the same step (EE_ACTION_NAMES, float32 (EE_ACTION_DIM,)): the
+    # label and, when it differs, what was executed. Exact for commands born in ee form (the
+    # joint form is derived from it); the `to_ee` twin of joint-born commands (docs/action_spaces.md).
+    action_ee: np.ndarray | None = None
+    executed_ee: np.ndarray | None = None
+    # PRIVILEGED_COLUMNS name -> float32 vector: what only the simulator knows at this step
+    privileged: dict[str, np.ndarray] = field(default_factory=dict)
+    # True on the last row of each skill segment (the expert ended the skill after this action)
+    skill_stop: bool = False
 
     @property
     def action_executed(self) -> np.ndarray:
         """What the robot was sent at this step (replaying these reproduces the episode)."""
         return self.action if self.executed is None else self.executed
+
+    @property
+    def action_ee_executed(self) -> np.ndarray | None:
+        """The end-effector form of what the robot was sent (replaying these in ee mode reproduces the episode)."""
+        return self.action_ee if self.executed_ee is None else self.executed_ee
 
 
 @dataclass
@@ -138,8 +179,9 @@ def records_digest(steps: list[StepRecord]) -> str:
 
     h = hashlib.sha256()
     for s in steps:
-        h.update(f"{s.frame_index}|{s.timestamp!r}|{s.skill}|{s.skill_index}|{s.ear_position!r}|{s.ear_yaw!r}|{s.sounding}|{s.skill_success}|{s.done}".encode())
-        for arr in (s.action, s.executed, s.state, s.head_rgb, s.head_depth, s.wrist_depth):
+        h.update(f"{s.frame_index}|{s.timestamp!r}|{s.skill}|{s.skill_index}|{s.ear_position!r}|{s.ear_yaw!r}|{s.sounding}|{s.skill_success}|{s.done}|{s.skill_stop}".encode())
+        privileged = [s.privileged[k] for k in sorted(s.privileged)]
+        for arr in (s.action, s.executed, s.action_ee, s.executed_ee, s.state, s.head_rgb, s.head_depth, s.wrist_depth, *privileged):
             if arr is not None:
                 a = np.ascontiguousarray(arr)
                 h.update(f"{a.dtype}{a.shape}".encode())

@@ -19,9 +19,21 @@ from PIL import Image
 from support.recipes import tiny_recipe
 
 from echo_data.dataset.encode import encode_wav
-from echo_data.dataset.schema import ACTION, ACTION_EXECUTED, STATE, StepLayout, column_to_numpy
+from echo_data.dataset.schema import (
+    ACTION,
+    ACTION_EE,
+    ACTION_EE_EXECUTED,
+    ACTION_EXECUTED,
+    SKILL_STOP,
+    STATE,
+    StepLayout,
+    column_to_numpy,
+    is_privileged,
+)
 from echo_data.envs import EchoDataEnv, observation_space
 from echo_data.envs.env import BINAURAL
+from echo_data.envs.privileged import TCP_TO_TARGET, PrivilegedProbe
+from echo_data.records import PRIVILEGED_COLUMNS
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -31,7 +43,8 @@ def test_observation_space_is_the_dataset_schema() -> None:
     layout = StepLayout.from_recipe(recipe)
     schema = layout.schema()
     space = observation_space(recipe)
-    dataset_obs = {f.name for f in schema if f.name.startswith("observation.")}
+    # every observation column but the simulator-only ones, which no policy is handed
+    dataset_obs = {f.name for f in schema if f.name.startswith("observation.") and not is_privileged(f.name)}
     assert set(space.spaces) - {BINAURAL} == dataset_obs
     for col, (kind, h, w) in layout.images.items():
         assert space[col].shape == ((h, w, 3) if kind == "rgb" else (h, w))
@@ -78,10 +91,31 @@ def test_replaying_a_dataset_episode_reproduces_its_rows(tmp_path: Path, action_
         states = np.array(rows[STATE].to_pylist(), np.float32)
         arrays = {col: column_to_numpy(rows[col], shape) for col, shape in layout.arrays.items()}
         images = {col: [_decode(v["bytes"]) for v in rows[col].to_pylist()] for col in layout.images}
+        labels_ee = np.array(rows[ACTION_EE].to_pylist(), np.float32)
+        executed_ee = np.array(rows[ACTION_EE_EXECUTED].to_pylist(), np.float32)
+        privileged = {col: np.array(rows[col].to_pylist(), np.float32) for col in PRIVILEGED_COLUMNS}
+        skill_index = np.asarray(rows["skill_index"].to_pylist())
+        # skill_stop: 1 exactly on each skill segment's last row
+        stops = np.append(skill_index[1:] != skill_index[:-1], True).astype(np.int8)
+        assert np.array_equal(np.asarray(rows[SKILL_STOP].to_pylist(), np.int8), stops)
+        # at the row where Pick's success first holds, the object is in the hand: the TCP is at it
+        slot = np.array(rows["skill_success"].to_pylist())
+        spec = env.episode
+        probe = PrivilegedProbe()
+        for k, call in enumerate(spec.chain):
+            if call.skill == "Pick":
+                first = int(np.argmax(slot[:, k]))
+                assert slot[first, k] and np.linalg.norm(privileged[TCP_TO_TARGET][min(first + 1, len(slot) - 1)]) < 0.05
+                assert np.linalg.norm(privileged[TCP_TO_TARGET][int(np.argmax(skill_index == k))]) > 0.3  # far at its start
         blocks = []
         for t, a in enumerate(actions):
             where = f"{ep['episode_id']} frame {t}"
             assert np.array_equal(obs[STATE], states[t]), f"state differs at {where}"
+            robot = env.world.robot
+            # the experts here command joint actions: the ee columns are their to_ee twins from this commanded state
+            assert np.array_equal(robot.ee.to_ee(labels[t]), labels_ee[t]) and np.array_equal(robot.ee.to_ee(a), executed_ee[t]), where
+            seen = probe(env.world, spec, spec.chain[int(skill_index[t])])  # recomputed from the replayed world
+            assert all(np.array_equal(seen[col], privileged[col][t]) for col in PRIVILEGED_COLUMNS), where
             for col, pics in images.items():
                 assert np.array_equal(obs[col], pics[t]), f"{col} differs at {where}"
             for col, values in arrays.items():

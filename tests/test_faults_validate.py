@@ -157,3 +157,21 @@ def test_features_of_different_audio_are_found_without_clipping(tmp_path: Path, 
 def test_writer_refuses_to_clip(tmp_path: Path) -> None:
     with pytest.raises(BuildError, match=r"train episode 0: cannot be stored: train-000000 audio: \d+ of \d+ samples .* reach 16-bit full scale .*refusing to clip"):
         build(synth_recipe(splits={"train": 1}), TESTS, tmp_path / "loud", generate=_loud, make_library=null_library, progress=False)
+
+
+def test_wrong_stop_labels_and_a_continuous_gripper_are_found(tmp_path: Path) -> None:
+    def bad_labels(recipe, split, index, library, recipe_dir, attempt=0):  # noqa: ANN001, ANN202
+        ep = synth_generate(recipe, split, index, library, recipe_dir, attempt=attempt)
+        ep.steps[0].skill_stop = not ep.steps[0].skill_stop  # a stop where the skill goes on (or none where it ends)
+        ee = np.array(ep.steps[1].action_ee, np.float32)
+        ee[-1] = 0.4  # a gripper command that is neither open nor close
+        ep.steps[1].action_ee = ee
+        return ep
+
+    out = tmp_path / "labels"
+    build(synth_recipe(splits={"train": 1}), TESTS, out, generate=bad_labels, make_library=null_library, progress=False)
+    problems = validate(out)
+    stem = "data/train-00000-of-00001.parquet: episode train-000000"
+    assert f"{stem} skill_stop is not 1 exactly on each skill segment's last row" in problems, problems
+    assert f"{stem} action.ee gripper_close is not 0 or 1" in problems, problems
+    assert f"{stem} action.ee.executed gripper_close is not 0 or 1" in problems, problems  # executed = the label here

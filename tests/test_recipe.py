@@ -59,12 +59,15 @@ def test_hash_changes_with_content() -> None:
     del d["outputs"]["max_frames"]
     del d["experts"]
     del d["sounds"]["fresh_train_instances"]
+    del d["robot"]["action_space"]
     assert a.content_hash() == hashlib.sha256(json.dumps(d, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
     assert recipe_from_mapping({"name": "x", "outputs": {"max_frames": 10}}).content_hash() != a.content_hash()
     assert recipe_from_mapping({"name": "x", "sounds": {"fresh_train_instances": True}}).content_hash() != a.content_hash()
     # experts.action_noise: 0 (the default) likewise keeps the hash; DART noise changes it
     assert recipe_from_mapping({"name": "x", "experts": {"action_noise": 0}}).content_hash() == a.content_hash()
     assert recipe_from_mapping({"name": "x", "experts": {"action_noise": 1}}).content_hash() != a.content_hash()
+    assert recipe_from_mapping({"name": "x", "experts": {"perturbation": {"position_cm": 1}}}).content_hash() != a.content_hash()
+    assert recipe_from_mapping({"name": "x", "robot": {"action_space": "joint"}}).content_hash() == a.content_hash()
 
 
 @pytest.mark.parametrize(
@@ -90,6 +93,9 @@ def test_hash_changes_with_content() -> None:
         ("name: x\nexperts:\n  action_noise: -0.5\n", "experts.action_noise"),
         ("name: x\nexperts:\n  action_noise: lots\n", "experts.action_noise"),
         ("name: x\nexperts:\n  action_nosie: 1\n", "experts.action_nosie: unknown key"),
+        ("name: x\nexperts:\n  perturbation: {position_cm: -1}\n", "experts.perturbation.position_cm"),
+        ("name: x\nexperts:\n  perturbation: {rotation: 2}\n", "experts.perturbation.rotation: unknown key"),
+        ("name: x\nrobot:\n  action_space: cartesian\n", "robot.action_space"),
     ],
 )
 def test_bad_recipes_give_one_line_errors(tmp_path: Path, text: str, key: str) -> None:

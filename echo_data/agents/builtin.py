@@ -34,11 +34,13 @@ class OracleSkills:
         self.outcome: Any = None
         self.last_ee: np.ndarray | None = None  # the expert's own end-effector command of the last act()
         self._robot: Any = None
+        self.action_mode = "joint"
 
     def reset(self, info: dict[str, Any]) -> None:
         self.close()
         self.outcome = None
         self.last_ee = None
+        self.action_mode = info.get("action_mode", "joint")
         self._robot = info["world"].robot
         self._gen = self.experts[info["skill"]](info["world"], info["call"], info["spec_object"])
 
@@ -46,7 +48,9 @@ class OracleSkills:
         """The expert's next command as a joint action. Experts compute theirs in end-effector form
         (`action.ee`, docs/action_spaces.md): it is kept in `last_ee` and turned into joint targets by
         the robot's one ee map, so the recorded ee form replays exactly. (Experts still yielding joint
-        actions pass through: the transition while they are rewritten.)"""
+        actions pass through: the transition while they are rewritten.) In an environment in ee
+        mode (`info["action_mode"]`) the ee form is returned: the expert's own, or the joint
+        action's `to_ee` twin."""
         try:
             a = np.asarray(next(self._gen), dtype=np.float32)
         except StopIteration as stop:
@@ -55,9 +59,9 @@ class OracleSkills:
             return None
         if a.shape == (EE_ACTION_DIM,):
             self.last_ee = a
-            return self._robot.ee.to_joint(a)
+            return a if self.action_mode == "ee_delta" else self._robot.ee.to_joint(a)
         self.last_ee = None
-        return a
+        return self._robot.ee.to_ee(a) if self.action_mode == "ee_delta" else a
 
     def close(self) -> None:
         """Stop a running expert (it releases what it holds: planners, door attachments)."""
@@ -80,11 +84,14 @@ class RandomSkills:
         self.rng = np.random.default_rng(0)
 
     def reset(self, info: dict[str, Any]) -> None:
+        from echo_data.envs.env import action_space
+
+        self.space = action_space(info.get("action_mode", "joint"))
         self.rng = np.random.default_rng([int(info["episode_seed"]) & 0xFFFFFFFF, int(info["skill_index"])])
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         lo, hi = self.space.low.astype(np.float64), self.space.high.astype(np.float64)
-        return (lo + (hi - lo) * self.rng.random(ACTION_DIM)).astype(np.float32)
+        return (lo + (hi - lo) * self.rng.random(lo.shape[0])).astype(np.float32)
 
 
 class StillSkills:
@@ -94,11 +101,21 @@ class StillSkills:
     ends_itself = False
     observations = (STATE,)
 
+    def __init__(self) -> None:
+        self.action_mode = "joint"
+
     def reset(self, info: dict[str, Any]) -> None:
-        pass
+        self.action_mode = info.get("action_mode", "joint")
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         s = np.asarray(obs[STATE], dtype=np.float32)
+        if self.action_mode == "ee_delta":  # no TCP change; torso and gripper where they are
+            from echo_data.robot.robot import GRIPPER_OPEN
+
+            e = np.zeros(EE_ACTION_DIM, dtype=np.float32)
+            e[3] = s[3]
+            e[10] = 1.0 if s[11] < GRIPPER_OPEN / 2.0 else 0.0
+            return e
         a = np.zeros(ACTION_DIM, dtype=np.float32)
         a[3:12] = s[3:12]  # torso, 7 arm joints, gripper opening: hold where they are
         return a

@@ -36,7 +36,7 @@ import numpy as np
 
 from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.protocols import Planner, Policy
-from echo_data.records import SkillOutcome
+from echo_data.records import ACTION_DIM, EE_ACTION_DIM, SkillOutcome
 
 if TYPE_CHECKING:
     from echo_data.envs.env import EchoDataEnv
@@ -197,6 +197,7 @@ def run_episode(
     def cut() -> bool:
         return max_steps is not None and env.steps >= max_steps
 
+    mode = getattr(env, "action_mode", "joint")  # an EchoDataEnv's "joint" | "ee_delta"
     for k, call in enumerate(spec.chain[:skills]):
         if cut():  # the previous skill ended exactly at the cut and more of the chain remains
             run.truncated_at = env.steps
@@ -205,6 +206,7 @@ def run_episode(
         policy.reset({
             "skill": call.skill, "target": call.target, "target_kind": truth[k]["target"], "skill_index": k,
             "event": call.event, "budget": budget, "episode_seed": spec.seed,
+            "action_mode": mode,  # the form act() must return (12 joint or 11 ee floats)
             # privileged: for scripted experts only
             "call": call, "spec_object": spec, "world": env.world,
         })
@@ -227,7 +229,7 @@ def run_episode(
                 reason = "timeout"
                 break
             try:
-                a = as_action(action)
+                a = as_action(action, EE_ACTION_DIM if mode == "ee_delta" else ACTION_DIM)
             except EnvInputError as e:
                 raise AgentActionError(f"policy {e} at step {env.steps}") from None
             if on_step is not None:

@@ -19,7 +19,7 @@ from echo_data.recipe import Recipe
 from echo_data.records import EpisodeResult, StepRecord
 
 if TYPE_CHECKING:
-    from echo_data.agents.dart import NoisyExperts
+    from echo_data.agents.dart import Demonstrator
     from echo_data.envs.env import EchoDataEnv
     from echo_data.sounds.library import SoundLibrary
 
@@ -31,21 +31,25 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
     per-step features) and the result carries the finished episode track. The recipe's
     `outputs.max_frames` cuts the run after that many steps (`EpisodeResult.truncated_at`).
     """
-    from echo_data.agents.builtin import OraclePlanner, OracleSkills
-    from echo_data.agents.dart import NoisyExperts
+    from echo_data.agents.builtin import OraclePlanner
+    from echo_data.agents.dart import Demonstrator
     from echo_data.agents.runtime import run_episode
     from echo_data.envs.env import EchoDataEnv
 
-    env = EchoDataEnv(recipe, split=spec.split, images=observe, audio=library is not None, library=library)
-    dart = NoisyExperts(recipe.experts.action_noise, spec.seed) if recipe.experts.action_noise > 0 else None
-    policy = dart or OracleSkills()  # with DART the experts execute noisy actions and label their own
-    recorder = _Recorder(recipe.robot.control_hz, dart)
+    # The build's env speaks joint actions: the Demonstrator hands it the joint form of each step,
+    # which for an ee-born command is `robot.ee.to_joint` of its ee form from this very commanded
+    # state, i.e. exactly what the env computes in ee mode: both replays are bit-identical
+    # (agents/dart.py). Joint-born commands (experts not yet rewritten) stay exact this way.
+    env = EchoDataEnv(recipe, split=spec.split, images=observe, audio=library is not None, library=library, action_mode="joint")
+    policy = Demonstrator(recipe.experts, recipe.robot.control_hz, spec.seed)  # labels its own, executes perturbed
+    recorder = _Recorder(recipe.robot.control_hz, policy)
     try:
         obs, info = env.reset(options={"spec": spec})
         run = run_episode(env, obs, info, OraclePlanner(), policy, on_step=recorder, max_steps=recipe.outputs.max_frames)
         if recorder.steps:  # the last stored step ends the episode
             recorder.steps[-1].done = True
             recorder.steps[-1].skill_success = done_flags(env)
+            recorder.steps[-1].skill_stop = run.truncated_at is None  # a cut ends no skill
         success = len(run.outcomes) == len(spec.chain) and all(o.success for o in run.outcomes)
         ro = EpisodeResult(
             spec, recorder.steps, run.outcomes, success,
@@ -78,12 +82,18 @@ class _Recorder:
     they are filled in when the next row arrives (nothing happens in between) or, for the last
     row, by `simulate`.
 
-    With DART noise (`dart`) the record's `action` is the expert's own and `executed` the noisy
-    action the runtime applies."""
+    The demonstrator's step gives both forms of the row's action (`action`, `action.ee`: the
+    expert's own command; `executed`, `executed_ee`: what the robot is sent, when perturbed);
+    the privileged columns are read from the world (`echo_data.envs.privileged`); `skill_stop`
+    marks the last row of each skill segment (set when the next segment's first row arrives,
+    and for the last row by `simulate`)."""
 
-    def __init__(self, control_hz: int, dart: NoisyExperts | None = None) -> None:
+    def __init__(self, control_hz: int, demo: Demonstrator) -> None:
+        from echo_data.envs.privileged import PrivilegedProbe
+
         self.control_hz = control_hz
-        self.dart = dart
+        self.demo = demo
+        self.probe = PrivilegedProbe()
         self.steps: list[StepRecord] = []
         self.spectrogram: list[np.ndarray] = []
         self.mel: list[np.ndarray] = []
@@ -95,15 +105,16 @@ class _Recorder:
         frame = len(self.steps)
         if self.steps:
             self.steps[-1].skill_success = done_flags(env)
-        executed = None
-        if self.dart is not None and self.dart.label is not None and not np.array_equal(self.dart.label, action):
-            action, executed = self.dart.label, action
+            self.steps[-1].skill_stop = self.steps[-1].skill_index != k
+        d = self.demo.step
+        if d is None or not np.array_equal(d.executed, action):
+            raise RuntimeError(f"frame {frame}: the runtime applies an action the demonstrator did not give")
         self.steps.append(StepRecord(
             frame_index=frame,
             timestamp=frame / self.control_hz,
             skill=call.skill,
             skill_index=k,
-            action=action,
+            action=d.label,
             state=obs[STATE],
             head_rgb=obs.get(IMAGE_COLUMNS["head_rgb"]),
             head_depth=obs.get(IMAGE_COLUMNS["head_depth"]),
@@ -112,7 +123,10 @@ class _Recorder:
             ear_yaw=yaw,
             sounding=tuple(env.sounding),
             camera_poses=env.world.robot.camera_poses(),
-            executed=executed,
+            executed=None if np.array_equal(d.executed, d.label) else d.executed,
+            action_ee=d.label_ee,
+            executed_ee=None if np.array_equal(d.executed_ee, d.label_ee) else d.executed_ee,
+            privileged=self.probe(env.world, env.episode, call),
         ))
         if SPECTROGRAM in obs:
             self.spectrogram.append(obs[SPECTROGRAM])

@@ -16,9 +16,20 @@ import pyarrow.parquet as pq
 import yaml
 
 from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.schema import ACTION_EXECUTED, IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE, StepLayout
+from echo_data.dataset.schema import (
+    ACTION_EE,
+    ACTION_EE_EXECUTED,
+    ACTION_EXECUTED,
+    IMAGE_COLUMNS,
+    MEL,
+    SKILL_STOP,
+    SPECTROGRAM,
+    STATE,
+    StepLayout,
+)
 from echo_data.dataset.storage import atomic_write_bytes
 from echo_data.episode import SPLIT_KEYS
+from echo_data.records import PRIVILEGED_NOTES
 
 CARD = "README.md"
 # The licence of the generated data (the project's own; built-in sounds are synthesised by
@@ -37,7 +48,9 @@ COLUMN_NOTES = {
     "skill": "the active skill (Navigate, Pick, Place, OpenDoor, CloseSink)",
     "skill_index": "position of the active skill in the episode's chain",
     "action": "base vx, vy (m/s, robot frame), wz (rad/s), torso (m), 7 arm joint targets (rad), gripper opening (m); the controller's own command at the step (the label to clone)",
-    ACTION_EXECUTED: "the action the robot executed: `action` plus the experts' DART noise (equal to `action` when the recipe's experts.action_noise is 0); replay these",
+    ACTION_EXECUTED: "the action the robot executed: `action` plus the recipe's perturbation (experts.perturbation in ee space, experts.action_noise in joint space; equal to `action` without one); replay these in the env's joint mode",
+    ACTION_EE: "the same command in end-effector form: base vx, vy, wz, torso as in `action`; the tool-centre-point change this step in the base frame's axes (dx, dy, dz m; drx, dry, drz rotation vector rad); gripper_close (1 close, 0 open). Exact where the expert commands in this form (its joint form is derived); the forward-kinematics twin of a joint-born command otherwise (docs/action_spaces.md)",
+    ACTION_EE_EXECUTED: "`action.ee` as executed (plus the perturbation); replay these in the env's ee mode (`action_mode='ee_delta'`)",
     STATE: "base x, y, yaw (world), torso, 7 arm joints, gripper, their velocities, holding (0/1)",
     IMAGE_COLUMNS["head_rgb"]: "head camera colour, PNG",
     IMAGE_COLUMNS["head_depth"]: "head camera depth along the optical axis, 16-bit PNG, millimetres (0 = nothing hit)",
@@ -50,6 +63,8 @@ COLUMN_NOTES = {
     "audio_sample_rate": "sample rate of that WAV (Hz)",
     "audio_offset": "sample of the WAV at which this step's observation was taken",
     "done": "last step of the episode",
+    SKILL_STOP: "1 on the last row of each skill segment: the expert ended the skill after this row's action (a learned skill's stop label); 0 elsewhere and on the last row of an episode cut by outputs.max_frames",
+    **{col: f"PRIVILEGED (simulator only; no learner's default input): {note}" for col, note in PRIVILEGED_NOTES.items()},
     "skill_success": "per chain slot (5): the environment's success test of that skill after this step's action, latched in chain order (the env's info['skills'][k]['done']); a row of skill k whose flag k was already true is the expert finishing k (letting go, backing off, tucking) before the next skill (unused slots False)",
 }
 

@@ -21,21 +21,25 @@ import pyarrow as pa
 from echo_data.dataset import stats as stats_mod
 from echo_data.dataset.schema import (
     ACTION,
+    ACTION_EE,
+    ACTION_EE_EXECUTED,
     ACTION_EXECUTED,
     CAMERA_POSES,
     CHAIN_SLOTS,
     IMAGE_TYPE,
     MEL,
     POSE_DIM,
+    SKILL_STOP,
     SPECTROGRAM,
     STATE,
+    VECTOR_COLUMNS,
     StepLayout,
     array3d_column,
     audio_relpath,
     task_index,
 )
 from echo_data.pcm import as_written, quantise
-from echo_data.records import ACTION_DIM, STATE_DIM, EpisodeResult
+from echo_data.records import PRIVILEGED_COLUMNS, EpisodeResult, StepRecord
 
 PNG_COMPRESS_LEVEL = 1  # the build is CPU-bound; zlib 1 is several times faster than 6
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -220,6 +224,29 @@ def _check_stack(name: str, arr: np.ndarray | None, n: int, shape: tuple[int, ..
     return arr
 
 
+def _step_vector(s: StepRecord, col: str) -> np.ndarray | None:
+    """A step's value of a fixed-length vector column (None where the record has none)."""
+    got = {
+        ACTION: s.action, ACTION_EXECUTED: s.action_executed, ACTION_EE: s.action_ee, ACTION_EE_EXECUTED: s.action_ee_executed,
+        STATE: s.state,
+    }
+    return got[col] if col in got else s.privileged.get(col)
+
+
+def _vector_stack(episode_id: str, steps: list[StepRecord], col: str, dim: int) -> np.ndarray:
+    """(n, dim) float32 of a vector column over an episode, or ValueError naming the column."""
+    rows = []
+    for s in steps:
+        v = _step_vector(s, col)
+        if v is None:
+            raise ValueError(f"{episode_id}: frame {s.frame_index} has no {col}")
+        v = np.asarray(v, dtype=np.float32)
+        if v.shape != (dim,):
+            raise ValueError(f"{episode_id}: {col} has shape {v.shape} at frame {s.frame_index}, expected ({dim},)")
+        rows.append(v)
+    return np.stack(rows)
+
+
 def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
     """Validate a complete (successful or cut) `EpisodeResult` against the layout and encode it (runs in workers)."""
     spec = result.spec
@@ -236,11 +263,9 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
     if offsets.shape != (n,) or (offsets < 0).any() or (offsets > len(audio)).any():
         raise ValueError(f"{spec.episode_id}: audio_offsets must be ({n},) within [0, {len(audio)}]")
 
-    action = np.stack([np.asarray(s.action, dtype=np.float32) for s in steps])
-    executed = np.stack([np.asarray(s.action_executed, dtype=np.float32) for s in steps])
-    state = np.stack([np.asarray(s.state, dtype=np.float32) for s in steps])
-    if action.shape != (n, ACTION_DIM) or executed.shape != (n, ACTION_DIM) or state.shape != (n, STATE_DIM):
-        raise ValueError(f"{spec.episode_id}: action/executed/state shapes {action.shape}/{executed.shape}/{state.shape}")
+    vectors = {col: _vector_stack(spec.episode_id, steps, col, dim) for col, dim in VECTOR_COLUMNS.items()}
+    privileged = {col: _vector_stack(spec.episode_id, steps, col, dim) for col, dim in PRIVILEGED_COLUMNS.items()}
+    action, executed, state = vectors[ACTION], vectors[ACTION_EXECUTED], vectors[STATE]
 
     chain_len = len(spec.chain)
     if chain_len > CHAIN_SLOTS:
@@ -253,10 +278,9 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
         "setting": pa.array([spec.setting] * n, pa.string()),
         "skill": pa.array([s.skill for s in steps], pa.string()),
         "skill_index": pa.array(np.array([s.skill_index for s in steps], dtype=np.int64)),
-        ACTION: pa.FixedSizeListArray.from_arrays(pa.array(action.reshape(-1)), ACTION_DIM),
-        ACTION_EXECUTED: pa.FixedSizeListArray.from_arrays(pa.array(executed.reshape(-1)), ACTION_DIM),
-        STATE: pa.FixedSizeListArray.from_arrays(pa.array(state.reshape(-1)), STATE_DIM),
     }
+    for col, vec in (vectors | privileged).items():
+        cols[col] = pa.FixedSizeListArray.from_arrays(pa.array(vec.reshape(-1)), vec.shape[1])
     if not np.array_equal(cols["frame_index"].to_numpy(), np.arange(n)):
         raise ValueError(f"{spec.episode_id}: frame_index must run 0..{n - 1}")
 
@@ -293,6 +317,7 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
     cols["done"] = pa.array(np.array([bool(s.done) for s in steps]))
     flags = [bool(v) for s in steps for v in (tuple(s.skill_success)[:chain_len] + (False,) * CHAIN_SLOTS)[:CHAIN_SLOTS]]
     cols["skill_success"] = pa.FixedSizeListArray.from_arrays(pa.array(flags, pa.bool_()), CHAIN_SLOTS)
+    cols[SKILL_STOP] = pa.array(np.array([bool(s.skill_stop) for s in steps], dtype=np.int8))
     schema = layout.episode_schema()
     table = pa.Table.from_arrays([cols[f.name] for f in schema], schema=schema)
     sink = io.BytesIO()
@@ -316,7 +341,7 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
             "audio_sha256": hashlib.sha256(wav).hexdigest(),
         }
     )
-    values = stats_mod.episode_feature_values(action, state, image_stacks, array_stacks, executed)
+    values = stats_mod.episode_feature_values(action, state, image_stacks, array_stacks, executed, {**vectors, **privileged})
     summaries = {k: stats_mod.summarize(v, n) for k, v in values.items()}
 
     planner_png = None

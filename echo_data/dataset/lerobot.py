@@ -40,6 +40,8 @@ import pyarrow.parquet as pq
 from echo_data.dataset.episode_arrays import ExportError, check_out_folder, check_source, column_values, decode_images
 from echo_data.dataset.schema import (
     ACTION,
+    ACTION_EE,
+    ACTION_EE_EXECUTED,
     ACTION_EXECUTED,
     CAMERA_POSES,
     CHAIN_SLOTS,
@@ -48,6 +50,7 @@ from echo_data.dataset.schema import (
     ROW_GROUP_ROWS,
     STATE,
     StepLayout,
+    is_privileged,
 )
 from echo_data.dataset.shards import conform
 from echo_data.dataset.stats import episode_feature_values, finalize, merge, summarize
@@ -55,7 +58,7 @@ from echo_data.dataset.storage import atomic_write_bytes, canonical_json, fsync_
 from echo_data.dataset.written import mark_export, replace_folder
 from echo_data.episode import SPLIT_KEYS
 from echo_data.recipe import SETTINGS
-from echo_data.records import ACTION_NAMES, STATE_NAMES
+from echo_data.records import ACTION_NAMES, EE_ACTION_NAMES, STATE_NAMES
 
 CODEBASE_VERSION = "v3.0"
 KIND = "lerobot export"  # the folder marker's kind (echo_data.dataset.written)
@@ -79,7 +82,10 @@ TASKS = {
 
 def _names(layout: StepLayout) -> dict[str, list[str]]:
     """Element names of the vector features (LeRobot's `names`)."""
-    names: dict[str, list[str]] = {ACTION: list(ACTION_NAMES), ACTION_EXECUTED: list(ACTION_NAMES), STATE: list(STATE_NAMES)}
+    names: dict[str, list[str]] = {
+        ACTION: list(ACTION_NAMES), ACTION_EXECUTED: list(ACTION_NAMES),
+        ACTION_EE: list(EE_ACTION_NAMES), ACTION_EE_EXECUTED: list(EE_ACTION_NAMES), STATE: list(STATE_NAMES),
+    }
     names.update({col: [f"T{r}{c}" for r in range(4) for c in range(4)] for col in CAMERA_POSES.values()})
     names["skill_success"] = [f"chain_{k}" for k in range(CHAIN_SLOTS)]
     return names
@@ -104,6 +110,8 @@ def lerobot_features(layout: StepLayout, video: tuple[str, ...] = ()) -> dict[st
             feats[col] = {"dtype": f["dtype"], "shape": [1], "names": None}
         elif kind == "List" and "length" in f:
             feats[col] = {"dtype": f["feature"]["dtype"], "shape": [f["length"]], "names": names.get(col)}
+            if is_privileged(col):  # simulator-only: a policy config must name it to read it
+                feats[col]["info"] = {"privileged": True}
         elif kind == "Array3D":
             feats[col] = {"dtype": f["dtype"], "shape": [int(np.prod(f["shape"]))], "names": None}
         elif kind == "Image":

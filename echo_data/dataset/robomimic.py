@@ -27,7 +27,8 @@ import numpy as np
 
 from echo_data.dataset.episode_arrays import EpisodeArrays, check_out_file, check_source, iter_episodes
 from echo_data.dataset.episode_arrays import ExportError as ExportError  # the CLI catches `module.ExportError`
-from echo_data.dataset.schema import ACTION, CAMERA_POSES, IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE, StepLayout
+from echo_data.dataset.schema import ACTION, ACTION_EE, CAMERA_POSES, IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE, StepLayout
+from echo_data.records import PRIVILEGED_COLUMNS, PRIVILEGED_PREFIX
 
 # echo-data column -> robomimic observation key
 OBS_KEYS = {
@@ -39,6 +40,8 @@ OBS_KEYS = {
     MEL: "mel",
     CAMERA_POSES["head"]: "camera_pose_head",
     CAMERA_POSES["wrist"]: "camera_pose_wrist",
+    # simulator-only observations: a robomimic config reads them only if it lists them
+    **{col: "privileged_" + col.removeprefix(PRIVILEGED_PREFIX) for col in PRIVILEGED_COLUMNS},
 }
 MASKS = {"train": "train", "val": "valid", "test": "test"}
 COMPRESSION = "lzf"  # fast, built into h5py: images and spectrograms compress, readers need nothing extra
@@ -63,6 +66,8 @@ def _write_demo(data: Any, name: str, ep: EpisodeArrays) -> None:
     g = data.create_group(name)
     n = ep.length
     g.create_dataset("actions", data=ep.columns[ACTION].astype(np.float32))
+    if ACTION_EE in ep.columns:  # the end-effector form (docs/action_spaces.md), for an ee-space policy
+        g.create_dataset("actions_ee", data=ep.columns[ACTION_EE].astype(np.float32))
     rewards = np.zeros(n, np.float32)
     rewards[-1] = float(bool(ep.record["success"]))
     g.create_dataset("rewards", data=rewards)

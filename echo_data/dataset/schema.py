@@ -17,11 +17,13 @@ import numpy as np
 import pyarrow as pa
 
 from echo_data.recipe import SETTINGS, Recipe
-from echo_data.records import ACTION_DIM, STATE_DIM
+from echo_data.records import ACTION_DIM, EE_ACTION_DIM, PRIVILEGED_COLUMNS, PRIVILEGED_PREFIX, STATE_DIM
 
 # echo-data/2: fixed-length `skill_success`, per-step `audio_path` / `audio_sample_rate`, per-step
 # camera poses (`camera_pose.head` / `camera_pose.wrist`), `action.executed`.
-FORMAT_VERSION = "echo-data/2"
+# echo-data/3: the end-effector action form (`action.ee`, `action.ee.executed`), the privileged
+# observations (`observation.privileged.*`) and `skill_stop`.
+FORMAT_VERSION = "echo-data/3"
 # Rows per Parquet row group: fixed so shard bytes never depend on how a build ran; small
 # enough that random access from a DataLoader decodes little more than it needs.
 ROW_GROUP_ROWS = 64
@@ -43,7 +45,26 @@ ACTION = "action"
 # What the robot executed at the step: `action` plus the experts' DART noise (`experts.action_noise`;
 # equal to `action` without noise). Replaying these reproduces the episode; `action` is the label.
 ACTION_EXECUTED = "action.executed"
+# The same two commands in end-effector form (echo_data.records.EE_ACTION_NAMES,
+# docs/action_spaces.md); replaying `action.ee.executed` in the env's ee mode reproduces the episode.
+ACTION_EE = "action.ee"
+ACTION_EE_EXECUTED = "action.ee.executed"
 STATE = "observation.state"
+# Fixed-length float32 vector columns of every step row, in schema order, and their lengths.
+VECTOR_COLUMNS: dict[str, int] = {
+    ACTION: ACTION_DIM, ACTION_EXECUTED: ACTION_DIM, ACTION_EE: EE_ACTION_DIM, ACTION_EE_EXECUTED: EE_ACTION_DIM, STATE: STATE_DIM,
+}
+# Privileged observations (echo_data.records.PRIVILEGED_COLUMNS): flagged `privileged: true` in
+# their Hugging Face feature and the LeRobot export; no loader's default inputs hold them.
+PRIVILEGED = PRIVILEGED_PREFIX
+# 1 on the last row of each skill segment: the expert ended the skill after this row's action
+# (a learned skill's STOP label, as SoundSpaces' stop action).
+SKILL_STOP = "skill_stop"
+
+
+def is_privileged(column: str) -> bool:
+    """A column only a simulator can fill (never a default input of a learner)."""
+    return column.startswith(PRIVILEGED_PREFIX)
 # Per-step world pose of each camera: row-major 4x4 camera-to-world matrix, OpenCV axes
 # (x right, y down, z forward = the depth axis), flattened to 16 float32.
 CAMERA_POSES = {"head": "camera_pose.head", "wrist": "camera_pose.wrist"}
@@ -135,10 +156,9 @@ class StepLayout:
             "setting": v("string"),
             "skill": v("string"),
             "skill_index": v("int64"),
-            ACTION: {"feature": v("float32"), "length": ACTION_DIM, "_type": "List"},
-            ACTION_EXECUTED: {"feature": v("float32"), "length": ACTION_DIM, "_type": "List"},
-            STATE: {"feature": v("float32"), "length": STATE_DIM, "_type": "List"},
         }
+        for col, n in VECTOR_COLUMNS.items():
+            feats[col] = {"feature": v("float32"), "length": n, "_type": "List"}
         for col in self.images:
             feats[col] = {"_type": "Image"}
         for col, shape in self.arrays.items():
@@ -150,7 +170,15 @@ class StepLayout:
         feats["audio_offset"] = v("int64")
         feats["done"] = v("bool")
         feats["skill_success"] = {"feature": v("bool"), "length": CHAIN_SLOTS, "_type": "List"}
+        feats[SKILL_STOP] = v("int8")
+        for col, n in PRIVILEGED_COLUMNS.items():
+            feats[col] = {"feature": v("float32"), "length": n, "_type": "List"}
         return feats
+
+    @staticmethod
+    def privileged_columns() -> list[str]:
+        """The privileged step columns (flagged in the schema metadata, the card and the LeRobot export)."""
+        return list(PRIVILEGED_COLUMNS)
 
     def schema(self) -> pa.Schema:
         """Arrow schema of a shard, with the Hugging Face features embedded."""
@@ -163,10 +191,8 @@ class StepLayout:
             pa.field("setting", pa.string()),
             pa.field("skill", pa.string()),
             pa.field("skill_index", pa.int64()),
-            pa.field(ACTION, pa.list_(pa.float32(), ACTION_DIM)),
-            pa.field(ACTION_EXECUTED, pa.list_(pa.float32(), ACTION_DIM)),
-            pa.field(STATE, pa.list_(pa.float32(), STATE_DIM)),
         ]
+        fields += [pa.field(col, pa.list_(pa.float32(), n)) for col, n in VECTOR_COLUMNS.items()]
         fields += [pa.field(col, IMAGE_TYPE) for col in self.images]
         fields += [pa.field(col, HfArray3D(shape)) for col, shape in self.arrays.items()]
         fields += [pa.field(col, pa.list_(pa.float32(), POSE_DIM)) for col in self.pose_columns]
@@ -176,8 +202,15 @@ class StepLayout:
             pa.field("audio_offset", pa.int64()),
             pa.field("done", pa.bool_()),
             pa.field("skill_success", pa.list_(pa.bool_(), CHAIN_SLOTS)),
+            pa.field(SKILL_STOP, pa.int8()),
         ]
-        meta = {"huggingface": json.dumps({"info": {"features": self.hf_features()}}, sort_keys=False)}
+        fields += [
+            pa.field(col, pa.list_(pa.float32(), n), metadata={b"privileged": b"true"}) for col, n in PRIVILEGED_COLUMNS.items()
+        ]
+        meta = {
+            "huggingface": json.dumps({"info": {"features": self.hf_features()}}, sort_keys=False),
+            "echo_data.privileged": json.dumps(self.privileged_columns()),
+        }
         return pa.schema(fields, metadata=meta)
 
     def episode_schema(self) -> pa.Schema:

@@ -134,6 +134,7 @@ def episode_feature_values(
     images: dict[str, tuple[str, np.ndarray]],
     arrays: dict[str, np.ndarray],
     executed: np.ndarray | None = None,
+    vectors: dict[str, np.ndarray] | None = None,
 ) -> dict[str, np.ndarray]:
     """The (n_values, channels) matrices summarised per feature, in the units loaders return:
     action/state per dimension; RGB per channel in [0, 1]; depth in metres; spectrograms per ear.
@@ -142,6 +143,8 @@ def episode_feature_values(
     out = {"action": action.reshape(len(action), -1), STATE: state.reshape(len(state), -1)}
     if executed is not None:
         out[ACTION_EXECUTED] = executed.reshape(len(executed), -1)
+    for col, values in (vectors or {}).items():  # the ee action forms and the privileged columns
+        out.setdefault(col, values.reshape(len(values), -1))
     for col, (kind, stack) in images.items():
         sub = stack[:, ::IMAGE_STRIDE, ::IMAGE_STRIDE]
         if kind == "rgb":

@@ -21,8 +21,8 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.schema import ACTION, ACTION_EXECUTED, CHAIN_SLOTS, POSE_DIM, STATE, StepLayout, column_to_numpy
-from echo_data.records import ACTION_DIM, STATE_DIM
+from echo_data.dataset.schema import ACTION, CHAIN_SLOTS, POSE_DIM, SKILL_STOP, STATE, VECTOR_COLUMNS, StepLayout, column_to_numpy
+from echo_data.records import PRIVILEGED_COLUMNS
 
 _INDEX_COLUMNS = ["episode_index", "frame_index", "setting", "skill"]
 _SCALARS = {
@@ -35,6 +35,7 @@ _SCALARS = {
     "audio_sample_rate": "int64",
     "timestamp": "float32",
     "done": "bool",
+    SKILL_STOP: "int8",
 }
 _STRINGS = ("setting", "skill", "audio_path")
 # Decoded row groups a StepDataset keeps per worker process: at least the shuffle sampler's
@@ -132,10 +133,10 @@ class _Shards:
 
     def shape(self, col: str) -> tuple[int, ...]:
         """Per-row shape of a fixed-shape list column."""
-        if col in (ACTION, ACTION_EXECUTED):
-            return (ACTION_DIM,)
-        if col == STATE:
-            return (STATE_DIM,)
+        if col in VECTOR_COLUMNS:
+            return (VECTOR_COLUMNS[col],)
+        if col in PRIVILEGED_COLUMNS:
+            return (PRIVILEGED_COLUMNS[col],)
         if col == "skill_success":
             return (CHAIN_SLOTS,)
         if col in self.layout.pose_columns:
@@ -283,7 +284,9 @@ class ShuffledSteps(_IterableBase):
 class SequenceDataset:
     """Windows for behaviour cloning: for each step t, observations of steps t-history+1..t and
     actions of steps t..t+action_chunk-1, clamped to the episode (with `observation_is_pad` /
-    `action_is_pad` masks, LeRobot style). Windows never cross episodes (nor shards)."""
+    `action_is_pad` masks, LeRobot style). Windows never cross episodes (nor shards).
+    `action`: the column the chunk is read from (`action`, or its end-effector form `action.ee`),
+    returned under its own name."""
 
     def __init__(
         self,
@@ -294,6 +297,7 @@ class SequenceDataset:
         setting: str | None = None,
         skill: str | None = None,
         observations: Sequence[str] | None = None,
+        action: str = ACTION,
     ) -> None:
         if history < 1 or action_chunk < 1:
             raise ValueError("history and action_chunk must be >= 1")
@@ -302,7 +306,8 @@ class SequenceDataset:
         default_obs = [STATE] + list(self.shards.layout.images) + list(self.shards.layout.arrays)
         self.observations = _check_columns(self.shards, observations, default_obs)
         # every step of the split, in shard order: windows are gathered from it
-        self._steps = StepDataset(root, split, columns=list(dict.fromkeys(self.observations + [ACTION, "episode_index", "frame_index", "index"])))
+        self.action = _check_columns(self.shards, [action], [])[0]
+        self._steps = StepDataset(root, split, columns=list(dict.fromkeys(self.observations + [self.action, "episode_index", "frame_index", "index"])))
         self._offset = np.concatenate([[0], np.cumsum([len(c["episode_index"]) for c in self.shards.index_columns()])])
         shard_parts: list[np.ndarray] = []
         row_parts: list[np.ndarray] = []
@@ -343,7 +348,7 @@ class SequenceDataset:
         base = int(self._offset[shard])
         obs = self._steps.take(base + obs_rows.clip(first, last))  # its last row is step t
         item = {c: obs[c] for c in self.observations}
-        item[ACTION] = self._steps.take(base + act_rows.clip(first, last))[ACTION]
+        item[self.action] = self._steps.take(base + act_rows.clip(first, last))[self.action]
         item.update({k: obs[k][-1] for k in ("episode_index", "frame_index", "index")})
         item["observation_is_pad"] = torch.from_numpy(obs_pad)
         item["action_is_pad"] = torch.from_numpy(act_pad)

@@ -25,11 +25,22 @@ from echo_data.dataset import stats as stats_mod
 from echo_data.dataset.encode import planner_binaural_wav_bytes, planner_wav_bytes
 from echo_data.dataset.manifest import ManifestError, load_manifest, new_manifest, plan_shards, totals
 from echo_data.dataset.planner import MEDIA, media_path
-from echo_data.dataset.schema import EPISODE_FIELDS, MEL, SHARD_META_KEY, SPECTROGRAM, StepLayout, column_to_numpy
+from echo_data.dataset.schema import (
+    ACTION_EE,
+    ACTION_EE_EXECUTED,
+    EPISODE_FIELDS,
+    MEL,
+    SHARD_META_KEY,
+    SKILL_STOP,
+    SPECTROGRAM,
+    StepLayout,
+    column_to_numpy,
+)
 from echo_data.dataset.shards import read_shard_meta
 from echo_data.dataset.storage import canonical_json, sha256_file
 from echo_data.pcm import clipped_samples, dequantise
 from echo_data.recipe import Recipe
+from echo_data.records import EE_ACTION_DIM
 
 
 def _plain(t: pa.DataType) -> pa.DataType:
@@ -44,6 +55,8 @@ def _schema_problems(name: str, got: pa.Schema, want: pa.Schema) -> list[str]:
     for g, w in zip(got, want):
         if not _plain(g.type).equals(_plain(w.type)):
             out.append(f"{name}: column {g.name} has type {_plain(g.type)}, expected {_plain(w.type)}")
+        if (g.metadata or {}).get(b"privileged") != (w.metadata or {}).get(b"privileged"):
+            out.append(f"{name}: column {g.name} is not flagged privileged as the layout says")
     md = got.metadata or {}
     hf = md.get(b"huggingface")
     if hf is None:
@@ -172,6 +185,35 @@ def _audio_problems(out: Path, row: dict[str, Any], offsets: np.ndarray, sample_
     return problems
 
 
+def _label_columns(table: pa.Table) -> dict[str, np.ndarray]:
+    """The columns `_label_problems` checks, as arrays (empty where the shard lacks them: its schema problem is reported)."""
+    out: dict[str, np.ndarray] = {}
+    names = set(table.column_names)
+    if {SKILL_STOP, "skill_index"} <= names:
+        out[SKILL_STOP] = table.column(SKILL_STOP).to_numpy()
+        out["skill_index"] = table.column("skill_index").to_numpy()
+    for col in (ACTION_EE, ACTION_EE_EXECUTED):
+        if col in names:
+            out[col] = column_to_numpy(table.column(col), (EE_ACTION_DIM,))[:, EE_ACTION_DIM - 1]
+    return out
+
+
+def _label_problems(file: str, record: dict[str, Any], cols: dict[str, np.ndarray]) -> list[str]:
+    """One episode's labels: `skill_stop` 1 exactly on each skill segment's last row (not on the
+    last row of a cut episode), `gripper_close` of both ee forms binary."""
+    out = []
+    eid = record["episode_id"]
+    if SKILL_STOP in cols and len(cols[SKILL_STOP]):
+        seg = cols["skill_index"]
+        want = np.append(seg[1:] != seg[:-1], record.get("truncated_at") is None)
+        if not np.array_equal(cols[SKILL_STOP].astype(bool), want):
+            out.append(f"{file}: episode {eid} skill_stop is not 1 exactly on each skill segment's last row")
+    for col in (ACTION_EE, ACTION_EE_EXECUTED):
+        if col in cols and not np.all((cols[col] == 0.0) | (cols[col] == 1.0)):
+            out.append(f"{file}: episode {eid} {col} gripper_close is not 0 or 1")
+    return out
+
+
 def validate(out: Path) -> list[str]:
     """Problems found in the dataset at `out` (empty list when it is sound)."""
     out = Path(out)
@@ -232,9 +274,11 @@ def validate(out: Path) -> list[str]:
                 features = {}
             if entry is not None:
                 problems += _entry_problems(plan.file, entry, rows, path.stat().st_size, next_index - n, (plan.first, plan.last))
+            labels = _label_columns(table)
             pos = 0
             for r in rows:
                 k = r["n_steps"]
+                problems += _label_problems(plan.file, r, {c: a[pos : pos + k] for c, a in labels.items()})
                 if not (np.all(ep[pos : pos + k] == r["episode_index"]) and np.array_equal(fr[pos : pos + k], np.arange(k))):
                     problems.append(f"{plan.file}: episode {r['episode_id']} rows are not frames 0..{k - 1} in order")
                 mine = {c: a[pos : pos + k] for c, a in features.items() if len(a) >= pos + k}

@@ -20,11 +20,11 @@ import pyarrow as pa
 from echo_data.dataset import stats as stats_mod
 from echo_data.dataset.encode import EncodedEpisode
 from echo_data.dataset.manifest import ShardPlan, ShardPlans, write_manifest
-from echo_data.dataset.schema import ACTION_EXECUTED, EPISODE_FIELDS, FORMAT_VERSION, STATE, StepLayout
+from echo_data.dataset.schema import ACTION_EE, ACTION_EE_EXECUTED, ACTION_EXECUTED, EPISODE_FIELDS, FORMAT_VERSION, STATE, StepLayout
 from echo_data.dataset.shards import read_shard_meta, write_shard
 from echo_data.dataset.storage import atomic_write_bytes, atomic_write_json, atomic_write_parquet, sha256_file
 from echo_data.recipe import Recipe
-from echo_data.records import ACTION_NAMES, STATE_NAMES
+from echo_data.records import ACTION_NAMES, EE_ACTION_NAMES, STATE_NAMES
 
 WORK = ".work"  # staged episodes of an unfinished build
 
@@ -193,8 +193,12 @@ class DatasetWriter:
             "audio_path": "audio/{split}/{episode_id}.wav",
             "episode_index": "per split: equals the episode's index in its split; `index` counts frames per split",
             "stats_split": "train" if "train" in self.plans else "all",
-            "names": {"action": list(ACTION_NAMES), ACTION_EXECUTED: list(ACTION_NAMES), STATE: list(STATE_NAMES)},
+            "names": {
+                "action": list(ACTION_NAMES), ACTION_EXECUTED: list(ACTION_NAMES),
+                ACTION_EE: list(EE_ACTION_NAMES), ACTION_EE_EXECUTED: list(EE_ACTION_NAMES), STATE: list(STATE_NAMES),
+            },
             "features": self.layout.hf_features(),
+            "privileged": self.layout.privileged_columns(),
             "cameras": camera_infos(self.recipe, self.layout),
         }
 

@@ -6,10 +6,11 @@ written in Zarr format 2, which both Diffusion Policy's zarr 2 and zarr 3 open. 
 train, val, test order; `meta/episode_split` (int8: 0 train, 1 val, 2 test) says which split each
 belongs to (Diffusion Policy draws its validation episodes by a ratio: mask the test ones out).
 
-Arrays: `action` (N, 12), `state` (N, 25), `head_rgb` (N, H, W, 3) uint8, `head_depth` /
+Arrays: `action` (N, 12), `action_ee` (N, 11, the end-effector form), `state` (N, 25), `head_rgb` (N, H, W, 3) uint8, `head_depth` /
 `wrist_depth` (N, H, W) uint16 millimetres, `spectrogram`, `mel` (N, F, time, ear), `camera_pose_head`
 / `camera_pose_wrist` (N, 4, 4), `timestamp`, `frame_index`, `skill_index`, `audio_offset`, `done`,
-`skill_success`. Chunks along axis 0 hold `chunk_steps` rows: the median episode length, so one
+`skill_success`, `skill_stop`, and the simulator-only `privileged_*` observations (read only when named).
+Chunks along axis 0 hold `chunk_steps` rows: the median episode length, so one
 chunk is about one episode (a regular chunk grid cannot follow each episode's own length); the other
 axes are whole. The root attributes list each episode's id, split, setting and WAV (`audio_path`,
 relative to the source dataset folder `source_dataset`).
@@ -28,13 +29,14 @@ import pyarrow.parquet as pq
 from echo_data.dataset.episode_arrays import ExportError as ExportError  # the CLI catches `module.ExportError`
 from echo_data.dataset.episode_arrays import check_out_folder, check_source, iter_episodes
 from echo_data.dataset.robomimic import OBS_KEYS
-from echo_data.dataset.schema import ACTION, CAMERA_POSES
+from echo_data.dataset.schema import ACTION, ACTION_EE, CAMERA_POSES, SKILL_STOP
 from echo_data.dataset.written import mark_export, replace_folder
 from echo_data.episode import SPLIT_KEYS
+from echo_data.records import PRIVILEGED_COLUMNS
 
 SPLIT_CODES = {"train": 0, "val": 1, "test": 2}
-EXTRA = ("timestamp", "frame_index", "skill_index", "audio_offset", "done", "skill_success")
-KEYS = {ACTION: "action", **OBS_KEYS, **{c: c for c in EXTRA}}
+EXTRA = ("timestamp", "frame_index", "skill_index", "audio_offset", "done", "skill_success", SKILL_STOP)
+KEYS = {ACTION: "action", ACTION_EE: "action_ee", **OBS_KEYS, **{c: c for c in EXTRA}}
 KIND = "zarr export"  # the folder marker's kind (echo_data.dataset.written)
 FORMAT = "Diffusion Policy replay buffer (Zarr format 2)"
 
@@ -94,6 +96,7 @@ def export_zarr(src: str | Path, out: str | Path, overwrite: bool = False) -> di
                 "units": {"head_depth": "uint16 millimetres", "wrist_depth": "uint16 millimetres", "head_rgb": "uint8 RGB",
                           "camera_pose_head": "camera-to-world, OpenCV axes"},
                 "episodes": episodes,
+                "privileged": [OBS_KEYS[c] for c in PRIVILEGED_COLUMNS],  # simulator-only observations
             }
         )
         mark_export(tmp, KIND, FORMAT)

@@ -3,7 +3,10 @@
 One episode = one `EpisodeSpec` (floor plan, sounds, events, robot start, true skill chain).
 `reset(options={"split": s, "index": i})` samples exactly the spec `echo-data build` samples for
 (recipe seed, s, i) (`"attempt": k` for the build's k-th retry); `reset(seed=n)` draws a fresh
-episode (the recipe under a seed drawn from n). `step(action)` applies the dataset's 12-float action for one control period, then:
+episode (the recipe under a seed drawn from n). `step(action)` applies one action for one control
+period: in `action_mode="joint"` the dataset's 12-float `action`, in `action_mode="ee_delta"` its
+11-float end-effector form `action.ee` (turned into joint targets by the robot's one ee map,
+`robot.ee.to_joint`; docs/action_spaces.md; default: the recipe's `robot.action_space`), then:
 events whose resolving skill's success test now holds stop sounding (a door found open changes
 the acoustics), the robot's ears hear the control period just played (`OnlineTrack`, from the
 pose the head had during it) and the cameras look. Observations carry the dataset's column
@@ -34,7 +37,7 @@ from echo_data.dataset.schema import BINAURAL, MEL, SPECTROGRAM, STATE
 from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
-from echo_data.records import ACTION_DIM, STATE_DIM
+from echo_data.records import ACTION_DIM, ACTION_SPACES, EE_ACTION_DIM, STATE_DIM
 from echo_data.skills.registry import SKILLS, Situation, carried_object, skill_budget
 from echo_data.target import Target
 
@@ -52,19 +55,20 @@ class EnvInputError(ValueError):
 RESET_OPTIONS = ("spec", "split", "index", "attempt")
 
 
-def as_action(action: Any) -> np.ndarray:
-    """`action` as the dataset's 12 float32, or `EnvInputError` saying why it is not one (not
-    numbers, complex numbers whose imaginary parts a cast would drop, the wrong shape)."""
+def as_action(action: Any, dim: int = ACTION_DIM) -> np.ndarray:
+    """`action` as `dim` float32 (the dataset's 12-float `action`, or 11 for `action.ee`), or
+    `EnvInputError` saying why it is not one (not numbers, complex numbers whose imaginary parts
+    a cast would drop, the wrong shape)."""
     try:
         a = np.asarray(action)
     except Exception as e:  # ragged lists and objects numpy cannot make an array of
-        raise EnvInputError(f"action: not an array of {ACTION_DIM} numbers ({type(e).__name__}: {e})".splitlines()[0]) from None
+        raise EnvInputError(f"action: not an array of {dim} numbers ({type(e).__name__}: {e})".splitlines()[0]) from None
     if a.dtype.kind == "c":
-        raise EnvInputError(f"action: complex values (dtype {a.dtype}); an action is {ACTION_DIM} real numbers")
+        raise EnvInputError(f"action: complex values (dtype {a.dtype}); an action is {dim} real numbers")
     if a.dtype.kind not in "iuf":
-        raise EnvInputError(f"action: expected {ACTION_DIM} numbers, got {type(action).__name__} of dtype {a.dtype}")
-    if a.shape != (ACTION_DIM,):
-        raise EnvInputError(f"action: expected shape ({ACTION_DIM},), got {a.shape}")
+        raise EnvInputError(f"action: expected {dim} numbers, got {type(action).__name__} of dtype {a.dtype}")
+    if a.shape != (dim,):
+        raise EnvInputError(f"action: expected shape ({dim},), got {a.shape}")
     return a.astype(np.float32)
 
 
@@ -110,14 +114,27 @@ def resolve_recipe(recipe: Recipe | str | Path) -> tuple[Recipe, Path | None]:
     return load_recipe(p), p.resolve().parent
 
 
-def action_space() -> spaces.Box:
-    """The dataset's action: base velocities (robot frame), torso and 7 arm joint targets, gripper opening."""
+def action_space(mode: str = "joint") -> spaces.Box:
+    """The action of `mode`: "joint" = the dataset's `action` (base velocities in the robot frame,
+    torso and 7 arm joint targets, gripper opening); "ee_delta" = `action.ee` (base velocities and
+    torso alike, the TCP change of one step within `ee_control.MAX_EE_STEP` per axis and
+    `MAX_EE_TURN` per rotation axis (the map also clips the rotation's norm to it), a binary
+    gripper command in [0, 1])."""
     from echo_data.robot import urdf as U
+    from echo_data.robot.ee_control import MAX_EE_STEP, MAX_EE_TURN
     from echo_data.robot.robot import MAX_BASE_SPEED, MAX_BASE_TURN
 
+    base_low = [-MAX_BASE_SPEED, -MAX_BASE_SPEED, -MAX_BASE_TURN, U.TORSO_RANGE[0]]
+    base_high = [MAX_BASE_SPEED, MAX_BASE_SPEED, MAX_BASE_TURN, U.TORSO_RANGE[1]]
+    if mode == "ee_delta":
+        low = [*base_low, *[-MAX_EE_STEP] * 3, *[-MAX_EE_TURN] * 3, 0.0]
+        high = [*base_high, *[MAX_EE_STEP] * 3, *[MAX_EE_TURN] * 3, 1.0]
+        return spaces.Box(np.array(low, np.float32), np.array(high, np.float32), (EE_ACTION_DIM,), np.float32)
+    if mode != "joint":
+        raise EnvInputError(f"action_mode: {mode!r} is not one of {', '.join(ACTION_SPACES)}")
     arm = [U.ARM_LIMITS[n] for n in U.ARM_JOINTS]
-    low = [-MAX_BASE_SPEED, -MAX_BASE_SPEED, -MAX_BASE_TURN, U.TORSO_RANGE[0], *[a for a, _ in arm], 0.0]
-    high = [MAX_BASE_SPEED, MAX_BASE_SPEED, MAX_BASE_TURN, U.TORSO_RANGE[1], *[b for _, b in arm], 2 * U.FINGER_RANGE[1]]
+    low = [*base_low, *[a for a, _ in arm], 0.0]
+    high = [*base_high, *[b for _, b in arm], 2 * U.FINGER_RANGE[1]]
     return spaces.Box(np.array(low, np.float32), np.array(high, np.float32), (ACTION_DIM,), np.float32)
 
 
@@ -158,11 +175,15 @@ class EchoDataEnv(gym.Env):
         library: SoundLibrary | None = None,
         recipe_dir: str | Path | None = None,
         render_mode: str | None = None,
+        action_mode: str | None = None,
     ) -> None:
         from echo_data.envs.workers import pin_worker_threads
 
         pin_worker_threads()  # a vector env's worker process: one thread per pool (no-op in the main process)
         self.recipe, rdir = resolve_recipe(recipe)
+        self.action_mode = self.recipe.robot.action_space if action_mode is None else action_mode
+        if self.action_mode not in ACTION_SPACES:
+            raise EnvInputError(f"action_mode: {self.action_mode!r} is not one of {', '.join(ACTION_SPACES)}")
         self.recipe_dir = Path(recipe_dir) if recipe_dir is not None else rdir
         if split not in ("train", "val", "test"):
             raise EnvInputError(f"split: {split!r} is not one of train, val, test")
@@ -173,7 +194,7 @@ class EchoDataEnv(gym.Env):
         self.metadata = {**self.metadata, "render_fps": self.recipe.robot.control_hz}
         self._library = library
         self.observation_space: spaces.Dict = observation_space(self.recipe, images, audio)
-        self.action_space = action_space()
+        self.action_space = action_space(self.action_mode)
         self._world: World | None = None
         self.track: Any = None
         self._episode: EpisodeSpec | None = None
@@ -267,11 +288,13 @@ class EchoDataEnv(gym.Env):
             raise EnvInputError("step() before reset()")
         if self.ended:
             raise EnvInputError(f"step(): the episode {self.ended} at step {self.steps}; call reset() first")
-        a = as_action(action)
+        a = as_action(action, EE_ACTION_DIM if self.action_mode == "ee_delta" else ACTION_DIM)
         if not np.all(np.isfinite(a)):
             self.failure = f"non-finite action at step {self.steps}"
             self.ended = "terminated"
             return self._obs, 0.0, True, False, self._info()
+        if self.action_mode == "ee_delta":  # the one ee map, from the commanded state (float32 joint targets)
+            a = self.world.robot.ee.to_joint(a)
         pose = self.ear_pose()  # the head during this control period
         self.world.step(a)
         self.steps += 1

@@ -17,7 +17,7 @@ from echo_data.acoustics.features import step_features
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, episode_seed
 from echo_data.pcm import as_written
 from echo_data.recipe import CameraConfig, OutputsConfig, Recipe, RobotConfig
-from echo_data.records import ACTION_DIM, STATE_DIM, EpisodeResult, SkillOutcome, StepRecord
+from echo_data.records import ACTION_DIM, EE_ACTION_DIM, PRIVILEGED_COLUMNS, STATE_DIM, EpisodeResult, SkillOutcome, StepRecord
 from echo_data.scene.floorplan import FloorPlan, Furniture, PlacedObject, Rect, Room
 
 
@@ -84,6 +84,7 @@ def synth_generate(
     n = 3 + int(rng.integers(0, 4))
     head, wrist = recipe.robot.head_camera, recipe.robot.wrist_camera
     steps = []
+    extra = np.random.default_rng([seed & 0xFFFFFFFF, 1])  # the echo-data/3 columns, from their own stream
     for t in range(n):
         k = min(t * len(chain) // n, len(chain) - 1)
         steps.append(
@@ -103,6 +104,9 @@ def synth_generate(
                 skill_success=tuple(j < k for j in range(len(chain))),
                 done=t == n - 1,
                 camera_poses={"head": _pose(rng), "wrist": _pose(rng)},
+                action_ee=np.append(extra.normal(size=EE_ACTION_DIM - 1), float(t % 2)).astype(np.float32),  # binary gripper_close
+                privileged={col: extra.normal(size=d).astype(np.float32) for col, d in PRIVILEGED_COLUMNS.items()},
+                skill_stop=t == n - 1 or min((t + 1) * len(chain) // n, len(chain) - 1) != k,
             )
         )
     samples = (n + 1) * sr // hz
