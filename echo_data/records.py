@@ -58,6 +58,10 @@ BASE_FRAME_STATE: tuple[str, ...] = tuple(n for n in STATE_NAMES if n not in WOR
 # their names start with this prefix, the schema flags them privileged, and no learner reads
 # them unless asked by name (the privileged sanity learner does).
 PRIVILEGED_PREFIX = "observation.privileged."
+# The active skill's goal as the runtime hands it to a policy that asks for it (the paper's starred
+# rows, given the target's position): float32 (x, y, yaw) in the world, the interaction pose of
+# the skill's target with the doors where they stood when the skill began (`skills.navigate.goal_pose`).
+GOAL_POSE = PRIVILEGED_PREFIX + "goal_pose"
 
 
 @dataclass

@@ -22,6 +22,7 @@ HELD_OUT_SOUNDS = 0x50D5  # learn/planner: sounds held out of training (keys: se
 SUBSET = 0x5EB5E7  # learn/planner: nested training subsets (keys: seed)
 FRESH_SOUND = 0xF8E5  # episode.fresh_sound_seed: a train event's fresh sound instance (keys: draw seed, event)
 ACTION_NOISE = 0xDA27  # agents/dart: the experts' DART action noise (keys: episode seed)
+HANDOVER = 0x4A0D  # skills/navigate: the build's Navigate stop point in its success region (keys: episode seed, chain index)
 
 
 def derived_rng(salt: int, *keys: int) -> np.random.Generator:

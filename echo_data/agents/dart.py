@@ -71,6 +71,7 @@ class NoisyExperts:
 
     name = "oracle+dart"
     ends_itself = True
+    privileged = True
     observations = OracleSkills.observations
 
     def __init__(self, level: float, seed: int, experts: Any = None) -> None:

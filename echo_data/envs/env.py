@@ -34,8 +34,7 @@ from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_DIM, STATE_DIM
-from echo_data.skills.registry import SKILLS, Situation, carried_object, skill_budget
-from echo_data.target import Target
+from echo_data.skills.registry import SKILLS, Situation, apply_effect, skill_budget
 
 if TYPE_CHECKING:
     from echo_data.world import World
@@ -241,6 +240,7 @@ class EchoDataEnv(gym.Env):
         self.steps = 0
         self.failure = ""
         self.ended = ""  # "terminated" or "truncated" once the episode is over: step() then refuses
+        self.agent_stops = False  # True: the active skill ends only at `stop_skill()` (SoundSpaces' STOP)
         self._grids: dict[tuple, Any] = {}
         self._resolver = {call.event: k for k, call in enumerate(spec.chain) if SKILLS[call.skill].resolves_event}
         self.max_episode_steps = sum(skill_budget(self.recipe, c.skill) for c in spec.chain)
@@ -275,13 +275,13 @@ class EchoDataEnv(gym.Env):
         block = None
         if self.track is not None:
             for e in newly:
-                if self.episode.chain[self._resolver[e]].skill == "OpenDoor":
+                if self._opens_door(e):
                     self.track.open_doors(self.world.door_angles(), at=self.track.samples + self.track.hop)
             block = self.track.step(pose)
             for e in newly:
                 self.track.stop(e)
         for e in newly:
-            if self.episode.chain[self._resolver[e]].skill == "OpenDoor":
+            if self._opens_door(e):
                 self.door_changes.append((self.steps, self.world.door_angles()))
         before = self.progress
         self._advance()
@@ -301,15 +301,37 @@ class EchoDataEnv(gym.Env):
                 newly.append(e)
         return sorted(newly)
 
+    def _opens_door(self, event: int) -> bool:
+        return SKILLS[self.episode.chain[self._resolver[event]].skill].effect == "opens_door"
+
     def _advance(self) -> None:
-        chain = self.episode.chain
-        while self.progress < len(chain) and self.success_flags[self.progress]:
-            call = chain[self.progress]
-            if call.skill == "Place":  # the object rests on its goal now (a later Pick lifts it from there)
-                name = carried_object(self.episode, call)
-                if name is not None:
-                    self.world.receptacles[name] = Target.parse(call.target).index
-            self.progress += 1
+        """Count the chain's skills whose tests hold, in order (not while the agent ends the active one itself)."""
+        while not self.agent_stops and self.progress < len(self.episode.chain) and self.success_flags[self.progress]:
+            self._complete()
+
+    def _complete(self) -> None:
+        apply_effect(self.world, self.episode.chain[self.progress], self.episode)  # e.g. a placed object rests on its goal
+        self.progress += 1
+
+    def stop_skill(self) -> tuple[dict, float, bool, bool, dict]:
+        """SoundSpaces' STOP for the active skill, for an agent that ends its skills itself
+        (`agent_stops`): no physics step; the skill's success test on the current state (this
+        step's evaluation) decides: it holds -> the skill counts (reward 1, the next one becomes
+        active; `terminated` after the last), else the episode ends failed (`info["failure"]`)."""
+        if self._world is None:
+            raise EnvInputError("stop_skill() before reset()")
+        if self.ended:
+            raise EnvInputError(f"stop_skill(): the episode {self.ended} at step {self.steps}; call reset() first")
+        call = self.episode.chain[self.progress]
+        if self.success_flags[self.progress]:
+            self._complete()
+            reward = 1.0
+        else:
+            self.failure = f"stopped at step {self.steps}: {call.skill}({call.target}) success test false"
+            reward = 0.0
+        terminated = bool(self.failure) or self.progress == len(self.episode.chain)
+        self.ended = "terminated" if terminated else ""
+        return self._obs, reward, terminated, False, self._info()
 
     # ------------------------------------------------------------------ observations
     def ear_pose(self) -> tuple[float, float, float, float]:
