@@ -191,7 +191,7 @@ def run_episode(
     `skills`: run only the chain's first `skills` skills.
     """
     from echo_data.envs.env import EnvInputError, as_action
-    from echo_data.skills.registry import skill_budget
+    from echo_data.skills.registry import SKILLS, skill_budget
 
     env = getattr(env, "unwrapped", env)  # gymnasium wrappers around an EchoDataEnv
     spec: EpisodeSpec = env.episode
@@ -232,7 +232,8 @@ def run_episode(
         if stops or getattr(env, "agent_stops", False):
             env.agent_stops = stops
         goal = _goal_observation(env, call) if GOAL_POSE in (getattr(policy, "observations", None) or ()) else None
-        expert_len = _expert_path_length(env, call) if call.skill == "Navigate" else math.nan
+        approach = SKILLS[call.skill].role == "approach"  # Navigate: scored by SPL too
+        expert_len = _expert_path_length(env, call) if approach else math.nan
         path = 0.0
         n = 0
         reason = ""
@@ -287,7 +288,7 @@ def run_episode(
             expert = getattr(policy, "outcome", None)
             reason = getattr(expert, "reason", "") or "success test false"
         run.outcomes.append(SkillOutcome(call.skill, call.target, ok, "" if ok else reason, n))
-        if call.skill == "Navigate":
+        if approach:
             run.navigate.append(NavigateRecord(k, ok, path, expert_len))
         if not ok:
             run.failure = f"{call.skill}({call.target}): {reason}"

@@ -12,7 +12,10 @@ control period (the episode WAV is these blocks one after another).
 
 Reward: the number of true-chain skills newly completed in order at this step (their success
 tests, latched); `terminated` when the whole chain is done or a non-finite action arrived (the
-reason in `info["failure"]`); `truncated` past the sum of the chain's step budgets. After either,
+reason in `info["failure"]`); `truncated` past the sum of the chain's step budgets. An agent that
+ends its skills itself (SoundSpaces' STOP) sets `agent_stops`: the active skill then counts only
+when the agent calls `stop_skill()` and its test holds there (else the episode ends failed);
+`run_episode` does this for learned policies that end themselves. After either,
 `step` refuses (`EnvInputError`) until `reset`, as gymnasium's API asks. Reset options and
 actions are checked first: a wrong key, type or value raises `EnvInputError` naming it.
 

@@ -72,8 +72,7 @@ class Skill:
     follows: str = ""  # "deliver" skills: the resolve skill they carry on from
 
     def expert_fn(self) -> Callable[..., Any]:
-        module, _, name = self.expert.partition(":")
-        return getattr(importlib.import_module(module), name)
+        return _import(self.expert)
 
     def step_budget(self, recipe: Recipe) -> int:
         """Control steps the skill may take: its recipe limits plus GUARD_STEPS."""
@@ -90,6 +89,21 @@ def carried_object(spec: EpisodeSpec, call: SkillCall) -> str | None:
     """The object a deliver call (Place) carries: the target of the skill it follows in the same event."""
     follows = skill(call.skill).follows
     return next((c.target for c in spec.chain if c.event == call.event and c.skill == follows), None) if follows else None
+
+
+def _import(path: str) -> Any:
+    module, _, name = path.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def lazy_test(path: str) -> SuccessTest:
+    """The success test "module:function" (world, call, at) -> bool, imported on its first call:
+    a new skill's registry line can name the test in its own module."""
+    def test(world: World, call: SkillCall, at: Situation) -> bool:
+        return bool(_import(path)(world, call, at))
+
+    test.__qualname__ = path
+    return test
 
 
 def _navigated(world: World, call: SkillCall, at: Situation) -> bool:
