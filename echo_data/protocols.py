@@ -11,8 +11,10 @@ added by the runtime when the policy lists it in `observations`).
 
 The scripted experts are the exception, and say so: a policy whose class sets `privileged = True`
 (`OracleSkills`, `NoisyExperts`) also gets `PRIVILEGED_INFO` in its reset info (the live world,
-the `SkillCall`, the `EpisodeSpec`), because it plans on the true state. A planner likewise gets
-the true chain and the spec in `reset` only when it is privileged (`OraclePlanner`).
+the `SkillCall`, the `EpisodeSpec`), because it plans on the true state. A planner's `reset` gets
+the environment's reset info, the true chain and the spec only when it is privileged
+(`OraclePlanner`); any other planner gets the episode's id and seed (`PLANNER_INFO`) and must
+answer from the first observation.
 
 Ending a skill (SoundSpaces' STOP): `act` returns None. A policy that sets `ends_itself = True`
 ends each of its skills that way: the runtime runs it until it returns None (or its budget runs
@@ -39,6 +41,8 @@ import numpy as np
 SKILL_INFO = ("skill", "target", "target_kind", "skill_index", "event", "budget", "episode_seed")
 # Added for privileged policies only: the live `World`, the `SkillCall`, the `EpisodeSpec`.
 PRIVILEGED_INFO = ("world", "call", "spec_object")
+# What an unprivileged planner's `reset` gets.
+PLANNER_INFO = ("episode_id", "episode_seed")
 
 
 class Policy(Protocol):

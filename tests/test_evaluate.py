@@ -190,6 +190,19 @@ class _Spy:
         return self.actions[self.i - 1]
 
 
+class _SpyPlanner:
+    """A learned planner stand-in that knows the answer from the test, and records its reset info."""
+
+    def __init__(self, chain: list) -> None:
+        self.chain, self.infos = chain, []
+
+    def reset(self, info: dict) -> None:
+        self.infos.append(info)
+
+    def plan(self, first_obs: dict) -> list:
+        return self.chain
+
+
 @pytest.fixture(scope="module")
 def nav_episode():
     """(env, spec, the scripted Navigate's joint actions and steps) on quickstart's first test episode, physics only."""
@@ -217,10 +230,10 @@ def test_a_learned_policy_gets_observations_only(nav_episode) -> None:  # noqa: 
     GOAL_POSE; the scripted experts in the same composition still get their privileged info."""
     import numpy as np
 
-    from echo_data.agents.builtin import OraclePlanner, OracleSkills
+    from echo_data.agents.builtin import OracleSkills
     from echo_data.agents.compose import SkillDispatch
-    from echo_data.agents.runtime import run_episode
-    from echo_data.protocols import PRIVILEGED_INFO, SKILL_INFO
+    from echo_data.agents.runtime import run_episode, true_chain
+    from echo_data.protocols import PLANNER_INFO, PRIVILEGED_INFO, SKILL_INFO
     from echo_data.records import GOAL_POSE
     from echo_data.skills.navigate import goal_pose
 
@@ -231,8 +244,10 @@ def test_a_learned_policy_gets_observations_only(nav_episode) -> None:  # noqa: 
     seen: list[dict] = []
     real_reset = oracle.reset
     oracle.reset = lambda i: (seen.append(i), real_reset(i))  # type: ignore[method-assign]
-    run = run_episode(env, obs, info, OraclePlanner(), SkillDispatch({"Navigate": spy}, oracle), skills=2, max_steps=len(actions) + 3)
+    planner = _SpyPlanner(true_chain(spec))
+    run = run_episode(env, obs, info, planner, SkillDispatch({"Navigate": spy}, oracle), skills=2, max_steps=len(actions) + 3)
     oracle.close()
+    assert [set(i) for i in planner.infos] == [set(PLANNER_INFO)]  # no chain, no spec: the answer comes from the observation
     assert run.outcomes and run.outcomes[0].success  # the spy replayed the expert's drive
     assert spy.infos and spy.obs
     for i in spy.infos:

@@ -197,9 +197,9 @@ def run_episode(
     spec: EpisodeSpec = env.episode
     truth = true_chain(spec)
     reset_planner = getattr(planner, "reset", None)  # optional (echo_data.protocols)
-    if callable(reset_planner):  # the episode's truth for a privileged planner only
+    if callable(reset_planner):  # the episode's truth (the env's info holds the chain) for a privileged planner only
         reset_planner({**info, "true_chain": truth, "spec_object": spec} if is_privileged(planner)
-                      else {k: v for k, v in info.items() if k != "spec"})
+                      else {"episode_id": spec.episode_id, "episode_seed": spec.seed})
     try:
         planned: list[dict[str, str]] | None = normalise_plan(planner.plan(first_obs))
         malformed = ""
