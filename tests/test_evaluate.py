@@ -264,6 +264,7 @@ def test_a_learned_policy_that_ends_itself_is_judged_where_it_stops(nav_episode)
     stop its test decides. Without `ends_itself` the runtime stops it at the first success."""
     from echo_data.agents.builtin import OraclePlanner
     from echo_data.agents.runtime import run_episode
+    from echo_data.envs.env import EnvInputError
 
     env, spec, actions = nav_episode
     flags: list[tuple[bool, bool]] = []
@@ -281,6 +282,11 @@ def test_a_learned_policy_that_ends_itself_is_judged_where_it_stops(nav_episode)
     run = run_episode(env, obs, info, OraclePlanner(), _Spy(actions[:3], ends_itself=True), skills=1)
     assert not run.outcomes[0].success and "stopped at step 3" in run.outcomes[0].reason and run.failure
     assert env.ended == "terminated" and env.progress == 0
+    with pytest.raises(EnvInputError, match="call reset"):
+        env.stop_skill()
+    env.reset(options={"spec": spec})
+    with pytest.raises(EnvInputError, match="agent_stops"):
+        env.stop_skill()
 
     obs, info = env.reset(options={"spec": spec})
     run = run_episode(env, obs, info, OraclePlanner(), _Spy(actions), skills=1)  # no STOP: cut at the first success

@@ -325,6 +325,8 @@ class EchoDataEnv(gym.Env):
             raise EnvInputError("stop_skill() before reset()")
         if self.ended:
             raise EnvInputError(f"stop_skill(): the episode {self.ended} at step {self.steps}; call reset() first")
+        if not self.agent_stops:
+            raise EnvInputError("stop_skill(): set agent_stops = True first (else skills count the step their tests hold)")
         call = self.episode.chain[self.progress]
         if self.success_flags[self.progress]:
             self._complete()
