@@ -43,9 +43,9 @@ def trace_row(env: Any, call: Any) -> dict[str, float]:
         top = world.plan.furniture[receptacle_of(world, name)].top_z
         row["obj_lift_m"] = float(object_bottom(world, name) - top)
     else:  # a receptacle, door or sink: how far the base stands from where the expert would stand
-        from echo_data.scene.nav import interaction_pose
+        from echo_data.skills.navigate import goal_pose
 
-        px, py, _ = interaction_pose(world.plan, name, door_angles=world.door_angles())
+        px, py, _ = goal_pose(world, name)
         bx, by, _ = robot.base_pose()
         row["base_to_goal_m"] = float(np.hypot(px - bx, py - by))
     held = robot.holding

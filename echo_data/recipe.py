@@ -28,11 +28,10 @@ from echo_data.categories import (
     DistractorShape,
     RelocationCategory,
 )
+from echo_data.skills.registry import DEFAULT_MAX_STEPS, SKILL_NAMES
 
 SETTINGS = ("object_relocation", "state_transition", "multi_event")
-SkillName = Literal["Navigate", "Pick", "Place", "OpenDoor", "CloseSink"]
-SKILLS: tuple[SkillName, ...] = ("Navigate", "Pick", "Place", "OpenDoor", "CloseSink")
-_MAX_STEPS: dict[SkillName, int] = {"Navigate": 600, "Pick": 250, "Place": 250, "OpenDoor": 300, "CloseSink": 200}
+SKILLS: tuple[str, ...] = SKILL_NAMES  # the skill registry's names (echo_data.skills.registry)
 # Apartment layout families (echo_data/scene/layouts.py): rows of rectangular rooms, an L-shaped
 # room, a corridor with rooms off it, an open-plan kitchen/living room.
 LayoutName = Literal["rows", "l_shape", "corridor", "open_plan"]
@@ -257,8 +256,8 @@ class RobotConfig(_Strict):
     control_hz: int = Field(10, ge=1, le=50)
     head_camera: CameraConfig = CameraConfig()
     wrist_camera: CameraConfig = CameraConfig(rgb=False)
-    max_steps: dict[SkillName, int] = Field(
-        default_factory=lambda: dict(_MAX_STEPS)
+    max_steps: dict[str, int] = Field(
+        default_factory=lambda: dict(DEFAULT_MAX_STEPS)
     )
     # The form a policy acts in by default in `EchoDataEnv` (its `action_mode`):
     # "joint" = `action` (12: base, torso, 7 arm joint targets, gripper opening),
@@ -270,6 +269,8 @@ class RobotConfig(_Strict):
     @classmethod
     def _max_steps(cls, v: dict[str, int]) -> dict[str, int]:
         for k, n in v.items():
+            if k not in SKILL_NAMES:
+                raise ValueError(f"max_steps: unknown skill {k!r} (skills: {', '.join(SKILL_NAMES)})")
             if not 1 <= n <= 100_000:
                 raise ValueError(f"max_steps.{k} must lie within [1, 100000], got {n}")
         return v
@@ -348,6 +349,12 @@ class ExpertsConfig(_Strict):
     # command from the perturbed state. Off when both are 0. Applies to commands born in ee form;
     # `action_noise` keeps perturbing joint-born commands (experts not yet rewritten).
     perturbation: Perturbation = Field(default_factory=lambda: Perturbation())
+    # Hand-over starts (M3-style): the build's Navigate stops at a random point of its own success
+    # region instead of the exact interaction pose, so the next skill's demonstration starts where
+    # a learned Navigate hands over. A fraction f of the region: the stop is uniform in the disc of
+    # radius f x 1.3 m around the interaction point (free, in straight sight of it), heading at the
+    # target within f x 9 degrees (`echo_data.skills.navigate.handover_goal`). 0 = the exact pose.
+    handover_noise: float = Field(0.0, ge=0.0, le=1.0)
 
 
 class Recipe(_Strict):

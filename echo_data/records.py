@@ -85,6 +85,10 @@ PRIVILEGED_NOTES: dict[str, str] = {
         "nearest the base); zeros in every other skill"
     ),
 }
+# The active skill's goal as the runtime hands it to a policy that asks for it (the paper's starred
+# rows, given the target's position): float32 (x, y, yaw) in the world, the interaction pose of
+# the skill's target with the doors where they stood when the skill began (`skills.navigate.goal_pose`).
+GOAL_POSE = PRIVILEGED_PREFIX + "goal_pose"
 
 
 @dataclass

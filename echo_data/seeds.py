@@ -23,6 +23,7 @@ SUBSET = 0x5EB5E7  # learn/planner: nested training subsets (keys: seed)
 FRESH_SOUND = 0xF8E5  # episode.fresh_sound_seed: a train event's fresh sound instance (keys: draw seed, event)
 ACTION_NOISE = 0xDA27  # agents/dart: the experts' DART action noise (keys: episode seed)
 EE_PERTURBATION = 0xEE9E  # agents/dart: the experts' end-effector perturbation (keys: episode seed)
+HANDOVER = 0x4A0D  # skills/navigate: the build's Navigate stop point in its success region (keys: episode seed, chain index)
 
 
 def derived_rng(salt: int, *keys: int) -> np.random.Generator:

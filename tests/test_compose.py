@@ -75,3 +75,22 @@ def test_named_skill_runs_its_policy_and_the_rest_the_experts(tmp_path: Path) ->
     assert doc["policy"]["skills"]["Pick"]["class"].endswith("StillSkills")
     assert doc["policy"]["skills"]["*"]["class"].endswith("OracleSkills")
     assert doc["metrics"]["object_relocation"]["navigate_success"]["k"] >= 1
+
+
+def test_dispatch_hands_privileged_info_to_privileged_members_only() -> None:
+    """A composition is privileged when a member is (the runtime then gives it the world); it
+    passes the world, the call and the spec on to that member only."""
+    from echo_data.protocols import PRIVILEGED_INFO, is_privileged
+
+    learned = _Tag("nav", True, ("observation.state",))
+    expert = _Tag("rest", True, ("observation.state",))
+    expert.privileged = True  # type: ignore[attr-defined]
+    got: list[dict] = []
+    learned.reset = got.append  # type: ignore[method-assign]
+    expert.reset = got.append  # type: ignore[method-assign]
+    d = SkillDispatch({"Navigate": learned}, expert)
+    assert is_privileged(d) and not is_privileged(SkillDispatch({"Navigate": learned}, learned))
+    full = {"skill": "Navigate", "target": "phone_0", **{k: object() for k in PRIVILEGED_INFO}}
+    d.reset(dict(full))
+    d.reset({**full, "skill": "Pick"})
+    assert got[0] == {"skill": "Navigate", "target": "phone_0"} and set(PRIVILEGED_INFO) <= set(got[1])

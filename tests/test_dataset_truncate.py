@@ -154,6 +154,8 @@ class _Env:
 
 
 class _Planner:
+    privileged = True  # reads the true chain
+
     def reset(self, info: dict) -> None:
         self.chain = info["true_chain"]
 

@@ -143,3 +143,152 @@ def test_video_has_picture_and_binaural_sound(tmp_path: Path) -> None:
     assert info["audio_channels"] == 2 and info["audio_rate"] == 16000
     assert info["video_frames"] == ep["steps"]
     assert info["duration_s"] == pytest.approx(ep["steps"] / 10, abs=0.15)
+
+
+# ---------------------------------------------------------------- what a learned policy is given, and STOP
+def _privileged_things() -> tuple[type, ...]:
+    from echo_data.envs.env import EchoDataEnv
+    from echo_data.episode import EpisodeSpec, SkillCall
+    from echo_data.world import World
+
+    return (World, EpisodeSpec, SkillCall, EchoDataEnv)
+
+
+def _holds_privileged(value: object, seen: int = 0) -> bool:
+    """Whether `value` is, or holds (in dicts, lists, tuples), the world, the env, the spec or a skill call."""
+    if isinstance(value, _privileged_things()):
+        return True
+    if isinstance(value, dict):
+        return any(_holds_privileged(v) for v in [*value.keys(), *value.values()])
+    if isinstance(value, (list, tuple)):
+        return any(_holds_privileged(v) for v in value)
+    return False
+
+
+class _Spy:
+    """A learned policy stand-in: replays `actions` (joint form), records what it is given;
+    `ends_itself`: it says STOP (None) after the last action, else it is stopped by the runtime."""
+
+    def __init__(self, actions: list, ends_itself: bool = False, observations: tuple[str, ...] | None = None) -> None:
+        from echo_data.records import GOAL_POSE
+
+        self.actions, self.ends_itself = list(actions), ends_itself
+        self.observations = observations or ("observation.state", GOAL_POSE)
+        self.infos: list[dict] = []
+        self.obs: list[dict] = []
+        self.i = 0
+
+    def reset(self, info: dict) -> None:
+        self.infos.append(info)
+        self.i = 0
+
+    def act(self, obs: dict):  # noqa: ANN201
+        self.obs.append(obs)
+        if self.i >= len(self.actions):
+            return None
+        self.i += 1
+        return self.actions[self.i - 1]
+
+
+class _SpyPlanner:
+    """A learned planner stand-in that knows the answer from the test, and records its reset info."""
+
+    def __init__(self, chain: list) -> None:
+        self.chain, self.infos = chain, []
+
+    def reset(self, info: dict) -> None:
+        self.infos.append(info)
+
+    def plan(self, first_obs: dict) -> list:
+        return self.chain
+
+
+@pytest.fixture(scope="module")
+def nav_episode():
+    """(env, spec, the scripted Navigate's joint actions and steps) on quickstart's first test episode, physics only."""
+    import numpy as np
+
+    from echo_data.agents.builtin import OraclePlanner, OracleSkills
+    from echo_data.agents.runtime import run_episode
+    from echo_data.envs.env import EchoDataEnv
+
+    env = EchoDataEnv(QUICK, split="test", images=False, audio=False)
+    spec = env.sample_spec("test", 0)
+    obs, info = env.reset(options={"spec": spec})
+    actions: list = []
+    expert = OracleSkills()
+    run = run_episode(env, obs, info, OraclePlanner(), expert, on_step=lambda e, o, a, *rest: actions.append(np.array(a)), skills=1)
+    expert.close()
+    assert spec.chain[0].skill == "Navigate" and run.outcomes[0].success
+    yield env, spec, actions
+    env.close()
+
+
+def test_a_learned_policy_gets_observations_only(nav_episode) -> None:  # noqa: ANN001
+    """The runtime never hands a learned policy the world, the env, the episode spec or the skill
+    call (in reset info or observations); the starred rows' goal comes as the observation
+    GOAL_POSE; the scripted experts in the same composition still get their privileged info."""
+    import numpy as np
+
+    from echo_data.agents.builtin import OracleSkills
+    from echo_data.agents.compose import SkillDispatch
+    from echo_data.agents.runtime import run_episode, true_chain
+    from echo_data.protocols import PLANNER_INFO, PRIVILEGED_INFO, SKILL_INFO
+    from echo_data.records import GOAL_POSE
+    from echo_data.skills.navigate import goal_pose
+
+    env, spec, actions = nav_episode
+    obs, info = env.reset(options={"spec": spec})
+    goal = goal_pose(env.world, spec.chain[0].target)
+    spy, oracle = _Spy(actions), OracleSkills()
+    seen: list[dict] = []
+    real_reset = oracle.reset
+    oracle.reset = lambda i: (seen.append(i), real_reset(i))  # type: ignore[method-assign]
+    planner = _SpyPlanner(true_chain(spec))
+    run = run_episode(env, obs, info, planner, SkillDispatch({"Navigate": spy}, oracle), skills=2, max_steps=len(actions) + 3)
+    oracle.close()
+    assert [set(i) for i in planner.infos] == [set(PLANNER_INFO)]  # no chain, no spec: the answer comes from the observation
+    assert run.outcomes and run.outcomes[0].success  # the spy replayed the expert's drive
+    assert spy.infos and spy.obs
+    for i in spy.infos:
+        assert set(i) == set(SKILL_INFO) and not _holds_privileged(i), i
+    for o in spy.obs:
+        assert not _holds_privileged(o) and all(isinstance(v, np.ndarray) for v in o.values())
+        np.testing.assert_allclose(o[GOAL_POSE], goal, atol=1e-5)
+    assert seen and set(PRIVILEGED_INFO) <= set(seen[0]) and seen[0]["skill"] == "Pick"  # the expert is privileged
+
+
+def test_a_learned_policy_that_ends_itself_is_judged_where_it_stops(nav_episode) -> None:  # noqa: ANN001
+    """SoundSpaces' STOP: a learned policy with `ends_itself` runs until it returns None; the
+    environment does not count the skill while it passes through the success region, and at the
+    stop its test decides. Without `ends_itself` the runtime stops it at the first success."""
+    from echo_data.agents.builtin import OraclePlanner
+    from echo_data.agents.runtime import run_episode
+    from echo_data.envs.env import EnvInputError
+
+    env, spec, actions = nav_episode
+    flags: list[tuple[bool, bool]] = []
+
+    def watch(e, o, a, k, call, done) -> None:  # noqa: ANN001
+        flags.append((bool(e.success_flags[0]), bool(done[0])))
+
+    obs, info = env.reset(options={"spec": spec})
+    run = run_episode(env, obs, info, OraclePlanner(), _Spy(actions, ends_itself=True), on_step=watch, skills=1)
+    assert run.outcomes[0].success and run.outcomes[0].steps == len(actions) and env.progress == 1
+    assert any(ok for ok, _ in flags) and not any(done for _, done in flags)  # in the region early, counted only at the stop
+    assert flags[0] == (False, False)
+
+    obs, info = env.reset(options={"spec": spec})
+    run = run_episode(env, obs, info, OraclePlanner(), _Spy(actions[:3], ends_itself=True), skills=1)
+    assert not run.outcomes[0].success and "stopped at step 3" in run.outcomes[0].reason and run.failure
+    assert env.ended == "terminated" and env.progress == 0
+    with pytest.raises(EnvInputError, match="call reset"):
+        env.stop_skill()
+    env.reset(options={"spec": spec})
+    with pytest.raises(EnvInputError, match="agent_stops"):
+        env.stop_skill()
+
+    obs, info = env.reset(options={"spec": spec})
+    run = run_episode(env, obs, info, OraclePlanner(), _Spy(actions), skills=1)  # no STOP: cut at the first success
+    first = next(i for i, (ok, _) in enumerate(flags) if ok)  # flags[i]: after i steps
+    assert run.outcomes[0].success and run.outcomes[0].steps == first < len(actions)

@@ -324,8 +324,9 @@ def test_wilson_interval_matches_closed_forms() -> None:
 
 def test_action_chunks_and_target_input(ds: Path, tmp_path: Path) -> None:
     """--chunk 4 --execute 2: the policy predicts once per two steps; a target policy reads its
-    goal from info["target_pose"] and refuses to act without one."""
+    goal from the observation GOAL_POSE (which it asks for) and refuses to act without one."""
     from echo_data.learn.features import FeatureError
+    from echo_data.records import GOAL_POSE
 
     run = tmp_path / "chunk"
     _train(ds, run, "--inputs", "state,target", "--chunk", "4", "--execute", "2", "--max-steps", "2")
@@ -334,9 +335,12 @@ def test_action_chunks_and_target_input(ds: Path, tmp_path: Path) -> None:
     forward = policy.model.forward
     policy.model.forward = lambda x: calls.append(1) or forward(x)  # type: ignore[method-assign]
     obs, _ = _obs(ds)
-    with pytest.raises(FeatureError, match="target_pose"):
-        policy.reset({"skill": "Navigate"})
-    policy.reset({"skill": "Navigate", "target_pose": [1.0, 2.0, 0.5]})
+    assert GOAL_POSE in policy.observations
+    policy.reset({"skill": "Navigate"})
+    with pytest.raises(FeatureError, match="goal_pose"):
+        policy.act(obs)
+    policy.reset({"skill": "Navigate"})
+    obs = {**obs, GOAL_POSE: np.array([1.0, 2.0, 0.5], np.float32)}
     actions = [policy.act(obs) for _ in range(5)]
     assert len(calls) == 3 and all(a.shape == (ACTION_DIM,) and np.isfinite(a).all() for a in actions)
     assert not np.array_equal(actions[0], actions[1])  # two different steps of one chunk
@@ -368,8 +372,9 @@ def test_evaluate_runs_a_trained_planner_and_a_per_skill_bc_run(ds: Path, tmp_pa
 
 def test_dagger_labeller_answers_as_the_expert_from_its_start(ds: Path) -> None:
     from echo_data.envs.env import EchoDataEnv
-    from echo_data.learn.dagger import NavigateLabeller, recipe_of
+    from echo_data.learn.dagger import recipe_of
     from echo_data.skills import EXPERTS
+    from echo_data.skills.navigate import Relabeller
 
     recipe, n_train = recipe_of(ds)
     env = EchoDataEnv(recipe, split="train", images=False, audio=False)
@@ -377,9 +382,9 @@ def test_dagger_labeller_answers_as_the_expert_from_its_start(ds: Path) -> None:
         spec = env.sample_spec("train", 0)
         env.reset(options={"spec": spec})
         call = spec.chain[0]
-        label = NavigateLabeller(env.world, call.target, env.nav_grid())(np.zeros(3, np.float32))
+        label = Relabeller(env.world, call.target, env.nav_grid())(np.zeros(3, np.float32))
         expert = EXPERTS["Navigate"](env.world, call, spec)
-        first = np.asarray(next(expert), np.float32)
+        first = env.world.robot.ee.to_joint(np.asarray(next(expert), np.float32))  # the expert speaks action.ee
         expert.close()
     finally:
         env.close()

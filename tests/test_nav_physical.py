@@ -8,8 +8,8 @@ import math
 from support.nav_plans import two_room_plan
 
 from echo_data.episode import EpisodeSpec, SkillCall
-from echo_data.recipe import Recipe, RobotConfig
-from echo_data.records import ACTION_DIM
+from echo_data.recipe import ExpertsConfig, Recipe, RobotConfig
+from echo_data.records import EE_ACTION_DIM
 from echo_data.scene.floorplan import FloorPlan, Furniture, Rect
 from echo_data.scene.nav import NavGrid, interaction_pose, target_point
 from echo_data.skills import navigate as nav_skill
@@ -17,15 +17,16 @@ from echo_data.skills import navigate as nav_skill
 BASE_RADIUS = 0.28  # echo_data.robot.urdf.BASE_RADIUS
 
 
-def _world(plan: FloorPlan, start: tuple[float, float, float], max_nav_steps: int = 600):
+def _world(plan: FloorPlan, start: tuple[float, float, float], max_nav_steps: int = 600, handover: float = 0.0,
+           chain: tuple[SkillCall, ...] = (), seed: int = 0):
     """A physics-only World for `plan` with the robot at `start`."""
     from echo_data.world import World
 
     robot = RobotConfig(max_steps={"Navigate": max_nav_steps, "Pick": 250, "Place": 250, "OpenDoor": 300, "CloseSink": 200})
-    recipe = Recipe(name="navtest", robot=robot)
+    recipe = Recipe(name="navtest", robot=robot, experts=ExpertsConfig(handover_noise=handover))
     spec = EpisodeSpec(
-        episode_id="test-000000", split="test", index=0, attempt=0, seed=0, setting="object_relocation",
-        plan=plan, start=start, events=(), chain=(),
+        episode_id="test-000000", split="test", index=0, attempt=0, seed=seed, setting="object_relocation",
+        plan=plan, start=start, events=(), chain=chain,
     )  # fmt: skip
     return World(spec, recipe, render=False)
 
@@ -42,8 +43,8 @@ def _run(world, gen):
     try:
         while True:
             action = next(gen)
-            assert action.shape == (ACTION_DIM,)
-            world.step(action)
+            assert action.shape == (EE_ACTION_DIM,)  # Navigate speaks action.ee
+            world.step(world.robot.ee.to_joint(action))
             poses.append(world.robot.base_pose())
             contact_steps += bool(nav_skill.robot_collisions(world))
     except StopIteration as stop:
@@ -101,7 +102,7 @@ def test_drive_replans_after_being_pushed_off_the_path() -> None:
     pushed = False
     try:
         while True:
-            world.step(next(gen))
+            world.step(world.robot.ee.to_joint(next(gen)))
             x, y, yaw = world.robot.base_pose()
             if not pushed and x > 2.0:
                 world.robot.set_base_pose(x, y + 0.8 if y < 2.0 else y - 0.8, yaw)
@@ -111,3 +112,77 @@ def test_drive_replans_after_being_pushed_off_the_path() -> None:
     assert pushed and result.success and result.replans >= 1
     x, y, _ = world.robot.base_pose()
     assert math.hypot(x - goal[0], y - goal[1]) <= 0.15
+
+
+def test_drive_holds_the_arm_exactly_and_corrects_a_perturbed_arm() -> None:
+    """Navigate's actions are action.ee: base velocity, torso and gripper as commanded, a zero TCP
+    change (the joint targets stay bit for bit); a perturbed arm gets a label back towards them."""
+    import numpy as np
+
+    world = _world(two_room_plan(door_angle=math.radians(90)), (1.0, 1.0, 0.0))
+    held = world.robot.applied_action()
+    gen = nav_skill.drive_to(world, (3.0, 1.0, 0.0), 100)
+    first = next(gen)
+    assert first.shape == (EE_ACTION_DIM,) and not np.any(first[4:10])
+    assert first[3] == held[3] and first[10] == (1.0 if held[11] < world.robot.ee.gripper_open / 2 else 0.0)
+    joint = world.robot.ee.to_joint(first)
+    np.testing.assert_array_equal(joint[3:], held[3:])
+    pushed = joint.copy()
+    pushed[4] += 0.05  # the shoulder target knocked 0.05 rad off
+    world.step(pushed)
+    label = world.robot.ee.to_joint(next(gen))
+    assert not np.array_equal(label[4:11], pushed[4:11])  # a nonzero TCP change ...
+    ee = world.robot.ee
+
+    def off(arm: np.ndarray) -> float:  # TCP distance (m) from where the drive holds it
+        return float(np.linalg.norm(ee.tcp_in_torso(arm)[:3, 3] - ee.tcp_in_torso(held[4:11])[:3, 3]))
+
+    assert off(label[4:11]) < 0.5 * off(pushed[4:11])  # ... back towards the held TCP
+    gen.close()
+
+
+def test_handover_goals_lie_in_navigates_success_region() -> None:
+    """experts.handover_noise: stop poses drawn uniformly from a disc of f x HANDOVER_RADIUS around
+    the interaction point, on free cells in straight sight of it, facing the target within
+    f x HANDOVER_YAW; the margins keep the follower's stop inside navigate_success's region."""
+    import numpy as np
+
+    from echo_data.skills.success import NAV_SUCCESS_DIST, NAV_SUCCESS_YAW
+
+    assert nav_skill.HANDOVER_RADIUS + 2 * nav_skill.GOAL_TOL < NAV_SUCCESS_DIST
+    assert nav_skill.HANDOVER_YAW + nav_skill.YAW_TOL < NAV_SUCCESS_YAW
+    doors = {0: math.radians(90)}
+    plan = two_room_plan(door_angle=math.radians(90))
+    grid = NavGrid.from_plan(plan, door_angles=doors)
+    exact = interaction_pose(plan, "faucet:0", door_angles=doors, grid=grid)
+    tx, ty = target_point(plan, "faucet:0", doors)
+    assert nav_skill.handover_goal(plan, "faucet:0", grid, exact, 0.0, np.random.default_rng(0), doors) == exact
+    for noise in (0.5, 1.0):
+        dists = []
+        for i in range(100):
+            x, y, yaw = nav_skill.handover_goal(plan, "faucet:0", grid, exact, noise, np.random.default_rng(i), doors)
+            d = math.hypot(x - exact[0], y - exact[1])
+            assert d <= noise * nav_skill.HANDOVER_RADIUS + 1e-9 and grid.is_free(x, y)
+            assert grid.segment_clearance((x, y), exact[:2]) >= grid.robot_radius
+            assert abs(math.remainder(math.atan2(ty - y, tx - x) - yaw, 2 * math.pi)) <= noise * nav_skill.HANDOVER_YAW + 1e-9
+            dists.append(d)
+        # uniform by area over the free part of the disc: the median radius is near R / sqrt(2)
+        assert 0.4 * noise * nav_skill.HANDOVER_RADIUS < float(np.median(dists)) < 0.8 * noise * nav_skill.HANDOVER_RADIUS
+
+
+def test_navigate_with_handover_noise_stops_off_the_pose_inside_the_region() -> None:
+    """The build's Navigate under experts.handover_noise ends where its success test holds but
+    away from the interaction pose, at a point drawn from the episode's own seeded stream."""
+    call = SkillCall("Navigate", "faucet:0", 0)
+    plan = two_room_plan(door_angle=math.radians(90))
+    gx, gy, _ = interaction_pose(plan, "faucet:0", door_angles={0: math.radians(90)})
+    ends = []
+    for seed in (1, 1, 2):
+        world = _world(plan, (1.0, 1.0, 0.0), handover=1.0, chain=(call,), seed=seed)
+        outcome, _, contact_steps = _run(world, nav_skill.navigate(world, call, world.spec))
+        assert outcome.success and contact_steps == 0 and nav_skill.navigate_success(world, "faucet:0")
+        x, y, yaw = world.robot.base_pose()
+        ends.append((round(x, 3), round(y, 3)))
+        world.close()
+    assert ends[0] == ends[1] != ends[2]  # the episode's seed decides the point
+    assert max(math.hypot(x - gx, y - gy) for x, y in ends) > 0.2

@@ -12,7 +12,7 @@ import sapien
 
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
 from echo_data.recipe import Recipe
-from echo_data.records import ACTION_DIM, SkillOutcome
+from echo_data.records import ACTION_DIM, EE_ACTION_DIM, SkillOutcome
 from echo_data.scene.floorplan import FloorPlan, Furniture, PlacedObject, Rect, Room, WallSegment
 from echo_data.scene.objects import object_size
 from echo_data.skills.pick import pick
@@ -51,8 +51,8 @@ def run_expert(world: World, gen: Generator[np.ndarray, None, SkillOutcome], wat
     try:
         while True:
             action = next(gen)
-            assert action.shape == (ACTION_DIM,) and action.dtype == np.float32
-            world.step(action)
+            assert action.shape in ((ACTION_DIM,), (EE_ACTION_DIM,)) and action.dtype == np.float32
+            world.step(world.robot.ee.to_joint(action) if action.shape == (EE_ACTION_DIM,) else action)  # as OracleSkills does
             if watch is not None:
                 watch(world)
     except StopIteration as stop:

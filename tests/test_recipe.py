@@ -68,6 +68,9 @@ def test_hash_changes_with_content() -> None:
     assert recipe_from_mapping({"name": "x", "experts": {"action_noise": 1}}).content_hash() != a.content_hash()
     assert recipe_from_mapping({"name": "x", "experts": {"perturbation": {"position_cm": 1}}}).content_hash() != a.content_hash()
     assert recipe_from_mapping({"name": "x", "robot": {"action_space": "joint"}}).content_hash() == a.content_hash()
+    # experts.handover_noise: 0 keeps it too (the exact interaction pose, as before the key existed)
+    assert recipe_from_mapping({"name": "x", "experts": {"handover_noise": 0}}).content_hash() == a.content_hash()
+    assert recipe_from_mapping({"name": "x", "experts": {"handover_noise": 0.5}}).content_hash() != a.content_hash()
 
 
 @pytest.mark.parametrize(
@@ -92,6 +95,7 @@ def test_hash_changes_with_content() -> None:
         ("- a\n- b\n", "must be a mapping"),
         ("name: x\nexperts:\n  action_noise: -0.5\n", "experts.action_noise"),
         ("name: x\nexperts:\n  action_noise: lots\n", "experts.action_noise"),
+        ("name: x\nexperts:\n  handover_noise: 1.5\n", "experts.handover_noise"),
         ("name: x\nexperts:\n  action_nosie: 1\n", "experts.action_nosie: unknown key"),
         ("name: x\nexperts:\n  perturbation: {position_cm: -1}\n", "experts.perturbation.position_cm"),
         ("name: x\nexperts:\n  perturbation: {rotation: 2}\n", "experts.perturbation.rotation: unknown key"),

@@ -5,6 +5,7 @@ checked the moment its `Skill(...)` line exists (given an episode whose chain us
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -30,6 +31,46 @@ def test_registry_matches_the_recipe_and_the_experts() -> None:
     assert RESOLVING_SKILLS == ("Pick", "OpenDoor", "CloseSink")
     with pytest.raises(KeyError, match="known: Navigate"):
         skill("Fly")
+
+
+def _holds(world: Any, call: Any, at: Any) -> int:
+    return 1  # a success test named by text (lazy_test makes it a bool)
+
+
+def test_the_registry_is_the_one_skill_vocabulary() -> None:
+    """Skill names and default budgets come from the registry (the recipe holds no list of its
+    own); chains are built from the declared roles; effects and the carried object from the
+    declared fields; and the registry itself reads only the bottom layer at import."""
+    import ast
+    from types import SimpleNamespace
+
+    from echo_data.skills import registry as R
+
+    assert dict(RECIPE.robot.max_steps) == R.DEFAULT_MAX_STEPS and tuple(R.DEFAULT_MAX_STEPS) == R.SKILL_NAMES
+    assert [c.skill for c in R.event_chain("phone_0", 0, "furniture:3")] == ["Navigate", "Pick", "Place"]
+    assert [str(c.target) for c in R.event_chain("phone_0", 0, "furniture:3")] == ["phone_0", "phone_0", "furniture:3"]
+    assert [c.skill for c in R.event_chain("door:1", 2)] == ["Navigate", "OpenDoor"]
+    assert [c.skill for c in R.event_chain("faucet:0", 1)] == ["Navigate", "CloseSink"]
+    assert all(c.event == 2 for c in R.event_chain("door:1", 2))
+    with pytest.raises(ValueError, match="needs a goal"):
+        R.event_chain("phone_0", 0)
+    with pytest.raises(ValueError, match="resolve a furniture"):
+        R.event_chain("furniture:1", 0)
+    roles = {n: (s.role, s.effect, s.drives) for n, s in SKILLS.items()}
+    assert roles["Navigate"] == ("approach", "", True) and roles["Place"] == ("deliver", "places_object", True)
+    assert roles["OpenDoor"] == ("resolve", "opens_door", False) and roles["Pick"][2] is False
+    chain = tuple(R.event_chain("phone_0", 0, "furniture:3"))
+    spec = SimpleNamespace(chain=chain)
+    assert R.carried_object(spec, chain[2]) == "phone_0" and R.carried_object(spec, chain[1]) is None  # type: ignore[arg-type]
+    world = SimpleNamespace(receptacles={"phone_0": 1})
+    R.apply_effect(world, chain[1], spec)  # type: ignore[arg-type]  # Pick: no bookkeeping
+    assert world.receptacles == {"phone_0": 1}
+    R.apply_effect(world, chain[2], spec)  # type: ignore[arg-type]
+    assert world.receptacles == {"phone_0": 3}
+    assert R.lazy_test("test_skill_registry:_holds")(None, None, None) is True  # type: ignore[arg-type]
+    tree = ast.parse(Path(R.__file__).read_text())
+    top = {n.module for n in tree.body if isinstance(n, ast.ImportFrom) and n.module and n.module.startswith("echo_data")}
+    assert top == {"echo_data.target"}, top
 
 
 @pytest.mark.parametrize("text", ["phone_0", "door:1", "faucet:0", "furniture:12"])

@@ -1,7 +1,8 @@
 """Built-in agents: the scripted experts as the upper bound, a random and a still baseline, the true plan.
 
 `OracleSkills` runs the scripted expert of each skill (`echo_data.skills.EXPERTS`) on the live
-world, so it is privileged: it reads the world handle the runtime puts in its reset info. It
+world, so it is privileged (`privileged = True`): it reads the world handle the runtime puts in
+its reset info for privileged policies only (echo_data.protocols). It
 ends each skill itself (the expert returns), which is also how the build records its
 demonstrations. `RandomSkills` samples the action space from a generator seeded by the episode
 and skill, so evaluations repeat; `StillSkills` holds every joint where it is.
@@ -22,6 +23,7 @@ class OracleSkills:
 
     name = "oracle"
     ends_itself = True  # the expert says when the skill is over (act returns None)
+    privileged = True  # reset info carries the world, the call and the spec (echo_data.protocols)
     observations = (STATE,)  # experts read the world, not the observation
 
     def __init__(self, experts: Any = None) -> None:
@@ -125,6 +127,7 @@ class OraclePlanner:
     """Returns the episode's true skill chain (the paper's starred rows score low-level skills alone)."""
 
     name = "oracle"
+    privileged = True  # reset info carries the true chain (echo_data.protocols)
     observations: tuple[str, ...] = ()  # reads the true chain, no observation
 
     def __init__(self) -> None:

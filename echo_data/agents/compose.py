@@ -14,6 +14,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from echo_data.protocols import PRIVILEGED_INFO, is_privileged
+
 DEFAULT_FALLBACK = "oracle"
 
 
@@ -70,6 +72,9 @@ class SkillDispatch:
         self.names = names or {}
         self.active: Any = fallback
         members = [*by_skill.values(), fallback]
+        # the runtime hands the world to the composition if any member needs it; `reset` passes
+        # it on to privileged members only (echo_data.protocols)
+        self.privileged = any(is_privileged(m) for m in members)
         keys: set[str] = set()
         for m in members:
             obs = getattr(m, "observations", None)
@@ -94,7 +99,7 @@ class SkillDispatch:
 
     def reset(self, info: dict[str, Any]) -> None:
         self.active = self.policy_for(info["skill"])
-        self.active.reset(info)
+        self.active.reset(info if is_privileged(self.active) else {k: v for k, v in info.items() if k not in PRIVILEGED_INFO})
 
     def act(self, obs: dict[str, Any]) -> Any:
         return self.active.act(obs)

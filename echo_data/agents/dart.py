@@ -170,6 +170,7 @@ class Demonstrator:
 
     name = "oracle"
     ends_itself = True
+    privileged = True
     observations = OracleSkills.observations
 
     def __init__(self, experts_cfg: ExpertsConfig, control_hz: int, seed: int, experts: Any = None) -> None:

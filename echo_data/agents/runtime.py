@@ -8,12 +8,21 @@ under evaluation:
 2. with a right plan, each skill of the chain runs until its success test holds or its step
    budget from the recipe runs out; a failed skill ends the episode. Success is the
    environment's one evaluation per step (`info["skills"]`; the dataset's `skill_success`
-   column records its in-order latched form, `done`). Policies that end themselves (the
-   scripted experts) run until they return and are then tested: after a skill's test first
-   holds, an expert still lets go, backs off and tucks the arm, which the next skill starts
-   from, so those steps belong to the skill (the step rows say so: that skill's
-   `skill_success` flag is already true). The last skill ends where its test first holds: the
-   environment then terminates the episode and refuses further steps.
+   column records its in-order latched form, `done`). Policies that end themselves run until
+   they return None (STOP) and are then tested on the state they stopped in:
+   - the scripted experts (privileged): after a skill's test first holds, an expert still lets
+     go, backs off and tucks the arm, which the next skill starts from, so those steps belong
+     to the skill (the step rows say so: that skill's `skill_success` flag is already true).
+     The last skill ends where its test first holds: the environment then terminates the
+     episode and refuses further steps;
+   - a learned policy (SoundSpaces' STOP): the environment waits for its stop
+     (`env.agent_stops`), then `env.stop_skill()` evaluates the test once: the skill counts
+     only if it holds there, else the episode ends failed.
+
+What a policy is given is observations only (`echo_data.protocols`): its reset info is the call
+as a listener says it (`skill_info`), `act` gets the environment's observation plus, when the
+policy lists it in `observations`, `GOAL_POSE` (the starred rows' target position). The world,
+the skill call and the episode spec go to privileged policies (the scripted experts) only.
 
 A non-finite action ends the episode as failed with that reason; an action that is not 12 real
 numbers (wrong shape, complex, not numbers) is the policy's bug and raises `AgentActionError`.
@@ -35,8 +44,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from echo_data.episode import EpisodeSpec, SkillCall
-from echo_data.protocols import Planner, Policy
-from echo_data.records import ACTION_DIM, EE_ACTION_DIM, SkillOutcome
+from echo_data.protocols import Planner, Policy, is_privileged
+from echo_data.records import ACTION_DIM, EE_ACTION_DIM, GOAL_POSE, SkillOutcome
 
 if TYPE_CHECKING:
     from echo_data.envs.env import EchoDataEnv
@@ -133,22 +142,33 @@ def normalise_plan(plan: Any) -> list[dict[str, str]]:
 
 
 def _expert_path_length(env: EchoDataEnv, call: SkillCall) -> float:
-    """Length of the navigation expert's planned path from where the base stands to the interaction pose."""
-    from echo_data.scene.nav import interaction_pose
-    from echo_data.skills.navigate import START_SNAP
+    """Length of the navigation expert's planned path from where the base stands to the skill's goal."""
+    from echo_data.skills.navigate import goal_pose, path_length
 
     grid = env.nav_grid()
     world = env.world
-    x, y, _ = world.robot.base_pose()
     try:
-        gx, gy, _ = interaction_pose(world.plan, call.target, door_angles=world.door_angles() or None, grid=grid)
+        goal = goal_pose(world, call.target, grid)
     except ValueError:
         return math.nan
-    path = grid.plan_path((x, y), (gx, gy), start_snap=START_SNAP)
-    if not path:
-        return math.nan
-    pts = [(x, y), *path]
-    return float(sum(math.dist(a, b) for a, b in zip(pts, pts[1:])))
+    return path_length(grid, world.robot.base_pose(), goal)
+
+
+def _goal_observation(env: EchoDataEnv, call: SkillCall) -> np.ndarray:
+    """`GOAL_POSE` for skill `call`: its target's interaction pose now (NaN when it has none)."""
+    from echo_data.skills.navigate import goal_pose
+
+    try:
+        return np.asarray(goal_pose(env.world, call.target, env.nav_grid()), dtype=np.float32)
+    except ValueError:
+        return np.full(3, np.nan, dtype=np.float32)
+
+
+def skill_info(call: SkillCall, k: int, target_kind: str, budget: int, seed: int, action_mode: str = "joint") -> dict[str, Any]:
+    """What every policy's `reset` gets (`echo_data.protocols.SKILL_INFO`): the call as a listener
+    says it, and the form `act` must return (12 joint or 11 ee floats)."""
+    return {"skill": call.skill, "target": call.target, "target_kind": target_kind, "skill_index": k,
+            "event": call.event, "budget": budget, "episode_seed": seed, "action_mode": action_mode}
 
 
 def succeeded(info: dict[str, Any], k: int) -> bool:
@@ -172,14 +192,15 @@ def run_episode(
     `skills`: run only the chain's first `skills` skills.
     """
     from echo_data.envs.env import EnvInputError, as_action
-    from echo_data.skills.registry import skill_budget
+    from echo_data.skills.registry import SKILLS, skill_budget
 
     env = getattr(env, "unwrapped", env)  # gymnasium wrappers around an EchoDataEnv
     spec: EpisodeSpec = env.episode
     truth = true_chain(spec)
     reset_planner = getattr(planner, "reset", None)  # optional (echo_data.protocols)
-    if callable(reset_planner):
-        reset_planner({**info, "true_chain": truth, "spec_object": spec})
+    if callable(reset_planner):  # the episode's truth (the env's info holds the chain) for a privileged planner only
+        reset_planner({**info, "true_chain": truth, "spec_object": spec} if is_privileged(planner)
+                      else {"episode_id": spec.episode_id, "episode_seed": spec.seed})
     try:
         planned: list[dict[str, str]] | None = normalise_plan(planner.plan(first_obs))
         malformed = ""
@@ -203,15 +224,18 @@ def run_episode(
             run.truncated_at = env.steps
             break
         budget = skill_budget(env.recipe, call.skill)
-        policy.reset({
-            "skill": call.skill, "target": call.target, "target_kind": truth[k]["target"], "skill_index": k,
-            "event": call.event, "budget": budget, "episode_seed": spec.seed,
-            "action_mode": mode,  # the form act() must return (12 joint or 11 ee floats)
-            # privileged: for scripted experts only
-            "call": call, "spec_object": spec, "world": env.world,
-        })
-        ends_itself = bool(getattr(policy, "ends_itself", False))  # after reset: a per-skill policy switches
-        expert_len = _expert_path_length(env, call) if call.skill == "Navigate" else math.nan
+        reset_info = skill_info(call, k, truth[k]["target"], budget, spec.seed, mode)
+        if is_privileged(policy):  # the scripted experts plan on the true state (echo_data.protocols)
+            reset_info.update(call=call, spec_object=spec, world=env.world)
+        policy.reset(reset_info)
+        # after reset: a per-skill policy switches (a composition names its acting member `active`)
+        ends_itself = bool(getattr(policy, "ends_itself", False))
+        stops = ends_itself and not is_privileged(getattr(policy, "active", policy))  # a learned policy's STOP: the env waits for it
+        if stops or getattr(env, "agent_stops", False):
+            env.agent_stops = stops
+        goal = _goal_observation(env, call) if GOAL_POSE in (getattr(policy, "observations", None) or ()) else None
+        approach = SKILLS[call.skill].role == "approach"  # Navigate: scored by SPL too
+        expert_len = _expert_path_length(env, call) if approach else math.nan
         path = 0.0
         n = 0
         reason = ""
@@ -219,8 +243,14 @@ def run_episode(
         while True:
             if not ends_itself and succeeded(info, k):
                 break
+            if goal is not None:
+                obs = {**obs, GOAL_POSE: goal}
             action = policy.act(obs)
-            if action is None:  # the policy ended the skill itself
+            if action is None:  # the policy ended the skill itself (STOP)
+                if stops:  # its success test on the state it stopped in decides (the env's STOP)
+                    obs, _, terminated, _, info = env.stop_skill()
+                    reason = info.get("failure", "")
+                    ended = terminated
                 break
             if cut():  # after act(): a skill that ends exactly at the cut is finished, not cut
                 run.truncated_at = env.steps
@@ -255,12 +285,12 @@ def run_episode(
             close()
         if run.truncated_at is not None:  # the skill running at the cut has no outcome
             break
-        ok = not reason and succeeded(info, k)
+        ok = not reason and (bool(info["skills"][k]["done"]) if stops else succeeded(info, k))
         if not ok and not reason:
             expert = getattr(policy, "outcome", None)
             reason = getattr(expert, "reason", "") or "success test false"
         run.outcomes.append(SkillOutcome(call.skill, call.target, ok, "" if ok else reason, n))
-        if call.skill == "Navigate":
+        if approach:
             run.navigate.append(NavigateRecord(k, ok, path, expert_len))
         if not ok:
             run.failure = f"{call.skill}({call.target}): {reason}"

@@ -15,7 +15,10 @@ control period (the episode WAV is these blocks one after another).
 
 Reward: the number of true-chain skills newly completed in order at this step (their success
 tests, latched); `terminated` when the whole chain is done or a non-finite action arrived (the
-reason in `info["failure"]`); `truncated` past the sum of the chain's step budgets. After either,
+reason in `info["failure"]`); `truncated` past the sum of the chain's step budgets. An agent that
+ends its skills itself (SoundSpaces' STOP) sets `agent_stops`: the active skill then counts only
+when the agent calls `stop_skill()` and its test holds there (else the episode ends failed);
+`run_episode` does this for learned policies that end themselves. After either,
 `step` refuses (`EnvInputError`) until `reset`, as gymnasium's API asks. Reset options and
 actions are checked first: a wrong key, type or value raises `EnvInputError` naming it.
 
@@ -38,8 +41,7 @@ from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_DIM, ACTION_SPACES, EE_ACTION_DIM, STATE_DIM
-from echo_data.skills.registry import SKILLS, Situation, carried_object, skill_budget
-from echo_data.target import Target
+from echo_data.skills.registry import SKILLS, Situation, apply_effect, skill_budget
 
 if TYPE_CHECKING:
     from echo_data.envs.audio import Heard
@@ -267,6 +269,7 @@ class EchoDataEnv(gym.Env):
         self.steps = 0
         self.failure = ""
         self.ended = ""  # "terminated" or "truncated" once the episode is over: step() then refuses
+        self.agent_stops = False  # True: the active skill ends only at `stop_skill()` (SoundSpaces' STOP)
         self._grids: dict[tuple, Any] = {}
         self._resolver = {call.event: k for k, call in enumerate(spec.chain) if SKILLS[call.skill].resolves_event}
         self.max_episode_steps = sum(skill_budget(self.recipe, c.skill) for c in spec.chain)
@@ -302,10 +305,10 @@ class EchoDataEnv(gym.Env):
         newly = self._update_events()
         heard = None
         if self.track is not None:  # heard on the listening thread while the cameras render (`_observe` waits for it)
-            doors = [self.world.door_angles() for e in newly if self.episode.chain[self._resolver[e]].skill == "OpenDoor"]
+            doors = [self.world.door_angles() for e in newly if self._opens_door(e)]
             heard = self.track.hear_soon(pose, doors, newly)
         for e in newly:
-            if self.episode.chain[self._resolver[e]].skill == "OpenDoor":
+            if self._opens_door(e):
                 self.door_changes.append((self.steps, self.world.door_angles()))
         before = self.progress
         self._advance()
@@ -325,15 +328,39 @@ class EchoDataEnv(gym.Env):
                 newly.append(e)
         return sorted(newly)
 
+    def _opens_door(self, event: int) -> bool:
+        return SKILLS[self.episode.chain[self._resolver[event]].skill].effect == "opens_door"
+
     def _advance(self) -> None:
-        chain = self.episode.chain
-        while self.progress < len(chain) and self.success_flags[self.progress]:
-            call = chain[self.progress]
-            if call.skill == "Place":  # the object rests on its goal now (a later Pick lifts it from there)
-                name = carried_object(self.episode, call)
-                if name is not None:
-                    self.world.receptacles[name] = Target.parse(call.target).index
-            self.progress += 1
+        """Count the chain's skills whose tests hold, in order (not while the agent ends the active one itself)."""
+        while not self.agent_stops and self.progress < len(self.episode.chain) and self.success_flags[self.progress]:
+            self._complete()
+
+    def _complete(self) -> None:
+        apply_effect(self.world, self.episode.chain[self.progress], self.episode)  # e.g. a placed object rests on its goal
+        self.progress += 1
+
+    def stop_skill(self) -> tuple[dict, float, bool, bool, dict]:
+        """SoundSpaces' STOP for the active skill, for an agent that ends its skills itself
+        (`agent_stops`): no physics step; the skill's success test on the current state (this
+        step's evaluation) decides: it holds -> the skill counts (reward 1, the next one becomes
+        active; `terminated` after the last), else the episode ends failed (`info["failure"]`)."""
+        if self._world is None:
+            raise EnvInputError("stop_skill() before reset()")
+        if self.ended:
+            raise EnvInputError(f"stop_skill(): the episode {self.ended} at step {self.steps}; call reset() first")
+        if not self.agent_stops:
+            raise EnvInputError("stop_skill(): set agent_stops = True first (else skills count the step their tests hold)")
+        call = self.episode.chain[self.progress]
+        if self.success_flags[self.progress]:
+            self._complete()
+            reward = 1.0
+        else:
+            self.failure = f"stopped at step {self.steps}: {call.skill}({call.target}) success test false"
+            reward = 0.0
+        terminated = bool(self.failure) or self.progress == len(self.episode.chain)
+        self.ended = "terminated" if terminated else ""
+        return self._obs, reward, terminated, False, self._info()
 
     # ------------------------------------------------------------------ observations
     def ear_pose(self) -> tuple[float, float, float, float]:

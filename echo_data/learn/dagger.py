@@ -3,11 +3,8 @@ from each state the learner reached, add those labelled rows, retrain (Ross et a
 "A Reduction of Imitation Learning and Structured Prediction to No-Regret Online Learning").
 
 Why Navigate only: its expert is a planner plus a path follower, so it can be asked from any
-base pose — plan a path from where the learner stands to the interaction pose (the same grid,
-goal and start snap as the expert), then take the follower's command with its speed ramp
-started from the base's current commanded velocity, as the expert itself does when it replans.
-The path is kept while the base stays within the expert's own stray distance of it and
-replanned otherwise (A* per step would cost more than the rollout). The manipulation experts
+base pose (`echo_data.skills.navigate.Relabeller`: the expert's own planning and re-planning,
+its speed ramp started from the base's current commanded velocity). The manipulation experts
 (Pick, Place, OpenDoor, CloseSink) are open-loop motion plans with grasp phases: from a state
 where the learner holds the handle half-turned or the object half-lifted there is no expert
 answer short of restarting the skill, so DAgger refuses any other skill (one-line error).
@@ -34,36 +31,6 @@ DAGGER_LOG = "dagger.csv"
 
 class DaggerError(runs.RunError):
     """DAgger cannot run as asked (one line)."""
-
-
-class NavigateLabeller:
-    """The Navigate expert's action from the current state of a world (see module doc)."""
-
-    def __init__(self, world: Any, target: str, grid: Any) -> None:
-        from echo_data.scene.nav import interaction_pose
-        from echo_data.skills.navigate import door_angles
-
-        self.world, self.grid = world, grid
-        self.goal = interaction_pose(world.plan, target, door_angles=door_angles(world) or None, grid=grid)
-        self.follower: Any = None
-        self.hold = world.robot.rest_action().astype(np.float32)  # the expert drives with the arm at rest
-
-    def __call__(self, last_command: np.ndarray) -> np.ndarray | None:
-        """Expert action now, given the base velocity the learner commanded last; None: no path."""
-        from echo_data.skills.navigate import START_SNAP, STRAY_DIST, PathFollower
-
-        x, y, yaw = self.world.robot.base_pose()
-        f = self.follower
-        if f is None or (not f.turning and f.off_path(x, y) > STRAY_DIST):
-            path = self.grid.plan_path((x, y), (self.goal[0], self.goal[1]), start_snap=START_SNAP)
-            if path is None:
-                return None
-            f = self.follower = PathFollower(path, self.goal[2], 1.0 / self.world.robot.cfg.control_hz)
-        f.v, f.w = float(last_command[0]), float(last_command[2])  # the ramp starts where the base is
-        vx, vy, wz = f.command((x, y, yaw))
-        action = self.hold.copy()
-        action[:3] = (vx, vy, wz) if not f.done else (0.0, 0.0, 0.0)
-        return action
 
 
 @dataclass
@@ -96,7 +63,7 @@ class _Labels:
         self.parts: dict[str, list[Any]] = {}
         self.labels: list[np.ndarray] = []
         self.gaps: list[float] = []
-        self.label: NavigateLabeller | None = None
+        self.label: Any = None  # echo_data.skills.navigate.Relabeller of the skill being rolled
         self.last = np.zeros(3, dtype=np.float32)
 
     def start(self) -> None:
@@ -104,9 +71,10 @@ class _Labels:
 
     def __call__(self, env: Any, obs: dict[str, Any], a: np.ndarray, k: int, call: Any, flags: tuple[bool, ...]) -> None:
         from echo_data.agents.runtime import StopEpisode
+        from echo_data.skills.navigate import Relabeller
 
         if self.label is None:  # at the skill's first step, before anything moved
-            self.label = NavigateLabeller(env.world, call.target, env.nav_grid())
+            self.label = Relabeller(env.world, call.target, env.nav_grid())
         y = self.label(self.last)
         if y is None:
             raise StopEpisode

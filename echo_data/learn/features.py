@@ -348,7 +348,7 @@ def prepare(batch: Mapping[str, Any], spec: FeatureSpec, goal: Any | None = None
         out["state"] = v
     if "target" in spec.inputs:
         if goal is None:
-            raise FeatureError("the model reads a target position but none was given (info['target_pose'] or a plan)")
+            raise FeatureError("the model reads a target position but none was given (the observation's goal pose)")
         out["target"] = goal_features(st, torch.as_tensor(goal, dtype=torch.float32))
     if "kind" in spec.inputs:
         if kind is None:

@@ -3,7 +3,8 @@
 `SkillPolicy.from_run(folder)` (or `SkillPolicy(checkpoint=folder)`, how an `agent.json` checkpoint
 folder is constructed) for a skill run of any algorithm: `reset(info)`, then `act(obs) -> float32
 (A,)` per control step (A: the cloned action column's size),
-with `obs` holding the dataset's observation keys. Observations go through the same
+with `obs` holding the dataset's observation keys (and `GOAL_POSE` for a run trained with the
+target position). It is a learned policy: it reads observations only, never the world. Observations go through the same
 `features.prepare` as the training rows did. `PlannerModel.from_run(folder).plan(first_obs)`
 returns the skill chain in the planner export's JSON shape.
 """
@@ -20,6 +21,7 @@ import numpy as np
 from echo_data.dataset.schema import STATE
 from echo_data.learn import runs
 from echo_data.learn.features import FeatureError, FeatureSpec, from_action_form, kind_index, prepare, single
+from echo_data.records import GOAL_POSE
 
 
 def _load(folder: Path, config_cls: Any, build: Any) -> tuple[Any, Any, FeatureSpec]:
@@ -31,24 +33,15 @@ def _load(folder: Path, config_cls: Any, build: Any) -> tuple[Any, Any, FeatureS
     return cfg, model.eval(), FeatureSpec.from_dict(cfg.features)
 
 
-def goal_from_info(info: Mapping[str, Any]) -> np.ndarray:
-    """The active skill's goal pose (x, y, yaw): `info["target_pose"]` when the caller gives it,
-    else the interaction pose of `info["target"]` in the episode's floor plan (`info["spec_object"]`
-    or `info["spec"]`, doors as `info["world"]` has them), which is where the expert drove in
-    the training data."""
-    if info.get("target_pose") is not None:
-        return np.asarray(info["target_pose"], dtype=np.float32)[:3]
-    spec, target = info.get("spec_object", info.get("spec")), info.get("target")
-    if spec is None or target is None:
-        raise FeatureError("this policy reads the target position: reset(info) needs info['target_pose'] or info['spec'] and info['target']")
-    from echo_data.episode import EpisodeSpec
-    from echo_data.scene.nav import interaction_pose
-
-    if isinstance(spec, dict):
-        spec = EpisodeSpec.from_dict(spec)
-    world = info.get("world")
-    doors = world.door_angles() if world is not None else info.get("door_angles")
-    return np.asarray(interaction_pose(spec.plan, str(target), door_angles=doors), dtype=np.float32)
+def goal_from_obs(obs: Mapping[str, Any]) -> np.ndarray:
+    """The active skill's goal pose (x, y, yaw, world) from the observation `GOAL_POSE`, which the
+    runtime adds for a policy that lists it in `observations` (learned policies never read the
+    world or the episode spec: echo_data.protocols). In training the same input is the segment's
+    final base pose, where the expert went."""
+    if GOAL_POSE not in obs:
+        raise FeatureError(f"this policy reads the target position: the observation has no {GOAL_POSE!r} "
+                           "(run it through echo_data.agents.runtime.run_episode, which adds it)")
+    return np.asarray(obs[GOAL_POSE], dtype=np.float32).reshape(-1)[:3]
 
 
 class SkillPolicy:
@@ -81,10 +74,10 @@ class SkillPolicy:
         self.recurrent = cfg.SEQUENCE
         self.action_form = cfg.action_form
         self.action_dim = len(cfg.action_names)
-        self.observations = tuple(self.spec.columns)  # what evaluate must render for it
+        # what evaluate must render for it, and the goal observation when the model reads the target
+        self.observations = tuple(self.spec.columns) + ((GOAL_POSE,) if "target" in self.spec.inputs else ())
         self._queue: deque[np.ndarray] = deque()
         self._past: deque[np.ndarray] = deque()  # temporal ensembling: earlier chunks, each shifted to start at the next step
-        self._goal: np.ndarray | None = None
         self._kind = -1
         self._gen: Any = None
         self._history: deque[dict[str, Any]] = deque(maxlen=cfg.history())  # the last observations' inputs (history > 1)
@@ -96,8 +89,8 @@ class SkillPolicy:
 
     def reset(self, info: Mapping[str, Any] | None = None) -> None:
         """Start a new skill segment: forget queued and ensembled actions and the recurrent state
-        (training started every segment from zero), reseed sampling, read the goal and the
-        target kind if the model needs them."""
+        (training started every segment from zero), reseed sampling, read the target kind if the
+        model needs it (the goal position comes with each observation, `GOAL_POSE`)."""
         import torch
 
         info = info or {}
@@ -106,14 +99,13 @@ class SkillPolicy:
         self._history.clear()
         self.hidden = None
         self._gen = torch.Generator().manual_seed(self.config.seed % 2**63)
-        self._goal = goal_from_info(info) if "target" in self.spec.inputs else None
         self._kind = kind_index(self.spec, info.get("target_kind")) if "kind" in self.spec.inputs else -1
 
     def inputs(self, obs: Mapping[str, Any]) -> dict[str, Any]:
         """One observation -> the model's prepared inputs (batch of one), as training rows are."""
         import torch
 
-        goal = None if self._goal is None else torch.from_numpy(self._goal[None])
+        goal = torch.from_numpy(goal_from_obs(obs)[None]) if "target" in self.spec.inputs else None
         return prepare(single(obs, self.spec), self.spec, goal=goal, kind=np.array([self._kind]))
 
     def _stacked(self) -> dict[str, Any]:

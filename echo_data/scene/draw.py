@@ -27,6 +27,7 @@ from echo_data.scene.generate import generate_floorplan
 from echo_data.scene.nav import NavGrid, interaction_pose
 from echo_data.scene.objects import instance_scale
 from echo_data.scene.structure import GenerationError, door_swing_zone
+from echo_data.skills.registry import SKILLS, event_chain
 from echo_data.sounds.synth import fresh_id
 from echo_data.target import Target
 
@@ -195,7 +196,6 @@ def draw_episode(recipe: Recipe, split: str, index: int, attempt: int, seed: int
 
     receptacles = [i for i, c in stand.items() if c == home]
     events: list[tuple[str, str, Vec3]] = []  # (category, target, source)
-    goal: int | None = None
     if reloc_cat is not None:
         name = f"{reloc_cat}_0"
         if len(receptacles) < 2:
@@ -241,15 +241,12 @@ def draw_episode(recipe: Recipe, split: str, index: int, attempt: int, seed: int
         raise Reject("no_start")
 
     chain: list[SkillCall] = []
-    for k, ev in enumerate(sound_events):
-        if ev.category in RELOCATION_CATEGORIES:
+    for k, ev in enumerate(sound_events):  # each event's skills as the registry chains them
+        place_at = None
+        if ev.category in RELOCATION_CATEGORIES:  # a relocated object goes back to a receptacle
             obj = plan.object_by_name(ev.target)
-            goal = _place_goal(plan, grid, obj.receptacle, obj.category, receptacles, ev.target)
-            chain += [SkillCall("Navigate", ev.target, k), SkillCall("Pick", ev.target, k), SkillCall("Place", str(Target.furniture(goal)), k)]
-        elif ev.category == "doorbell":
-            chain += [SkillCall("Navigate", ev.target, k), SkillCall("OpenDoor", ev.target, k)]
-        else:
-            chain += [SkillCall("Navigate", ev.target, k), SkillCall("CloseSink", ev.target, k)]
+            place_at = str(Target.furniture(_place_goal(plan, grid, obj.receptacle, obj.category, receptacles, ev.target)))
+        chain += event_chain(ev.target, k, place_at)
 
     _check_paths(plan, grid, start, chain)
 
@@ -303,9 +300,10 @@ def _check_paths(plan: FloorPlan, grid: NavGrid, start: tuple[float, float, floa
     cur = (start[0], start[1])
     door_angles: dict[int, float] = {}
     for call in chain:
-        if call.skill in ("Pick", "CloseSink"):
+        s = SKILLS[call.skill]
+        if s.effect != "opens_door" and not s.drives:  # acts where the base stands
             continue
-        if call.skill == "OpenDoor":
+        if s.effect == "opens_door":
             i = Target.parse(call.target).index
             door_angles[i] = plan.doors[i].open_threshold
             grid = NavGrid.from_plan(plan, robot_radius=grid.robot_radius, resolution=grid.resolution, door_angles=door_angles)

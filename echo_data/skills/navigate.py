@@ -2,8 +2,14 @@
 
 `PathFollower` is pure (pose in, robot-frame velocity out) so it can be checked without
 physics; `drive_to` runs it in a `World` (replanning when the robot strays or stalls, stopping
-on contact with walls or furniture) and is reused by the Place expert; `navigate` is the skill
-(its success test, `navigate_success`, lives with the others in `echo_data.skills.success`).
+on contact with walls or furniture), yielding `action.ee` (base velocities, the arm held by a
+zero TCP change), and is reused by the Place expert; `navigate` is the skill (its success test,
+`navigate_success`, lives with the others in `echo_data.skills.success`).
+
+Navigate's internals live here and nowhere else: its goal (`goal_pose`), planning and
+re-planning (`plan_follower`), the expert's path length that SPL divides by (`path_length`),
+its answer from any state a learner reached (`Relabeller`, DAgger's labels), and the hand-over
+starts of `experts.handover_noise` (`handover_goal`).
 """
 
 from __future__ import annotations
@@ -14,13 +20,17 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-from echo_data.records import SkillOutcome
-from echo_data.scene.nav import NavGrid, interaction_pose
-from echo_data.skills.success import navigate_success
+from echo_data.records import ACTION_DIM, EE_ACTION_DIM, SkillOutcome
+from echo_data.scene.nav import NavGrid, interaction_pose, target_point
+from echo_data.seeds import HANDOVER, derived_rng
+from echo_data.skills.servo import SPEED, TURN, ee_command, step_towards
+from echo_data.skills.success import NAV_SUCCESS_DIST, NAV_SUCCESS_YAW, navigate_success
 
 if TYPE_CHECKING:
     from echo_data.episode import EpisodeSpec, SkillCall
+    from echo_data.scene.floorplan import FloorPlan
     from echo_data.world import World
 
 # Speed limits and ramps (Fetch's base: ≈1 m/s top speed; slower keeps tracking tight).
@@ -41,6 +51,7 @@ MAX_REPLANS = 4
 # counter) first steps out to the nearest free cell within this distance (m).
 START_SNAP = 0.6
 COLLISION_STEPS = 3  # consecutive control steps in contact before the drive gives up
+HOLD_TOL = 1e-6  # m / rad: a commanded TCP this close to where the drive holds it gets a zero change
 
 
 def wrap(a: float) -> float:
@@ -172,6 +183,65 @@ def current_grid(world: World) -> NavGrid:
     return NavGrid.from_plan(world.plan, robot_radius=nav.robot_radius, resolution=nav.resolution, door_angles=door_angles(world))
 
 
+def goal_pose(world: World, target: str, grid: NavGrid | None = None) -> tuple[float, float, float]:
+    """Navigate's goal for `target`: its interaction pose (x, y, yaw) with the doors where they
+    stand now (ValueError when none is free). The one place the expert, the runtime's goal
+    observation and SPL's expert path read it from."""
+    return interaction_pose(world.plan, target, door_angles=door_angles(world) or None, grid=grid or current_grid(world))
+
+
+def plan_follower(grid: NavGrid, pose: tuple[float, float, float], goal: tuple[float, float, float], dt: float,
+                  v: float = 0.0, w: float = 0.0) -> PathFollower | None:
+    """A follower of the grid's path from `pose` to `goal` (None: no path), its speed ramp
+    starting at (v, w): how the expert plans at the start and re-plans on the way."""
+    path = grid.plan_path((pose[0], pose[1]), (goal[0], goal[1]), start_snap=START_SNAP)
+    return None if path is None else PathFollower(path, goal[2], dt, v=v, w=w)
+
+
+def path_length(grid: NavGrid, pose: tuple[float, float, float], goal: tuple[float, float, float]) -> float:
+    """Metres of the expert's planned path from `pose` to `goal` (nan: no path): SPL's reference."""
+    path = grid.plan_path((pose[0], pose[1]), (goal[0], goal[1]), start_snap=START_SNAP)
+    if not path:
+        return math.nan
+    pts = [(pose[0], pose[1]), *path]
+    return float(sum(math.dist(a, b) for a, b in zip(pts, pts[1:])))
+
+
+class ArmHold:
+    """The arm, torso and gripper held at what was commanded when a drive began, in `action.ee`
+    form: a zero TCP change while the commanded TCP is there (the arm, and a carried object,
+    hold exactly), else a clipped step back (a perturbed arm is corrected by the next label)."""
+
+    def __init__(self, world: World, hold: np.ndarray | None = None) -> None:
+        robot = world.robot
+        ref = robot.applied_action()
+        self.world = world
+        self.arm = ref[4:11].astype(np.float64)
+        self.torso = float(ref[3])
+        self.close = bool(ref[11] < robot.ee.gripper_open / 2.0)
+        if hold is not None:  # a held command: an action.ee (11) or, from joint experts, an action (12)
+            h = np.asarray(hold, dtype=np.float64)
+            self.torso = float(h[3])
+            self.close = bool(h[10] >= 0.5) if h.shape == (EE_ACTION_DIM,) else bool(h[11] < robot.ee.gripper_open / 2.0)
+            if h.shape == (ACTION_DIM,):
+                self.arm = h[4:11]
+        self.home = robot.ee.tcp_in_torso(self.arm)
+
+    def command(self, base: tuple[float, float, float]) -> np.ndarray:
+        """One `action.ee`: the base velocity `base` and the arm held (see the class doc)."""
+        robot = self.world.robot
+        ref = robot.applied_action().astype(np.float64)
+        delta = None
+        if not np.array_equal(ref[4:11], self.arm):
+            now = robot.ee.tcp_in_torso(ref[4:11])
+            d = np.zeros(6)
+            d[:3] = self.home[:3, 3] - now[:3, 3]
+            d[3:] = Rotation.from_matrix(self.home[:3, :3] @ now[:3, :3].T).as_rotvec()
+            if np.linalg.norm(d[:3]) > HOLD_TOL or np.linalg.norm(d[3:]) > HOLD_TOL:
+                delta = step_towards(d, SPEED, TURN, 1.0 / robot.cfg.control_hz)
+        return ee_command(self.world, base=base, torso=self.torso, delta=delta, close=self.close)
+
+
 def robot_collisions(world: World) -> list[str]:
     """Names of walls, furniture, doors or faucets a robot link touches after the last physics step.
 
@@ -209,23 +279,22 @@ def drive_to(
     grid: NavGrid | None = None,
     hold: np.ndarray | None = None,
 ) -> Generator[np.ndarray, None, DriveResult]:
-    """Drive the base to `goal` (x, y, yaw): yields one action per control step.
+    """Drive the base to `goal` (x, y, yaw): yields one `action.ee` per control step.
 
-    Torso, arm and gripper hold `hold[3:]` (default: the robot's current targets, so a
-    carried object stays in hand). Replans from where the robot is when it strays from the
-    path or stalls; gives up on MAX_REPLANS failures or COLLISION_STEPS steps in contact.
+    Torso, arm and gripper hold what is commanded when the drive starts (`ArmHold`: a zero TCP
+    change, so a carried object stays in hand exactly); `hold`, when given, names the torso and
+    gripper (and, as a 12-float joint action, the arm) to hold instead. Replans from where the
+    robot is when it strays from the path or stalls; gives up on MAX_REPLANS failures or
+    COLLISION_STEPS steps in contact.
     """
     robot = world.robot
     dt = 1.0 / robot.cfg.control_hz
-    base_action = (robot.rest_action() if hold is None else np.asarray(hold, dtype=np.float32)).copy()
-    base_action[:3] = 0.0
+    arm = ArmHold(world, hold)
     if grid is None:
         grid = current_grid(world)
-    x, y, yaw = robot.base_pose()
-    path = grid.plan_path((x, y), (goal[0], goal[1]), start_snap=START_SNAP)
-    if path is None:
+    follower = plan_follower(grid, robot.base_pose(), goal, dt)
+    if follower is None:
         return DriveResult(False, "no_path", 0)
-    follower = PathFollower(path, goal[2], dt)
     window = max(int(round(STALL_SECONDS / dt)), 2)
     history: list[tuple[float, float, float]] = []
     steps = replans = touching = 0
@@ -241,10 +310,10 @@ def drive_to(
             if replans > MAX_REPLANS:
                 return DriveResult(False, "collision" if touching else "no_path", steps, replans)
             grid = current_grid(world)
-            path = grid.plan_path((pose[0], pose[1]), (goal[0], goal[1]), start_snap=START_SNAP)
-            if path is None:
+            nxt = plan_follower(grid, pose, goal, dt, v=follower.v, w=follower.w)
+            if nxt is None:
                 return DriveResult(False, "no_path", steps, replans)
-            follower = PathFollower(path, goal[2], dt, v=follower.v, w=follower.w)
+            follower = nxt
             history.clear()
         vx, vy, wz = follower.command(pose)
         if follower.done:
@@ -255,26 +324,95 @@ def drive_to(
             history.append(pose)
         else:
             history.clear()  # standing still on purpose is not a stall
-        action = base_action.copy()
-        action[:3] = (vx, vy, wz)
-        yield action
+        yield arm.command((vx, vy, wz))
         steps += 1
     if steps < max_steps:  # one explicit stop so the record ends at rest
-        yield base_action.copy()
+        yield arm.command((0.0, 0.0, 0.0))
         steps += 1
     return DriveResult(True, "", steps, replans)
 
 
+class Relabeller:
+    """Navigate's expert asked from any state a learner reached (DAgger's labels): the
+    expert's path from where the base stands, kept while the base stays within STRAY_DIST of it
+    and re-planned otherwise, the follower's speed ramp started from the learner's last command,
+    the arm held as `drive_to` holds it. Returns the joint action the build would record."""
+
+    def __init__(self, world: World, target: str, grid: NavGrid) -> None:
+        self.world, self.grid = world, grid
+        self.goal = goal_pose(world, target, grid)
+        self.follower: PathFollower | None = None
+        self.arm = ArmHold(world)
+
+    def __call__(self, last_command: np.ndarray) -> np.ndarray | None:
+        """Expert action now, given the base velocity the learner commanded last; None: no path."""
+        robot = self.world.robot
+        pose = robot.base_pose()
+        f = self.follower
+        if f is None or (not f.turning and f.off_path(pose[0], pose[1]) > STRAY_DIST):
+            f = self.follower = plan_follower(self.grid, pose, self.goal, 1.0 / robot.cfg.control_hz)
+            if f is None:
+                return None
+        f.v, f.w = float(last_command[0]), float(last_command[2])  # the ramp starts where the base is
+        base = f.command(pose)
+        return robot.ee.to_joint(self.arm.command((0.0, 0.0, 0.0) if f.done else base))
+
+
+# ---------------------------------------------------------------------- hand-over starts
+# `experts.handover_noise` = f in (0, 1]: the build's Navigate stops at a random point of its own
+# success region instead of the interaction pose, so the manipulation demonstrations start
+# where a learned Navigate hands over (M3, Gu et al. 2022, "Multi-skill Mobile Manipulation for
+# Object Rearrangement": manipulation skills trained from a distribution of base starts around
+# the target rather than one pose). The point is uniform (by area) in the disc of radius
+# f * HANDOVER_RADIUS around the interaction point, on a free cell that sees the interaction
+# point along a free straight line (never behind a wall or a closed door: Habitat's region
+# is Euclidean), heading at the target within f * HANDOVER_YAW. The margins keep the stop, with
+# the follower's tolerances (GOAL_TOL, YAW_TOL), inside navigate_success's region.
+HANDOVER_RADIUS = NAV_SUCCESS_DIST - 0.2  # m
+HANDOVER_YAW = NAV_SUCCESS_YAW - 2.0 * YAW_TOL  # rad
+HANDOVER_TRIES = 64  # draws before the interaction pose itself is kept
+
+
+def handover_goal(plan: FloorPlan, target: str, grid: NavGrid, exact: tuple[float, float, float], noise: float,
+                  rng: np.random.Generator, doors: dict[int, float] | None = None) -> tuple[float, float, float]:
+    """A stop pose drawn from the success region of Navigate to `target` (see the block above),
+    `exact` being its interaction pose and `doors` the hinge angles (default: the plan's);
+    `exact` itself when no draw within HANDOVER_TRIES lands on a usable cell."""
+    if noise <= 0.0:
+        return exact
+    tx, ty = target_point(plan, target, doors or None)
+    px, py = exact[0], exact[1]
+    for _ in range(HANDOVER_TRIES):
+        u, phi, s = rng.random(3)
+        r = noise * HANDOVER_RADIUS * math.sqrt(u)
+        x, y = px + r * math.cos(2.0 * math.pi * phi), py + r * math.sin(2.0 * math.pi * phi)
+        if not grid.is_free(x, y) or grid.segment_clearance((x, y), (px, py)) < grid.robot_radius:
+            continue
+        yaw = math.atan2(ty - y, tx - x) + noise * HANDOVER_YAW * (2.0 * s - 1.0)
+        return (x, y, wrap(yaw))
+    return exact
+
+
+def _handover_rng(spec: EpisodeSpec, call: SkillCall) -> np.random.Generator:
+    """The episode's own stream for this chain entry's hand-over point (`seeds.HANDOVER`)."""
+    k = spec.chain.index(call) if call in spec.chain else 0
+    return derived_rng(HANDOVER, spec.seed, k)
+
+
 def navigate(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
-    """The Navigate expert: drive to the interaction pose of `call.target` and face it."""
+    """The Navigate expert: drive to the interaction pose of `call.target` and face it (with
+    `experts.handover_noise`, to a point of the success region drawn per episode instead)."""
     robot = world.robot
     skill, target = call.skill, call.target
     max_steps = int(robot.cfg.max_steps["Navigate"])
     grid = current_grid(world)
     try:
-        goal = interaction_pose(world.plan, target, door_angles=door_angles(world) or None, grid=grid)
+        goal = goal_pose(world, target, grid)
     except ValueError:
         return SkillOutcome(skill, target, False, "no_path", 0)
+    noise = float(world.recipe.experts.handover_noise)
+    if noise > 0.0:
+        goal = handover_goal(world.plan, target, grid, goal, noise, _handover_rng(spec, call), door_angles(world))
     result = yield from drive_to(world, goal, max_steps, grid=grid)
     if not result.success and not (result.reason == "timeout" and navigate_success(world, target)):
         # (out of steps but already within the success region counts: the criterion is the state)

@@ -1,12 +1,16 @@
-"""Every skill of the robot, declared once: its expert, its success test, whether its success
-resolves (silences) its event, its step budget and what it acts on.
+"""Every skill of the robot, declared once: one `Skill(...)` line below holds its name, its
+expert, its success test, whether its success resolves (silences) its event, its step budget, what
+it acts on, its role in an event's chain and its effect on the world when it succeeds.
 
-The environment, the runtime, the experts' table and the tests read this registry; nothing
-else dispatches on skill names. Adding a skill is one module (expert + success test) and one
-`Skill(...)` line below (and its step limit in the recipe's `robot.max_steps`).
+Everything else reads this table and nothing else dispatches on skill names: the recipe takes
+its skill names and default step limits from it, the sampler builds chains from the roles
+(`event_chain`), the environment applies the effects (`apply_effect`, `Skill.effect`), the
+runtime takes budgets, and the experts' table (`echo_data.skills.EXPERTS`) the experts. Adding a
+skill is one module (expert + success test) and one line here (docs/adding_a_skill.md).
 
-Experts are named "module:function" and imported on first use, so reading the registry does
-not load mplib.
+A bottom layer: at import this module reads only `echo_data.target`; experts are named
+"module:function" and success tests import their criteria on first call, so the recipe and the
+sampler can read the table without loading physics or mplib.
 """
 
 from __future__ import annotations
@@ -14,15 +18,26 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
-from echo_data.skills import success as S
 from echo_data.target import Target, TargetKind
 
 if TYPE_CHECKING:
     from echo_data.episode import EpisodeSpec, SkillCall
     from echo_data.recipe import Recipe
     from echo_data.world import World
+
+# Where a skill sits in an event's chain (`event_chain`):
+# "approach": opens every event's chain, brings the base to the event's target;
+# "resolve": acts on the event's target where the approach left the base (the one skill whose
+#            `targets` hold the target's kind);
+# "deliver": follows the resolve skill it names in `follows`, carrying to a goal of its own.
+ChainRole = Literal["approach", "resolve", "deliver"]
+# What a success changes in the world beyond the robot (the environment applies it once, when
+# the skill completes in chain order): "places_object": the carried object rests on the target
+# furniture from now on (a later Pick lifts it from there); "opens_door": the target door stands
+# open (the acoustics and the navigation grid follow the door's angle).
+Effect = Literal["", "places_object", "opens_door"]
 
 # Extra steps granted beyond a skill's own limit before it is called stuck.
 GUARD_STEPS = 20
@@ -43,7 +58,7 @@ SuccessTest = Callable[["World", "SkillCall", Situation], bool]
 
 @dataclass(frozen=True)
 class Skill:
-    """One skill's contract."""
+    """One skill's contract (see the module doc)."""
 
     name: str
     expert: str  # "module:function", a generator expert(world, call, spec) -> SkillOutcome
@@ -51,55 +66,120 @@ class Skill:
     resolves_event: bool  # its success silences its event's sound (a picked-up phone, an opened door)
     budget: tuple[str, ...]  # recipe `robot.max_steps` keys whose limits add up to its step limit
     targets: tuple[TargetKind, ...]  # what `call.target` may name
+    max_steps: int  # its default limit in the recipe's `robot.max_steps`
+    role: ChainRole
+    effect: Effect = ""
+    follows: str = ""  # "deliver" skills: the resolve skill they carry on from
 
     def expert_fn(self) -> Callable[..., Any]:
-        module, _, name = self.expert.partition(":")
-        return getattr(importlib.import_module(module), name)
+        return _import(self.expert)
 
     def step_budget(self, recipe: Recipe) -> int:
         """Control steps the skill may take: its recipe limits plus GUARD_STEPS."""
         limits: dict[str, int] = {str(k): int(v) for k, v in recipe.robot.max_steps.items()}
         return sum(limits[k] for k in self.budget) + GUARD_STEPS
 
+    @property
+    def drives(self) -> bool:
+        """Whether it moves the base to its own target's interaction pose (approach, deliver)."""
+        return self.role != "resolve"
+
 
 def carried_object(spec: EpisodeSpec, call: SkillCall) -> str | None:
-    """The object a Place call carries: the Pick target of the same event."""
-    return next((c.target for c in spec.chain if c.event == call.event and c.skill == "Pick"), None)
+    """The object a deliver call (Place) carries: the target of the skill it follows in the same event."""
+    follows = skill(call.skill).follows
+    return next((c.target for c in spec.chain if c.event == call.event and c.skill == follows), None) if follows else None
+
+
+def _import(path: str) -> Any:
+    module, _, name = path.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def lazy_test(path: str) -> SuccessTest:
+    """The success test "module:function" (world, call, at) -> bool, imported on its first call:
+    a new skill's registry line can name the test in its own module."""
+    def test(world: World, call: SkillCall, at: Situation) -> bool:
+        return bool(_import(path)(world, call, at))
+
+    test.__qualname__ = path
+    return test
 
 
 def _navigated(world: World, call: SkillCall, at: Situation) -> bool:
-    return S.navigate_success(world, call.target, grid=at.nav_grid(), poses=at.poses)
+    from echo_data.skills.success import navigate_success
+
+    return navigate_success(world, call.target, grid=at.nav_grid(), poses=at.poses)
 
 
 def _picked(world: World, call: SkillCall, at: Situation) -> bool:
-    return S.pick_success(world, call.target)
+    from echo_data.skills.success import pick_success
+
+    return pick_success(world, call.target)
 
 
 def _placed(world: World, call: SkillCall, at: Situation) -> bool:
+    from echo_data.skills.success import place_success
+
     name = carried_object(at.spec, call)
-    return name is not None and S.place_success(world, name, Target.parse(call.target).index)
+    return name is not None and place_success(world, name, Target.parse(call.target).index)
 
 
 def _door_opened(world: World, call: SkillCall, at: Situation) -> bool:
-    return S.door_open_success(world, Target.parse(call.target).index)
+    from echo_data.skills.success import door_open_success
+
+    return door_open_success(world, Target.parse(call.target).index)
 
 
 def _sink_closed(world: World, call: SkillCall, at: Situation) -> bool:
-    return S.sink_closed_success(world, Target.parse(call.target).index)
+    from echo_data.skills.success import sink_closed_success
+
+    return sink_closed_success(world, Target.parse(call.target).index)
 
 
 SKILLS: dict[str, Skill] = {
     s.name: s
     for s in (
-        Skill("Navigate", "echo_data.skills.navigate:navigate", _navigated, False, ("Navigate",), ("object", "door", "faucet", "furniture")),
-        Skill("Pick", "echo_data.skills.pick:pick", _picked, True, ("Pick",), ("object",)),
+        Skill("Navigate", "echo_data.skills.navigate:navigate", _navigated, False, ("Navigate",), ("object", "door", "faucet", "furniture"), 600, "approach"),
+        Skill("Pick", "echo_data.skills.pick:pick", _picked, True, ("Pick",), ("object",), 250, "resolve"),
         # Place also drives the object across the apartment: Navigate's limit is added to its own.
-        Skill("Place", "echo_data.skills.place:place", _placed, False, ("Place", "Navigate"), ("furniture",)),
-        Skill("OpenDoor", "echo_data.skills.open_door:open_door", _door_opened, True, ("OpenDoor",), ("door",)),
-        Skill("CloseSink", "echo_data.skills.close_sink:close_sink", _sink_closed, True, ("CloseSink",), ("faucet",)),
+        Skill("Place", "echo_data.skills.place:place", _placed, False, ("Place", "Navigate"), ("furniture",), 250, "deliver", "places_object", follows="Pick"),
+        Skill("OpenDoor", "echo_data.skills.open_door:open_door", _door_opened, True, ("OpenDoor",), ("door",), 300, "resolve", "opens_door"),
+        Skill("CloseSink", "echo_data.skills.close_sink:close_sink", _sink_closed, True, ("CloseSink",), ("faucet",), 200, "resolve"),
     )
 }
+SKILL_NAMES: tuple[str, ...] = tuple(SKILLS)
+DEFAULT_MAX_STEPS: dict[str, int] = {n: s.max_steps for n, s in SKILLS.items()}
 RESOLVING_SKILLS: tuple[str, ...] = tuple(n for n, s in SKILLS.items() if s.resolves_event)
+
+
+def event_chain(target: str, event: int, goal: str | None = None) -> list[SkillCall]:
+    """The skill calls that answer event `event` on `target`: the approach skill to it, the skill
+    that resolves a target of its kind, then the skill that delivers to `goal` if one follows that
+    (relocations: Navigate, Pick, Place; a door: Navigate, OpenDoor; a faucet: Navigate, CloseSink)."""
+    from echo_data.episode import SkillCall
+
+    kind = Target.parse(target).kind
+    approach = next(s for s in SKILLS.values() if s.role == "approach")
+    resolve = [s for s in SKILLS.values() if s.role == "resolve" and kind in s.targets]
+    if len(resolve) != 1:
+        raise ValueError(f"target {target!r}: {len(resolve)} skills resolve a {kind} (need exactly one)")
+    chain = [SkillCall(approach.name, target, event), SkillCall(resolve[0].name, target, event)]
+    for s in SKILLS.values():
+        if s.role == "deliver" and s.follows == resolve[0].name:
+            if goal is None:
+                raise ValueError(f"{s.name} follows {resolve[0].name}: event {event} needs a goal")
+            chain.append(SkillCall(s.name, goal, event))
+    return chain
+
+
+def apply_effect(world: World, call: SkillCall, spec: EpisodeSpec) -> None:
+    """What `call`'s success changes in the world's bookkeeping (`Skill.effect`): a placed object
+    rests on its goal from now on. (An opened door needs no bookkeeping: its angle is physics.)"""
+    if skill(call.skill).effect == "places_object":
+        name = carried_object(spec, call)
+        if name is not None:
+            world.receptacles[name] = Target.parse(call.target).index
 
 
 def skill(name: str) -> Skill:
