@@ -1,8 +1,10 @@
-"""DART noise on the scripted experts (`experts.action_noise`, echo_data/agents/dart.py).
+"""DART-style perturbation of the scripted experts (`experts.perturbation`, in end-effector
+space; `experts.action_noise` is the joint-space form, whose gating rule is checked here too;
+echo_data/agents/dart.py).
 
-With noise the label (`action`, the expert's own command) differs from what the robot executed
-by exactly the noise drawn from the episode's stream, only where the noise is allowed; the
-expert corrects from the perturbed state (its holds do not drift with the noise) and still
+With a perturbation the label (`action.ee`, the expert's own command) differs from what the robot
+executed by exactly the noise drawn from the episode's stream, only where the noise is allowed;
+the expert corrects from the perturbed state (its holds do not drift with the noise) and still
 succeeds. Bit-for-bit replay from the executed actions is in tests/test_env_replay.py.
 """
 
@@ -13,11 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from echo_data.agents.dart import NOISE_STD, QUIET_STEPS, noise_mask
-from echo_data.recipe import load_recipe
+from echo_data.agents.dart import EePerturbation, noise_mask
+from echo_data.recipe import Perturbation, load_recipe
 from echo_data.records import ACTION_DIM
 from echo_data.robot.robot import GRIPPER_OPEN
-from echo_data.seeds import ACTION_NOISE, derived_rng
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,29 +41,26 @@ def noisy_rollout() -> tuple:
     from echo_data.sounds import SoundLibrary
 
     base = load_recipe(ROOT / "recipes" / "object_relocation.yaml")
-    recipe = base.model_copy(update={"experts": base.experts.model_copy(update={"action_noise": 1.0})})
+    experts = base.experts.model_copy(update={"perturbation": Perturbation(position_cm=0.5, rotation_deg=1.0)})
+    recipe = base.model_copy(update={"experts": experts})
     spec, _ = sample_episode(recipe, "train", 0, SoundLibrary.from_recipe(recipe))
-    return spec, simulate(spec, recipe, observe=False)
+    return spec, recipe, simulate(spec, recipe, observe=False)
 
 
 @pytest.mark.slow
 def test_label_and_executed_differ_by_the_drawn_noise(noisy_rollout: tuple) -> None:
-    spec, ro = noisy_rollout
+    """Every expert computes its command in end-effector form (skills/servo): each step's executed
+    `action.ee` is its label plus exactly the perturbation drawn from the episode's stream where
+    the gate allows it (agents/dart.EePerturbation), and the expert still succeeds."""
+    spec, recipe, ro = noisy_rollout
     assert ro.success, [(o.skill, o.reason) for o in ro.outcomes]  # the expert recovers from its perturbations
-    rng = derived_rng(ACTION_NOISE, spec.seed)
-    quiet, grip = 0, None
+    ee = EePerturbation(recipe.experts.perturbation, recipe.robot.control_hz, spec.seed)
     perturbed = 0
     for s in ro.steps:
-        label, executed = s.action, s.action_executed
-        draw = rng.standard_normal(ACTION_DIM) * NOISE_STD
-        if grip is not None and label[11] != grip:
-            quiet = QUIET_STEPS
-        grip = float(label[11])
-        noise = np.where(noise_mask(label, quiet > 0), draw, 0.0).astype(np.float32)
-        quiet = max(quiet - 1, 0)
-        assert np.array_equal(executed, label + noise), f"frame {s.frame_index}"
-        perturbed += bool(np.any(noise != 0))
-    assert perturbed > 0.5 * len(ro.steps)
+        assert s.action_ee is not None
+        assert np.array_equal(s.action_ee_executed, s.action_ee + ee(s.action_ee)), f"frame {s.frame_index}"
+        perturbed += bool(np.any(s.action_ee_executed != s.action_ee))
+    assert perturbed > 0.3 * len(ro.steps)
 
 
 @pytest.mark.slow
@@ -73,7 +71,7 @@ def test_the_expert_corrects_rather_than_drifts(noisy_rollout: tuple) -> None:
     labels keep the TCP in place while the executed arm wanders by the noise."""
     from echo_data.world import World
 
-    spec, ro = noisy_rollout
+    spec, _recipe, ro = noisy_rollout
     labels = np.stack([s.action for s in ro.steps])[:, 3:11]
     executed = np.stack([s.action_executed for s in ro.steps])[:, 3:11]
     noisy = np.any(executed != labels, axis=1)[:-1]
