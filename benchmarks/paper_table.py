@@ -225,7 +225,8 @@ def main() -> None:
     trained.update(mine["training"])
     save(a.out, mine)
     for name, row in chosen.items():
-        if isinstance(row, EvaluatedRow) and any(r not in trained for r in row.policy.values()):
+        if isinstance(row, EvaluatedRow) and (untrained := [r for r in row.policy.values() if r not in trained]):
+            print(f"{name}: waits for the learners {', '.join(untrained)}", file=sys.stderr)
             continue
         done = json.loads(a.out.read_text()).get("rows", {}).get(name, {})  # another run of this script may have measured it
         for setting in row.settings if not a.tiny else ("quickstart",):
