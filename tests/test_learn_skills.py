@@ -1,6 +1,6 @@
-"""Learners for every skill: wrist depth, the target kind, the GRU and its per-skill reset, and the
-paper-table script, on a real quickstart build of three train episodes (object relocation, a
-sink, a door and an object: all five skills).
+"""Learners for every skill: wrist depth, the target kind, the GRU and its per-skill reset, on a
+real quickstart build of three train episodes (object relocation, a sink, a door and an object:
+all five skills). The paper-table driver's test: tests/test_table.py.
 
 Training runs are two optimiser steps: they check the contract (inputs, loading, acting, the
 recurrent state), not what the models learn.
@@ -9,8 +9,6 @@ recurrent state), not what the models learn.
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -173,22 +171,3 @@ def test_delta_actions_are_changes_from_the_measured_joints(ds: Path, tmp_path: 
 def test_gru_with_chunks_is_refused(ds: Path, tmp_path: Path) -> None:
     res = runner.invoke(app, ["train", "bc-rnn", str(ds), "--skill", "Pick", "--inputs", "state", "--chunk", "2", "--out", str(tmp_path / "r")])
     assert res.exit_code == 2 and "--chunk" in res.output and not (tmp_path / "r").exists()
-
-
-def test_paper_table_tiny_evaluates_a_learner_in_evaluate_and_resumes(ds: Path, trained: dict[str, Path], tmp_path: Path) -> None:
-    runs_dir, out = tmp_path / "runs", tmp_path / "table.json"
-    cmd = [sys.executable, str(ROOT / "benchmarks" / "paper_table.py"), "--tiny", "--data", str(ds), "--runs", str(runs_dir), "--out", str(out),
-           "--rows", "Pick alone", "--workers", "1"]
-    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr[-3000:]
-    doc = json.loads(out.read_text())
-    assert set(doc["training"]) == {"Pick"}  # only the learners the chosen rows drive
-    row = doc["rows"]["Pick alone"]["quickstart"]
-    assert row["command"].startswith("echo-data evaluate") and "Pick=" in row["command"] and len(doc["commit"]) >= 40
-    assert row["metrics"]["episodes"] == 1 and row["skills"]["Pick"]["n"] <= 1
-    evals = sorted(runs_dir.glob("eval-*.json"))
-    stamp = [p.stat().st_mtime_ns for p in evals]
-    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)  # everything is in the JSON: nothing is run again
-    assert r.returncode == 0, r.stderr[-3000:]
-    assert [p.stat().st_mtime_ns for p in evals] == stamp and json.loads(out.read_text())["rows"] == doc["rows"]
-    assert "| Pick |" in out.with_suffix(".md").read_text()

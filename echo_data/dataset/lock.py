@@ -6,6 +6,9 @@ the file's text (PID and host of the holder) only names the running build in the
 file is never deleted: unlinking a locked file lets a third writer lock a fresh inode while a
 second still waits on the old one; it is emptied on release instead. Descriptors are close-on-exec, so spawned workers never
 inherit the lock.
+
+The same lock, waited for instead of refused (`wait=True`) and under another file name, serialises
+the writers of one shared results file (benchmarks/paper_table.py: several runs, one JSON).
 """
 
 from __future__ import annotations
@@ -26,17 +29,20 @@ class BuildLockedError(RuntimeError):
 
 
 class BuildLock:
-    """Context manager holding the build lock of `out` (created with its parents if missing)."""
+    """Context manager holding the build lock of `out` (created with its parents if missing);
+    `name`: the lock file's name in `out`; `wait`: block until the holder releases it instead of
+    raising `BuildLockedError`."""
 
-    def __init__(self, out: Path) -> None:
-        self.path = Path(out) / LOCK_NAME
+    def __init__(self, out: Path, *, name: str = LOCK_NAME, wait: bool = False) -> None:
+        self.path = Path(out) / name
+        self.wait = wait
         self.fd: int | None = None
 
     def acquire(self) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fd, fcntl.LOCK_EX if self.wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as e:
             os.close(fd)
             if e.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):

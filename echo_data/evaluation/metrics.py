@@ -1,6 +1,8 @@
 """The paper's metrics over per-episode outcomes, each with its 95 % interval and N.
 
 - task planning: the planner's chain equals the true chain exactly (order included);
+- task planning without the receptacle (`plan_right_without_receptacle`): the same with the
+  target of every Place step blanked, the skills and their order still exact;
 - skill completion: the plan right and every skill succeeded in order;
 - progressive success at position p: the plan right and skills 1..p succeeded, over the
   episodes whose chain has at least p skills (Habitat-style latched stages);
@@ -48,6 +50,21 @@ def mean_interval(xs: list[float]) -> dict[str, Any]:
     sd = math.sqrt(sum((x - m) ** 2 for x in xs) / (n - 1)) if n > 1 else 0.0
     half = Z95 * sd / math.sqrt(n)
     return {"value": m, "ci95": [max(0.0, m - half), min(1.0, m + half)], "n": n}
+
+
+def without_receptacle(chain: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """`chain` with the target of every Place step blanked (None), every step kept."""
+    return [dict(c, target=None) if c["skill"] == "Place" else c for c in chain]
+
+
+def plan_right_without_receptacle(planned: list[dict[str, Any]] | None, true: list[dict[str, Any]]) -> bool:
+    """A plan right but for where Place puts the object: the planning figure to set beside the
+    paper's. The paper's chains name skills and sounding objects; ours also name Place's
+    receptacle (the nearest free one), which no sound tells. Only that target is forgiven: a
+    plan with a Place step too many or too few, or in another position, is wrong. The one
+    definition for the planner's own scores (`learn.planner.score`) and the paper table
+    (`evaluation.table`); no plan (None) is wrong."""
+    return planned is not None and without_receptacle(planned) == without_receptacle(true)
 
 
 def summarise(episodes: list[dict[str, Any]]) -> dict[str, Any]:

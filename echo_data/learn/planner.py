@@ -25,6 +25,7 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from echo_data import seeds
+from echo_data.evaluation.metrics import plan_right_without_receptacle
 from echo_data.learn import runs
 from echo_data.learn.data import Shards, prepare_rows, split_episodes
 from echo_data.learn.features import FeatureSpec, feature_spec
@@ -297,13 +298,12 @@ def planner_loss(logits: Any, scores: Any, y: Any, pairs: Any) -> Any:
 
 def score(predicted: list[list[str]], ep: Episodes, templates: dict[str, list[list[str]]]) -> dict[str, Any]:
     """Accuracies with Wilson 95 % intervals, overall and for single- and multi-event episodes."""
-    place = lambda ch: [c for c in ch if c["skill"] != "Place"]  # noqa: E731
     out: dict[str, Any] = {}
     for name, sel in (("all", lambda e: True), ("single_event", lambda e: len(e) == 1), ("multi_event", lambda e: len(e) >= 2)):
         ix = [n for n, e in enumerate(ep.events) if sel(e)]
         events = sum(predicted[n] == ep.events[n] for n in ix)
         chain = sum(chain_of(predicted[n], templates) == ep.chains[n] for n in ix)
-        chain_np = sum(place(chain_of(predicted[n], templates)) == place(ep.chains[n]) for n in ix)
+        chain_np = sum(plan_right_without_receptacle(chain_of(predicted[n], templates), ep.chains[n]) for n in ix)
         out[name] = {
             "events_in_order": rate(events, len(ix)),
             "chain_without_place_target": rate(chain_np, len(ix)),

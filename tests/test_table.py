@@ -1,0 +1,214 @@
+"""The paper table as a module (echo_data.evaluation.table) and its driver
+(benchmarks/paper_table.py): a learned-planner row composed from the planner's run with the
+experts and the oracle-planner run with the learned skills, a skill-alone row read from a chain
+row, the one definition of "plan right without the receptacle" (the table's and the planner's),
+the summary block, the rendering (the committed markdown and the README's copy are the
+module's rendering of the committed JSON), and the driver end to end on a real quickstart build.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from echo_data.cli import app
+from echo_data.dataset.lock import BuildLock
+from echo_data.evaluation import table
+from echo_data.evaluation.metrics import plan_right_without_receptacle, proportion, wilson
+from echo_data.learn.planner import Episodes, score
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results" / "paper_table.json"
+CHAIN = [{"skill": "Navigate", "target": "phone"}, {"skill": "Pick", "target": "phone"}]
+PLACE = [*CHAIN, {"skill": "Place", "target": "furniture:1"}]
+
+
+def _record(i: int, plan_right: bool, done: int) -> dict[str, Any]:
+    """An episode record as `echo-data evaluate` writes it: `done` skills of the 2-skill chain succeeded."""
+    skills = [{"skill": c["skill"], "target": c["target"], "success": k < done, "reason": "" if k < done else "timeout", "steps": 5}
+              for k, c in enumerate(CHAIN[: done + 1 if done < 2 else 2])] if plan_right else []
+    return {"index": i, "episode_id": f"test-{i}", "setting": "object_relocation", "seed": i, "true_chain": CHAIN,
+            "planned_chain": CHAIN if plan_right else CHAIN[:1], "plan_correct": plan_right, "skills": skills,
+            "skills_completed": done if plan_right else 0, "success": plan_right and done == 2, "steps": 10 * done + 1,
+            "navigate": [{"skill_index": 0, "success": done >= 1, "path_length": 1.0, "expert_length": 1.0, "spl": float(done >= 1)}] if plan_right else [],
+            "failure": "" if plan_right and done == 2 else "plan wrong" if not plan_right else "Pick(phone): timeout"}
+
+
+def test_a_learned_planner_row_keeps_the_skills_outcome_only_where_the_plan_is_right() -> None:
+    plans = {"episodes": [_record(0, True, 2), _record(1, False, 0), _record(2, True, 2), _record(3, False, 0)]}
+    skills = {"episodes": [_record(0, True, 2), _record(1, True, 2), _record(2, True, 1), _record(3, True, 0)]}
+    row = table.composed(plans, skills)
+    m = row["metrics"]
+    assert set(row) == {"metrics", "skills"} and set(row["skills"]) == set(table.SKILLS)
+    assert (m["task_planning"]["k"], m["task_planning"]["n"]) == (2, 4)
+    assert (m["skill_completion"]["k"], m["skill_completion"]["n"]) == (1, 4)  # episode 1 succeeded with the true plan, not with this one
+    assert [p["k"] for p in m["progressive"]] == [2, 1]
+    assert row["skills"]["Navigate"] == table.skill_success([_record(0, True, 2), _record(2, True, 1)], "Navigate")
+    assert m["planning_without_place_target"] == proportion(2, 4)  # the wrong plans stay wrong without the receptacle
+    assert m["navigate_success"] == proportion(2, 2) and m["episodes"] == 4
+
+
+def test_a_composed_row_refuses_different_episodes() -> None:
+    other = dict(_record(1, True, 2), episode_id="test-99")
+    with pytest.raises(SystemExit, match="same episodes"):
+        table.composed({"episodes": [_record(0, True, 2), _record(1, True, 2)]}, {"episodes": [_record(0, True, 2), other]})
+
+
+def test_a_derived_skill_alone_row_counts_the_skills_attempts() -> None:
+    row = table.derived({"episodes": [_record(0, True, 2), _record(1, True, 0), _record(2, True, 1)]}, "Navigate")
+    assert row == {"skills": {"Navigate": proportion(2, 3)}}
+
+
+def test_the_handover_is_the_experts_path_minus_the_driven_one_over_successful_first_navigates() -> None:
+    eps = [_record(i, True, 2) for i in range(3)] + [_record(3, True, 0)]  # the last Navigate failed: not counted
+    for e, driven in zip(eps, (0.5, 0.8, 1.0, 0.1), strict=True):
+        e["navigate"][0]["path_length"] = driven
+    h = table.handover(eps)
+    assert h is not None and h["n"] == 3 and h["quartiles_m"][1] == 0.2  # 1.0 - 0.8
+
+
+# --- one definition of "plan right without the receptacle" ------------------------------------
+
+ELSEWHERE = [*CHAIN, {"skill": "Place", "target": "furniture:4"}]  # another receptacle
+NO_PLACE = CHAIN  # the Place step missing
+TWICE = [*PLACE, {"skill": "Place", "target": "furniture:1"}]  # a Place too many
+CASES = [(PLACE, True), (ELSEWHERE, True), (NO_PLACE, False), (TWICE, False), ([CHAIN[1], CHAIN[0], PLACE[2]], False)]
+
+
+@pytest.mark.parametrize(("planned", "right"), CASES)
+def test_only_the_place_receptacle_is_forgiven(planned: list[dict[str, str]], right: bool) -> None:
+    assert plan_right_without_receptacle(planned, PLACE) is right
+    assert plan_right_without_receptacle(None, PLACE) is False
+
+
+def test_the_table_and_the_planner_count_plans_right_without_the_receptacle_alike() -> None:
+    """The planner's own score (`chain_without_place_target`) and the table's column
+    (`planning_without_place_target`) on the same plans: a missing or extra Place step is wrong in
+    both (the planner once dropped Place steps before comparing, which forgave them)."""
+    templates = {"phone": [["Navigate", "phone"], ["Pick", "phone"], ["Place", "furniture:4"]], "bell": [["Navigate", "phone"], ["Pick", "phone"]],
+                 "twice": [["Navigate", "phone"], ["Pick", "phone"], ["Place", "furniture:1"], ["Place", "furniture:1"]]}
+    predicted = [["phone"], ["bell"], ["twice"], []]
+    chains = [PLACE] * len(predicted)
+    ep = Episodes(inputs={}, index=np.arange(len(predicted)), frame=np.zeros(len(predicted), dtype=int), events=[["phone"]] * len(predicted),
+                  chains=chains, sounds=[["s"]] * len(predicted))
+    planner = score(predicted, ep, templates)["all"]["chain_without_place_target"]
+    planned = [[{"skill": s, "target": t} for cat in p for s, t in templates[cat]] for p in predicted]
+    episodes = [{"planned_chain": p, "true_chain": c} for p, c in zip(planned, chains, strict=True)]
+    tabled = table.planning_without_place_target(episodes)
+    assert (planner["correct"], planner["n"]) == (tabled["k"], tabled["n"]) == (1, 4)  # only the other receptacle is right
+
+
+# --- summary and rendering ----------------------------------------------------------------------
+
+def _entry(k: int, n: int, planned: int | None = None) -> dict[str, Any]:
+    return {"command": "echo-data evaluate ...", "commit": "c", "metrics": {"episodes": n, "task_planning": proportion(n if planned is None else planned, n),
+            "skill_completion": proportion(k, n), "progressive": [proportion(k, n)], "planning_without_place_target": proportion(n, n)},
+            "skills": {s: proportion(k, n) for s in table.SKILLS}}
+
+
+def test_the_summary_names_rows_and_settings_and_leaves_the_unmeasured_empty() -> None:
+    doc = {"rows": {"oracle planner + learned skills": {"multi_event": _entry(3, 50)}, "Pick alone": {"object_relocation": _entry(8, 50)},
+                    "Navigate alone": {"object_relocation": {"skills": {"Navigate": proportion(30, 50)}},
+                                       "state_transition": {"skills": {"Navigate": proportion(40, 49)}}}},
+           "previous_session": {"rows": {"Place alone": {"object_relocation": _entry(1, 50)}, "Pick alone": {"object_relocation": _entry(9, 50)}}}}
+    s = table.summary(doc)
+    lo, hi = wilson(3, 50)
+    assert s["completion"]["oracle planner + learned skills"]["multi_event"] == {"successes": 3, "n": 50, "low": round(lo, 4), "high": round(hi, 4)}
+    assert s["completion"]["oracle planner + learned skills"]["object_relocation"] is None  # in the spec, not measured
+    assert s["completion"]["oracle planner + learned skills* (paper-comparable)"] == dict.fromkeys(table.SETTINGS)
+    assert s["skills_alone"]["Navigate"]["successes"] == 70 and s["skills_alone"]["Navigate"]["n"] == 99  # over both settings
+    assert s["skills_alone"]["Pick"]["successes"] == 8 and "previous_session" not in s["skills_alone"]["Pick"]  # this session's wins
+    assert s["skills_alone"]["Place"]["previous_session"] is True and s["skills_alone"]["Place"]["successes"] == 1
+    assert s["skills_alone"]["Pick (paper-comparable)"] is None and s["skills_alone"]["OpenDoor"] is None
+    assert set(s["skills_alone"]) == {r.label for r in table.ROWS.values() if r.skill_alone}
+
+
+def test_an_unmeasured_row_renders_as_not_measured_and_a_measured_one_with_its_counts() -> None:
+    md = table.markdown({"rows": {"oracle planner + learned skills": {s: _entry(2, 50, planned=49) for s in table.SETTINGS}}})
+    line = next(x for x in md.splitlines() if x.startswith("| oracle planner + learned skills* (paper-comparable) |"))
+    assert line.count(table.NOT_MEASURED) == 6
+    ours = next(x for x in md.splitlines() if x.startswith("| oracle planner + learned skills |"))
+    assert ours.count("0.98 [0.90, 1.00] (49/50)") == 3 and ours.count("0.04 [0.01, 0.13] (2/50)") == 3  # Wilson: [0.011, 0.135]
+    assert "| Pick | object relocation | not measured |" in md and "| Pick (paper-comparable) | object relocation | not measured |" in md
+    assert "49/50 = 0.98 [0.90, 1.00] | 50/50 = 1.00 [0.93, 1.00] |" in md  # exact and receptacle-free planning where they differ
+
+
+def test_the_committed_json_markdown_and_readme_are_one_rendering() -> None:
+    doc = json.loads(RESULTS.read_text())
+    assert set(doc["rows"]) <= set(table.ROWS), "a row in the JSON the catalogue does not know would vanish from the table"
+    assert doc["summary"] == table.summary(doc)
+    md = table.markdown(doc)
+    assert RESULTS.with_suffix(".md").read_text() == md
+    assert table.readme_block((ROOT / "README.md").read_text()) == md, "README's table: python benchmarks/paper_table.py --render"
+
+
+def test_every_row_names_known_learners_rows_and_settings() -> None:
+    for row in table.ROWS.values():
+        if isinstance(row, table.EvaluatedRow):
+            assert set(row.policy.values()) <= set(table.LEARNERS) and set(row.policy) <= set(table.SKILLS), row.name
+            if row.grasp == "physical":
+                assert all((ROOT / "recipes" / row.recipe(s)).is_file() for s in row.settings), row.name
+        elif isinstance(row, table.ComposedRow):
+            assert {row.plans, row.outcomes} <= set(table.ROWS) and row.grasp == table.ROWS[row.outcomes].grasp == table.ROWS[row.plans].grasp
+        else:
+            assert row.source in table.ROWS
+    assert all(spec.dataset in table.DATASETS for spec in table.LEARNERS.values())
+
+
+def test_the_results_lock_waits_for_its_holder(tmp_path: Path) -> None:
+    order: list[str] = []
+
+    def second() -> None:
+        with BuildLock(tmp_path, name=".t.lock", wait=True):
+            order.append("second holds it")
+
+    with BuildLock(tmp_path, name=".t.lock", wait=True):
+        t = threading.Thread(target=second)
+        t.start()
+        time.sleep(0.3)
+        order.append("first lets go")
+    t.join(timeout=30)
+    assert order == ["first lets go", "second holds it"]
+
+
+# --- the driver, end to end --------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def quickstart(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A real quickstart build of one train episode (object relocation: Navigate, Pick, Place)."""
+    out = tmp_path_factory.mktemp("table") / "qs"
+    res = CliRunner().invoke(app, ["build", str(ROOT / "recipes" / "quickstart.yaml"), "--out", str(out), "--split", "train", "--limit", "1", "--no-progress"])
+    assert res.exit_code == 0, res.output
+    return out
+
+
+def test_paper_table_tiny_evaluates_a_learner_in_evaluate_and_resumes(quickstart: Path, tmp_path: Path) -> None:
+    runs_dir, out = tmp_path / "runs", tmp_path / "table.json"
+    cmd = [sys.executable, str(ROOT / "benchmarks" / "paper_table.py"), "--tiny", "--data", str(quickstart), "--runs", str(runs_dir), "--out", str(out),
+           "--rows", "Pick alone", "--workers", "1"]
+    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    doc = json.loads(out.read_text())
+    assert set(doc["training"]) == {"Pick"}  # only the learners the chosen rows drive
+    row = doc["rows"]["Pick alone"]["quickstart"]
+    assert row["command"].startswith("echo-data evaluate") and "Pick=" in row["command"] and len(doc["commit"]) >= 40
+    assert row["metrics"]["episodes"] == 1 and row["skills"]["Pick"]["n"] <= 1
+    pick = doc["summary"]["skills_alone"]["Pick"]
+    assert (pick["successes"], pick["n"]) == (row["skills"]["Pick"]["k"], row["skills"]["Pick"]["n"])
+    evals = sorted(runs_dir.glob("eval-*.json"))
+    stamp = [p.stat().st_mtime_ns for p in evals]
+    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)  # everything is in the JSON: nothing is run again
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert [p.stat().st_mtime_ns for p in evals] == stamp and json.loads(out.read_text())["rows"] == doc["rows"]
+    assert "| Pick |" in out.with_suffix(".md").read_text()
+    r = subprocess.run([*cmd[:2], "--rows", "no such row", "--out", str(out)], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 2 and "no such row" in r.stderr
