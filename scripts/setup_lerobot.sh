@@ -15,15 +15,8 @@
 # modules import, each pinned to what the venv already holds (a constraints file from `pip
 # freeze`, so nothing ledataset needs moves).
 #
-# torchvision: the registry's 0.28.0 (the release for torch 2.13) is a CUDA build. Its Python
-# part (models, transforms, ops.misc: all ACT and Diffusion use) runs on CPU; only its compiled
-# ops (_C.so, linked to libtorch_cuda) cannot load beside the CPU torch wheel. torchvision copes
-# with that (`extension._has_ops()` is then False) except in two fake-kernel registrations
-# (nms, qnms) that raise "operator torchvision::nms does not exist" at import; this guards them on
-# `_has_ops()`. torchvision 0.26+ also has no video decoder (moved to torchcodec, whose wheels are
-# CUDA builds as well), while ledataset 0.4.4 decodes video through `torchvision.io.VideoReader`
-# (its "pyav" backend): this adds scripts/lerobot_env/torchvision/io.py (that reader on PyAV,
-# which ledataset already depends on) as `torchvision.io.VideoReader`. Rerunning redoes both.
+# torchvision: the registry's 0.28.0 made to import beside the CPU torch wheel, with a PyAV video
+# reader for ledataset (scripts/install_cpu_torchvision.sh says how and why).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 VENV=${ECHO_LEROBOT_VENV:-.venv-lerobot}
@@ -32,16 +25,7 @@ if [ ! -x "$VENV/bin/python" ] || ! "$VENV/bin/python" -c "import ledataset, tor
   python3 -m venv "$VENV"
   "${PIP[@]}" "lerobot-dataset>=0.4,<0.5" "torch==2.13.0" "lerobot-doctor>=0.2,<0.3"
 fi
-SITE=$("$VENV/bin/python" -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")
-TV="$SITE/torchvision"
-if [ ! -f "$TV/.echo-data-cpu" ]; then
-  rm -rf "$TV"  # an earlier stand-in, or a torchvision that does not import
-  "${PIP[@]}" --no-deps --force-reinstall "torchvision==0.28.0"
-  sed -i -E 's|^@torch\.library\.register_fake\("torchvision::(\w+)"\)$|@(torch.library.register_fake("torchvision::\1") if torchvision.extension._has_ops() else (lambda fn: fn))|' "$TV/_meta_registrations.py"
-  cp scripts/lerobot_env/torchvision/io.py "$TV/io/_echo_pyav_reader.py"
-  printf '\nif "VideoReader" not in globals():  # echo-data: torchvision >= 0.26 has no video decoder\n    from ._echo_pyav_reader import VideoReader\n' >> "$TV/io/__init__.py"
-  touch "$TV/.echo-data-cpu"
-fi
+bash scripts/install_cpu_torchvision.sh "$VENV/bin/python"
 if ! "$VENV/bin/python" -c "import lerobot.policies.act.modeling_act, lerobot.policies.diffusion.modeling_diffusion" 2>/dev/null; then
   CONSTRAINTS=$(mktemp)
   "$VENV/bin/pip" freeze --exclude-editable | grep -v -i -E "^(lerobot|torchvision)==" > "$CONSTRAINTS"
