@@ -54,6 +54,11 @@ def test_card_cites_and_links(ds: Path) -> None:
     text = (ds / "README.md").read_text()
     assert "## Citation" in text and "@inproceedings{" in text and "Sound-Triggered Mobile Manipulation" in text
     assert "## Links" in text and "`synth`" in text and "--format lerobot|robomimic|zarr" in text
+    # the KEMAR HRTF's licence asks for its authors to be cited; echo-data itself has a BibTeX entry
+    assert "@article{gardner1995kemar" in text and "3907--3908" in text and "@software{echo_data" in text
+    assert _front(text)["annotations_creators"] == ["machine-generated"]
+    assert "## Uses" in text and "## Out of scope" in text
+    assert "restarts at 0 in every split" in text  # episode_index is per split
 
 
 def test_info_refreshes_the_card(ds: Path) -> None:

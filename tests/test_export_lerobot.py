@@ -82,6 +82,9 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
     card = (out / "README.md").read_text()
     assert yaml.safe_load(card.split("---\n")[1])["configs"][0]["data_files"] == "data/*/*.parquet" and "## Features" in card
     assert "across the whole export" in card and "within its split" not in card
+    # the export's card describes the export, not the source folder it came from
+    assert "Parquet (this folder)" not in card and "rebuilds these bytes" not in card and "16-bit PNG" not in card
+    assert "| `extra.action.executed` |" in card and "not a policy input or output" in card and "@article{gardner1995kemar" in card
     again = CliRunner().invoke(app, ["export", str(ds), "--out", str(out)])
     assert again.exit_code == 2 and "already exists" in again.output
     assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out), "--overwrite"]).exit_code == 0
