@@ -3,8 +3,8 @@
 Writes the sampled spec (episode.json), a top-down plan with the expert's path
 (topdown.png), the first head RGB frame (head_rgb.png), a contact sheet of head RGB every 2 s
 of the expert run (frames.png), what the robot hears at its start
-pose for the first 2 s (heard.wav), its spectrogram (spectrogram.png) and a dB map of the
-first source over the floor plan at ear height (acoustic_map.png).
+pose for the first 2 s (heard.wav), its spectrogram (spectrogram.png) and a dB map of every
+event's source over the floor plan at ear height (acoustic_map.png).
 """
 
 from __future__ import annotations
@@ -60,57 +60,29 @@ def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: SoundLibrary) -> 
 
 
 def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float = 0.25) -> None:
-    """Steady sound pressure level (dB SPL, at its drawn source level) of the first event's
-    source over the plan at ear height, with the soft furnishings that shape it: rugs (dashed),
-    curtains (green), upholstered sofas and beds (hatched)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
-
-    from echo_data.acoustics.materials import per_floor_area
+    """Steady sound pressure level (dB SPL, at each source's drawn level) of every event's source
+    over the plan at ear height (`echo_data.viz.acoustic_map` draws it on the one top-down map)."""
     from echo_data.acoustics.room import AcousticScene, omni_rir
+    from echo_data.viz.acoustic_map import save_acoustic_maps
 
     cfg = recipe.acoustics
     scene = AcousticScene(spec.plan, cfg)
     b = spec.plan.bounds
     xs = np.arange(b.xmin + step / 2, b.xmax, step)
     ys = np.arange(b.ymin + step / 2, b.ymax, step)
-    ev = spec.events[0]
-    src = ev.source
-    l1m = spec.source_level(0)
-    level = np.full((len(ys), len(xs)), np.nan)
-    for j, y in enumerate(ys):
-        for i, x in enumerate(xs):
-            if spec.plan.room_at(x, y) < 0:
-                continue
-            h = omni_rir(scene.response(src, (x, y, cfg.ear_height)))  # direct sound at 1 m = 0 dB
-            level[j, i] = l1m + 10 * np.log10(np.sum(h.astype(np.float64) ** 2) + 1e-20)
-    fig, ax = plt.subplots(figsize=(7, 7 * (b.ymax - b.ymin) / max(b.xmax - b.xmin, 1e-6) + 0.5))
-    top = float(np.ceil(np.nanmax(level) / 5) * 5)
-    im = ax.imshow(level, origin="lower", extent=(b.xmin, b.xmax, b.ymin, b.ymax), cmap="inferno", vmin=top - 45, vmax=top)
-    for f in spec.plan.furniture:
-        fp = f.footprint
-        soft = per_floor_area(f.material)
-        ax.add_patch(Rectangle((fp.xmin, fp.ymin), fp.xmax - fp.xmin, fp.ymax - fp.ymin, fill=False, ec="lightgrey", lw=1, hatch="///" if soft else None))
-    for fu in spec.plan.furnishings:
-        fp = fu.footprint
-        if fu.kind == "rug":
-            ax.add_patch(Rectangle((fp.xmin, fp.ymin), fp.xmax - fp.xmin, fp.ymax - fp.ymin, fill=False, ec="deepskyblue", lw=1, ls="--"))
-        else:
-            ax.add_patch(Rectangle((fp.xmin, fp.ymin), fp.xmax - fp.xmin, fp.ymax - fp.ymin, fill=True, fc="lime", ec="lime", lw=2.5))
-    for w in spec.plan.walls:
-        ax.plot([w.a[0], w.b[0]], [w.a[1], w.b[1]], color="white", lw=2.5)
-    for d in spec.plan.doors:
-        e = d.free_edge()
-        ax.plot([d.hinge[0], e[0]], [d.hinge[1], e[1]], color="cyan", lw=2)
-    ax.plot(src[0], src[1], marker="*", color="lime", ms=16, mec="black")
-    ax.set_title(f"{ev.category} at {l1m:.0f} dB SPL @ 1 m: level at ear height\n(rugs dashed, curtains green, upholstery hatched)")
-    ax.set_aspect("equal")
-    fig.colorbar(im, ax=ax, shrink=0.8, label="dB SPL")
-    fig.savefig(out, dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    maps = []
+    for e, ev in enumerate(spec.events):
+        l1m = spec.source_level(e)
+        level = np.full((len(ys), len(xs)), np.nan)
+        for j, y in enumerate(ys):
+            for i, x in enumerate(xs):
+                if spec.plan.room_at(x, y) < 0:
+                    continue
+                h = omni_rir(scene.response(ev.source, (x, y, cfg.ear_height)))  # direct sound at 1 m = 0 dB
+                level[j, i] = l1m + 10 * np.log10(np.sum(h.astype(np.float64) ** 2) + 1e-20)
+        maps.append((ev.category, (float(ev.source[0]), float(ev.source[1]), float(ev.source[2])), l1m, level))
+    grid = (float(xs[0] - step / 2), float(xs[-1] + step / 2), float(ys[0] - step / 2), float(ys[-1] + step / 2))
+    save_acoustic_maps(spec.plan, maps, grid, cfg.noise_floor_dba, out)
 
 
 def write_preview(recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path, index: int = 0) -> dict[str, object]:
@@ -130,7 +102,7 @@ def write_preview(recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path,
     (out / "episode.json").write_text(json.dumps(spec.to_dict(), indent=2))
     rollout = simulate(spec, recipe, observe=True)
     path = [(float(s.state[0]), float(s.state[1])) for s in rollout.steps]
-    draw_topdown(spec.plan, out / "topdown.png", path=path, start=spec.start, events=spec.events)
+    draw_topdown(spec.plan, out / "topdown.png", path=path, start=spec.start, events=spec.events, chain=spec.chain)
     if rollout.steps and rollout.steps[0].head_rgb is not None:
         _save_png(out / "head_rgb.png", rollout.steps[0].head_rgb)
         every = max(1, int(round(CONTACT_EVERY_S * recipe.robot.control_hz)))

@@ -55,6 +55,7 @@ OBS_KEYS = {
 }
 MASKS = {"train": "train", "val": "valid", "test": "test"}
 COMPRESSION = "lzf"  # fast, built into h5py: images and spectrograms compress, readers need nothing extra
+CHUNK_FRAMES = 1  # frames per HDF5 chunk of a large observation (robomimic reads one random frame at a time)
 
 
 def _obs(ep: EpisodeArrays) -> dict[str, np.ndarray]:
@@ -98,7 +99,7 @@ def _write_demo(data: Any, name: str, ep: EpisodeArrays, actions: np.ndarray, ne
     nxt = g.create_group("next_obs") if next_obs else None
     for key, x in _obs(ep).items():
         big = x[0].size > 64
-        d = obs.create_dataset(key, data=x, chunks=(1, *x.shape[1:]) if big else None, compression=COMPRESSION if big else None)
+        d = obs.create_dataset(key, data=x, chunks=(min(CHUNK_FRAMES, n), *x.shape[1:]) if big else None, compression=COMPRESSION if big else None)
         if nxt is None:
             continue
         layout = h5py.VirtualLayout(shape=x.shape, dtype=x.dtype)
