@@ -199,10 +199,10 @@ class TopDownMap:
         img = self.base.copy()
         d = ImageDraw.Draw(img)
         s = self._r(0.14, 4.0)
-        at: dict[Point, list[str]] = {}  # one square per place, naming every call there in chain order
+        places: dict[Point, list[str]] = {}  # one square per place, naming every call there in chain order
         for k, (label, p) in enumerate(targets):
-            at.setdefault((round(p[0], 2), round(p[1], 2)), []).append(f"{k + 1} {label}")
-        for (tx, ty), names in at.items():
+            places.setdefault((round(p[0], 2), round(p[1], 2)), []).append(f"{k + 1} {label}")
+        for (tx, ty), names in places.items():
             x, y = self.px(tx, ty)
             q = self._r(0.12, 5.0)
             d.rectangle([x - q, y - q, x + q, y + q], outline=palette.TARGET, width=2)
@@ -225,8 +225,8 @@ class TopDownMap:
             end = path[-1]
             d.ellipse([x - r, y - r, x + r, y + r], fill=palette.ROBOT)
             d.line([(x, y), self.px(end[0] + 0.5 * math.cos(yaw), end[1] + 0.5 * math.sin(yaw))], fill=(0, 0, 0), width=2)
-        for e, at in carried.items():  # moved (in the hand, or where it was put down): over the robot
-            self._source(d, self.px(*at), self.events[e][0], sounding is None or sounding[e], s * 0.8)
+        for e, (mx, my) in carried.items():  # moved (in the hand, or where it was put down): over the robot
+            self._source(d, self.px(mx, my), self.events[e][0], sounding is None or sounding[e], s * 0.8)
         return np.asarray(img)
 
     @staticmethod
