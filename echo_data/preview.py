@@ -10,6 +10,7 @@ event's source over the floor plan at ear height (acoustic_map.png).
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,7 @@ from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 
 HEARD_SECONDS = 2.0
+PREVIEW_STAGES = 5  # progress calls of write_preview: sampled, simulated, pictures, heard, acoustic map
 
 
 def _save_png(path: Path, img: np.ndarray) -> None:
@@ -59,7 +61,7 @@ def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: SoundLibrary) -> 
     return np.concatenate([track.step(pose) for _ in range(n)])
 
 
-def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float = 0.25) -> None:
+def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float = 0.25, progress: Callable[[str], None] = lambda s: None) -> None:
     """Steady sound pressure level (dB SPL, at each source's drawn level) of every event's source
     over the plan at ear height (`echo_data.viz.acoustic_map` draws it on the one top-down map)."""
     from echo_data.acoustics.room import AcousticScene, omni_rir
@@ -81,12 +83,16 @@ def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float 
                 h = omni_rir(scene.response(ev.source, (x, y, cfg.ear_height)))  # direct sound at 1 m = 0 dB
                 level[j, i] = l1m + 10 * np.log10(np.sum(h.astype(np.float64) ** 2) + 1e-20)
         maps.append((ev.category, (float(ev.source[0]), float(ev.source[1]), float(ev.source[2])), l1m, level))
+        progress(f"acoustic map {e + 1}/{len(spec.events)} ({ev.category})")
     grid = (float(xs[0] - step / 2), float(xs[-1] + step / 2), float(ys[0] - step / 2), float(ys[-1] + step / 2))
     save_acoustic_maps(spec.plan, maps, grid, cfg.noise_floor_dba, out)
 
 
-def write_preview(recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path, index: int = 0) -> dict[str, object]:
-    """Sample episode `index` with the recipe's seed replaced by `seed`; simulate; write the files."""
+def write_preview(
+    recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path, index: int = 0, progress: Callable[[str], None] = lambda s: None
+) -> dict[str, object]:
+    """Sample episode `index` with the recipe's seed replaced by `seed`; simulate; write the files.
+    `progress(stage)` is called PREVIEW_STAGES times, as each stage ends (the acoustic map also per event)."""
     import soundfile as sf
 
     from echo_data.app.pipeline import simulate
@@ -98,9 +104,11 @@ def write_preview(recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path,
     recipe = recipe.model_copy(update={"seed": seed})
     library = SoundLibrary.from_recipe(recipe, recipe_dir)
     spec, rejected = sample_episode(recipe, "train", index, library)
+    progress("sampled")
     out.mkdir(parents=True, exist_ok=True)
     (out / "episode.json").write_text(json.dumps(spec.to_dict(), indent=2))
     rollout = simulate(spec, recipe, observe=True)
+    progress("simulated")
     path = [(float(s.state[0]), float(s.state[1])) for s in rollout.steps]
     draw_topdown(spec.plan, out / "topdown.png", path=path, start=spec.start, events=spec.events, chain=spec.chain)
     if rollout.steps and rollout.steps[0].head_rgb is not None:
@@ -108,12 +116,15 @@ def write_preview(recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path,
         every = max(1, int(round(CONTACT_EVERY_S * recipe.robot.control_hz)))
         picked = list(range(0, len(rollout.steps), every))
         contact_sheet([rgb for i in picked if (rgb := rollout.steps[i].head_rgb) is not None], [i / recipe.robot.control_hz for i in picked], out / "frames.png")
+    progress("pictures")
     fs = recipe.acoustics.sample_rate
     heard = heard_at_start(spec, recipe, library)
     sf.write(out / "heard.wav", heard, fs, subtype="PCM_16")
     cats = " + ".join(ev.category for ev in spec.events)
     save_spectrogram(heard, fs, out / "spectrogram.png", f"heard at start: {cats}")
-    draw_acoustic_map(spec, recipe, out / "acoustic_map.png")
+    progress("heard")
+    draw_acoustic_map(spec, recipe, out / "acoustic_map.png", progress=lambda s: None)
+    progress("acoustic map")
     return {
         "episode_id": spec.episode_id,
         "setting": spec.setting,

@@ -61,7 +61,8 @@ def validate_cmd(path: Annotated[Path, typer.Argument(help="Dataset directory (o
 
     if not (path / "manifest.json").is_file():
         raise _fail(f"{path}: not an echo-data dataset (no manifest.json)", 2)
-    problems = validate(path)
+    with _episode_bar(path, "validate", unit="shard") as bar:
+        problems = validate(path, progress=bar.update)
     for p in problems:
         typer.echo(p)
     if problems:
@@ -100,15 +101,23 @@ EXPORT_FORMATS: dict[str, tuple[str, str]] = {
 }
 
 
-def _episode_bar(path: Path, desc: str, split: str | None = None) -> Any:
-    """A progress bar over the episodes of the dataset at `path` (or of its `split`), counted by its manifest."""
+def _episode_bar(path: Path, desc: str, split: str | None = None, unit: str = "ep") -> Any:
+    """A progress bar over the episodes (or, unit "shard", the shards) of the dataset at `path`
+    (or of its `split`), counted by its manifest; a bar without a total when it cannot be read."""
     from tqdm.auto import tqdm
 
-    from echo_data.dataset.manifest import load_manifest
+    from echo_data.dataset.manifest import ManifestError, load_manifest
 
-    counts = load_manifest(path).get("counts", {}).get("episodes", {})
-    total = (counts.get(split, 0) if split is not None else sum(counts.values())) or None
-    return tqdm(total=total, unit="ep", desc=desc, dynamic_ncols=True, leave=False)
+    try:
+        m = load_manifest(path)
+    except ManifestError:
+        m = {}
+    if unit == "shard":
+        total = len(m.get("shards", [])) or None
+    else:
+        counts = m.get("counts", {}).get("episodes", {})
+        total = (counts.get(split, 0) if split is not None else sum(counts.values())) or None
+    return tqdm(total=total, unit=unit, desc=desc, dynamic_ncols=True, leave=False)
 
 
 def export_cmd(

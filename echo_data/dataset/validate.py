@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -172,8 +173,8 @@ def _audio_problems(out: Path, row: dict[str, Any], offsets: np.ndarray, sample_
     return problems
 
 
-def validate(out: Path) -> list[str]:
-    """Problems found in the dataset at `out` (empty list when it is sound)."""
+def validate(out: Path, progress: Callable[[int], None] = lambda n: None) -> list[str]:
+    """Problems found in the dataset at `out` (empty list when it is sound); `progress(1)` after each shard."""
     out = Path(out)
     try:
         manifest = load_manifest(out)
@@ -195,6 +196,7 @@ def validate(out: Path) -> list[str]:
     for plans in plan_shards(recipe, manifest.get("limit"), manifest.get("only_splits")).values():
         next_index = 0
         for plan in plans:
+            progress(1)
             path = out / plan.file
             entry = listed.pop(plan.file, None)
             if entry is None:
