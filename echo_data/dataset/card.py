@@ -91,7 +91,8 @@ def card_text(out: Path) -> str:
         "tags": ["echo-data", "mobile-manipulation", "binaural-audio", "sound-triggered", "simulation", "sapien"],
         "size_categories": [size_category(sum(steps.values()))],
         "pretty_name": f"echo-data {m['name']}",
-        "configs": [{"config_name": "default", "data_files": [{"split": s, "path": f"data/{s}-*.parquet"} for s in splits]}],
+        "configs": [{"config_name": "default", "data_files": [{"split": s, "path": f"data/{s}-*.parquet"} for s in splits], "default": True}]
+        + audio_config(out, splits),
         "dataset_info": {
             "splits": [{"name": s, "num_bytes": split_bytes[s], "num_examples": steps[s]} for s in splits],
             "download_size": sum(split_bytes.values()),
@@ -189,6 +190,11 @@ def card_text(out: Path) -> str:
         f'steps = StepDataset("{path}", split="train")',
         "```",
         "",
+        *(
+            [f"The binaural sound of every episode: `datasets.load_dataset(\"{path}\", \"audio\", split=\"train\")` "
+             "(the `audio` config: episode_id, episode_index and the episode WAV as an `Audio` feature, which the Hub's viewer plays).", ""]
+            if audio_config(out, splits) else []
+        ),
         f"LeRobot (v3.0, for LeRobot's stock policies): `echo-data export {path} --format lerobot --out {path}-lerobot`, then "
         f'`LeRobotDataset("echo-data/{m["name"]}", root="{path}-lerobot")` in the environment `bash scripts/setup_lerobot.sh` '
         "makes (`.venv-lerobot/`). "
@@ -250,6 +256,15 @@ USES = [
     "- Speech or human-voice tasks: the sounds are synthesised events (phone, alarm, furby, doorbell, sink), no speech.",
     "",
 ]
+
+
+def audio_config(out: Path, splits: list[str]) -> list[dict[str, Any]]:
+    """The card's `audio` config (one Parquet `Audio` table per split, which the Hub's viewer
+    plays), where the build wrote them (datasets built before they existed have none)."""
+    from echo_data.dataset.audio import AUDIO_TABLE
+
+    files = [{"split": s, "path": AUDIO_TABLE.format(split=s)} for s in splits]
+    return [{"config_name": "audio", "data_files": files}] if all((out / f["path"]).is_file() for f in files) else []
 
 
 def links_and_citation(name: str, export: bool = False) -> list[str]:
