@@ -25,8 +25,9 @@ exported by one rule for its kind (`lerobot_name`):
   Stripping `extra.` gives back echo-data's column name.
 - Cameras keep their names. RGB is an 8-bit RGB image (PNG in the rows, or an H.264 video with
   `video=("rgb",)`, a keyframe every `VIDEO_GOP` frames). Depth is an 8-bit grey image repeated
-  over three channels, 0..`depth_range_m` mapped linearly to 0..255 (the range per camera is the
-  train split's largest depth, rounded up to 0.5 m, in `info.json` `echo_data.depth_images`):
+  over three channels, 0..`range_m` mapped linearly to 0..255 (the range per camera is the train
+  split's 99th-percentile depth rounded up to 0.5 m, so the farthest 1 % saturate at 255 and the
+  rest keep fine steps; in `info.json` `echo_data.depth_images`):
   Diffusion requires every camera to have one shape and ACT's ResNet takes three channels. The
   exact 16-bit millimetres stay in the echo-data dataset and its robomimic/Zarr exports.
 
@@ -129,12 +130,15 @@ def lerobot_name(col: str, layout: StepLayout) -> str:
 
 def depth_ranges(src: Path, layout: StepLayout) -> dict[str, float]:
     """Per depth camera, the metres that map to 255 in its 8-bit image: the source's train-split
-    largest depth (meta/stats.json, metres) rounded up to DEPTH_STEP_M."""
+    99th-percentile depth (meta/stats.json, metres; its maximum where no quantile is stored)
+    rounded up to DEPTH_STEP_M. The maximum would spend the 256 levels on a few far pixels: the
+    wrist camera sees 9 m across a room now and then but mostly works within 3.5 m."""
     stats = json.loads((src / "meta" / "stats.json").read_text())
     out = {}
     for col, (kind, _, _) in layout.images.items():
         if kind == "depth":
-            top = max(stats.get(col, {}).get("max", [0.0]) or [0.0])
+            st = stats.get(col, {})
+            top = max(st.get("q99") or st.get("max") or [0.0])
             out[col] = max(DEPTH_STEP_M, float(np.ceil(top / DEPTH_STEP_M) * DEPTH_STEP_M))
     return out
 
