@@ -119,7 +119,7 @@ def preview(
 ) -> None:
     """Write one episode's spec, top-down plan, first head frame, a contact sheet of head frames every 2 s, heard audio and acoustic map."""
     from echo_data.outputs import OutputError, check_output_path
-    from echo_data.preview import write_preview
+    from echo_data.preview import PREVIEW_STAGES, write_preview
 
     recipe = _load(recipe_path)
     try:  # before minutes of simulation: a file, a read-only or too long path is refused now
@@ -128,8 +128,16 @@ def preview(
         typer.echo(f"error: --out {e}", err=True)
         raise typer.Exit(2) from None
     _check_sounds(recipe, recipe_path)
+    from tqdm.auto import tqdm
+
     try:
-        summary = write_preview(recipe, recipe_path.resolve().parent, seed, out)
+        with tqdm(total=PREVIEW_STAGES, unit="stage", desc="preview", dynamic_ncols=True, leave=False) as bar:
+
+            def stage(name: str) -> None:
+                bar.set_postfix_str(name, refresh=False)
+                bar.update(1)
+
+            summary = write_preview(recipe, recipe_path.resolve().parent, seed, out, progress=stage)
     except OSError as e:
         if e.filename is None:
             raise

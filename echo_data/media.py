@@ -61,8 +61,13 @@ def write_mp4(
     fps: float,
     audio: np.ndarray | None = None,
     sample_rate: int = 16_000,
+    gop: int | None = None,
 ) -> None:
     """Encode RGB frames ((H, W, 3) uint8, all the same size) and optional stereo audio to `path`.
+
+    `gop`: at most this many frames between keyframes (None: libx264's default, about 250). A
+    training loader that seeks to random frames decodes from the keyframe before each one, so
+    datasets for training use a short GOP (LeRobot's own encoder uses 2).
 
     The audio is placed from time 0 alongside the first frame; a track longer or shorter than the
     video is kept as it is (players end at the longer stream).
@@ -90,7 +95,7 @@ def write_mp4(
                     vstream = container.add_stream("libx264", rate=rate)
                     vstream.width, vstream.height = _even(img.shape[1]), _even(img.shape[0])
                     vstream.pix_fmt = "yuv420p"
-                    vstream.options = {"crf": "20", "preset": "veryfast"}
+                    vstream.options = {"crf": "20", "preset": "veryfast", **({"g": str(gop)} if gop else {})}
                 if img.shape[0] != vstream.height or img.shape[1] != vstream.width:
                     pad = np.zeros((vstream.height, vstream.width, 3), np.uint8)
                     h, w = min(img.shape[0], vstream.height), min(img.shape[1], vstream.width)

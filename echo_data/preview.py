@@ -3,13 +3,14 @@
 Writes the sampled spec (episode.json), a top-down plan with the expert's path
 (topdown.png), the first head RGB frame (head_rgb.png), a contact sheet of head RGB every 2 s
 of the expert run (frames.png), what the robot hears at its start
-pose for the first 2 s (heard.wav), its spectrogram (spectrogram.png) and a dB map of the
-first source over the floor plan at ear height (acoustic_map.png).
+pose for the first 2 s (heard.wav), its spectrogram (spectrogram.png) and a dB map of every
+event's source over the floor plan at ear height (acoustic_map.png).
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,7 @@ from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 
 HEARD_SECONDS = 2.0
+PREVIEW_STAGES = 5  # progress calls of write_preview: sampled, simulated, pictures, heard, acoustic map
 
 
 def _save_png(path: Path, img: np.ndarray) -> None:
@@ -59,62 +61,38 @@ def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: SoundLibrary) -> 
     return np.concatenate([track.step(pose) for _ in range(n)])
 
 
-def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float = 0.25) -> None:
-    """Steady sound pressure level (dB SPL, at its drawn source level) of the first event's
-    source over the plan at ear height, with the soft furnishings that shape it: rugs (dashed),
-    curtains (green), upholstered sofas and beds (hatched)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
-
-    from echo_data.acoustics.materials import per_floor_area
+def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float = 0.25, progress: Callable[[str], None] = lambda s: None) -> None:
+    """Steady sound pressure level (dB SPL, at each source's drawn level) of every event's source
+    over the plan at ear height (`echo_data.viz.acoustic_map` draws it on the one top-down map)."""
     from echo_data.acoustics.room import AcousticScene, omni_rir
+    from echo_data.viz.acoustic_map import save_acoustic_maps
 
     cfg = recipe.acoustics
     scene = AcousticScene(spec.plan, cfg)
     b = spec.plan.bounds
     xs = np.arange(b.xmin + step / 2, b.xmax, step)
     ys = np.arange(b.ymin + step / 2, b.ymax, step)
-    ev = spec.events[0]
-    src = ev.source
-    l1m = spec.source_level(0)
-    level = np.full((len(ys), len(xs)), np.nan)
-    for j, y in enumerate(ys):
-        for i, x in enumerate(xs):
-            if spec.plan.room_at(x, y) < 0:
-                continue
-            h = omni_rir(scene.response(src, (x, y, cfg.ear_height)))  # direct sound at 1 m = 0 dB
-            level[j, i] = l1m + 10 * np.log10(np.sum(h.astype(np.float64) ** 2) + 1e-20)
-    fig, ax = plt.subplots(figsize=(7, 7 * (b.ymax - b.ymin) / max(b.xmax - b.xmin, 1e-6) + 0.5))
-    top = float(np.ceil(np.nanmax(level) / 5) * 5)
-    im = ax.imshow(level, origin="lower", extent=(b.xmin, b.xmax, b.ymin, b.ymax), cmap="inferno", vmin=top - 45, vmax=top)
-    for f in spec.plan.furniture:
-        fp = f.footprint
-        soft = per_floor_area(f.material)
-        ax.add_patch(Rectangle((fp.xmin, fp.ymin), fp.xmax - fp.xmin, fp.ymax - fp.ymin, fill=False, ec="lightgrey", lw=1, hatch="///" if soft else None))
-    for fu in spec.plan.furnishings:
-        fp = fu.footprint
-        if fu.kind == "rug":
-            ax.add_patch(Rectangle((fp.xmin, fp.ymin), fp.xmax - fp.xmin, fp.ymax - fp.ymin, fill=False, ec="deepskyblue", lw=1, ls="--"))
-        else:
-            ax.add_patch(Rectangle((fp.xmin, fp.ymin), fp.xmax - fp.xmin, fp.ymax - fp.ymin, fill=True, fc="lime", ec="lime", lw=2.5))
-    for w in spec.plan.walls:
-        ax.plot([w.a[0], w.b[0]], [w.a[1], w.b[1]], color="white", lw=2.5)
-    for d in spec.plan.doors:
-        e = d.free_edge()
-        ax.plot([d.hinge[0], e[0]], [d.hinge[1], e[1]], color="cyan", lw=2)
-    ax.plot(src[0], src[1], marker="*", color="lime", ms=16, mec="black")
-    ax.set_title(f"{ev.category} at {l1m:.0f} dB SPL @ 1 m: level at ear height\n(rugs dashed, curtains green, upholstery hatched)")
-    ax.set_aspect("equal")
-    fig.colorbar(im, ax=ax, shrink=0.8, label="dB SPL")
-    fig.savefig(out, dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    maps = []
+    for e, ev in enumerate(spec.events):
+        l1m = spec.source_level(e)
+        level = np.full((len(ys), len(xs)), np.nan)
+        for j, y in enumerate(ys):
+            for i, x in enumerate(xs):
+                if spec.plan.room_at(x, y) < 0:
+                    continue
+                h = omni_rir(scene.response(ev.source, (x, y, cfg.ear_height)))  # direct sound at 1 m = 0 dB
+                level[j, i] = l1m + 10 * np.log10(np.sum(h.astype(np.float64) ** 2) + 1e-20)
+        maps.append((ev.category, (float(ev.source[0]), float(ev.source[1]), float(ev.source[2])), l1m, level))
+        progress(f"acoustic map {e + 1}/{len(spec.events)} ({ev.category})")
+    grid = (float(xs[0] - step / 2), float(xs[-1] + step / 2), float(ys[0] - step / 2), float(ys[-1] + step / 2))
+    save_acoustic_maps(spec.plan, maps, grid, cfg.noise_floor_dba, out)
 
 
-def write_preview(recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path, index: int = 0) -> dict[str, object]:
-    """Sample episode `index` with the recipe's seed replaced by `seed`; simulate; write the files."""
+def write_preview(
+    recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path, index: int = 0, progress: Callable[[str], None] = lambda s: None
+) -> dict[str, object]:
+    """Sample episode `index` with the recipe's seed replaced by `seed`; simulate; write the files.
+    `progress(stage)` is called PREVIEW_STAGES times, as each stage ends (the acoustic map also per event)."""
     import soundfile as sf
 
     from echo_data.app.pipeline import simulate
@@ -126,22 +104,27 @@ def write_preview(recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path,
     recipe = recipe.model_copy(update={"seed": seed})
     library = SoundLibrary.from_recipe(recipe, recipe_dir)
     spec, rejected = sample_episode(recipe, "train", index, library)
+    progress("sampled")
     out.mkdir(parents=True, exist_ok=True)
     (out / "episode.json").write_text(json.dumps(spec.to_dict(), indent=2))
     rollout = simulate(spec, recipe, observe=True)
+    progress("simulated")
     path = [(float(s.state[0]), float(s.state[1])) for s in rollout.steps]
-    draw_topdown(spec.plan, out / "topdown.png", path=path, start=spec.start, events=spec.events)
+    draw_topdown(spec.plan, out / "topdown.png", path=path, start=spec.start, events=spec.events, chain=spec.chain)
     if rollout.steps and rollout.steps[0].head_rgb is not None:
         _save_png(out / "head_rgb.png", rollout.steps[0].head_rgb)
         every = max(1, int(round(CONTACT_EVERY_S * recipe.robot.control_hz)))
         picked = list(range(0, len(rollout.steps), every))
         contact_sheet([rgb for i in picked if (rgb := rollout.steps[i].head_rgb) is not None], [i / recipe.robot.control_hz for i in picked], out / "frames.png")
+    progress("pictures")
     fs = recipe.acoustics.sample_rate
     heard = heard_at_start(spec, recipe, library)
     sf.write(out / "heard.wav", heard, fs, subtype="PCM_16")
     cats = " + ".join(ev.category for ev in spec.events)
     save_spectrogram(heard, fs, out / "spectrogram.png", f"heard at start: {cats}")
-    draw_acoustic_map(spec, recipe, out / "acoustic_map.png")
+    progress("heard")
+    draw_acoustic_map(spec, recipe, out / "acoustic_map.png", progress=lambda s: None)
+    progress("acoustic map")
     return {
         "episode_id": spec.episode_id,
         "setting": spec.setting,

@@ -8,5 +8,8 @@ python3 -m pip install -q --disable-pip-version-check -e '.[test]'
 # robomimic's SequenceDataset reads `export --format robomimic` in the tests; its declared deps
 # (a CUDA torchvision, egl_probe) do not install beside the CPU torch: see pyproject.toml.
 python3 -m pip install -q --disable-pip-version-check --no-deps "robomimic==0.3.0"
+# robomimic's train.py (tests/robomimic_train.py) imports psutil and imageio, and its encoders torchvision.
+python3 -m pip install -q --disable-pip-version-check "psutil>=5" "imageio>=2.30,<3"
+bash scripts/install_cpu_torchvision.sh "$(command -v python3)"
 # LeRobot's dataset library in its own environment (its pins clash with ours); used by tests.
 bash scripts/setup_lerobot.sh

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pyarrow.parquet as pq
 import pytest
 import yaml
 from support.synth import build_synth
@@ -54,6 +55,11 @@ def test_card_cites_and_links(ds: Path) -> None:
     text = (ds / "README.md").read_text()
     assert "## Citation" in text and "@inproceedings{" in text and "Sound-Triggered Mobile Manipulation" in text
     assert "## Links" in text and "`synth`" in text and "--format lerobot|robomimic|zarr" in text
+    # the KEMAR HRTF's licence asks for its authors to be cited; echo-data itself has a BibTeX entry
+    assert "@article{gardner1995kemar" in text and "3907--3908" in text and "@software{echo_data" in text
+    assert _front(text)["annotations_creators"] == ["machine-generated"]
+    assert "## Uses" in text and "## Out of scope" in text
+    assert "restarts at 0 in every split" in text  # episode_index is per split
 
 
 def test_info_refreshes_the_card(ds: Path) -> None:
@@ -70,3 +76,28 @@ def test_card_states_the_audio_calibration(ds: Path) -> None:
     assert f"a sample of 1.0 is {audio['full_scale_db_spl']:g} dB SPL" in text
     for cat, (lo, hi) in audio["source_levels_db_spl_at_1m"].items():
         assert f"| {cat} | {lo:g}–{hi:g} |" in text
+
+
+def test_audio_config_plays_the_episode_wavs(ds: Path, tmp_path: Path) -> None:
+    """The card's `audio` config loads with `datasets` as an Audio feature holding each episode's
+    WAV bytes (what the Hub's viewer plays), and validate notices a table that drifts from them."""
+    import datasets
+    import pyarrow as pa
+    from support.synth import damageable_copy
+
+    from echo_data.dataset.validate import validate
+
+    front = _front((ds / "README.md").read_text())
+    assert [c["config_name"] for c in front["configs"]] == ["default", "audio"]
+    d = datasets.load_dataset(str(ds), "audio", split="test")
+    assert isinstance(d.features["audio"], datasets.Audio)
+    rows = [r for r in pq.read_table(ds / "meta" / "episodes.parquet").to_pylist() if r["split"] == "test"]
+    raw = d.cast_column("audio", datasets.Audio(decode=False))
+    assert [x["episode_id"] for x in raw] == [r["episode_id"] for r in rows]
+    assert all(x["audio"]["bytes"] == (ds / r["audio_path"]).read_bytes() for x, r in zip(raw, rows))
+    bad = damageable_copy(ds, tmp_path)
+    table = pq.read_table(bad / "meta" / "audio" / "test.parquet")
+    cells = table.column("audio").to_pylist()
+    cells[0]["bytes"] = cells[0]["bytes"][:-2]
+    pq.write_table(table.set_column(2, "audio", pa.array(cells, table.schema.field("audio").type)), bad / "meta" / "audio" / "test.parquet")
+    assert any("meta/audio/test.parquet" in p and "differs" in p for p in validate(bad))

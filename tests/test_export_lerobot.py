@@ -3,9 +3,10 @@
 The loading side runs in a separate virtual environment with the `lerobot-dataset` package
 (LeRobot's standalone dataset library, import `ledataset`) and `lerobot-doctor`, made by
 scripts/setup_lerobot.sh (CI runs it from scripts/setup.sh): its pins (datasets<4.2,
-huggingface-hub<0.36, numpy 2, pyarrow 26) clash with ours. Its torchvision is the CPU stand-in
-that script installs (the registry's torchvision wheels are CUDA builds that do not import beside
-the CPU torch wheel).
+huggingface-hub<0.36, numpy 2, pyarrow 26) clash with ours. It also holds LeRobot 0.4.4 itself, so
+stock ACT and Diffusion policies are built from the export and take optimizer steps on it
+(tests/lerobot_policy.py). Its torchvision is the registry's 0.28.0 made to import beside the CPU
+torch wheel, with a PyAV video reader (see that script).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import subprocess
 from collections.abc import Callable
 from pathlib import Path
 
+import av
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
@@ -26,6 +28,7 @@ from support.lerobot_env import HERE, VENV_PYTHON, lerobot_env, run_lerobot
 from typer.testing import CliRunner
 
 from echo_data.cli import app
+from echo_data.dataset.lerobot import depth_image
 
 
 @pytest.fixture(scope="module")
@@ -49,10 +52,17 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
     info = json.loads((out / "meta" / "info.json").read_text())
     assert info["codebase_version"] == "v3.0" and info["splits"] == {"train": "0:4", "test": "4:6"}
     assert (out / "data" / "chunk-000" / "file-000.parquet").is_file() and info["video_path"] is None
-    assert info["features"]["observation.depth.head"]["shape"] == [16, 24, 1]
+    assert info["features"]["observation.images.head_depth"]["shape"] == [16, 24, 3]  # 8-bit depth x3: one shape for every camera
     data = pq.read_schema(out / "data" / "chunk-000" / "file-000.parquet")
     assert list(info["features"]) == data.names  # listed in column order
-    assert info["features"]["observation.audio.spectrogram"]["shape"] == [65 * 26 * 2]
+    # policy-facing names: one action feature, the spectrogram as the environment state, the rest under extra.
+    assert [k for k in info["features"] if k.startswith("action")] == ["action"]
+    assert info["features"]["observation.environment_state"]["shape"] == [65 * 26 * 2]
+    assert {k for k in info["features"] if k.startswith("observation.")} == {
+        "observation.state", "observation.environment_state", *(c for c in info["features"] if c.startswith("observation.images."))}
+    assert info["echo_data"]["renamed"] == {
+        "extra.action.executed": "action.executed", "observation.environment_state": "observation.audio.spectrogram",
+        "extra.observation.audio.mel": "observation.audio.mel"}
     assert info["echo_data"]["cameras"]["head"]["K"][0][2] == 12.0
     eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
     assert [e["episode_index"] for e in eps] == list(range(6))
@@ -64,9 +74,17 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
     np.testing.assert_allclose(eps[0]["stats/observation.state/max"], first.max(axis=0), rtol=1e-6)
     np.testing.assert_allclose(eps[0]["stats/observation.state/mean"], first.mean(axis=0), rtol=1e-5)
     assert eps[0]["stats/index/count"] == [eps[0]["length"]] and np.shape(eps[0]["stats/observation.images.head_rgb/mean"]) == (3, 1, 1)
+    # a data file holds one split's episodes
+    by_file: dict[int, set[str]] = {}
+    for e in eps:
+        by_file.setdefault(e["data/file_index"], set()).add(e["split"])
+    assert all(len(s) == 1 for s in by_file.values()) and len(by_file) == 2
     card = (out / "README.md").read_text()
     assert yaml.safe_load(card.split("---\n")[1])["configs"][0]["data_files"] == "data/*/*.parquet" and "## Features" in card
     assert "across the whole export" in card and "within its split" not in card
+    # the export's card describes the export, not the source folder it came from
+    assert "Parquet (this folder)" not in card and "rebuilds these bytes" not in card and "16-bit PNG" not in card
+    assert "| `extra.action.executed` |" in card and "not a policy input or output" in card and "@article{gardner1995kemar" in card
     again = CliRunner().invoke(app, ["export", str(ds), "--out", str(out)])
     assert again.exit_code == 2 and "already exists" in again.output
     assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out), "--overwrite"]).exit_code == 0
@@ -82,6 +100,7 @@ def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path, monkeypatch:
     assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out)]).exit_code == 0
     n_files = len(list((out / "data" / "chunk-000").glob("file-*.parquet")))
     assert 1 < n_files <= 6
+    info = json.loads((out / "meta" / "info.json").read_text())
     npz = tmp_path / "frames.npz"
     p = run_lerobot([str(HERE / "lerobot_load.py"), str(out), str(npz)], tmp_path)
     assert p.returncode == 0, p.stderr[-3000:]
@@ -91,7 +110,7 @@ def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path, monkeypatch:
     assert got["len"] == len(rows) and got["num_episodes"] == 6 and got["video_keys"] == []
     assert got["splits"] == {"train": "0:4", "test": "4:6"}
     assert got["train_episodes"] == [0, 1, 2, 3] and got["train_len"] == sum(r["split"] == "train" for r in rows)
-    assert "observation.depth.head" in got["stats_keys"]
+    assert "observation.images.head_depth" in got["stats_keys"]
     assert frames["index"].tolist() == list(range(len(rows)))
     ids = [e["episode_id"] for e in got["episodes"]]
     eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
@@ -107,15 +126,20 @@ def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path, monkeypatch:
         assert frames["timestamp"][i] == np.float32(row["timestamp"])
         for col in ("action", "observation.state", "camera_pose.head", "camera_pose.wrist"):
             np.testing.assert_array_equal(frames[col][i], np.array(row[col], np.float32))
-        for col in ("observation.audio.spectrogram", "observation.audio.mel"):
-            np.testing.assert_array_equal(frames[col][i], np.array(row[col], np.float32).ravel())
+        for name, col in (("observation.environment_state", "observation.audio.spectrogram"), ("extra.observation.audio.mel", "observation.audio.mel")):
+            np.testing.assert_array_equal(frames[name][i], np.array(row[col], np.float32).ravel())
+        np.testing.assert_array_equal(frames["extra.action.executed"][i], np.array(row["action.executed"], np.float32))
         assert frames["skill_success"][i].tolist() == row["skill_success"] and bool(frames["done"][i]) == row["done"]
         assert int(frames["audio_offset"][i]) == row["audio_offset"] and got["strings"]["audio_path"][i] == row["audio_path"]
         assert got["strings"]["skill"][i] == row["skill"] and got["strings"]["task"][i] == got["tasks"][row["task_index"]]
         rgb = np.asarray(Image.open(io.BytesIO(row["observation.images.head_rgb"]["bytes"])))
         np.testing.assert_allclose(frames["observation.images.head_rgb"][i], rgb.transpose(2, 0, 1) / 255.0, rtol=1e-6)
-        depth = np.asarray(Image.open(io.BytesIO(row["observation.images.head_depth"]["bytes"])))
-        np.testing.assert_array_equal(frames["observation.depth.head"][i][0], depth)  # millimetres
+        mm = np.asarray(Image.open(io.BytesIO(row["observation.images.head_depth"]["bytes"])))
+        rng = info["echo_data"]["depth_images"]["observation.images.head_depth"]["range_m"]
+        np.testing.assert_allclose(frames["observation.images.head_depth"][i], depth_image(mm[None], rng)[0].transpose(2, 0, 1) / 255.0, rtol=1e-6)
+        # the stated decoding is within half a step of the millimetres (below the range)
+        near = (mm > 0) & (mm < rng * 1000)
+        assert np.abs(frames["observation.images.head_depth"][i][0][near] * rng - mm[near] / 1000).max() <= rng / 255 / 2 + 1e-6
 
 
 def test_video_export_decodes_and_lerobot_tools_accept_it(ds: Path, tmp_path: Path) -> None:
@@ -142,8 +166,12 @@ def test_video_export_decodes_and_lerobot_tools_accept_it(ds: Path, tmp_path: Pa
         same_episode = [k for k, r in enumerate(rows) if (r["split"], r["episode_index"]) == (row["split"], row["episode_index"])]
         err = [np.abs(frames["observation.images.head_rgb"][i] - pngs[k]).mean() for k in same_episode]
         assert same_episode[int(np.argmin(err))] == i and min(err) < 0.25, err  # the right frame (H.264 is lossy on noise)
-        depth = np.asarray(Image.open(io.BytesIO(row["observation.images.head_depth"]["bytes"])))
-        np.testing.assert_array_equal(frames["observation.depth.head"][i][0], depth)
+        mm = np.asarray(Image.open(io.BytesIO(row["observation.images.head_depth"]["bytes"])))
+        rng = info["echo_data"]["depth_images"]["observation.images.head_depth"]["range_m"]
+        np.testing.assert_allclose(frames["observation.images.head_depth"][i], depth_image(mm[None], rng)[0].transpose(2, 0, 1) / 255.0, rtol=1e-6)
+    with av.open(str(out / "videos" / "observation.images.head_rgb" / "chunk-000" / "file-000.mp4")) as c:
+        keys = [f.key_frame for f in c.decode(video=0)]
+    assert all(keys[k] or keys[k - 1] for k in range(1, len(keys))), keys  # a keyframe at least every 2 frames
     twin = tmp_path / "lev2"
     shutil.copytree(out, twin)
     merged = tmp_path / "merged"
@@ -160,3 +188,30 @@ def test_video_export_decodes_and_lerobot_tools_accept_it(ds: Path, tmp_path: Pa
     p = subprocess.run([str(doctor), "check", str(out), "--json"], capture_output=True, text=True, env=lerobot_env(tmp_path), timeout=300)
     report = json.loads(p.stdout[p.stdout.index("{") :])
     assert report["overall_severity"] != "FAIL" and all(c["severity"] != "FAIL" for c in report["checks"]), p.stdout[-2000:]
+
+
+@pytest.mark.parametrize("policy", ["act", "diffusion"])
+def test_stock_policy_trains_on_the_export(policy: str, tmp_path: Path) -> None:
+    """LeRobot's make_policy types the export's features and the config's validate_features
+    accepts them (one action output; state, cameras of one shape and the audio as the
+    environment state as inputs); the stock policy then takes optimizer steps on CPU on the
+    train split's frames, with LeRobot's processors normalising by meta/stats.json."""
+    from support.synth import build_synth
+
+    from echo_data.recipe import CameraConfig, RobotConfig
+
+    lerobot_env(tmp_path)
+    same = RobotConfig(head_camera=CameraConfig(width=24, height=16), wrist_camera=CameraConfig(width=24, height=16, rgb=False))
+    ds = build_synth(tmp_path / "synth", {"train": 3, "test": 1}, robot=same)  # every camera 24 x 16, as Diffusion requires
+    out = tmp_path / "le"
+    assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out)]).exit_code == 0
+    p = run_lerobot([str(HERE / "lerobot_policy.py"), str(out), policy, "3"], tmp_path)
+    assert p.returncode == 0, p.stderr[-3000:]
+    got = json.loads(p.stdout.strip().splitlines()[-1])
+    assert got["outputs"] == {"action": "ACTION"}
+    assert got["inputs"]["observation.environment_state"] == "ENV" and got["inputs"]["observation.state"] == "STATE"
+    assert {k for k, t in got["inputs"].items() if t == "VISUAL"} == {
+        "observation.images.head_rgb", "observation.images.head_depth", "observation.images.wrist_depth"}
+    assert not any(k.startswith("extra.") for k in got["inputs"])
+    assert len(got["losses"]) == 3 and all(np.isfinite(got["losses"]))
+    assert set(got["episodes_seen"]) <= set(range(*got["train_episodes"]))  # train frames only

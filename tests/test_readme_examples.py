@@ -45,7 +45,7 @@ def test_python_example_runs(name: str, workdir: Path, monkeypatch: pytest.Monke
     monkeypatch.chdir(workdir)
     if name in ("robomimic", "zarr"):
         target = {"robomimic": "out/quickstart.hdf5", "zarr": "out/quickstart.zarr"}[name]
-        r = CliRunner().invoke(app, ["export", "out/quickstart", "--format", name, "--out", target, "--overwrite"])
+        r = CliRunner().invoke(app, ["export", "out/quickstart", "--format", name, "--out", target, "--split", "train", "--overwrite"])
         assert r.exit_code == 0, r.output
     scope: dict = {}
     exec(compile(_code(name), f"README:{name}", "exec"), scope)

@@ -165,3 +165,69 @@ def test_bad_rerun_target_is_one_line_exit_2_and_writes_nothing(ds: Path, tmp_pa
 def test_rerun_for_a_missing_episode_leaves_no_file(ds: Path, tmp_path: Path) -> None:
     r = CliRunner().invoke(app, ["view", str(ds), "--episode", "7", "--rerun", str(tmp_path / "ep.rrd")])
     assert r.exit_code == 2 and "no train episode 7" in r.output and list(tmp_path.iterdir()) == []
+
+
+def test_sources_fall_silent_when_resolved_and_ride_in_the_hand() -> None:
+    """A relocation chain: the furby sounds until the step after Pick's success test holds, then
+    is silent; it is in the hand while the state's `holding` is set after that, and the map draws
+    it at the robot (not on its shelf)."""
+    from echo_data.view import source_states
+    from echo_data.viz import palette
+
+    chain = [{"skill": "Navigate", "event": 0}, {"skill": "Pick", "event": 0}, {"skill": "Place", "event": 0}]
+    flags = np.zeros((6, 5), bool)
+    flags[1:, 0] = True  # reached after step 1
+    flags[3:, 1] = True  # picked up after step 3
+    flags[5:, 2] = True  # placed after step 5
+    holding = np.array([0, 0, 0, 1, 1, 0], float) > 0.5
+    sounding, carried = source_states(chain, 1, flags, holding)
+    assert [s[0] for s in sounding] == [True, True, True, True, False, False]
+    assert carried == [[], [], [], [], [0], []]
+    topdown = TopDownMap(None, [{"category": "furby", "source": (3.5, 3.5, 0.8)}], size=PANEL, extent=[(0.0, 0.0), (4.0, 4.0)])
+    shelf = tuple(int(v) for v in topdown.px(3.5, 3.5))
+    sounding_map = topdown.draw([(0.5, 0.5)], 0.0, [True])
+    assert tuple(sounding_map[shelf[1], shelf[0]]) == palette.source("furby")
+    in_hand = topdown.draw([(0.5, 0.5)], 0.0, [False], moved={0: (0.85, 0.5)})
+    assert tuple(in_hand[shelf[1], shelf[0]]) != palette.source("furby") and not (in_hand == palette.source("furby")).all(axis=2).any()
+    ring = (in_hand == palette.SILENT).all(axis=2)
+    ys, xs = np.nonzero(ring)
+    hand = topdown.px(0.5 + 0.35, 0.5)
+    assert abs(xs.mean() - hand[0]) < 3 and abs(ys.mean() - hand[1]) < 3  # the silenced ring is where the hand is, over the robot
+
+
+def test_wrist_depth_has_its_own_scale_and_the_strip_its_axes() -> None:
+    from echo_data.viz.frames import SPEC_AXIS_W, SPEC_TOP, WRIST_DEPTH_RANGE_M
+
+    topdown = TopDownMap(None, [], size=PANEL, extent=[(0.0, 0.0), (4.0, 4.0)])
+    video = EpisodeFrames(topdown, np.zeros((16_000, 2), np.float32), 16_000)
+    frame = video.frame(None, None, [(0.5, 0.5)], 0.0, 0, "c", wrist_depth_m=np.full((16, 16), 1.0))
+    lut = colour_lut("turbo")
+    mid = PANEL_TOP + PANEL // 2
+    assert WRIST_DEPTH_RANGE_M < DEPTH_RANGE_M
+    assert tuple(frame[mid, 2 * PANEL + PANEL // 2]) == tuple(lut[int(1.0 / WRIST_DEPTH_RANGE_M * 255)])  # 1 m mid-scale, not dark
+    axis = frame[SPEC_TOP:CAPTION_TOP, :SPEC_AXIS_W]
+    assert (axis.min(axis=2) > 128).sum() > 40  # L / R letters, kHz ticks and labels in white
+    key = frame[SPEC_TOP + 4 : SPEC_TOP + 12, WIDTH - 150 : WIDTH - 50]
+    magma = colour_lut("magma")
+    assert tuple(key[2, 0]) == tuple(magma[0]) and tuple(key[2, -1]) == tuple(magma[255])  # the dB key, -80 .. 0 dB
+
+
+def test_topdown_picture_has_legend_and_chain_targets(tmp_path: Path) -> None:
+    """preview's topdown.png: the chain's targets as numbered squares, and a legend under the plan."""
+    from echo_data.episode import SkillCall
+    from echo_data.recipe import load_recipe
+    from echo_data.scene.generate import generate_floorplan_from_seed
+    from echo_data.viz import palette
+    from echo_data.viz.topdown import draw_topdown, target_point
+
+    plan = generate_floorplan_from_seed(load_recipe(Path(__file__).parents[1] / "recipes" / "quickstart.yaml"), 3)
+    events = [{"category": "phone", "source": (*plan.furniture[0].center, 0.8)}]
+    with_chain, without = tmp_path / "t.png", tmp_path / "p.png"
+    draw_topdown(plan, with_chain, events=events, chain=[SkillCall("Navigate", "furniture:1", 0), SkillCall("Place", "furniture:1", 0)])
+    draw_topdown(plan, without, events=events)
+    a, b = (np.asarray(Image.open(p).convert("RGB")) for p in (with_chain, without))
+    magenta = lambda img: (img == palette.TARGET).all(axis=2)  # noqa: E731
+    assert magenta(a).sum() > magenta(b).sum() > 0  # the legend names targets; the chain adds its square and label
+    assert target_point(plan, "furniture:1") == tuple(plan.furniture[1].center) and target_point(plan, "door:99") is None
+    map_h = TopDownMap(plan, events, px_per_m=80.0, labels=True).height
+    assert a.shape[0] > map_h + 16 and (a[map_h + 16 :] != np.asarray(palette.BACKGROUND)).any(axis=2).sum() > 100  # the legend rows

@@ -235,12 +235,14 @@ def _prepare(
 
 
 class _Rate:
-    """Steps/s of this run and the projected time left for the whole recipe (every split at
-    full size, not just this run's --limit), from the episodes finished so far."""
+    """Steps/s of this run and, when this run is smaller than the recipe (--limit, --split), the
+    projected time the rest of the recipe would take at this rate; this run's own time left is
+    the bar's ETA (its total is this run's episodes)."""
 
-    def __init__(self, recipe_todo: int) -> None:
+    def __init__(self, recipe_todo: int, run_todo: int) -> None:
         self.t0 = time.monotonic()
         self.recipe_todo = recipe_todo
+        self.run_todo = run_todo
         self.episodes = self.steps = 0
 
     def add(self, steps: int) -> None:
@@ -249,8 +251,11 @@ class _Rate:
 
     def __str__(self) -> str:
         dt = max(time.monotonic() - self.t0, 1e-9)
-        left = (self.recipe_todo - self.episodes) * dt / max(self.episodes, 1)
-        return f"{self.steps / dt:.0f} steps/s, whole recipe {_duration(left)} left"
+        rate = f"{self.steps / dt:.0f} steps/s"
+        if self.recipe_todo <= self.run_todo:
+            return rate
+        rest = (self.recipe_todo - self.run_todo) * dt / max(self.episodes, 1)
+        return f"{rate}; the rest of the recipe (beyond this run) ~{_duration(rest)} more"
 
 
 def _duration(seconds: float) -> str:
@@ -401,7 +406,7 @@ def _build_locked(
             if not writer.stored(split, i)
         )
         bar = tqdm(total=total, initial=reused, unit="ep", desc=f"build {recipe.name}", disable=not progress, dynamic_ncols=True)
-        rate = _Rate(sum(split_sizes(recipe, None).values()) - reused)
+        rate = _Rate(sum(split_sizes(recipe, None).values()) - reused, total - reused)
         attempts = successes = 0
         for res in ex.imap_unordered(_run_episode, todo):
             if isinstance(res, FailedEpisode) and res.error:

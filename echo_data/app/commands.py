@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -66,7 +66,8 @@ def validate_cmd(path: Annotated[Path, typer.Argument(help="Dataset directory (o
         load_manifest(path)
     except ManifestError as e:
         raise _fail(str(e), 2) from None
-    problems = validate(path)
+    with _episode_bar(path, "validate", unit="shard") as bar:
+        problems = validate(path, progress=bar.update)
     for p in problems:
         typer.echo(p)
     if problems:
@@ -105,11 +106,32 @@ EXPORT_FORMATS: dict[str, tuple[str, str]] = {
 }
 
 
+def _episode_bar(path: Path, desc: str, split: str | None = None, unit: str = "ep") -> Any:
+    """A progress bar over the episodes (or, unit "shard", the shards) of the dataset at `path`
+    (or of its `split`), counted by its manifest; a bar without a total when it cannot be read."""
+    from tqdm.auto import tqdm
+
+    from echo_data.dataset.manifest import ManifestError, load_manifest
+
+    try:
+        m = load_manifest(path)
+    except ManifestError:
+        m = {}
+    if unit == "shard":
+        total = len(m.get("shards", [])) or None
+    else:
+        counts = m.get("counts", {}).get("episodes", {})
+        total = (counts.get(split, 0) if split is not None else sum(counts.values())) or None
+    return tqdm(total=total, unit=unit, desc=desc, dynamic_ncols=True, leave=False)
+
+
 def export_cmd(
     path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Export: a folder (lerobot, zarr) or an .hdf5 file (robomimic).")],
     fmt: Annotated[str, typer.Option("--format", help=f"Target format: {', '.join(EXPORT_FORMATS)} (LeRobot v3.0, robomimic HDF5, Diffusion Policy Zarr).")] = "lerobot",
-    video: Annotated[list[str] | None, typer.Option("--video", help="lerobot: store this camera as an MP4 video feature (rgb; depth stays PNG).")] = None,
+    video: Annotated[list[str] | None, typer.Option("--video", help="lerobot: store this camera as an MP4 video feature (rgb), a keyframe every 2 frames.")] = None,
+    split: Annotated[str | None, typer.Option("--split", help="robomimic, zarr: export this split only (train, val, test): Diffusion Policy draws validation from every episode it is given.")] = None,
+    next_obs: Annotated[bool, typer.Option("--next-obs", help="robomimic: also write next_obs/ (offline RL needs it; BC does not).")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing export.")] = False,
 ) -> None:
     """Write the dataset in another library's format (LeRobot v3.0, robomimic HDF5, Zarr), next to the original."""
@@ -123,12 +145,19 @@ def export_cmd(
         raise _fail(f"--format {fmt}: unknown format (use {', '.join(EXPORT_FORMATS)})", 2)
     if video and fmt != "lerobot":
         raise _fail(f"--video: only the lerobot format stores videos, not {fmt}", 2)
+    if split is not None and fmt == "lerobot":
+        raise _fail("--split: the lerobot export keeps every split (info.json `splits`; one split per data file)", 2)
+    if next_obs and fmt != "robomimic":
+        raise _fail(f"--next-obs: only the robomimic format has next_obs, not {fmt}", 2)
     module, name = EXPORT_FORMATS[fmt]
     mod = importlib.import_module(module)
+    options: dict[str, Any] = {"video": tuple(video)} if video else {}
+    options |= ({"split": split} if split is not None else {}) | ({"next_obs": True} if next_obs else {})
     try:
         (check_folder if out.is_dir() or not out.suffix else check_file)(out, "--out")  # robomimic writes one .hdf5 file
         check_whole(path)
-        info = getattr(mod, name)(path, out, overwrite=overwrite, **({"video": tuple(video)} if video else {}))
+        with _episode_bar(path, f"export {fmt}", split) as bar:
+            info = getattr(mod, name)(path, out, overwrite=overwrite, progress=bar.update, **options)
     except (mod.ExportError, TargetError, ManifestError, DamagedDataset) as e:
         raise _fail(str(e), 2) from None
     except OSError as e:

@@ -41,3 +41,37 @@ def binaural_window(root: str | Path, row: Mapping[str, Any], seconds: float = 1
             f.seek(lo)
             out[n - (offset - lo) : n - (offset - hi)] = f.read(hi - lo, dtype="float32", always_2d=True)
     return out
+
+
+# The episode WAVs once more as a Parquet `Audio` column per split: the dataset card's `audio`
+# config, so the Hub's viewer plays the binaural sound (its viewer reads a repository through one
+# builder, Parquet here: a config of bare .wav files would not load beside the step shards).
+AUDIO_TABLE = "meta/audio/{split}.parquet"
+
+
+def write_audio_tables(out: Path, episodes: list[dict[str, Any]]) -> list[str]:
+    """Write AUDIO_TABLE for each split of `episodes` (meta/episodes.parquet rows, in order):
+    episode_id, episode_index and the WAV's bytes as a Hugging Face `Audio` cell; return the paths."""
+    import json
+
+    import pyarrow as pa
+
+    from echo_data.dataset.storage import atomic_write_parquet
+
+    features = {"episode_id": {"dtype": "string", "_type": "Value"}, "episode_index": {"dtype": "int64", "_type": "Value"}, "audio": {"_type": "Audio"}}
+    audio_type = pa.struct([("bytes", pa.binary()), ("path", pa.string())])
+    written = []
+    for split in dict.fromkeys(e["split"] for e in episodes):
+        rows = [e for e in episodes if e["split"] == split]
+        table = pa.table(
+            {
+                "episode_id": pa.array([e["episode_id"] for e in rows], pa.string()),
+                "episode_index": pa.array([int(e["episode_index"]) for e in rows], pa.int64()),
+                "audio": pa.array([{"bytes": (out / e["audio_path"]).read_bytes(), "path": f"{e['episode_id']}.wav"} for e in rows], audio_type),
+            }
+        ).replace_schema_metadata({"huggingface": json.dumps({"info": {"features": features}})})
+        rel = AUDIO_TABLE.format(split=split)
+        (out / rel).parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_parquet(out / rel, table)
+        written.append(rel)
+    return written

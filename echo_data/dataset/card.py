@@ -39,9 +39,9 @@ _SIZE_BOUNDS = [(1_000, "n<1K"), (10_000, "1K<n<10K"), (100_000, "10K<n<100K"), 
 
 # What each step column holds (units), for the features table.
 COLUMN_NOTES = {
-    "episode_index": "episode number within its split",
+    "episode_index": "episode number within its split: it restarts at 0 in every split, so key episodes by (split, episode_index) or episode_id",
     "frame_index": "step number within the episode",
-    "index": "row number within the split",
+    "index": "row number within the split (restarts at 0 in every split)",
     "timestamp": "seconds since the episode's first step (frame_index / fps)",
     "task_index": "setting id (0 object_relocation, 1 state_transition, 2 multi_event)",
     "setting": "object_relocation, state_transition or multi_event",
@@ -102,10 +102,12 @@ def card_text(out: Path) -> str:
     front = {
         "license": LICENSE,
         "task_categories": ["robotics"],
+        "annotations_creators": ["machine-generated"],
         "tags": ["echo-data", "mobile-manipulation", "binaural-audio", "sound-triggered", "simulation", "sapien"],
         "size_categories": [size_category(sum(steps.values()))],
         "pretty_name": f"echo-data {m['name']}",
-        "configs": [{"config_name": "default", "data_files": [{"split": s, "path": f"data/{s}-*.parquet"} for s in splits]}],
+        "configs": [{"config_name": "default", "data_files": [{"split": s, "path": f"data/{s}-*.parquet"} for s in splits], "default": True}]
+        + audio_config(out, splits),
         "dataset_info": {
             "splits": [{"name": s, "num_bytes": split_bytes[s], "num_examples": steps[s]} for s in splits],
             "download_size": sum(split_bytes.values()),
@@ -184,6 +186,7 @@ def card_text(out: Path) -> str:
         *[f"- {k}: {v['successes']}/{v['attempts']}" for k, v in m["skills"].items()],
         "",
         *_truncation_lines(recipe, counts),
+        *USES,
         "## Known limits",
         "",
         "- Simulation: CPU rendering at low resolution, primitive furniture and objects, scripted experts (no human demonstrations).",
@@ -202,9 +205,15 @@ def card_text(out: Path) -> str:
         f'steps = StepDataset("{path}", split="train")',
         "```",
         "",
-        f"LeRobot (v3.0): `echo-data export {path} --format lerobot --out {path}-lerobot`, then "
-        f'`LeRobotDataset("echo-data/{m["name"]}", root="{path}-lerobot")`. '
-        f"robomimic / Diffusion Policy: `--format robomimic` (one HDF5) or `--format zarr` (replay buffer). "
+        *(
+            [f"The binaural sound of every episode: `datasets.load_dataset(\"{path}\", \"audio\", split=\"train\")` "
+             "(the `audio` config: episode_id, episode_index and the episode WAV as an `Audio` feature, which the Hub's viewer plays).", ""]
+            if audio_config(out, splits) else []
+        ),
+        f"LeRobot (v3.0, for LeRobot's stock policies): `echo-data export {path} --format lerobot --out {path}-lerobot`, then "
+        f'`LeRobotDataset("echo-data/{m["name"]}", root="{path}-lerobot")` in the environment `bash scripts/setup_lerobot.sh` '
+        "makes (`.venv-lerobot/`). "
+        f"robomimic / Diffusion Policy: `--format robomimic` (one HDF5, actions in [-1, 1]) or `--format zarr --split train` (one replay buffer per split). "
         f"LLaMA-Factory: `dataset_dir={path}/planner` (sharegpt with `<audio><image>`).",
         "",
         *links_and_citation(m["name"]),
@@ -219,17 +228,82 @@ CITATION = """@inproceedings{ju2026instruction,
   booktitle = {Proceedings of the 34th ACM International Conference on Multimedia (ACM MM '26)},
   year      = {2026}
 }"""
+# echo-data itself (the generator; its version is in manifest.json `versions`).
+ECHO_DATA_BIBTEX = """@software{echo_data,
+  title   = {echo-data: sound-triggered mobile manipulation data from SAPIEN with binaural acoustics},
+  author  = {{echo-data contributors}},
+  year    = {2026},
+  version = {0.1.0},
+  note    = {Python package `echo-data`; the dataset's manifest.json names the exact version}
+}"""
+# The HRTF the binaural audio is rendered with (assets/hrtf/README.md): its licence asks that
+# the authors be cited wherever the data is used.
+KEMAR_BIBTEX = """@article{gardner1995kemar,
+  title   = {{HRTF} measurements of a {KEMAR}},
+  author  = {Gardner, William G. and Martin, Keith D.},
+  journal = {The Journal of the Acoustical Society of America},
+  volume  = {97},
+  number  = {6},
+  pages   = {3907--3908},
+  year    = {1995}
+}
+@techreport{gardner1994kemar,
+  title       = {{HRTF} Measurements of a {KEMAR} Dummy-Head Microphone},
+  author      = {Gardner, Bill and Martin, Keith},
+  institution = {MIT Media Laboratory},
+  type        = {Perceptual Computing Technical Report},
+  number      = {280},
+  year        = {1994}
+}"""
+# What the data is for and what it is not (the Hub card's uses / out-of-scope sections).
+USES = [
+    "## Uses",
+    "",
+    "- Training and evaluating policies that hear a sound event, find its source and act on it (imitation learning "
+    "from the scripted experts' actions; the audio, camera and state columns are the observations).",
+    "- Studying binaural sound localisation in simulated apartments (calibrated WAVs, source positions in meta/episodes.parquet).",
+    "- Closed-loop evaluation belongs to `echo-data evaluate` in the simulator: the stored episodes are offline data.",
+    "",
+    "## Out of scope",
+    "",
+    "- Claims about real robots or real rooms without a sim-to-real study: the scenes, objects, sounds and acoustics are simulated.",
+    "- Tuning on the test split: it exists to report results once (its sound instances are never heard in train).",
+    "- Speech or human-voice tasks: the sounds are synthesised events (phone, alarm, furby, doorbell, sink), no speech.",
+    "",
+]
 
 
-def links_and_citation(name: str) -> list[str]:
-    """The card's Links (the recipe that made the data, the formats it is read in) and Citation."""
+def audio_config(out: Path, splits: list[str]) -> list[dict[str, Any]]:
+    """The card's `audio` config (one Parquet `Audio` table per split, which the Hub's viewer
+    plays), where the build wrote them (datasets built before they existed have none)."""
+    from echo_data.dataset.audio import AUDIO_TABLE
+
+    files = [{"split": s, "path": AUDIO_TABLE.format(split=s)} for s in splits]
+    return [{"config_name": "audio", "data_files": files}] if all((out / f["path"]).is_file() for f in files) else []
+
+
+def links_and_citation(name: str, export: bool = False) -> list[str]:
+    """The card's Links (the recipe that made the data, the formats it is read in) and Citation;
+    `export`: the links of an export, which is derived from a dataset rather than built."""
+    source = (
+        [
+            f"- Source: the echo-data dataset `{name}` (its recipe, manifest.json and Parquet shards); `echo-data export` of it "
+            "writes this folder again, `echo-data build` of its recipe rebuilds the source.",
+            "- Other formats of the same source: Hugging Face `datasets` Parquet (the source folder), robomimic HDF5 and "
+            "Diffusion Policy Zarr (`echo-data export --format robomimic|zarr`).",
+        ]
+        if export
+        else [
+            f"- Recipe: `{name}` (echo-data's own recipes are `recipes/<name>.yaml`); the resolved copy, with every default, "
+            "is `recipe` in manifest.json: `echo-data build` of it rebuilds these bytes.",
+            "- Formats: Hugging Face `datasets` Parquet (this folder), LeRobot v3.0, robomimic HDF5 and Diffusion Policy Zarr "
+            "(`echo-data export --format lerobot|robomimic|zarr`), Rerun recordings (`echo-data view --rerun`).",
+        ]
+    )
     return [
         "## Links",
         "",
-        f"- Recipe: `{name}` (echo-data's own recipes are `recipes/<name>.yaml`); the resolved copy, with every default, "
-        "is `recipe` in manifest.json: `echo-data build` of it rebuilds these bytes.",
-        "- Formats: Hugging Face `datasets` Parquet (this folder), LeRobot v3.0, robomimic HDF5 and Diffusion Policy Zarr "
-        "(`echo-data export --format lerobot|robomimic|zarr`), Rerun recordings (`echo-data view --rerun`).",
+        *source,
         "",
         "## Citation",
         "",
@@ -237,6 +311,19 @@ def links_and_citation(name: str) -> list[str]:
         "",
         "```bibtex",
         CITATION,
+        "```",
+        "",
+        "The data was generated with echo-data:",
+        "",
+        "```bibtex",
+        ECHO_DATA_BIBTEX,
+        "```",
+        "",
+        "The binaural audio is rendered through the MIT KEMAR head-related impulse responses (recipe `acoustics.hrtf: kemar`, "
+        "the default; manifest.json's recipe says which), whose licence asks that their authors be cited wherever the data is used:",
+        "",
+        "```bibtex",
+        KEMAR_BIBTEX,
         "```",
         "",
     ]
@@ -288,11 +375,11 @@ def write_card(out: Path) -> Path:
 EXPORT_NOTES = {
     "episode_index": "episode number across the whole export (train first, then val, test: `splits` in meta/info.json gives each split's range)",
     "index": "frame number across the whole export",
-    "observation.audio.spectrogram": "SoundSpaces-style log1p magnitude STFT of the last 1 s, flattened row-major from (frequency, time, ear)",
-    "observation.audio.mel": "log-mel spectrogram of the last 1 s, flattened row-major from (frequency, time, ear)",
-    "observation.depth.head": COLUMN_NOTES["observation.images.head_depth"],
-    "observation.depth.wrist": COLUMN_NOTES["observation.images.wrist_depth"],
-    "observation.images.head_rgb": "head camera colour (PNG image, or H.264 video with `--video rgb`)",
+    SPECTROGRAM: "SoundSpaces-style log1p magnitude STFT of the last 1 s, flattened row-major from (frequency, time, ear)",
+    MEL: "log-mel spectrogram of the last 1 s, flattened row-major from (frequency, time, ear)",
+    IMAGE_COLUMNS["head_depth"]: "head camera depth, 8-bit x 3 channels (Cameras below gives metres per step)",
+    IMAGE_COLUMNS["wrist_depth"]: "wrist camera depth, 8-bit x 3 channels (Cameras below gives metres per step)",
+    IMAGE_COLUMNS["head_rgb"]: "head camera colour (PNG image, or H.264 video with `--video rgb`, a keyframe every 2 frames)",
 }
 # lerobot-doctor's warnings on an export, and why they are expected.
 DOCTOR_NOTES = [
@@ -305,35 +392,60 @@ DOCTOR_NOTES = [
 
 
 def export_card(info: dict[str, Any], src_card: Path) -> str:
-    """README.md of a LeRobot export: LeRobot-style front matter, the export's own numbering and
-    features, why lerobot-doctor warns, then the source card's other sections."""
+    """README.md of a LeRobot export: LeRobot-style front matter, the export's own numbering,
+    features (named as the export names them, with what LeRobot's policies make of each),
+    cameras, why lerobot-doctor warns, then the source card's sections that hold for the export
+    too (counts, sounds, how it was made, success, uses, limits)."""
+    ed = info["echo_data"]
     front = {
         "license": LICENSE,
         "task_categories": ["robotics"],
+        "annotations_creators": ["machine-generated"],
         "tags": ["LeRobot", "echo-data", "binaural-audio"],
         "size_categories": [size_category(info["total_frames"])],
         "configs": [{"config_name": "default", "data_files": "data/*/*.parquet"}],
     }
     body = src_card.read_text().split("---\n", 2)[-1] if src_card.is_file() else ""
-    kept = [sec for sec in body.split("\n## ")[1:] if sec.split("\n", 1)[0] not in ("Features", "Loading")]
+    own = ("Features", "Loading", "Links", "Citation", "Cameras")  # written here for the export
+    kept = [sec for sec in body.split("\n## ")[1:] if sec.split("\n", 1)[0] not in own]
     feats = info["features"]
+    renamed = ed.get("renamed", {})
     lines = [
         "---",
         yaml.safe_dump(front, sort_keys=False).rstrip(),
         "---",
         "",
-        f"# LeRobot {info['codebase_version']} export of echo-data {info['echo_data']['source']}",
+        f"# LeRobot {info['codebase_version']} export of echo-data {ed['source']}",
         "",
-        f"{info['total_episodes']} episodes, {info['total_frames']} frames at {info['fps']} Hz. Episodes are numbered across "
-        f"the whole export, train first: `splits` {info['splits']} are episode ranges, so "
-        "`LeRobotDataset(repo_id, root=..., episodes=list(range(*map(int, info['splits']['train'].split(':')))))` is the train split. "
-        "`index` counts frames across the export. The episode WAVs are under audio/ (`audio_path`; `echo_data` in meta/info.json).",
+        f"{info['total_episodes']} episodes, {info['total_frames']} frames at {info['fps']} Hz, written by `echo-data export "
+        "--format lerobot` from the echo-data dataset named above (Parquet shards there, LeRobot's layout here). Episodes "
+        f"are numbered across the whole export, train first: `splits` {info['splits']} are episode ranges, so "
+        "`LeRobotDataset(repo_id, root=..., episodes=list(range(*map(int, info['splits']['train'].split(':')))))` is the train split; "
+        "a data file never holds two splits. `index` counts frames across the export. The episode WAVs are under audio/ "
+        "(`audio_path`).",
         "",
         "## Features",
         "",
+        "LeRobot's policies type a feature by its name: cameras (`observation.images.*`), `observation.state`, "
+        "`observation.environment_state` (here the audio spectrogram) and `action` are what stock ACT and Diffusion use; "
+        "`extra.*` features are never a policy's input or output (strip `extra.` for echo-data's column name).",
+        "",
         "| feature | dtype | shape | meaning |",
         "| --- | --- | --- | --- |",
-        *[f"| `{k}` | {f['dtype']} | {f['shape']} | {EXPORT_NOTES.get(k, COLUMN_NOTES.get(k, ''))} |" for k, f in feats.items()],
+        *[f"| `{k}` | {f['dtype']} | {f['shape']} | {_export_note(k, renamed)} |" for k, f in feats.items()],
+        "",
+        "## Cameras",
+        "",
+        "| camera | width x height | K (fx, fy, cx, cy) | pose column |",
+        "| --- | --- | --- | --- |",
+        *[
+            f"| {cam} | {c['width']} x {c['height']} | {c['K'][0][0]:.3f}, {c['K'][1][1]:.3f}, {c['K'][0][2]:g}, {c['K'][1][2]:g} | `{c['pose_column']}` |"
+            for cam, c in ed.get("cameras", {}).items()
+        ],
+        "",
+        "Depth images are 8-bit, the same value in all three channels: metres = pixel / 255 x range "
+        + "; ".join(f"(`{k}`: {v['range_m']:g} m)" for k, v in ed.get("depth_images", {}).items())
+        + ". The exact 16-bit millimetres are in the source dataset.",
         "",
         "## lerobot-doctor",
         "",
@@ -343,11 +455,23 @@ def export_card(info: dict[str, Any], src_card: Path) -> str:
         "",
         "## Loading",
         "",
+        "In LeRobot's environment (`bash scripts/setup_lerobot.sh` in the echo-data repository makes `.venv-lerobot/`):",
+        "",
         "```python",
         "from ledataset.datasets.lerobot_dataset import LeRobotDataset  # or lerobot.datasets.lerobot_dataset",
-        f'ds = LeRobotDataset("echo-data/{info["echo_data"]["source"]}", root=".")',
+        f'ds = LeRobotDataset("echo-data/{ed["source"]}", root=".")',
         "```",
         "",
         *["## " + sec.rstrip() + "\n" for sec in kept],
+        *links_and_citation(ed["source"], export=True),
     ]
     return "\n".join(lines)
+
+
+def _export_note(name: str, renamed: dict[str, str]) -> str:
+    """What a LeRobot export feature holds: the export's own note, else the echo-data column's."""
+    col = renamed.get(name, name)
+    note = EXPORT_NOTES.get(name) or EXPORT_NOTES.get(col) or COLUMN_NOTES.get(col, "")
+    if name.startswith("extra."):
+        return f"echo-data `{col}`, not a policy input or output: {note}"
+    return note if col == name else f"echo-data `{col}`: {note}"

@@ -115,11 +115,23 @@ def column_values(data: pa.ChunkedArray, n: int) -> np.ndarray:
     return np.asarray(arr.to_numpy(zero_copy_only=False)).reshape(n, *shape)
 
 
-def iter_episodes(src: Path, manifest: dict[str, Any]) -> Iterator[EpisodeArrays]:
-    """Every stored episode, train first (then val, test), in episode order within a split."""
+def export_splits(manifest: dict[str, Any], split: str | None) -> list[str]:
+    """The splits an export holds, train first: all of them, or the one `--split` names (an
+    export per split keeps a consumer that draws its own validation episodes off the test ones)."""
+    splits = sorted(manifest["splits"], key=SPLIT_KEYS.__getitem__)
+    if split is None:
+        return splits
+    if split not in splits:
+        raise ExportError(f"--split {split}: the dataset has no such split (it has {', '.join(splits)})")
+    return [split]
+
+
+def iter_episodes(src: Path, manifest: dict[str, Any], splits: list[str] | None = None) -> Iterator[EpisodeArrays]:
+    """Every stored episode of `splits` (default: all), train first (then val, test), in episode
+    order within a split."""
     layout = StepLayout.from_dict(manifest["layout"])
     records = {(r["split"], r["episode_index"]): r for r in pq.read_table(src / "meta" / "episodes.parquet").to_pylist()}
-    for split in sorted(manifest["splits"], key=SPLIT_KEYS.__getitem__):
+    for split in splits if splits is not None else export_splits(manifest, None):
         for shard in (e for e in manifest["shards"] if e["split"] == split):
             table = pq.read_table(src / shard["file"])
             ep = table.column("episode_index").to_numpy()

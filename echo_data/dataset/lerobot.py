@@ -9,27 +9,45 @@ it selects episodes). Episodes are numbered across the whole export (train first
 test), `index` counts frames over the whole export, and the echo-data splits become LeRobot's
 `splits` ("start:end" episode ranges).
 
-Cameras are image features (PNG bytes in the Parquet rows, copied as they are) unless
-`video=("rgb",)`: then head RGB is an H.264 MP4 video feature (one file per episode,
-`echo_data.media.write_mp4`) that LeRobot's video tooling and visualisers read. Depth always stays
-16-bit PNG (8-bit yuv420p video cannot hold millimetres) and is exported as
-`observation.depth.{head,wrist}`: LeRobot checks that the statistics of every feature whose name
-contains "image" have three channels, which a depth image does not have.
+Policy-ready names. LeRobot's policies type a feature by its name (`lerobot.datasets.utils.
+dataset_to_policy_features`): dtype image/video -> a camera, `observation.environment_state` ->
+the environment state, any other `observation*` -> a state input, any `action*` -> an action
+output; everything else is carried but never given to a policy. Stock ACT and Diffusion read only
+`observation.state`, the cameras and `observation.environment_state`. So each echo-data column is
+exported by one rule for its kind (`lerobot_name`):
 
-Audio: LeRobot has no audio feature. Each frame carries the echo-data audio columns
-(`observation.audio.spectrogram` / `.mel` of the last second, flattened to one vector each:
-LeRobot's tools turn features of more than one dimension into `datasets` Array2D/3D columns that
-pandas cannot concatenate, which breaks `aggregate_datasets`; the original shapes are in
-`info.json` `echo_data.audio.shapes`), `audio_path`, `audio_sample_rate`, `audio_offset`; the
-episode WAVs are copied to `audio/{split}/{episode_id}.wav` (the path the rows name, relative to
-the export root) and the episode records name them too.
+- `action` stays `action`, the only action feature; every other `action.*` column (what was
+  executed, the end-effector form) becomes `extra.action.*`.
+- The audio feature the project's learners use (the SoundSpaces spectrogram of the last second,
+  else the log-mel) becomes `observation.environment_state` (flattened), which ACT and Diffusion
+  read with no config change; the other audio column and every privileged column
+  (`observation.privileged.*`, what only the simulator knows) become `extra.<echo-data name>`.
+  Stripping `extra.` gives back echo-data's column name.
+- Cameras keep their names. RGB is an 8-bit RGB image (PNG in the rows, or an H.264 video with
+  `video=("rgb",)`, a keyframe every `VIDEO_GOP` frames). Depth is an 8-bit grey image repeated
+  over three channels, 0..`range_m` mapped linearly to 0..255 (the range per camera is the train
+  split's 99th-percentile depth rounded up to 0.5 m, so the farthest 1 % saturate at 255 and the
+  rest keep fine steps; in `info.json` `echo_data.depth_images`):
+  Diffusion requires every camera to have one shape and ACT's ResNet takes three channels. The
+  exact 16-bit millimetres stay in the echo-data dataset and its robomimic/Zarr exports.
+
+Audio beyond the features: each frame carries `audio_path`, `audio_sample_rate`, `audio_offset`;
+the episode WAVs are copied to `audio/{split}/{episode_id}.wav` (the path the rows name, relative
+to the export root). Array features are flattened to one vector (LeRobot's tools turn features of
+more than one dimension into `datasets` Array2D/3D columns that pandas cannot concatenate, which
+breaks `aggregate_datasets`); the original shapes are in `info.json` `echo_data.audio.shapes`.
+
+A data file holds the episodes of one split only (a new file starts at each split), so a reader
+that loads whole files for a selection of episodes never pulls in another split's frames.
 """
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -46,8 +64,11 @@ from echo_data.dataset.schema import (
     CAMERA_POSES,
     CHAIN_SLOTS,
     IMAGE_COLUMNS,
+    IMAGE_TYPE,
+    MEL,
     PARQUET_COMPRESSION,
     ROW_GROUP_ROWS,
+    SPECTROGRAM,
     STATE,
     StepLayout,
     is_privileged,
@@ -58,7 +79,7 @@ from echo_data.dataset.storage import atomic_write_bytes, canonical_json, fsync_
 from echo_data.dataset.written import mark_export, replace_folder
 from echo_data.episode import SPLIT_KEYS
 from echo_data.recipe import SETTINGS
-from echo_data.records import ACTION_NAMES, EE_ACTION_NAMES, STATE_NAMES
+from echo_data.records import ACTION_NAMES, EE_ACTION_NAMES, PRIVILEGED_PREFIX, STATE_NAMES
 
 CODEBASE_VERSION = "v3.0"
 KIND = "lerobot export"  # the folder marker's kind (echo_data.dataset.written)
@@ -70,8 +91,11 @@ VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.m
 EPISODES_PATH = "meta/episodes/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 ROBOT_TYPE = "echo_data_fetchlike"
 VIDEO_CAMERAS = {"rgb": IMAGE_COLUMNS["head_rgb"]}  # --video choices -> the column stored as MP4
-# Export names of the depth images (see the module docstring).
-RENAMED = {IMAGE_COLUMNS["head_depth"]: "observation.depth.head", IMAGE_COLUMNS["wrist_depth"]: "observation.depth.wrist"}
+VIDEO_GOP: int | None = 2  # frames between keyframes: random access decodes at most one extra frame (LeRobot's own choice)
+ENV_STATE = "observation.environment_state"  # LeRobot's environment-state key (ACT, Diffusion read it)
+EXTRA_PREFIX = "extra."  # carried, never a policy input or output (see the module docstring)
+AUDIO_FOR_POLICY = (SPECTROGRAM, MEL)  # the first present becomes ENV_STATE
+DEPTH_STEP_M = 0.5  # depth image ranges are rounded up to this
 # The natural-language task of each setting (LeRobot's `task`; index = echo-data's task_index).
 TASKS = {
     "object_relocation": "Find the sounding object, pick it up and put it where it belongs.",
@@ -80,43 +104,87 @@ TASKS = {
 }
 
 
-def _names(layout: StepLayout) -> dict[str, list[str]]:
-    """Element names of the vector features (LeRobot's `names`)."""
-    names: dict[str, list[str]] = {
-        ACTION: list(ACTION_NAMES), ACTION_EXECUTED: list(ACTION_NAMES),
-        ACTION_EE: list(EE_ACTION_NAMES), ACTION_EE_EXECUTED: list(EE_ACTION_NAMES), STATE: list(STATE_NAMES),
-    }
-    names.update({col: [f"T{r}{c}" for r in range(4) for c in range(4)] for col in CAMERA_POSES.values()})
-    names["skill_success"] = [f"chain_{k}" for k in range(CHAIN_SLOTS)]
-    return names
+def _names(col: str) -> list[str] | None:
+    """Element names of a vector feature (LeRobot's `names`), by the column's kind."""
+    if col.startswith(ACTION + ".ee"):
+        return list(EE_ACTION_NAMES)
+    if col in (ACTION, ACTION_EXECUTED):
+        return list(ACTION_NAMES)
+    if col == STATE:
+        return list(STATE_NAMES)
+    if col in CAMERA_POSES.values():
+        return [f"T{r}{c}" for r in range(4) for c in range(4)]
+    if col == "skill_success":
+        return [f"chain_{k}" for k in range(CHAIN_SLOTS)]
+    return None
 
 
-def export_name(col: str) -> str:
-    """The LeRobot feature name of an echo-data column."""
-    return RENAMED.get(col, col)
+def policy_audio(layout: StepLayout) -> str | None:
+    """The audio column exported as `observation.environment_state` (None: no audio stored)."""
+    return next((c for c in AUDIO_FOR_POLICY if c in layout.arrays), None)
+
+
+def lerobot_name(col: str, layout: StepLayout) -> str:
+    """The LeRobot feature name of an echo-data column: one rule per kind (module docstring)."""
+    if col == policy_audio(layout):
+        return ENV_STATE
+    if col.startswith(ACTION + ".") or col.startswith(PRIVILEGED_PREFIX) or col in layout.arrays:
+        return EXTRA_PREFIX + col
+    return col
+
+
+def depth_ranges(src: Path, layout: StepLayout) -> dict[str, float]:
+    """Per depth camera, the metres that map to 255 in its 8-bit image: the source's train-split
+    99th-percentile depth (meta/stats.json, metres; its maximum where no quantile is stored)
+    rounded up to DEPTH_STEP_M. The maximum would spend the 256 levels on a few far pixels: the
+    wrist camera sees 9 m across a room now and then but mostly works within 3.5 m."""
+    stats = json.loads((src / "meta" / "stats.json").read_text())
+    out = {}
+    for col, (kind, _, _) in layout.images.items():
+        if kind == "depth":
+            st = stats.get(col, {})
+            top = max(st.get("q99") or st.get("max") or [0.0])
+            out[col] = max(DEPTH_STEP_M, float(np.ceil(top / DEPTH_STEP_M) * DEPTH_STEP_M))
+    return out
+
+
+def depth_image(mm: np.ndarray, range_m: float) -> np.ndarray:
+    """(T, H, W) uint16 millimetres -> (T, H, W, 3) uint8: 0..range_m linear to 0..255, clipped."""
+    v = np.clip(np.rint(mm.astype(np.float64) * (255.0 / (range_m * 1000.0))), 0, 255).astype(np.uint8)
+    return np.repeat(v[..., None], 3, axis=-1)
+
+
+def _png_cells(frames: np.ndarray) -> pa.Array:
+    """(T, H, W, 3) uint8 -> an Image-struct column of PNG bytes."""
+    from PIL import Image
+
+    cells = []
+    for f in frames:
+        buf = io.BytesIO()
+        Image.fromarray(f).save(buf, format="PNG", compress_level=1)
+        cells.append({"bytes": buf.getvalue(), "path": None})
+    return pa.array(cells, type=IMAGE_TYPE)
 
 
 def lerobot_features(layout: StepLayout, video: tuple[str, ...] = ()) -> dict[str, dict[str, Any]]:
     """meta/info.json `features`: every step column with dtype, shape and names, in the export's
     column order (video features last: they are not data columns), derived from the step
     schema's Hugging Face features (so new columns export too)."""
-    names = _names(layout)
     videos = {VIDEO_CAMERAS[v] for v in video}
     feats: dict[str, dict[str, Any]] = {}
     moved: dict[str, dict[str, Any]] = {}
     for col, f in layout.hf_features().items():
-        kind = f["_type"]
+        kind, name = f["_type"], lerobot_name(col, layout)
         if kind == "Value":
-            feats[col] = {"dtype": f["dtype"], "shape": [1], "names": None}
+            feats[name] = {"dtype": f["dtype"], "shape": [1], "names": None}
         elif kind == "List" and "length" in f:
-            feats[col] = {"dtype": f["feature"]["dtype"], "shape": [f["length"]], "names": names.get(col)}
+            feats[name] = {"dtype": f["feature"]["dtype"], "shape": [f["length"]], "names": _names(col)}
             if is_privileged(col):  # simulator-only: a policy config must name it to read it
-                feats[col]["info"] = {"privileged": True}
+                feats[name]["info"] = {"privileged": True}
         elif kind == "Array3D":
-            feats[col] = {"dtype": f["dtype"], "shape": [int(np.prod(f["shape"]))], "names": None}
+            feats[name] = {"dtype": f["dtype"], "shape": [int(np.prod(f["shape"]))], "names": None}
         elif kind == "Image":
             img_kind, h, w = layout.images[col]
-            ch = 3 if img_kind == "rgb" else 1
             if col in videos:
                 moved[col] = {
                     "dtype": "video",
@@ -128,12 +196,8 @@ def lerobot_features(layout: StepLayout, video: tuple[str, ...] = ()) -> dict[st
                     },
                 }
                 continue
-            feats[export_name(col)] = {
-                "dtype": "image",
-                "shape": [h, w, ch],
-                "names": ["height", "width", "channels"],
-                "info": {"format": "PNG", "unit": "8-bit RGB" if img_kind == "rgb" else "16-bit depth, millimetres along the optical axis, 0 = nothing hit"},
-            }
+            unit = "8-bit RGB" if img_kind == "rgb" else "8-bit depth x3: value / 255 * echo_data.depth_images range_m = metres along the optical axis"
+            feats[name] = {"dtype": "image", "shape": [h, w, 3], "names": ["height", "width", "channels"], "info": {"format": "PNG", "unit": unit}}
         else:  # LeRobot features have fixed shapes
             raise ExportError(f"column {col!r} ({kind} without a fixed length) has no LeRobot feature")
     return {**feats, **moved}
@@ -148,12 +212,13 @@ def _hf_features(layout: StepLayout, video: tuple[str, ...]) -> dict[str, Any]:
             continue
         if f["_type"] == "Array3D":
             f = {"feature": {"dtype": f["dtype"], "_type": "Value"}, "length": int(np.prod(f["shape"])), "_type": "List"}
-        out[export_name(col)] = f
+        out[lerobot_name(col, layout)] = f
     return out
 
 
-def _export_rows(rows: pa.Table, layout: StepLayout, video: tuple[str, ...], hf: dict[str, Any]) -> pa.Table:
-    """Step rows of one episode in the export's columns: depth renamed, audio flattened, video cameras dropped."""
+def _export_rows(rows: pa.Table, layout: StepLayout, video: tuple[str, ...], hf: dict[str, Any], depth: dict[str, np.ndarray]) -> pa.Table:
+    """Step rows of one episode in the export's columns (named by `lerobot_name`): arrays
+    flattened, depth as its 8-bit images (`depth`, by column), video cameras dropped."""
     videos = {VIDEO_CAMERAS[v] for v in video}
     arrays, fields = [], []
     for col in rows.column_names:
@@ -163,28 +228,31 @@ def _export_rows(rows: pa.Table, layout: StepLayout, video: tuple[str, ...], hf:
         if col in layout.arrays:
             flat = column_values(rows.column(col), rows.num_rows).astype(np.float32).ravel()
             data = pa.FixedSizeListArray.from_arrays(pa.array(flat), int(np.prod(layout.arrays[col])))
+        elif col in depth:
+            data = _png_cells(depth[col])
         arrays.append(data)
-        fields.append(pa.field(export_name(col), data.type))
+        fields.append(pa.field(lerobot_name(col, layout), data.type))
     schema = pa.schema(fields, metadata={"huggingface": json.dumps({"info": {"features": hf}})})
     return pa.Table.from_arrays(arrays, schema=schema)
 
 
-def episode_summaries(rows: pa.Table, layout: StepLayout, features: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
+def episode_summaries(
+    rows: pa.Table, layout: StepLayout, features: dict[str, dict[str, Any]], depth: dict[str, np.ndarray]
+) -> dict[str, dict[str, Any]]:
     """Mergeable summaries (echo_data.dataset.stats) of one episode's numeric features, by export
-    name, in LeRobot's units: RGB per channel in [0, 1], depth per channel in millimetres (as its
-    16-bit PNGs decode), vectors per element, the flattened audio as one value over all bins."""
+    name, in LeRobot's units: every camera per channel in [0, 1] (as its 8-bit images decode;
+    `depth` holds the depth images), vectors per element, flattened arrays as one value over all
+    bins."""
     n = rows.num_rows
     out: dict[str, dict[str, Any]] = {}
     for col in rows.column_names:
-        name = export_name(col)
+        name = lerobot_name(col, layout)
         feat = features.get(name)
         if feat is None or feat["dtype"] == "string":
             continue
         if col in layout.images:
-            kind = layout.images[col][0]
-            values = episode_feature_values(np.zeros((n, 0)), np.zeros((n, 0)), {col: (kind, decode_images(rows.column(col)))}, {})[col]
-            if kind == "depth":
-                values = values * 1000.0
+            pixels = depth[col] if col in depth else decode_images(rows.column(col))
+            values = episode_feature_values(np.zeros((n, 0)), np.zeros((n, 0)), {col: ("rgb", pixels)}, {})[col]
         elif col in layout.arrays:
             values = column_values(rows.column(col), n).reshape(-1, 1)
         else:
@@ -209,11 +277,18 @@ def _flat_stats(stats: dict[str, dict[str, Any]]) -> dict[str, Any]:
 def _write_video(path: Path, rows: pa.Table, col: str, fps: float) -> None:
     from echo_data.media import write_mp4
 
-    write_mp4(path, (f for f in decode_images(rows.column(col))), fps)
+    write_mp4(path, (f for f in decode_images(rows.column(col))), fps, gop=VIDEO_GOP)
 
 
 def _data_files(
-    src: Path, dst: Path, manifest: dict[str, Any], layout: StepLayout, video: tuple[str, ...], features: dict[str, dict[str, Any]]
+    src: Path,
+    dst: Path,
+    manifest: dict[str, Any],
+    layout: StepLayout,
+    video: tuple[str, ...],
+    features: dict[str, dict[str, Any]],
+    ranges: dict[str, float],
+    progress: Callable[[int], None] = lambda n: None,
 ) -> tuple[list[dict[str, Any]], dict[str, str], dict[str, dict[str, Any]]]:
     """Step rows regrouped into LeRobot data files under `dst` (each written as soon as it is
     full, so memory holds one file's rows), one record per episode, the splits, and the merged
@@ -237,6 +312,7 @@ def _data_files(
             pending, pending_bytes, n_files = [], 0, n_files + 1
 
     for split in sorted(manifest["splits"], key=SPLIT_KEYS.__getitem__):
+        close()  # a data file never holds two splits
         first_ep = n_ep
         for shard in (e for e in manifest["shards"] if e["split"] == split):
             table = conform(pq.read_table(src / shard["file"]), layout.schema())
@@ -249,10 +325,11 @@ def _data_files(
                 for col, values in (("episode_index", np.full(length, n_ep)), ("index", np.arange(n_rows, n_rows + length))):
                     i = rows.schema.get_field_index(col)
                     rows = rows.set_column(i, col, pa.array(values.astype(np.int64)))
-                summaries = episode_summaries(rows, layout, features)
+                depth = {col: depth_image(decode_images(rows.column(col)), r) for col, r in ranges.items()}
+                summaries = episode_summaries(rows, layout, features, depth)
                 if split in stats_splits:
                     train.append(summaries)
-                out_rows = _export_rows(rows, layout, video, hf)
+                out_rows = _export_rows(rows, layout, video, hf, depth)
                 if pending and pending_bytes + out_rows.nbytes > DATA_FILES_SIZE_IN_MB * 2**20:
                     close()
                 pending.append(out_rows)
@@ -292,6 +369,7 @@ def _data_files(
                 episodes.append(record)
                 n_ep += 1
                 n_rows += length
+                progress(1)
         splits[split] = f"{first_ep}:{n_ep}"
     close()
     merged = {k: merge([t[k] for t in train]) for k in train[0]} if train else {}
@@ -303,10 +381,13 @@ def _write_parquet(path: Path, table: pa.Table, row_group: int) -> None:
     pq.write_table(table, path, compression=PARQUET_COMPRESSION, row_group_size=row_group, store_schema=True)
 
 
-def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False, video: tuple[str, ...] = ()) -> dict[str, Any]:
+def export_lerobot(
+    src: str | Path, out: str | Path, overwrite: bool = False, video: tuple[str, ...] = (), progress: Callable[[int], None] = lambda n: None
+) -> dict[str, Any]:
     """Write the LeRobot v3.0 dataset of the echo-data dataset `src` to `out`; return meta/info.json.
 
-    `video` names cameras stored as MP4 video features (only "rgb": head RGB). Everything is
+    `video` names cameras stored as MP4 video features (only "rgb": head RGB); `progress(1)` is
+    called after each episode. Everything is
     written to a temporary sibling folder first and renamed into place, so `out` is either
     absent, the old export or the whole new one. Raises `ExportError` on bad input."""
     try:
@@ -330,7 +411,8 @@ def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False, vi
     tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
     shutil.rmtree(tmp, ignore_errors=True)
     try:
-        episodes, splits, merged = _data_files(src, tmp, manifest, layout, video, features)
+        ranges = depth_ranges(src, layout)
+        episodes, splits, merged = _data_files(src, tmp, manifest, layout, video, features, ranges, progress)
         _write_parquet(tmp / EPISODES_PATH.format(chunk_index=0, file_index=0), pa.Table.from_pylist(episodes), 4096)
         tasks = pd.DataFrame({"task_index": np.arange(len(SETTINGS), dtype=np.int64)}, index=pd.Index([TASKS[s] for s in SETTINGS], name="task"))
         (tmp / "meta").mkdir(parents=True, exist_ok=True)
@@ -356,18 +438,25 @@ def export_lerobot(src: str | Path, out: str | Path, overwrite: bool = False, vi
                 "recipe_hash": manifest["recipe_hash"],
                 "format": manifest["format"],
                 "cameras": src_info.get("cameras", {}),
-                "renamed": {v: k for k, v in RENAMED.items() if k in layout.images},
+                # LeRobot name -> echo-data column, for every column whose name changed
+                "renamed": {n: c for c in layout.hf_features() if (n := lerobot_name(c, layout)) != c},
+                "environment_state": policy_audio(layout),
+                "depth_images": {
+                    col: {"range_m": r, "decode": "metres = pixel / 255 * range_m (any channel; 255 = range_m or farther, 0 = nothing hit or nearer than half a step)"}
+                    for col, r in ranges.items()
+                },
                 "audio": {
                     "sample_rate": layout.sample_rate,
                     "channels": 2,
                     "channel_0": "left",
                     "path": "audio/{split}/{episode_id}.wav (each row's audio_path; episode records' audio_path)",
                     "offset": "audio_offset: the sample at which the row's observation was taken",
-                    "shapes": {col: list(shape) for col, shape in layout.arrays.items()},
+                    "shapes": {lerobot_name(col, layout): list(shape) for col, shape in layout.arrays.items()},
                     "flattened": "row-major (frequency, time, ear): reshape a frame's vector to `shapes`",
                 },
                 "stats_split": "train" if "train" in manifest["splits"] else "all",
-                "cameras_as": ("head RGB as H.264 video; " if video else "") + "depth as 16-bit PNG image features: 8-bit video would lose millimetres",
+                "cameras_as": (f"head RGB as H.264 video, a keyframe every {VIDEO_GOP} frames; " if video else "")
+                + "depth as 8-bit 3-channel PNG images (every camera one shape, as Diffusion requires); exact millimetres in the echo-data dataset",
             },
         }
         # column order, not sorted: LeRobot builds its Arrow schema from this order

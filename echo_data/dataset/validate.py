@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -214,8 +215,8 @@ def _label_problems(file: str, record: dict[str, Any], cols: dict[str, np.ndarra
     return out
 
 
-def validate(out: Path) -> list[str]:
-    """Problems found in the dataset at `out` (empty list when it is sound)."""
+def validate(out: Path, progress: Callable[[int], None] = lambda n: None) -> list[str]:
+    """Problems found in the dataset at `out` (empty list when it is sound); `progress(1)` after each shard."""
     out = Path(out)
     try:
         manifest = load_manifest(out)
@@ -237,6 +238,7 @@ def validate(out: Path) -> list[str]:
     for plans in plan_shards(recipe, manifest.get("limit"), manifest.get("only_splits")).values():
         next_index = 0
         for plan in plans:
+            progress(1)
             path = out / plan.file
             entry = listed.pop(plan.file, None)
             if entry is None:
@@ -300,6 +302,7 @@ def validate(out: Path) -> list[str]:
     problems += _meta_problems(out, recipe, all_rows)
     problems += _derived_problems(out, recipe, layout, manifest, all_rows)
     problems += _stray_problems(out, recipe, manifest, all_rows)
+    problems += _audio_table_problems(out, all_rows)
     for path in sorted(out.rglob(".*.tmp-*")):
         problems.append(f"{path.relative_to(out)}: leftover temporary file")
     return problems
@@ -422,6 +425,31 @@ def _planner_media_problems(out: Path, layout: StepLayout, rows: list[dict[str, 
         for kind, rel in rels.items():
             if (out / rel).is_file() and (out / rel).read_bytes() != want[kind]:
                 problems.append(f"{rel}: differs from the clip of {r['audio_path']} (truncated or modified)")
+    return problems
+
+
+def _audio_table_problems(out: Path, rows: list[dict[str, Any]]) -> list[str]:
+    """The card's audio tables (`audio.AUDIO_TABLE`, where present) hold exactly the episode WAVs."""
+    from echo_data.dataset.audio import AUDIO_TABLE
+
+    problems = []
+    for split in dict.fromkeys(r["split"] for r in rows):
+        rel = AUDIO_TABLE.format(split=split)
+        if not (out / rel).is_file():
+            continue
+        try:
+            got = pq.read_table(out / rel).to_pylist()
+        except Exception as e:
+            problems.append(f"{rel}: unreadable ({type(e).__name__}: {e})")
+            continue
+        mine = [r for r in rows if r["split"] == split]
+        if [g["episode_id"] for g in got] != [r["episode_id"] for r in mine]:
+            problems.append(f"{rel}: episodes differ from meta/episodes.parquet")
+            continue
+        for g, r in zip(got, mine):
+            wav = out / r["audio_path"]
+            if wav.is_file() and g["audio"]["bytes"] != wav.read_bytes():
+                problems.append(f"{rel}: {r['episode_id']} differs from {r['audio_path']}")
     return problems
 
 

@@ -155,6 +155,7 @@ class DatasetWriter:
     # -- the end
     def finalize(self) -> None:
         """meta/episodes.parquet, meta/stats.json, meta/info.json, planner export, manifest complete."""
+        from echo_data.dataset.audio import write_audio_tables
         from echo_data.dataset.card import write_card
         from echo_data.dataset.planner import write_planner_export
 
@@ -165,6 +166,7 @@ class DatasetWriter:
         atomic_write_json(self.out / "meta" / "info.json", self.info_json())
         if self.recipe.outputs.planner_export:
             write_planner_export(self.out, self.recipe, rows)
+        write_audio_tables(self.out, rows)
         write_card(self.out)
         self.manifest["complete"] = True
         write_manifest(self.out, self.manifest)

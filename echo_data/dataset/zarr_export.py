@@ -4,7 +4,10 @@ Diffusion Policy's `ReplayBuffer` reads `data/<key>` arrays that concatenate eve
 along axis 0 and `meta/episode_ends` (int64, the exclusive end row of each episode). The store is
 written in Zarr format 2, which both Diffusion Policy's zarr 2 and zarr 3 open. Episodes are in
 train, val, test order; `meta/episode_split` (int8: 0 train, 1 val, 2 test) says which split each
-belongs to (Diffusion Policy draws its validation episodes by a ratio: mask the test ones out).
+belongs to. Diffusion Policy's datasets do not read it: they draw their validation episodes at
+random (`val_ratio`) from every episode in the buffer and train on the rest, so a buffer holding
+the test split trains on test episodes. Export one buffer per split (`split=`, CLI `--split
+train`) and give Diffusion Policy only the train (or train + val) buffer.
 
 Arrays: `action` (N, 12), `action_ee` (N, 11, the end-effector form), `state` (N, 25), `head_rgb` (N, H, W, 3) uint8, `head_depth` /
 `wrist_depth` (N, H, W) uint16 millimetres, `spectrogram`, `mel` (N, F, time, ear), `camera_pose_head`
@@ -20,6 +23,7 @@ from __future__ import annotations
 
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +31,7 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from echo_data.dataset.episode_arrays import ExportError as ExportError  # the CLI catches `module.ExportError`
-from echo_data.dataset.episode_arrays import check_out_folder, check_source, iter_episodes
+from echo_data.dataset.episode_arrays import check_out_folder, check_source, export_splits, iter_episodes
 from echo_data.dataset.robomimic import OBS_KEYS
 from echo_data.dataset.schema import ACTION, ACTION_EE, CAMERA_POSES, SKILL_STOP
 from echo_data.dataset.written import mark_export, replace_folder
@@ -47,15 +51,20 @@ def _as_stored(col: str, x: np.ndarray) -> np.ndarray:
     return x
 
 
-def export_zarr(src: str | Path, out: str | Path, overwrite: bool = False) -> dict[str, Any]:
-    """Write the replay buffer of the echo-data dataset `src` to the folder `out` (built in a
-    temporary sibling, then renamed); return a summary. Raises ExportError on bad input."""
+def export_zarr(
+    src: str | Path, out: str | Path, overwrite: bool = False, split: str | None = None, progress: Callable[[int], None] = lambda n: None
+) -> dict[str, Any]:
+    """Write the replay buffer of the echo-data dataset `src` (or of its split `split`) to the
+    folder `out` (built in a temporary sibling, then renamed); return a summary. `progress(1)` is
+    called after each episode. Raises ExportError on bad input."""
     import zarr
 
     src, out = Path(src), Path(out)
     manifest = check_source(src)
+    chosen = export_splits(manifest, split)
     check_out_folder(src, out, overwrite, KIND)
-    lengths = pq.read_table(src / "meta" / "episodes.parquet", columns=["n_steps"]).column("n_steps").to_numpy()
+    eps = pq.read_table(src / "meta" / "episodes.parquet", columns=["n_steps", "split"]).to_pydict()
+    lengths = np.asarray([n for n, s in zip(eps["n_steps"], eps["split"]) if s in chosen], np.int64)
     chunk_steps = max(1, int(np.median(lengths)))
     total = int(lengths.sum())
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -69,7 +78,7 @@ def export_zarr(src: str | Path, out: str | Path, overwrite: bool = False) -> di
         splits: list[int] = []
         episodes: list[dict[str, Any]] = []
         row = 0
-        for ep in iter_episodes(src, manifest):
+        for ep in iter_episodes(src, manifest, chosen):
             n = ep.length
             for col, key in KEYS.items():
                 if col not in ep.columns:
@@ -82,6 +91,7 @@ def export_zarr(src: str | Path, out: str | Path, overwrite: bool = False) -> di
             ends.append(row)
             splits.append(SPLIT_CODES[ep.split])
             episodes.append({k: ep.record[k] for k in ("episode_id", "setting", "seed", "success", "audio_path")} | {"split": ep.split})
+            progress(1)
         meta = root.create_group("meta")
         meta.create_array("episode_ends", data=np.asarray(ends, np.int64), chunks=(max(len(ends), 1),))
         meta.create_array("episode_split", data=np.asarray(splits, np.int8), chunks=(max(len(splits), 1),))
@@ -93,6 +103,7 @@ def export_zarr(src: str | Path, out: str | Path, overwrite: bool = False) -> di
                 "fps": manifest["layout"]["fps"],
                 "chunk_steps": chunk_steps,
                 "split_codes": SPLIT_CODES,
+                "splits": chosen,
                 "units": {"head_depth": "uint16 millimetres", "wrist_depth": "uint16 millimetres", "head_rgb": "uint8 RGB",
                           "camera_pose_head": "camera-to-world, OpenCV axes"},
                 "episodes": episodes,

@@ -1,8 +1,10 @@
 """One video frame per control step, the same for a stored episode (`view`) and an evaluated one
 (`evaluate --video`): head RGB, head depth, wrist depth and the top-down map side by side under
-their titles, with a depth colour bar in metres and the map's legend and 1 m scale bar below
-them, the binaural spectrogram scrolling past a cursor at the step, a caption and the line that
-states the sound's playback level. Picture and sound stay in step: frame t shows the track at
+their titles, with a depth colour bar in metres under each depth panel (each camera on its own
+scale: the wrist camera sees within a metre or two, the head camera across rooms) and the map's
+legend and 1 m scale bar below them, the binaural spectrogram scrolling past a cursor at the step
+(left ear above right, labelled L / R, a kHz axis per ear and a dB colour key), a caption and the
+line that states the sound's playback level. Picture and sound stay in step: frame t shows the track at
 the sample where step t's observation was taken.
 """
 
@@ -13,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 from PIL import Image, ImageDraw
 
-from echo_data.viz.spectrogram import scrolling_strip, spectrogram_picture
+from echo_data.viz.spectrogram import DB_RANGE, GAP_ROWS, scrolling_strip, spectrogram_picture
 from echo_data.viz.topdown import Point, TopDownMap
 
 PANEL = 256  # side of the image and map panels (pixels)
@@ -29,7 +31,9 @@ CAPTION_TOP = SPEC_TOP + SPEC_H
 WHITE = (255, 255, 255)
 SPEC_SECONDS = 4.0  # spectrogram history shown left of the cursor
 SPEC_AHEAD = 1.0  # and ahead of it
-DEPTH_RANGE_M = 6.0  # depth colour scale: 0 m .. this
+DEPTH_RANGE_M = 6.0  # head depth colour scale: 0 m .. this (rooms are a few metres across)
+WRIST_DEPTH_RANGE_M = 2.0  # wrist depth colour scale: the gripper works within reach
+SPEC_AXIS_W = 34  # left margin of the spectrogram strip for its L / R labels and kHz ticks
 
 
 def fit_panel(img: np.ndarray) -> np.ndarray:
@@ -45,25 +49,57 @@ def fit_panel(img: np.ndarray) -> np.ndarray:
     return out
 
 
-def depth_colours(depth_m: np.ndarray) -> np.ndarray:
-    """Depth in metres as turbo colours over 0 .. DEPTH_RANGE_M."""
+def depth_colours(depth_m: np.ndarray, range_m: float = DEPTH_RANGE_M) -> np.ndarray:
+    """Depth in metres as turbo colours over 0 .. range_m."""
     from echo_data.media import colour_lut
 
-    return colour_lut("turbo")[np.clip(np.asarray(depth_m, dtype=np.float64) / DEPTH_RANGE_M * 255, 0, 255).astype(np.uint8)]
+    return colour_lut("turbo")[np.clip(np.asarray(depth_m, dtype=np.float64) / range_m * 255, 0, 255).astype(np.uint8)]
 
 
-def _depth_key(d: ImageDraw.ImageDraw, x0: int) -> None:
-    """A turbo colour bar of 0 .. DEPTH_RANGE_M under a depth panel, ticked every metre."""
+def _depth_key(d: ImageDraw.ImageDraw, x0: int, range_m: float = DEPTH_RANGE_M) -> None:
+    """A turbo colour bar of 0 .. range_m under a depth panel, ticked every metre (every 0.5 m up to 3 m)."""
     from echo_data.media import colour_lut
 
     lut = colour_lut("turbo")
     left, right, top = x0 + 12, x0 + PANEL - 24, KEY_TOP + 4
     for px in range(left, right):
         d.line([(px, top), (px, top + 8)], fill=tuple(int(c) for c in lut[round((px - left) / (right - left - 1) * 255)]))
-    for m in range(int(DEPTH_RANGE_M) + 1):
-        tick = left + m / DEPTH_RANGE_M * (right - left - 1)
+    step = 0.5 if range_m <= 3 else 1.0
+    for k in range(int(round(range_m / step)) + 1):
+        m = k * step
+        tick = left + m / range_m * (right - left - 1)
         d.line([(tick, top + 8), (tick, top + 11)], fill=WHITE)
-        d.text((tick, top + 12), f"{m} m" if m == int(DEPTH_RANGE_M) else str(m), fill=WHITE, anchor="ma")
+        label = f"{m:g}"
+        d.text((tick, top + 12), f"{label} m" if k == int(round(range_m / step)) else label, fill=WHITE, anchor="ma")
+
+
+def _spectrogram_axes(d: ImageDraw.ImageDraw, rows: int, fs: int) -> None:
+    """L / R labels, a kHz axis for each ear and a dB colour key on the spectrogram strip
+    (`rows`: the picture's rows, both ears and the gap between them, as `spectrogram_picture` stacks them)."""
+    from echo_data.media import colour_lut
+
+    d.rectangle([0, SPEC_TOP, SPEC_AXIS_W - 1, CAPTION_TOP - 1], fill=(0, 0, 0))
+    bins = (rows - GAP_ROWS) // 2
+    per_row = SPEC_H / rows
+    top_khz = fs / 2000
+    for ear, label in enumerate(("L", "R")):
+        first = ear * (bins + GAP_ROWS)  # picture row of this ear's top (highest frequency)
+        y_top, y_bottom = SPEC_TOP + first * per_row, SPEC_TOP + (first + bins) * per_row
+        d.text((2, (y_top + y_bottom) / 2), label, fill=WHITE, anchor="lm")
+        for khz in range(0, int(top_khz) + 1, 2 if top_khz > 4 else 1):
+            y = y_bottom - khz / top_khz * (y_bottom - y_top)
+            d.line([(SPEC_AXIS_W - 4, y), (SPEC_AXIS_W - 1, y)], fill=WHITE)
+            if khz < top_khz:  # the top label would run into the ear above (or the key row)
+                d.text((SPEC_AXIS_W - 5, y), str(khz), fill=WHITE, anchor="rm")
+    d.text((SPEC_AXIS_W - 5, SPEC_TOP + 2), f"{top_khz:g}", fill=WHITE, anchor="ra")  # the top of the axis, once
+    d.text((12, CAPTION_TOP - 2), "kHz", fill=WHITE, anchor="mb")
+    lut = colour_lut("magma")
+    left, right, y = WIDTH - 150, WIDTH - 50, SPEC_TOP + 5
+    for px in range(left, right):
+        d.line([(px, y), (px, y + 6)], fill=tuple(int(c) for c in lut[round((px - left) / (right - left - 1) * 255)]))
+    d.text((left - 3, y + 3), f"-{DB_RANGE:g}", fill=WHITE, anchor="rm")
+    d.text((right + 3, y + 3), "0 dB", fill=WHITE, anchor="lm")
+    d.text(((left + right) / 2, y + 8), "re loudest bin", fill=WHITE, anchor="ma")
 
 
 def _map_key(d: ImageDraw.ImageDraw, topdown: TopDownMap, x0: int) -> None:
@@ -106,14 +142,16 @@ class EpisodeFrames:
         caption: str,
         sounding: Sequence[bool] | None = None,
         wrist_depth_m: np.ndarray | None = None,
+        moved: dict[int, Point] | None = None,
     ) -> np.ndarray:
-        """(HEIGHT, WIDTH, 3) uint8: the step whose observation was taken at `sample` of the track."""
+        """(HEIGHT, WIDTH, 3) uint8: the step whose observation was taken at `sample` of the track
+        (`sounding`, `moved`: the sources' state, as `TopDownMap.draw` takes them)."""
         canvas = np.zeros((HEIGHT, WIDTH, 3), dtype=np.uint8)
         panels = (
             None if rgb is None else fit_panel(np.asarray(rgb, dtype=np.uint8)),
             None if depth_m is None else fit_panel(depth_colours(depth_m)),
-            None if wrist_depth_m is None else fit_panel(depth_colours(wrist_depth_m)),
-            self.map.draw(path, yaw, sounding),
+            None if wrist_depth_m is None else fit_panel(depth_colours(wrist_depth_m, WRIST_DEPTH_RANGE_M)),
+            self.map.draw(path, yaw, sounding, moved=moved),
         )
         for i, panel in enumerate(panels):
             if panel is not None:
@@ -123,11 +161,12 @@ class EpisodeFrames:
         d = ImageDraw.Draw(img)
         for i, (title, panel) in enumerate(zip(TITLES, panels)):
             d.text((i * PANEL + 8, 3), title if panel is not None else f"{title} (not stored)", fill=WHITE)
-        for i in (1, 2):
+        for i, range_m in ((1, DEPTH_RANGE_M), (2, WRIST_DEPTH_RANGE_M)):
             if panels[i] is not None:
-                _depth_key(d, i * PANEL)
+                _depth_key(d, i * PANEL, range_m)
         _map_key(d, self.map, 3 * PANEL)
-        d.text((8, SPEC_TOP + 3), f"binaural spectrogram, left ear above right, {SPEC_SECONDS:g} s back to {SPEC_AHEAD:g} s ahead of the cursor", fill=WHITE)
+        _spectrogram_axes(d, self.picture.shape[0], self.fs)
+        d.text((SPEC_AXIS_W + 6, SPEC_TOP + 3), f"binaural spectrogram, left ear (L) above right (R), {SPEC_SECONDS:g} s back to {SPEC_AHEAD:g} s ahead of the cursor", fill=WHITE)
         d.text((8, CAPTION_TOP + 6), caption, fill=WHITE)
         d.text((8, CAPTION_TOP + 21), self.sound_note, fill=WHITE)
         return np.asarray(img)

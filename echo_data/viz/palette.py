@@ -44,6 +44,7 @@ SOURCE_OTHER: RGB = (0, 0, 0)
 SILENT: RGB = (150, 150, 150)
 ROBOT: RGB = (44, 160, 44)  # the robot, its path and its start pose
 TEXT: RGB = (85, 85, 85)
+TARGET: RGB = (200, 30, 200)  # the skill chain's targets (numbered squares)
 
 
 def source(category: str) -> RGB:

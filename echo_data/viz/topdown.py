@@ -22,6 +22,25 @@ from echo_data.viz import palette
 Point = tuple[float, float]
 
 
+def target_point(plan: Any, target: str) -> Point | None:
+    """Where a chain call's target is on the plan: an object's position, a door's middle, a
+    faucet's pivot or a piece of furniture's centre (None if the plan has no such thing)."""
+    kind, _, index = target.partition(":")
+    try:
+        if kind == "door":
+            door = plan.doors[int(index)]
+            edge = door.free_edge()
+            return ((door.hinge[0] + edge[0]) / 2, (door.hinge[1] + edge[1]) / 2)
+        if kind == "faucet":
+            return tuple(plan.faucets[int(index)].pivot[:2])
+        if kind == "furniture":
+            return tuple(plan.furniture[int(index)].center)
+    except (IndexError, ValueError):
+        return None
+    found = [o for o in plan.objects if o.name == target]
+    return (found[0].position[0], found[0].position[1]) if found else None
+
+
 def event_fields(e: Any) -> tuple[str, tuple[float, float, float] | None]:
     """(category, source position) of a SoundEvent or of its record in meta/episodes.parquet."""
     if isinstance(e, dict):
@@ -47,8 +66,10 @@ class TopDownMap:
         px_per_m: float | None = None,
         labels: bool = False,
         extent: Sequence[Point] = (),
+        field: tuple[np.ndarray, tuple[float, float, float, float]] | None = None,
     ) -> None:
         self.plan = plan
+        self.field = field  # (rgba (ny, nx, 4) uint8, row 0 = south; (xmin, xmax, ymin, ymax) metres): painted on the floor
         self.events = [event_fields(e) for e in events]
         pts = list(extent)
         if plan is not None:  # the plan's box: the same picture size with or without sources and path
@@ -97,6 +118,8 @@ class TopDownMap:
         plan = self.plan
         for r in plan.rooms:
             d.rectangle(self.box(r.rect.xmin, r.rect.ymin, r.rect.xmax, r.rect.ymax), fill=palette.ROOMS.get(r.kind, palette.ROOM_OTHER))
+        if self.field is not None:  # a quantity over the floor (the acoustic map's levels), under furniture and walls
+            self._paint_field(d)
         for fu in plan.furnishings:  # rugs on the floor (outlined), curtains in front of walls (filled)
             fp = fu.footprint
             if fu.kind == "rug":
@@ -136,6 +159,23 @@ class TopDownMap:
             for f in plan.furniture:
                 d.text(self.px(*f.center), "sink" if f.kind == "sink_cabinet" else f.kind, fill=palette.OUTLINE, anchor="mm")
 
+    def _paint_field(self, d: ImageDraw.ImageDraw) -> None:
+        assert self.field is not None
+        rgba, (xmin, xmax, ymin, ymax) = self.field
+        ny, nx = rgba.shape[:2]
+        dx, dy = (xmax - xmin) / nx, (ymax - ymin) / ny
+        for j in range(ny):
+            for i in range(nx):
+                if rgba[j, i, 3]:
+                    x0 = xmin + i * dx
+                    y0 = ymin + j * dy
+                    d.rectangle(self.box(x0, y0, x0 + dx, y0 + dy), fill=tuple(int(c) for c in rgba[j, i, :3]))
+
+    def metres_extent(self) -> tuple[float, float, float, float]:
+        """(left, right, bottom, top) of the whole picture in plan metres (matplotlib's imshow extent)."""
+        m = self.MARGIN / self.scale
+        return (self.lo[0] - m, self.lo[0] + (self.width - self.MARGIN) / self.scale, self.top - (self.height - self.MARGIN) / self.scale, self.top + m)
+
     def _scale_bar(self, d: ImageDraw.ImageDraw) -> None:
         x0, y0 = self.px(self.lo[0], self.lo[1] - 0.4)
         d.line([(x0, y0), (x0 + self.scale, y0)], fill=(0, 0, 0), width=3)
@@ -149,20 +189,28 @@ class TopDownMap:
         yaw: float | None = None,
         sounding: Sequence[bool] | None = None,
         start: tuple[float, float, float] | None = None,
+        moved: dict[int, Point] | None = None,
+        targets: Sequence[tuple[str, Point]] = (),
     ) -> np.ndarray:
-        """The map with the sources (`sounding[e]`: still playing; default all), the start pose,
-        the path so far and, with `yaw`, the robot at its end; (height, width, 3) uint8."""
+        """The map with the sources (`sounding[e]`: still playing; default all; `moved[e]`: where
+        source e is now when it is not where it started: in the robot's hand, or where it was put down), the chain's targets (numbered squares, in
+        chain order), the start pose, the path so far and, with `yaw`, the robot at its end;
+        (height, width, 3) uint8."""
         img = self.base.copy()
         d = ImageDraw.Draw(img)
         s = self._r(0.14, 4.0)
+        places: dict[Point, list[str]] = {}  # one square per place, naming every call there in chain order
+        for k, (label, p) in enumerate(targets):
+            places.setdefault((round(p[0], 2), round(p[1], 2)), []).append(f"{k + 1} {label}")
+        for (tx, ty), names in places.items():
+            x, y = self.px(tx, ty)
+            q = self._r(0.12, 5.0)
+            d.rectangle([x - q, y - q, x + q, y + q], outline=palette.TARGET, width=2)
+            d.text((x + q + 3, y + q + 1), ", ".join(names), fill=palette.TARGET)
+        carried = moved or {}
         for e, (category, src) in enumerate(self.events):
-            if src is None:
-                continue
-            x, y = self.px(src[0], src[1])
-            if sounding is None or sounding[e]:
-                d.ellipse([x - s, y - s, x + s, y + s], fill=palette.source(category), outline=(0, 0, 0))
-            else:
-                d.ellipse([x - s, y - s, x + s, y + s], outline=palette.SILENT, width=2)
+            if src is not None and e not in carried:
+                self._source(d, self.px(src[0], src[1]), category, sounding is None or sounding[e], s)
         if start is not None:
             x, y = self.px(start[0], start[1])
             r = self._r(0.3, 5.0)
@@ -177,7 +225,47 @@ class TopDownMap:
             end = path[-1]
             d.ellipse([x - r, y - r, x + r, y + r], fill=palette.ROBOT)
             d.line([(x, y), self.px(end[0] + 0.5 * math.cos(yaw), end[1] + 0.5 * math.sin(yaw))], fill=(0, 0, 0), width=2)
+        for e, (mx, my) in carried.items():  # moved (in the hand, or where it was put down): over the robot
+            self._source(d, self.px(mx, my), self.events[e][0], sounding is None or sounding[e], s * 0.8)
         return np.asarray(img)
+
+    @staticmethod
+    def _source(d: ImageDraw.ImageDraw, at: Point, category: str, sounding: bool, s: float) -> None:
+        """A source: a disc in its category colour while it sounds, a hollow grey ring once silenced."""
+        x, y = at
+        if sounding:
+            d.ellipse([x - s, y - s, x + s, y + s], fill=palette.source(category), outline=(0, 0, 0))
+        else:
+            d.ellipse([x - s, y - s, x + s, y + s], outline=palette.SILENT, width=2)
+
+
+def legend_entries(categories: Sequence[str]) -> list[tuple[str, tuple[int, int, int], str]]:
+    """(label, colour, shape) of every mark the map draws: the robot, each source category, a
+    silenced source, a chain target and the start pose."""
+    return (
+        [("robot and path", palette.ROBOT, "disc")]
+        + [(c, palette.source(c), "disc") for c in dict.fromkeys(categories)]
+        + [("silenced source", palette.SILENT, "ring"), ("chain target (in order)", palette.TARGET, "square"), ("start pose", palette.ROBOT, "ring")]
+    )
+
+
+def draw_legend(d: ImageDraw.ImageDraw, entries: Sequence[tuple[str, tuple[int, int, int], str]], x0: float, y0: float, width: float, text: Any = (0, 0, 0)) -> float:
+    """Legend marks and labels in rows from (x0, y0) within `width`; returns the y below them."""
+    x, y = x0, y0
+    for name, colour, shape in entries:
+        w = 11 + int(d.textlength(name)) + 10
+        if x + w > x0 + width and x > x0:
+            x, y = x0, y + 14
+        box = [x, y + 1, x + 8, y + 9]
+        if shape == "disc":
+            d.ellipse(box, fill=colour, outline=(0, 0, 0))
+        elif shape == "ring":
+            d.ellipse(box, outline=colour, width=2)
+        else:
+            d.rectangle(box, outline=colour, width=2)
+        d.text((x + 11, y), name, fill=text)
+        x += w
+    return y + 14
 
 
 def draw_topdown(
@@ -188,15 +276,20 @@ def draw_topdown(
     events: Sequence[Any] = (),
     title: str | None = None,
     px_per_m: float = 80.0,
+    chain: Sequence[Any] = (),
 ) -> None:
-    """Write a labelled PNG of `plan` with the sources, start pose and path to `out` (folders created)."""
+    """Write a labelled PNG of `plan` with the sources, the chain's targets (`chain`: SkillCalls),
+    start pose and path to `out`, with a legend under it (folders created)."""
     m = TopDownMap(plan, events, px_per_m=px_per_m, labels=True)
-    img = Image.fromarray(m.draw(path or (), sounding=None, start=start))
+    targets = [(c.skill, p) for c in chain if (p := target_point(plan, c.target)) is not None]
+    img = Image.fromarray(m.draw(path or (), sounding=None, start=start, targets=targets))
+    canvas = Image.new("RGB", (img.width, img.height + 16 + 14 * 6), palette.BACKGROUND)  # room for the title and legend rows
+    canvas.paste(img, (0, 16))
+    d = ImageDraw.Draw(canvas)
     if title:
-        canvas = Image.new("RGB", (img.width, img.height + 16), palette.BACKGROUND)
-        canvas.paste(img, (0, 16))
-        ImageDraw.Draw(canvas).text((m.MARGIN, 2), title, fill=(0, 0, 0))
-        img = canvas
+        d.text((m.MARGIN, 2), title, fill=(0, 0, 0))
+    bottom = draw_legend(d, legend_entries([c for c, _ in m.events]), m.MARGIN, img.height + 18, img.width - 2 * m.MARGIN)
+    img = canvas.crop((0, 0, canvas.width, int(bottom) + 4))
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     img.save(out)

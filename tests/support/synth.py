@@ -130,11 +130,12 @@ def null_library(recipe: Recipe, recipe_dir: Path) -> None:
     return None
 
 
-def build_synth(out: Path, splits: dict[str, int]) -> Path:
-    """A built synthetic dataset at `out` (for loader, card, export and view tests)."""
+def build_synth(out: Path, splits: dict[str, int], **over: object) -> Path:
+    """A built synthetic dataset at `out` (for loader, card, export and view tests); `over`
+    replaces fields of `synth_recipe`."""
     from echo_data.app.build import build
 
-    build(synth_recipe(splits=splits), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
+    build(synth_recipe(splits=splits, **over), Path(__file__), out, generate=synth_generate, make_library=null_library, progress=False)
     return out
 
 

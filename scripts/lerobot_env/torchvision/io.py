@@ -1,4 +1,7 @@
-"""`torchvision.io.VideoReader` (pyav backend) as torchvision documents it: iterate a stream's
+"""`torchvision.io.VideoReader` (pyav backend) for the LeRobot environment: torchvision 0.26+
+dropped its video decoder, ledataset 0.4.4 still decodes through it; scripts/setup_lerobot.sh
+installs this file as `torchvision.io._echo_pyav_reader` and exports the class as
+`torchvision.io.VideoReader`. Semantics as torchvision documented them: iterate a stream's
 frames as {"data": (C, H, W) uint8 tensor, "pts": seconds}; `seek(t, keyframes_only)` moves to
 the key frame at or before t (pyav seeks key frames only, which is what callers ask for)."""
 
