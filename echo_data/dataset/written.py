@@ -151,6 +151,7 @@ def dataset_file_test(manifest: dict[str, Any]) -> Callable[[str], bool]:
     patterns = [
         r"manifest\.json", r"README\.md", r"\.build\.lock", r"meta/(episodes\.parquet|stats\.json|info\.json)",
         rf"data/({splits})-\d{{5}}-of-\d{{5}}\.parquet",
+        rf"meta/audio/({splits})\.parquet",  # the card's playable audio config (dataset/audio.AUDIO_TABLE)
         rf"audio/({splits})/{eid}\.wav",
         rf"planner/(audio|audio_binaural)/({splits})/{eid}\.wav", rf"planner/images/({splits})/{eid}\.png",
         rf"planner/(({splits})\.json|dataset_info\.json)",
