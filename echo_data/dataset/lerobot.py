@@ -58,8 +58,6 @@ import pyarrow.parquet as pq
 from echo_data.dataset.episode_arrays import ExportError, check_out_folder, check_source, column_values, decode_images
 from echo_data.dataset.schema import (
     ACTION,
-    ACTION_EE,
-    ACTION_EE_EXECUTED,
     ACTION_EXECUTED,
     CAMERA_POSES,
     CHAIN_SLOTS,
