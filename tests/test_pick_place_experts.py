@@ -12,7 +12,7 @@ import sapien
 
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
 from echo_data.recipe import Recipe
-from echo_data.records import ACTION_DIM, SkillOutcome
+from echo_data.records import EE_ACTION_DIM, SkillOutcome
 from echo_data.scene.floorplan import FloorPlan, Furniture, PlacedObject, Rect, Room, WallSegment
 from echo_data.scene.objects import object_size
 from echo_data.skills.pick import pick
@@ -47,12 +47,12 @@ def make_spec(category: str = "phone", yaw: float = 0.3, depth: float = 0.2, sta
 
 
 def run_expert(world: World, gen: Generator[np.ndarray, None, SkillOutcome], watch: Any = None) -> SkillOutcome:
-    """Apply every action the expert yields; `watch(world)` after each step."""
+    """Apply every `action.ee` the expert yields (through the robot's one ee map); `watch(world)` after each step."""
     try:
         while True:
             action = next(gen)
-            assert action.shape == (ACTION_DIM,) and action.dtype == np.float32
-            world.step(action)
+            assert action.shape == (EE_ACTION_DIM,) and action.dtype == np.float32
+            world.step(world.robot.ee.to_joint(action))
             if watch is not None:
                 watch(world)
     except StopIteration as stop:
@@ -187,7 +187,7 @@ def test_pick_is_reproducible_to_the_byte() -> None:
         try:
             while True:
                 a = next(gen)
-                world.step(a)
+                world.step(world.robot.ee.to_joint(a))
                 out.append(a.tobytes() + world.robot.state().tobytes())
         except StopIteration as stop:
             assert stop.value.success

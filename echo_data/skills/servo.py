@@ -21,6 +21,7 @@ Poses are 4x4 numpy matrices in the world frame unless a name says `_in_base`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Generator
 from typing import TYPE_CHECKING, Any
 
@@ -91,23 +92,29 @@ def step_towards(delta: np.ndarray, speed: float, turn: float, dt: float) -> np.
 def servo(
     world: World, goal: Goal, *, speed: float = SPEED, turn: float = TURN, max_steps: int = 100,
     close: bool | None = None, torso: float | None = None, pos_tol: float = POS_TOL, rot_tol: float = ROT_TOL,
-    settle_tol: float = SETTLE_TOL, orient: bool = True,
+    settle_tol: float = SETTLE_TOL, orient: bool = True, torso_speed: float | None = None,
 ) -> Generator[np.ndarray, None, bool]:
     """Move the TCP to `goal` (4x4 world pose, or a callable re-read every step); returns True
     once the commanded TCP is within `pos_tol`/`rot_tol` of it and the measured TCP within
     `settle_tol`, False after `max_steps` actions. `orient=False` servos the position only.
-    `torso`: a torso target to hold (or move to) meanwhile; the TCP change accounts for it."""
+    `torso`: a torso target to hold (or move to) meanwhile; the TCP change accounts for it;
+    `torso_speed` (m/s): the torso command ramps towards `torso` at most this fast (else it jumps)."""
     robot = world.robot
     dt = 1.0 / robot.cfg.control_hz
     for _ in range(max_steps):
         g = goal() if callable(goal) else goal
-        d = robot.ee.delta_towards(in_base(world, g), torso=torso)
+        t = torso
+        if torso is not None and torso_speed is not None:
+            now = float(robot.applied_action()[3])
+            if abs(torso - now) > torso_speed * dt:
+                t = now + math.copysign(torso_speed * dt, torso - now)
+        d = robot.ee.delta_towards(in_base(world, g), torso=t)
         if not orient:
             d[3:] = 0.0
         here = float(np.linalg.norm(d[:3])) <= pos_tol and float(np.linalg.norm(d[3:])) <= rot_tol
-        if here and float(np.linalg.norm(measured_tcp(world)[:3, 3] - g[:3, 3])) <= settle_tol:
+        if here and t == torso and float(np.linalg.norm(measured_tcp(world)[:3, 3] - g[:3, 3])) <= settle_tol:
             return True
-        yield ee_command(world, torso=torso, delta=np.zeros(6) if here else step_towards(d, speed, turn, dt), close=close)
+        yield ee_command(world, torso=t, delta=np.zeros(6) if here else step_towards(d, speed, turn, dt), close=close)
     return False
 
 
