@@ -90,10 +90,14 @@ def in_world(world: World, pose_in_base: np.ndarray) -> np.ndarray:
     return base_frame(*world.robot.base_pose()) @ pose_in_base
 
 
+def anchored(world: World, pose_in_base: np.ndarray) -> Callable[[], np.ndarray]:
+    """Goal callable: a pose fixed in the base frame, in the world where the base stands at each call."""
+    return lambda: in_world(world, pose_in_base)
+
+
 def fixed_in_base(world: World, xyz: tuple[float, float, float], yaw_in_base: float) -> Callable[[], np.ndarray]:
-    """Goal callable: a top-down TCP pose at `xyz` in the base frame, re-anchored to the base every step."""
-    goal = top_down(*xyz, yaw_in_base)
-    return lambda: in_world(world, goal)
+    """Goal callable: a top-down TCP pose at `xyz` in the base frame (see `anchored`)."""
+    return anchored(world, top_down(*xyz, yaw_in_base))
 
 
 def pick(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
@@ -193,8 +197,7 @@ def _pick(world: World, name: str) -> Generator[np.ndarray, None, None]:
 
 def in_world_fixed(world: World, pose_world: np.ndarray) -> Callable[[], np.ndarray]:
     """Goal callable of a world pose held fixed relative to the base (the base does not move here)."""
-    rel = S.in_base(world, pose_world)
-    return lambda: in_world(world, rel)
+    return anchored(world, S.in_base(world, pose_world))
 
 
 def approach_base(world: World, name: str) -> Generator[np.ndarray, None, None]:
@@ -226,7 +229,6 @@ def approach_base(world: World, name: str) -> Generator[np.ndarray, None, None]:
     n = max(2, int(math.hypot(sx - x, sy - y) / (grid.resolution / 2)))
     if not all(grid.is_free(x + (sx - x) * t, y + (sy - y) * t) for t in np.linspace(0.0, 1.0, n)):
         yield from drive_path(world, (sx, sy, syaw))
-    dt = 1.0 / robot.cfg.control_hz
     for _ in range(BASE_MAX_STEPS):
         gx, gy, gyaw = stance()
         x, y, yaw = robot.base_pose()

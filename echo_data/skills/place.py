@@ -31,7 +31,15 @@ from echo_data.scene.objects import object_size
 from echo_data.skills import servo as S
 from echo_data.skills.budget import Budget, SkillFailed
 from echo_data.skills.pick import (
-    APPROACH_JAW, APPROACH_TCP, drive_path, fixed_in_base, in_world, in_world_fixed, jaw_yaw, reach_cost, top_down,
+    APPROACH_JAW,
+    APPROACH_TCP,
+    anchored,
+    drive_path,
+    fixed_in_base,
+    in_world_fixed,
+    jaw_yaw,
+    reach_cost,
+    top_down,
 )
 from echo_data.skills.success import place_success
 from echo_data.target import Target
@@ -195,7 +203,7 @@ def tuck_path(world: World) -> list[Callable[[], np.ndarray]]:
     for a, b in ((READY_GROUP[1:], raised), (raised, TUCK_QPOS)):
         for t in np.linspace(0.0, 1.0, TUCK_SAMPLES + 1)[1:]:
             poses.append(ee.tcp_in_base(torso, a + (b - a) * t))
-    return [(lambda p=p: in_world(world, p)) for p in poses]
+    return [anchored(world, p) for p in poses]
 
 
 def _place(world: World, name: str, goal: int) -> Generator[np.ndarray, None, None]:
