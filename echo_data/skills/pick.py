@@ -33,6 +33,7 @@ from echo_data.robot.robot import READY_GROUP, yaw_of
 from echo_data.scene.objects import object_size
 from echo_data.skills import servo as S
 from echo_data.skills.budget import Budget, SkillFailed
+from echo_data.skills.servo import jaw_yaw, top_down
 from echo_data.skills.success import CARRY_TCP, object_bottom, pick_success
 
 if TYPE_CHECKING:
@@ -61,28 +62,12 @@ BASE_GAIN = 1.5  # 1/s
 STANCE_TOL = 0.02  # m ...
 STANCE_YAW_TOL = math.radians(2.0)  # ... and rad: the base is where Pick needs it
 BASE_MAX_STEPS = 120
+CARRY_ACCEL = 0.5  # m/s^2: the hand's speed-up and slow-down with an object in it (it swings in the pinch)
 
 
 def grasp_height(bottom: float, sz: float) -> float:
     """TCP z for a top-down grasp of an object of height sz standing at `bottom`."""
     return max(bottom + GRASP_ABOVE_BOTTOM, bottom + sz - GRASP_BELOW_TOP)
-
-
-def top_down(x: float, y: float, z: float, yaw: float) -> np.ndarray:
-    """4x4 TCP pose pointing straight down with the fingers closing across `yaw` + 90 deg (the
-    jaws close along the object's local y when `yaw` is the object's yaw)."""
-    c, s = math.cos(yaw), math.sin(yaw)
-    m = np.eye(4)
-    m[:3, 0] = (0.0, 0.0, -1.0)
-    m[:3, 1] = (-s, c, 0.0)
-    m[:3, 2] = (c, s, 0.0)
-    m[:3, 3] = (x, y, z)
-    return m
-
-
-def jaw_yaw(pose: np.ndarray) -> float:
-    """The `yaw` of `top_down` that gives this TCP pose's jaw direction (its inverse)."""
-    return math.atan2(-float(pose[0, 1]), float(pose[1, 1]))
 
 
 def in_world(world: World, pose_in_base: np.ndarray) -> np.ndarray:
@@ -186,11 +171,11 @@ def _pick(world: World, name: str) -> Generator[np.ndarray, None, None]:
         raise SkillFailed("grasp missed")
     lift = S.measured_tcp(world)
     lift[2, 3] += LIFT_HEIGHT
-    yield from S.servo(world, in_world_fixed(world, lift), speed=S.SLOW_SPEED * 2, max_steps=40, close=True)
+    yield from S.servo(world, in_world_fixed(world, lift), speed=S.SLOW_SPEED * 2, max_steps=40, close=True, accel=CARRY_ACCEL)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
     carry = fixed_in_base(world, CARRY_TCP, jaw_yaw(S.in_base(world, S.measured_tcp(world))))
-    yield from S.servo(world, carry, max_steps=60, close=True)
+    yield from S.servo(world, carry, max_steps=60, close=True, accel=CARRY_ACCEL)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
 

@@ -33,14 +33,14 @@ from echo_data.skills.budget import Budget, SkillFailed
 from echo_data.skills.pick import (
     APPROACH_JAW,
     APPROACH_TCP,
+    CARRY_ACCEL,
     anchored,
     drive_path,
     fixed_in_base,
     in_world_fixed,
-    jaw_yaw,
     reach_cost,
-    top_down,
 )
+from echo_data.skills.servo import jaw_yaw, top_down
 from echo_data.skills.success import place_success
 from echo_data.target import Target
 
@@ -58,7 +58,7 @@ REACH = (0.45, 0.74)  # m: base centre to the placing point
 PREFERRED_REACH = 0.6
 GRID = 0.03  # m
 SPOTS_TRIED = 12
-SETTLE_STEPS = 2  # held above the spot: a swinging object comes to rest before going down
+STEADY_STEPS = 20  # at most this long held above the spot and before opening: a swinging object comes to rest
 TUCK_RAISE = -0.5  # shoulder_lift of the tuck path's middle pose (upper arm raised)
 TUCK_SAMPLES = 4  # TCP poses per joint segment of the tuck path
 # The arm configuration whose TCP is the carry pose (pick.APPROACH_TCP, APPROACH_JAW): found once
@@ -148,7 +148,7 @@ def _drive(world: World, goal: int) -> Generator[np.ndarray, None, None]:
         pose = interaction_pose(world.plan, str(Target.furniture(goal)), door_angles=door_angles(world) or None, grid=grid)
     except ValueError:
         raise SkillFailed("no_path") from None
-    yield from S.servo(world, fixed_in_base(world, APPROACH_TCP, APPROACH_JAW), max_steps=40, close=True)
+    yield from S.servo(world, fixed_in_base(world, APPROACH_TCP, APPROACH_JAW), max_steps=40, close=True, accel=CARRY_ACCEL)
     yield from drive_path(world, pose)
 
 
@@ -209,13 +209,14 @@ def tuck_path(world: World) -> list[Callable[[], np.ndarray]]:
 def _place(world: World, name: str, goal: int) -> Generator[np.ndarray, None, None]:
     robot = world.robot
     spot = choose_spot(world, name, goal)
-    yield from S.servo(world, lambda: spot.tcp(ABOVE), max_steps=60, close=True)
+    yield from S.servo(world, lambda: spot.tcp(ABOVE), max_steps=60, close=True, accel=CARRY_ACCEL)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
-    yield from S.hold(world, SETTLE_STEPS)
+    yield from S.steady(world, name, STEADY_STEPS)
     spot.feel()
-    if not (yield from S.servo(world, lambda: spot.tcp(RELEASE_GAP), speed=S.SLOW_SPEED, max_steps=40, close=True, settle_tol=0.008)):
+    if not (yield from S.servo(world, lambda: spot.tcp(RELEASE_GAP), speed=S.SLOW_SPEED, max_steps=40, close=True, settle_tol=0.008, accel=CARRY_ACCEL)):
         raise SkillFailed("spot not reached")
+    yield from S.steady(world, name, STEADY_STEPS)
     yield from S.grip(world, close=False, steps=OPEN_STEPS)
     up = S.measured_tcp(world)
     up[2, 3] += RETREAT
