@@ -52,7 +52,6 @@ def measure(recipe_path: str, n: int) -> dict[str, Any]:
     t0 = time.perf_counter()
     for index in range(n):
         obs, info = env.reset(options={"split": "train", "index": index})
-        spec = env.episode
         rows: list[dict[str, Any]] = []
 
         def hook(env: Any, obs: Any, action: Any, k: int, call: Any, flags: Any, rows: list = rows) -> None:
@@ -60,7 +59,7 @@ def measure(recipe_path: str, n: int) -> dict[str, Any]:
                 return
             world = env.world
             robot = world.robot
-            name = call.target if call.skill == "Pick" else spec.chain[k - 1].target
+            name = call.target if call.skill == "Pick" else env.episode.chain[k - 1].target
             oid = world.handles.objects[name].per_scene_id
             robot_ids = [ln.entity.per_scene_id for ln in robot.articulation.links]
             seen = {}
@@ -137,8 +136,15 @@ def summarise(episodes: list[dict[str, Any]], seconds: float) -> dict[str, Any]:
         wrist = np.array([r["seen"].get("wrist", 0) > 0 for r in rows])
         return {"rows": len(rows), "some_camera": float(np.mean(head | wrist)), "head": float(head.mean()), "wrist": float(wrist.mean()), "none": int(np.sum(~(head | wrist)))}
 
-    pick_obj = [r for e in episodes for r, p in zip([x for x in e["rows"] if x["skill"] == "Pick"], _pick_phases([x for x in e["rows"] if x["skill"] == "Pick"])) if p == "object"]
-    pick_untuck = [r for e in episodes for r, p in zip([x for x in e["rows"] if x["skill"] == "Pick"], _pick_phases([x for x in e["rows"] if x["skill"] == "Pick"])) if p == "untuck"]
+    def pick_rows_in(phase: str) -> list[dict[str, Any]]:
+        out = []
+        for e in episodes:
+            pr = [x for x in e["rows"] if x["skill"] == "Pick"]
+            out += [r for r, p in zip(pr, _pick_phases(pr)) if p == phase]
+        return out
+
+    pick_obj = pick_rows_in("object")
+    pick_untuck = pick_rows_in("untuck")
     spread = {k: (float(np.max(np.ptp(np.array(v), axis=0))) if len(v) > 1 else None) for k, v in marks.items()}
     outcomes: dict[str, list[int]] = {}
     for e in episodes:
@@ -155,6 +161,8 @@ def summarise(episodes: list[dict[str, Any]], seconds: float) -> dict[str, Any]:
         "visible_pick": visible(pick_rows),
         "visible_pick_untuck": visible(pick_untuck),
         "visible_pick_object_phase": visible(pick_obj),
+        "visible_pick_object_phase_open": visible([r for r in pick_obj if not r["gripper_closed"]]),
+        "visible_pick_object_phase_closed": visible([r for r in pick_obj if r["gripper_closed"]]),
         "visible_place": visible(place_rows),
         "head_covered_by_robot": {
             "pick_untuck": float(np.mean([r["head_robot"] for r in pick_untuck])) if pick_untuck else None,

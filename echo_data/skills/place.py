@@ -58,6 +58,7 @@ REACH = (0.45, 0.74)  # m: base centre to the placing point
 PREFERRED_REACH = 0.6
 GRID = 0.03  # m
 SPOTS_TRIED = 12
+LOWER_STEPS = 40
 STEADY_STEPS = 20  # at most this long held above the spot and before opening: a swinging object comes to rest
 TUCK_RAISE = -0.5  # shoulder_lift of the tuck path's middle pose (upper arm raised)
 TUCK_SAMPLES = 4  # TCP poses per joint segment of the tuck path
@@ -214,8 +215,9 @@ def _place(world: World, name: str, goal: int) -> Generator[np.ndarray, None, No
         raise SkillFailed("grasp slipped")
     yield from S.steady(world, name, STEADY_STEPS)
     spot.feel()
-    if not (yield from S.servo(world, lambda: spot.tcp(RELEASE_GAP), speed=S.SLOW_SPEED, max_steps=40, close=True, settle_tol=0.008, accel=CARRY_ACCEL)):
-        raise SkillFailed("spot not reached")
+    # (not reaching the release height within the steps means the object already rests on the
+    # top, tilted or pressed: it is let go there too, and the success test says how it ended)
+    yield from S.servo(world, lambda: spot.tcp(RELEASE_GAP), speed=S.SLOW_SPEED, max_steps=LOWER_STEPS, close=True, settle_tol=0.008, accel=CARRY_ACCEL)
     yield from S.steady(world, name, STEADY_STEPS)
     yield from S.grip(world, close=False, steps=OPEN_STEPS)
     up = S.measured_tcp(world)
