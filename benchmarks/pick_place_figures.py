@@ -144,6 +144,16 @@ def summarise(episodes: list[dict[str, Any]], seconds: float) -> dict[str, Any]:
         return out
 
     pick_obj = pick_rows_in("object")
+    # where the object is in no camera: rows before the first close of each Pick segment
+    unseen_before_close: dict[int, int] = {}
+    for e in episodes:
+        pr = [x for x in e["rows"] if x["skill"] == "Pick"]
+        closed = [i for i, r in enumerate(pr) if r["gripper_closed"]]
+        if not closed:
+            continue
+        for i, r in enumerate(pr[: closed[0]]):
+            if not (r["seen"].get("head", 0) or r["seen"].get("wrist", 0)):
+                unseen_before_close[closed[0] - i] = unseen_before_close.get(closed[0] - i, 0) + 1
     pick_untuck = pick_rows_in("untuck")
     spread = {k: (float(np.max(np.ptp(np.array(v), axis=0))) if len(v) > 1 else None) for k, v in marks.items()}
     outcomes: dict[str, list[int]] = {}
@@ -169,6 +179,7 @@ def summarise(episodes: list[dict[str, Any]], seconds: float) -> dict[str, Any]:
             "pick_object_phase": float(np.mean([r["head_robot"] for r in pick_obj])) if pick_obj else None,
         },
         "joint_spread_rad": spread,
+        "unseen_rows_before_close": dict(sorted(unseen_before_close.items())),
         "seconds": round(seconds, 1),
     }
 

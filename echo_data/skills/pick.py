@@ -43,7 +43,10 @@ if TYPE_CHECKING:
 HOVER = 0.16  # m: TCP above the grasp point while the wrist camera looks at the object
 PRE_GRASP = 0.04  # m above the grasp point: the last stretch at the slow speed
 LIFT_HEIGHT = 0.15  # m
-GRASP_BELOW_TOP = 0.03  # m: pads centred this far below the object's top ...
+# m: pads centred this far below the object's top (the palm's underside is 4.2 cm above the TCP,
+# so a tall object's top meets the palm and cannot pivot about the jaw axis; held 3 cm below its
+# top, the furby swung +-0.8 rad, docs/manipulation_experts.md) ...
+GRASP_BELOW_TOP = 0.044
 GRASP_ABOVE_BOTTOM = 0.010  # ... but the TCP at least this high above its bottom (tips clear the table)
 CLOSE_STEPS = 8
 HOVER_STEPS = 3  # control steps held at the hover (the wrist camera's look), fixed
@@ -92,7 +95,6 @@ def pick(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarr
     name = call.target
     try:
         yield from budget.run(_pick(world, name))
-        yield from budget.run(S.hold(world, 3))
     except SkillFailed as e:
         return SkillOutcome(call.skill, name, False, str(e), budget.steps)
     ok = pick_success(world, name)
@@ -109,20 +111,24 @@ class Grasp:
         self.world, self.name = world, name
         o = world.plan.object_by_name(name)
         self.height = object_size(o.category, o.scale)[2]
-        self.flip = False
+        self.turn = 0.0
         # of the two jaw directions across the object's narrow side, the one the arm reaches
         # (the wrist roll has limits), then the one nearer the arm's joints now
         costs = []
-        for flip in (False, True):
-            self.flip = flip
-            costs.append(reach_cost(world, self.pose()))
-        self.flip = costs[1] < costs[0]
+        for t in (0.0, math.pi):
+            self.turn = t
+            costs.append((reach_cost(world, self.pose()), t))
+        self.turn = min(costs)[1]
+
+    def yaw(self, turn: float) -> float:
+        """The `top_down` yaw of the jaws for a turn from the object's own yaw."""
+        return yaw_of(self.world.object_pose(self.name)) + turn
 
     def pose(self, above: float = 0.0, camera: bool = False) -> np.ndarray:
         """Top-down TCP pose `above` m over the grasp point; `camera` shifts it so the wrist
         camera's axis (not the TCP's) passes through the object."""
         p = self.world.object_pose(self.name)
-        yaw = yaw_of(p) + (math.pi if self.flip else 0.0)
+        yaw = self.yaw(self.turn)
         z = grasp_height(object_bottom(self.world, self.name), self.height) + above
         x, y = float(p.p[0]), float(p.p[1])
         if camera:
@@ -161,12 +167,12 @@ def _pick(world: World, name: str) -> Generator[np.ndarray, None, None]:
     # approach and hover: the wrist camera centred on the object
     if not (yield from S.servo(world, lambda: grasp.pose(HOVER, camera=True), max_steps=60, close=False)):
         raise SkillFailed("no IK solution")
-    yield from S.hold(world, HOVER_STEPS)
+    yield from S.hold_at(world, lambda: grasp.pose(HOVER, camera=True), HOVER_STEPS, close=False)
     # descent: straight to the grasp point, slow over the last centimetres
     yield from S.servo(world, lambda: grasp.pose(PRE_GRASP), max_steps=30, close=False)
     if not (yield from S.servo(world, grasp.pose, speed=S.SLOW_SPEED, max_steps=30, close=False, settle_tol=0.008)):
         raise SkillFailed("grasp pose not reached")
-    yield from S.grip(world, close=True, steps=CLOSE_STEPS)
+    yield from S.hold_at(world, grasp.pose(), CLOSE_STEPS, close=True)  # the jaws close where the hand is
     if robot.holding != name:
         raise SkillFailed("grasp missed")
     lift = S.measured_tcp(world)
@@ -176,8 +182,16 @@ def _pick(world: World, name: str) -> Generator[np.ndarray, None, None]:
         raise SkillFailed("grasp slipped")
     carry = fixed_in_base(world, CARRY_TCP, jaw_yaw(S.in_base(world, S.measured_tcp(world))))
     yield from S.servo(world, carry, max_steps=60, close=True, accel=CARRY_ACCEL)
+    yield from S.hold_at(world, carry, 3, close=True)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
+
+
+def commanded_pose(world: World) -> Callable[[], np.ndarray]:
+    """Goal callable: the TCP pose the arm is commanded to now, fixed in the base frame (to hold the
+    arm where it is while the base moves, correcting a perturbed hand)."""
+    ref = world.robot.applied_action().astype(np.float64)
+    return anchored(world, world.robot.ee.tcp_in_base(float(ref[3]), ref[4:11]))
 
 
 def in_world_fixed(world: World, pose_world: np.ndarray) -> Callable[[], np.ndarray]:
@@ -188,14 +202,16 @@ def in_world_fixed(world: World, pose_world: np.ndarray) -> Callable[[], np.ndar
 def approach_base(world: World, name: str) -> Generator[np.ndarray, None, None]:
     """Bring the base from anywhere in Navigate's success region to the object's interaction pose.
 
-    Arm held (tucked); stays where it is when the object has no free interaction pose. Straight and holonomic when the straight line is free on the navigation
-    grid; otherwise the navigation follower drives the path first. Closed loop: the stance is
-    re-derived from the object's current position every step.
+    The hand is held where it is commanded (tucked), a perturbed hand brought back. The base stays
+    where it is when the object has no free interaction pose. Straight and holonomic when the
+    straight line is free on the navigation grid; otherwise the navigation follower drives the
+    path first. Closed loop: the stance is re-derived from the object's current position every step.
     """
     from echo_data.scene.nav import interaction_pose
     from echo_data.skills.navigate import current_grid, door_angles
 
     robot = world.robot
+    arm = commanded_pose(world)
     grid = current_grid(world)
     try:
         sx, sy, syaw = interaction_pose(world.plan, name, door_angles=door_angles(world) or None, grid=grid)
@@ -213,7 +229,7 @@ def approach_base(world: World, name: str) -> Generator[np.ndarray, None, None]:
         return
     n = max(2, int(math.hypot(sx - x, sy - y) / (grid.resolution / 2)))
     if not all(grid.is_free(x + (sx - x) * t, y + (sy - y) * t) for t in np.linspace(0.0, 1.0, n)):
-        yield from drive_path(world, (sx, sy, syaw))
+        yield from drive_path(world, (sx, sy, syaw), arm)
     for _ in range(BASE_MAX_STEPS):
         gx, gy, gyaw = stance()
         x, y, yaw = robot.base_pose()
@@ -227,20 +243,20 @@ def approach_base(world: World, name: str) -> Generator[np.ndarray, None, None]:
         if sp > BASE_SPEED:
             v *= BASE_SPEED / sp
         wz = float(np.clip(BASE_GAIN * eyaw, -BASE_TURN, BASE_TURN))
-        yield S.ee_command(world, base=(float(v[0]), float(v[1]), wz))
-    yield S.ee_command(world)
+        yield S.ee_command(world, base=(float(v[0]), float(v[1]), wz), delta=S.delta_to(world, arm))
+    yield S.ee_command(world, delta=S.delta_to(world, arm))
 
 
-def drive_path(world: World, goal: tuple[float, float, float]) -> Generator[np.ndarray, None, None]:
+def drive_path(world: World, goal: tuple[float, float, float], arm: S.Goal) -> Generator[np.ndarray, None, None]:
     """Drive along the navigation follower's path (`skills.navigate.drive_to`), as `action.ee`:
-    its base velocities with the arm, torso and gripper held."""
+    its base velocities, the TCP held at `arm` (a goal fixed in the base frame), torso and gripper held."""
     from echo_data.skills.navigate import drive_to
 
     gen = drive_to(world, goal, int(world.robot.cfg.max_steps["Navigate"]))
     try:
         while True:
             a = next(gen)
-            yield S.ee_command(world, base=(float(a[0]), float(a[1]), float(a[2])))
+            yield S.ee_command(world, base=(float(a[0]), float(a[1]), float(a[2])), delta=S.delta_to(world, arm))
     except StopIteration as stop:
         if not stop.value.success:
             raise SkillFailed(stop.value.reason) from None

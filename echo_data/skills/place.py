@@ -35,6 +35,7 @@ from echo_data.skills.pick import (
     APPROACH_TCP,
     CARRY_ACCEL,
     anchored,
+    commanded_pose,
     drive_path,
     fixed_in_base,
     in_world_fixed,
@@ -130,7 +131,6 @@ def place(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndar
     try:
         yield from drive_budget.run(_drive(world, goal))
         yield from budget.run(_place(world, name, goal))
-        yield from budget.run(S.hold(world, 3))
     except SkillFailed as e:
         return SkillOutcome(call.skill, call.target, False, str(e), drive_budget.steps + budget.steps)
     ok = place_success(world, name, goal)
@@ -149,8 +149,9 @@ def _drive(world: World, goal: int) -> Generator[np.ndarray, None, None]:
         pose = interaction_pose(world.plan, str(Target.furniture(goal)), door_angles=door_angles(world) or None, grid=grid)
     except ValueError:
         raise SkillFailed("no_path") from None
-    yield from S.servo(world, fixed_in_base(world, APPROACH_TCP, APPROACH_JAW), max_steps=40, close=True, accel=CARRY_ACCEL)
-    yield from drive_path(world, pose)
+    carry = fixed_in_base(world, APPROACH_TCP, APPROACH_JAW)
+    yield from S.servo(world, carry, max_steps=40, close=True, accel=CARRY_ACCEL)
+    yield from drive_path(world, pose, carry)
 
 
 class Spot:
@@ -213,13 +214,14 @@ def _place(world: World, name: str, goal: int) -> Generator[np.ndarray, None, No
     yield from S.servo(world, lambda: spot.tcp(ABOVE), max_steps=60, close=True, accel=CARRY_ACCEL)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
-    yield from S.steady(world, name, STEADY_STEPS)
+    yield from S.steady(world, name, STEADY_STEPS, goal=lambda: spot.tcp(ABOVE))
     spot.feel()
     # (not reaching the release height within the steps means the object already rests on the
     # top, tilted or pressed: it is let go there too, and the success test says how it ended)
     yield from S.servo(world, lambda: spot.tcp(RELEASE_GAP), speed=S.SLOW_SPEED, max_steps=LOWER_STEPS, close=True, settle_tol=0.008, accel=CARRY_ACCEL)
-    yield from S.steady(world, name, STEADY_STEPS)
-    yield from S.grip(world, close=False, steps=OPEN_STEPS)
+    here = commanded_pose(world)
+    yield from S.steady(world, name, STEADY_STEPS, goal=here)
+    yield from S.hold_at(world, here, OPEN_STEPS, close=False)
     up = S.measured_tcp(world)
     up[2, 3] += RETREAT
     yield from S.servo(world, in_world_fixed(world, up), speed=S.SLOW_SPEED * 2, max_steps=40, close=False)
@@ -227,6 +229,7 @@ def _place(world: World, name: str, goal: int) -> Generator[np.ndarray, None, No
     for i, pose in enumerate(path):
         last = i == len(path) - 1
         yield from S.servo(world, pose, max_steps=30, close=False, pos_tol=S.POS_TOL if last else 0.02, settle_tol=S.SETTLE_TOL if last else 0.05)
+    yield from S.hold_at(world, path[-1], 3, close=False)
 
 
 __all__ = ["place", "place_spots", "held_object", "CARRY_DRIVE_GROUP"]

@@ -144,18 +144,42 @@ def servo(
     return False
 
 
-def steady(world: World, name: str, max_steps: int, speed: float = 0.02, spin: float = 0.3) -> Generator[np.ndarray, None, bool]:
-    """Hold everything until object `name` moves slower than `speed` (m/s) and turns slower than
-    `spin` (rad/s), at most `max_steps` control steps; True once it does (a held object that
-    swings in the pinch comes to rest before it is measured or let go)."""
+def steady(
+    world: World, name: str, max_steps: int, goal: Goal | None = None, speed: float = 0.02, spin: float = 0.3,
+) -> Generator[np.ndarray, None, bool]:
+    """Hold the hand (at `goal` if given, see `hold_at`) until object `name` moves slower than
+    `speed` (m/s) and turns slower than `spin` (rad/s), at most `max_steps` control steps; True once
+    it does (a held object that swings in the pinch comes to rest before it is measured or let go)."""
     import sapien
 
     body = world.handles.objects[name].find_component_by_type(sapien.physx.PhysxRigidDynamicComponent)
     for _ in range(max_steps):
         if float(np.linalg.norm(body.linear_velocity)) < speed and float(np.linalg.norm(body.angular_velocity)) < spin:
             return True
-        yield ee_command(world)
+        yield ee_command(world, delta=None if goal is None else delta_to(world, goal))
     return False
+
+
+HOLD_POS_TOL = 0.001  # m: closer than this (and HOLD_ROT_TOL) a holding command leaves the arm exactly as commanded
+HOLD_ROT_TOL = 0.005  # rad
+
+
+def delta_to(world: World, goal: Goal, speed: float = SLOW_SPEED, turn: float = TURN) -> np.ndarray:
+    """One control step's clipped TCP change towards `goal` (4x4 world pose or a callable); zero
+    within HOLD_POS_TOL / HOLD_ROT_TOL, so holding a reached goal holds the joint targets exactly."""
+    g = goal() if callable(goal) else goal
+    d = world.robot.ee.delta_towards(in_base(world, g))
+    if float(np.linalg.norm(d[:3])) <= HOLD_POS_TOL and float(np.linalg.norm(d[3:])) <= HOLD_ROT_TOL:
+        return np.zeros(6)
+    return step_towards(d, speed, turn, 1.0 / world.robot.cfg.control_hz)
+
+
+def hold_at(world: World, goal: Goal, steps: int, close: bool | None = None, speed: float = SLOW_SPEED) -> EeActions:
+    """`steps` control steps holding the TCP at `goal` (base still), gripper as `close` says: a
+    perturbed hand is brought back meanwhile (unlike `hold`, which keeps whatever is commanded)."""
+    for _ in range(steps):
+        yield ee_command(world, delta=delta_to(world, goal, speed), close=close)
+    return steps
 
 
 def grip(world: World, close: bool, steps: int = 8) -> EeActions:
