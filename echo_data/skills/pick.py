@@ -43,10 +43,10 @@ if TYPE_CHECKING:
 HOVER = 0.16  # m: TCP above the grasp point while the wrist camera looks at the object
 PRE_GRASP = 0.04  # m above the grasp point: the last stretch at the slow speed
 LIFT_HEIGHT = 0.15  # m
-# m: pads centred this far below the object's top (the palm's underside is 4.2 cm above the TCP,
-# so a tall object's top meets the palm and cannot pivot about the jaw axis; held 3 cm below its
-# top, the furby swung +-0.8 rad, docs/manipulation_experts.md) ...
-GRASP_BELOW_TOP = 0.044
+# m: pads centred this far below the object's top (the palm's underside is 4.2 cm above the TCP;
+# pressing a round top against it makes the furby creep to a tilt instead of swing: worse, see
+# docs/manipulation_experts.md) ...
+GRASP_BELOW_TOP = 0.03
 GRASP_ABOVE_BOTTOM = 0.010  # ... but the TCP at least this high above its bottom (tips clear the table)
 CLOSE_STEPS = 8
 HOVER_STEPS = 3  # control steps held at the hover (the wrist camera's look), fixed
