@@ -257,7 +257,8 @@ def test_pick_from_an_off_axis_start_further_out() -> None:
 def _hand_above(world: World, name: str, height: float) -> Generator[np.ndarray, None, None]:
     """Untuck, then the TCP `height` m straight above the object's centre, jaws open."""
     from echo_data.skills import servo as S
-    from echo_data.skills.pick import APPROACH_JAW, APPROACH_TCP, fixed_in_base, top_down
+    from echo_data.skills.pick import APPROACH_JAW, APPROACH_TCP, fixed_in_base
+    from echo_data.skills.servo import top_down
 
     yield from S.servo(world, fixed_in_base(world, APPROACH_TCP, APPROACH_JAW), torso=TORSO_UP, torso_speed=0.15, max_steps=70)
 

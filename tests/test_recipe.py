@@ -59,12 +59,16 @@ def test_hash_changes_with_content() -> None:
     del d["outputs"]["max_frames"]
     del d["experts"]
     del d["sounds"]["fresh_train_instances"]
+    del d["robot"]["grasp"]
     assert a.content_hash() == hashlib.sha256(json.dumps(d, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
     assert recipe_from_mapping({"name": "x", "outputs": {"max_frames": 10}}).content_hash() != a.content_hash()
     assert recipe_from_mapping({"name": "x", "sounds": {"fresh_train_instances": True}}).content_hash() != a.content_hash()
     # experts.action_noise: 0 (the default) likewise keeps the hash; DART noise changes it
     assert recipe_from_mapping({"name": "x", "experts": {"action_noise": 0}}).content_hash() == a.content_hash()
     assert recipe_from_mapping({"name": "x", "experts": {"action_noise": 1}}).content_hash() != a.content_hash()
+    # robot.grasp: physical (the default) likewise; Habitat's magic grasp changes it
+    assert recipe_from_mapping({"name": "x", "robot": {"grasp": "physical"}}).content_hash() == a.content_hash()
+    assert recipe_from_mapping({"name": "x", "robot": {"grasp": "magic"}}).content_hash() != a.content_hash()
 
 
 @pytest.mark.parametrize(
