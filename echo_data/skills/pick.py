@@ -8,7 +8,7 @@ base is brought back by the next label and a nudged object is followed. The phas
    to the object's interaction pose (`scene.nav.interaction_pose`), holonomic and straight when
    the line is free on the navigation grid, else along the navigation follower's path first;
 2. untuck: torso up while the hand moves out of the tuck to APPROACH_TCP, a fixed point beside the
-   head (out of the head camera's view, as Place's carry); object-independent;
+   head (the TCP of Place's carry pose); object-independent;
 3. approach and hover: straight to HOVER above the object, jaws across its narrow side, the TCP
    shifted so the wrist camera (mounted 4.5 cm off the TCP's axis) looks straight at the object;
 4. descent: straight to the grasp point (fast, then SLOW over the last PRE_GRASP), re-reading the
@@ -53,9 +53,11 @@ HOVER_STEPS = 3  # control steps held at the hover (the wrist camera's look), fi
 WRIST_CAMERA_OFFSET = 0.045  # m: the wrist camera sits this far along the TCP's z axis (robot/urdf.py)
 TORSO_UP = float(READY_GROUP[0])
 TORSO_SPEED = 0.15  # m/s
-# Out of the tuck the hand goes to a point high on the robot's right, pointing down: the head
-# camera's view stays clear (Place's carry pose, whose hand covers 0-7 % of the head view
-# against READY's 74 %, benchmarks/carry_view.py).
+# Out of the tuck the hand goes to a point high on the robot's right, pointing down: the TCP of
+# Place's CARRY_DRIVE_GROUP (whose arm covers 0-7 % of the head view against READY's 74 %,
+# benchmarks/carry_view.py). The ee map's IK reaches that TCP with another arm shape (its
+# redundant degree of freedom pulled towards READY): the elbow rises into the head view, 30-50 %
+# of the head pixels measured (docs/manipulation_experts.md).
 APPROACH_TCP = (0.214, -0.138, 1.248)  # m, base frame: the TCP of place.CARRY_DRIVE_GROUP ...
 APPROACH_JAW = -2.83  # rad: ... and its jaw yaw in the base frame
 # Base approach (holonomic, straight): clipped proportional velocity commands.

@@ -4,7 +4,7 @@ A closed-loop controller in end-effector space (`echo_data.skills.servo`), like 
 command comes from the state at its step. `call.target` is "furniture:<i>". Phases:
 
 1. fold: the hand, object in it, to the carry pose beside the head (`pick.APPROACH_TCP`, the TCP of
-   CARRY_DRIVE_GROUP: out of the head camera's view, every arm link close to the base axis);
+   CARRY_DRIVE_GROUP; the arm's shape there is the ee map's, see pick.py);
 2. drive: the navigation follower (`echo_data.skills.navigate.drive_to`) to the piece's
    interaction pose, its base velocities issued as `action.ee` with the arm held;
 3. choose a free spot on the top within reach (`place_spots`, the first the arm's IK reaches);
