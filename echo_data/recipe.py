@@ -256,6 +256,9 @@ class RobotConfig(_Strict):
     control_hz: int = Field(10, ge=1, le=50)
     head_camera: CameraConfig = CameraConfig()
     wrist_camera: CameraConfig = CameraConfig(rgb=False)
+    # "physical": objects stay in the hand by finger friction alone; "magic": Habitat's rule, the
+    # object nearest the gripper attaches when the gripper closes within 15 cm of it (echo_data.world).
+    grasp: Literal["physical", "magic"] = "physical"
     max_steps: dict[str, int] = Field(
         default_factory=lambda: dict(DEFAULT_MAX_STEPS)
     )
@@ -484,6 +487,8 @@ class Recipe(_Strict):
             del data["outputs"]["max_frames"]
         if data["experts"] == ExpertsConfig().model_dump(mode="json"):  # noiseless experts: as before the key existed
             del data["experts"]
+        if data["robot"]["grasp"] == "physical":  # the physical grasp: as before the key existed
+            del data["robot"]["grasp"]
         if not data["sounds"]["fresh_train_instances"]:  # library voices only: as before the key existed
             del data["sounds"]["fresh_train_instances"]
         if data["robot"]["action_space"] == "joint":  # the env's default action form: as before the key existed

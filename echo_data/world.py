@@ -10,6 +10,16 @@ fingers both press on a door leaf (its handle bar) holds the leaf with a stiff d
 firm hand would (a heavy leaf slips out of a purely frictional two-finger grasp); the hold ends
 as soon as the gripper is commanded open. So the 12-float action is all it takes to replay an
 episode: nothing an expert does outside its actions changes the physics.
+
+Object grasps are physical (finger friction alone) unless the recipe says `robot.grasp: magic`:
+then Habitat's rule holds (Szot et al. 2021, Habitat 2.0, as used by M3 and by the paper's skills):
+while the gripper is commanded closed and holds nothing, the object whose centre is nearest the
+tool-centre point attaches when that centre is within MAGIC_GRASP_DIST of it. habitat-lab's
+`MagicGraspAction._grasp` (habitat/tasks/rearrange/actions/grip_actions.py) compares the
+end-effector position with the objects' positions against `grasp_thresh_dist`, 0.15 m by default
+(`ArmActionConfig`, habitat/config/default_structured_configs.py), and releases when the grip
+action opens. Habitat snaps the object into the hand; here it is held where it is (the same stiff
+drive as a door leaf): no teleport, so physics stays continuous and a replay stays exact.
 """
 
 from __future__ import annotations
@@ -33,6 +43,7 @@ if TYPE_CHECKING:
 _RENDER_KEEPALIVE: list[Any] = []  # one RenderSystem per process, never freed
 # A gripper commanded to open less than this (m) is closing on what it touches.
 GRIP_CLOSED = 0.02
+MAGIC_GRASP_DIST = 0.15  # m: Habitat's grasp_thresh_dist (see the module docstring)
 
 # Builds the plan's SAPIEN bodies into a scene (default `echo_data.scene.build.build_scene`).
 SceneBuilder = Callable[[sapien.Scene, FloorPlan, Recipe], "SceneHandles"]
@@ -110,6 +121,8 @@ class World:
         self._nav: NavGrid | None = None
         self.arm_planner = None
         self._door_hold: Any = None  # the drive (a PhysxDriveComponent) holding a door leaf in the gripper
+        self._object_hold: Any = None  # the drive holding an object by the magic grasp (robot.grasp: magic)
+        self.magic_grasp = cfg.grasp == "magic"
         self.steps = 0
         # Where each object rests now (furniture index); Place updates it after a success.
         self.receptacles: dict[str, int] = {o.name: o.receptacle for o in self.plan.objects}
@@ -121,12 +134,18 @@ class World:
         if self._door_hold is not None and not self._gripper_closed():
             detach(self._door_hold)
             self._door_hold = None
+        if self._object_hold is not None and not self._gripper_closed():
+            detach(self._object_hold)
+            self._object_hold = None
+            self.robot.attached = None
         for _ in range(self.substeps):
             self.robot.before_substep()
             self.scene.step()
         self.handles.update()
         if self._door_hold is None and self._gripper_closed():
             self._grasp_door()
+        if self.magic_grasp and self._object_hold is None and self._gripper_closed():
+            self._grasp_magic()
         self.steps += 1
 
     def _gripper_closed(self) -> bool:
@@ -142,6 +161,22 @@ class World:
             if leaf.entity in left and leaf.entity in right:
                 self._door_hold = attach(self.scene, self.robot.ee_link, leaf)
                 return
+
+    def _grasp_magic(self) -> None:
+        """Attach the object nearest the TCP if its centre is within MAGIC_GRASP_DIST (module docstring)."""
+        tcp = np.asarray(self.robot.ee_pose().p, dtype=np.float64)
+        best: tuple[float, str] | None = None
+        for name, entity in self.handles.objects.items():
+            d = float(np.linalg.norm(np.asarray(entity.pose.p, dtype=np.float64) - tcp))
+            if best is None or d < best[0]:
+                best = (d, name)
+        if best is None or best[0] >= MAGIC_GRASP_DIST:
+            return
+        body = self.handles.objects[best[1]].find_component_by_type(sapien.physx.PhysxRigidDynamicComponent)
+        if body is None:
+            return
+        self._object_hold = attach(self.scene, self.robot.ee_link, body)
+        self.robot.attached = best[1]
 
     @property
     def holding_door(self) -> bool:
@@ -185,6 +220,7 @@ class World:
             self.scene.remove_entity(e)
         self.closed = True
         self._door_hold = None
+        self._object_hold = None
         self.arm_planner = None
         del self.handles, self.robot, self.scene
 

@@ -12,10 +12,10 @@ import sapien
 
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
 from echo_data.recipe import Recipe
-from echo_data.records import ACTION_DIM, EE_ACTION_DIM, SkillOutcome
+from echo_data.records import EE_ACTION_DIM, SkillOutcome
 from echo_data.scene.floorplan import FloorPlan, Furniture, PlacedObject, Rect, Room, WallSegment
 from echo_data.scene.objects import object_size
-from echo_data.skills.pick import pick
+from echo_data.skills.pick import TORSO_UP, pick
 from echo_data.skills.place import place
 from echo_data.skills.success import LIFT_MIN, object_bottom, pick_success, place_success
 from echo_data.world import World
@@ -47,12 +47,12 @@ def make_spec(category: str = "phone", yaw: float = 0.3, depth: float = 0.2, sta
 
 
 def run_expert(world: World, gen: Generator[np.ndarray, None, SkillOutcome], watch: Any = None) -> SkillOutcome:
-    """Apply every action the expert yields; `watch(world)` after each step."""
+    """Apply every `action.ee` the expert yields (through the robot's one ee map); `watch(world)` after each step."""
     try:
         while True:
             action = next(gen)
-            assert action.shape in ((ACTION_DIM,), (EE_ACTION_DIM,)) and action.dtype == np.float32
-            world.step(world.robot.ee.to_joint(action) if action.shape == (EE_ACTION_DIM,) else action)  # as OracleSkills does
+            assert action.shape == (EE_ACTION_DIM,) and action.dtype == np.float32
+            world.step(world.robot.ee.to_joint(action))
             if watch is not None:
                 watch(world)
     except StopIteration as stop:
@@ -187,7 +187,7 @@ def test_pick_is_reproducible_to_the_byte() -> None:
         try:
             while True:
                 a = next(gen)
-                world.step(a)
+                world.step(world.robot.ee.to_joint(a))
                 out.append(a.tobytes() + world.robot.state().tobytes())
         except StopIteration as stop:
             assert stop.value.success
@@ -206,3 +206,102 @@ def test_top_down_pose_points_down_and_jaw_yaw_inverts_it(yaw: float) -> None:
     assert r[:, 0] == pytest.approx([0.0, 0.0, -1.0], abs=1e-6)  # approach straight down
     assert r[:, 1] == pytest.approx([-math.sin(yaw), math.cos(yaw), 0.0], abs=1e-6)  # jaws close across yaw
     assert math.remainder(jaw_yaw(pose) - yaw, 2 * math.pi) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_pick_corrects_an_ee_perturbation_on_the_approach() -> None:
+    """2 cm added once to the executed TCP change on the way down to the hover: the next labels,
+    computed from the perturbed state, bring the hand back; the furby (+-8 mm grasp tolerance)
+    is still grasped, centred between the pads."""
+    spec = make_spec("furby", yaw=0.5, depth=0.15)
+    world = World(spec, RECIPE, render=False)
+    name = spec.chain[0].target
+    gen = pick(world, spec.chain[0], spec)
+    perturbed_at, n, gap = -1, 0, None
+    try:
+        while True:
+            a = next(gen).copy()
+            if perturbed_at < 0 and n > 30 and a[6] < -0.005 and a[3] == pytest.approx(TORSO_UP):
+                a[4] += 0.02  # the executed action, not the label
+                perturbed_at = n
+            world.step(world.robot.ee.to_joint(a))
+            n += 1
+            if gap is None and world.robot.holding == name:
+                gap = np.asarray(world.robot.ee_pose().p)[:2] - np.asarray(world.object_pose(name).p)[:2]
+    except StopIteration as stop:
+        out = stop.value
+    assert perturbed_at > 0
+    assert out.success, out.reason
+    assert gap is not None and np.linalg.norm(gap) < 0.008
+
+
+def test_pick_from_an_off_axis_start_further_out() -> None:
+    """A learned Navigate hands over short and off-axis: 0.45 m further back, 0.25 m to the side,
+    heading 8 deg off (inside navigate_success); Pick brings the base to the interaction pose first."""
+    from echo_data.scene.nav import interaction_pose
+    from echo_data.skills.success import navigate_success
+
+    spec = make_spec("phone", yaw=0.3, depth=0.2)
+    world = World(spec, RECIPE, render=False)
+    name = spec.chain[0].target
+    sx, sy, syaw = interaction_pose(world.plan, name)
+    x, y = sx + 0.25, sy - 0.45
+    o = world.plan.objects[0].position
+    world.robot.set_base_pose(x, y, math.atan2(o[1] - y, o[0] - x) + math.radians(8))
+    assert navigate_success(world, name)
+    out = run_expert(world, pick(world, spec.chain[0], spec))
+    assert out.success, out.reason
+    bx, by, _ = world.robot.base_pose()
+    assert math.hypot(bx - sx, by - sy) < 0.05
+
+
+def _hand_above(world: World, name: str, height: float) -> Generator[np.ndarray, None, None]:
+    """Untuck, then the TCP `height` m straight above the object's centre, jaws open."""
+    from echo_data.skills import servo as S
+    from echo_data.skills.pick import APPROACH_JAW, APPROACH_TCP, fixed_in_base
+    from echo_data.skills.servo import top_down
+
+    yield from S.servo(world, fixed_in_base(world, APPROACH_TCP, APPROACH_JAW), torso=TORSO_UP, torso_speed=0.15, max_steps=70)
+
+    def above() -> np.ndarray:
+        p = world.object_pose(name).p
+        return top_down(float(p[0]), float(p[1]), float(p[2]) + height, 0.0)
+
+    assert (yield from S.servo(world, above, max_steps=80, close=False))
+
+
+@pytest.mark.parametrize("height, attaches", [(0.12, True), (0.18, False)])
+def test_magic_grasp_attaches_within_15_cm_only(height: float, attaches: bool) -> None:
+    """robot.grasp: magic (Habitat's grasp_thresh_dist = 0.15 m): closing 12 cm above the phone's
+    centre picks it up without touching it; 18 cm above, nothing happens. Opening lets go."""
+    from echo_data.recipe import RobotConfig
+    from echo_data.skills import servo as S
+
+    recipe = Recipe(name="magic", robot=RobotConfig(grasp="magic"))
+    spec = make_spec("phone")
+    world = World(spec, recipe, render=False)
+    name = spec.chain[0].target
+    run_expert(world, _hand_above(world, name, height))
+    z0 = float(world.object_pose(name).p[2])
+    assert world.robot.holding is None
+    run_expert(world, S.grip(world, close=True, steps=3))
+    assert (world.robot.holding == name) is attaches
+    assert world.robot.finger_contacts() == (set(), set())  # nothing touches the fingers: not a physical grasp
+    up = S.measured_tcp(world)
+    up[2, 3] += 0.1
+    run_expert(world, S.servo(world, up, max_steps=40, close=True))
+    rise = float(world.object_pose(name).p[2]) - z0
+    assert (rise > 0.08) is attaches and (rise < 0.002) is not attaches
+    assert pick_success(world, name) is False  # lifted but not at the carry pose
+    run_expert(world, S.grip(world, close=False, steps=3))
+    assert world.robot.holding is None
+
+
+def test_magic_pick_reports_holding_and_success() -> None:
+    from echo_data.recipe import RobotConfig
+
+    recipe = Recipe(name="magic", robot=RobotConfig(grasp="magic"))
+    spec = make_spec("alarm", yaw=0.9, depth=0.25)
+    world = World(spec, recipe, render=False)
+    out = run_expert(world, pick(world, spec.chain[0], spec))
+    assert out.success, out.reason
+    assert world.robot.attached == spec.chain[0].target and pick_success(world, spec.chain[0].target)

@@ -60,6 +60,7 @@ def test_hash_changes_with_content() -> None:
     del d["experts"]
     del d["sounds"]["fresh_train_instances"]
     del d["robot"]["action_space"]
+    del d["robot"]["grasp"]
     assert a.content_hash() == hashlib.sha256(json.dumps(d, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
     assert recipe_from_mapping({"name": "x", "outputs": {"max_frames": 10}}).content_hash() != a.content_hash()
     assert recipe_from_mapping({"name": "x", "sounds": {"fresh_train_instances": True}}).content_hash() != a.content_hash()
@@ -71,6 +72,9 @@ def test_hash_changes_with_content() -> None:
     # experts.handover_noise: 0 keeps it too (the exact interaction pose, as before the key existed)
     assert recipe_from_mapping({"name": "x", "experts": {"handover_noise": 0}}).content_hash() == a.content_hash()
     assert recipe_from_mapping({"name": "x", "experts": {"handover_noise": 0.5}}).content_hash() != a.content_hash()
+    # robot.grasp: physical (the default) likewise; Habitat's magic grasp changes it
+    assert recipe_from_mapping({"name": "x", "robot": {"grasp": "physical"}}).content_hash() == a.content_hash()
+    assert recipe_from_mapping({"name": "x", "robot": {"grasp": "magic"}}).content_hash() != a.content_hash()
 
 
 @pytest.mark.parametrize(

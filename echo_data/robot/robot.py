@@ -123,6 +123,7 @@ class Robot:
             )
             j.set_drive_properties(gains[0], gains[1], gains[2], "force")
             j.set_friction(0.0)
+        self.attached: str | None = None  # an object the world's magic grasp holds (echo_data.world)
         self._intent: np.ndarray | None = None  # see intend()
         self._ee: EeController | None = None  # see `ee`
         self._action = self.rest_action_for(np.zeros(3), 0.0, self.tuck_qpos, GRIPPER_OPEN)
@@ -353,7 +354,10 @@ class Robot:
 
     @property
     def holding(self) -> str | None:
-        """Name of the dynamic body squeezed between both fingers, else None."""
+        """Name of the object the magic grasp holds (`attached`), else of the dynamic body
+        squeezed between both fingers, else None."""
+        if self.attached is not None:
+            return self.attached
         left, right = self.finger_contacts()
         both = [e for e in left & right if e.find_component_by_type(sapien.physx.PhysxRigidDynamicComponent) is not None]
         if not both:

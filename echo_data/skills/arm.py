@@ -30,6 +30,8 @@ from echo_data.robot import urdf as U
 from echo_data.robot.planner import ArmPlanner, Box
 from echo_data.robot.robot import GRIPPER_OPEN, HEAD_PAN, HEAD_TILT, READY_GROUP, TUCK_QPOS, Robot
 from echo_data.scene.objects import object_size
+from echo_data.skills.servo import jaw_yaw as servo_jaw_yaw
+from echo_data.skills.servo import top_down
 
 if TYPE_CHECKING:
     from echo_data.world import World
@@ -45,24 +47,14 @@ Actions = Generator[np.ndarray, None, Any]
 
 
 def top_down_pose(x: float, y: float, z: float, yaw: float) -> sapien.Pose:
-    """TCP pose pointing straight down with the fingers closing across `yaw` + 90 deg.
-
-    Gripper +x (approach) = world -z; gripper +y (finger travel) = (-sin yaw, cos yaw, 0),
-    i.e. the jaws close along the object's local y when `yaw` is the object's yaw.
-    """
-    c, s = math.cos(yaw), math.sin(yaw)
-    m = np.eye(4)
-    m[:3, 0] = (0.0, 0.0, -1.0)
-    m[:3, 1] = (-s, c, 0.0)
-    m[:3, 2] = (c, s, 0.0)
-    m[:3, 3] = (x, y, z)
-    return sapien.Pose(m)
+    """TCP pose pointing straight down with the fingers closing across `yaw` + 90 deg
+    (`echo_data.skills.servo.top_down` as a sapien.Pose)."""
+    return sapien.Pose(top_down(x, y, z, yaw))
 
 
 def jaw_yaw(pose: sapien.Pose) -> float:
     """The `yaw` of `top_down_pose` that gives this TCP pose's jaw direction (inverse of it)."""
-    r = pose.to_transformation_matrix()[:3, :3]
-    return math.atan2(-r[0, 1], r[1, 1])
+    return servo_jaw_yaw(pose.to_transformation_matrix())
 
 
 def group_q(robot: Robot) -> np.ndarray:

@@ -1,33 +1,48 @@
 """The Place expert: carry the held object to another receptacle, set it down, let go, tuck.
 
-`call.target` is "furniture:<i>". The base drives to that piece's interaction pose with the
-navigation follower (`echo_data.skills.navigate.drive_to`) while the arm holds the object in a
-carry pose that keeps the head camera clear (the hand raised beside the head on its right: every
-arm link origin within 0.31 m of the base centre, so turning beside a wall does not sweep the elbow
-into it the way READY's elbow, 0.47 m out, does; the object hangs higher than READY holds it, above
-every receptacle), reached from READY by one straight joint move along which the hand keeps
-pointing down (the pinch grasp does not let the object pivot), back to READY on arrival (READY
-when the fold is blocked); then a free spot on the top within reach is
-chosen, the object is brought above it, lowered until its bottom is RELEASE_GAP above the top,
-released, and the arm retreats up and tucks (the torso stays up; Navigate does not mind).
-Step limits: the drive may use max_steps["Navigate"], the arm work max_steps["Place"];
+A closed-loop controller in end-effector space (`echo_data.skills.servo`), like Pick: every
+command comes from the state at its step. `call.target` is "furniture:<i>". Phases:
+
+1. fold: the hand, object in it, to the carry pose beside the head (`pick.APPROACH_TCP`, the TCP of
+   CARRY_DRIVE_GROUP; the arm's shape there is the ee map's, see pick.py);
+2. drive: the navigation follower (`echo_data.skills.navigate.drive_to`) to the piece's
+   interaction pose, its base velocities issued as `action.ee` with the arm held;
+3. choose a free spot on the top within reach (`place_spots`, the first the arm's IK reaches);
+4. lower: the object above the spot, then down until its bottom is RELEASE_GAP above the top,
+   the goal re-derived every step from the spot and the object's pose in the hand now;
+5. open, retreat straight up, tuck (TCP poses along the joint path READY -> raised -> tuck,
+   ending in a compact fold; the torso stays up, Navigate does not mind).
+
+Step limits: the fold and drive may use max_steps["Navigate"], the arm work max_steps["Place"];
 `SkillOutcome.steps` counts both.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from echo_data.records import SkillOutcome
-from echo_data.robot.robot import GRIPPER_OPEN
+from echo_data.robot.robot import READY_GROUP, TUCK_QPOS
 from echo_data.scene.objects import object_size
-from echo_data.skills import arm
+from echo_data.skills import servo as S
 from echo_data.skills.budget import Budget, SkillFailed
-from echo_data.skills.success import object_bottom, place_success
+from echo_data.skills.pick import (
+    APPROACH_JAW,
+    APPROACH_TCP,
+    CARRY_ACCEL,
+    anchored,
+    commanded_pose,
+    drive_path,
+    fixed_in_base,
+    in_world_fixed,
+    reach_cost,
+)
+from echo_data.skills.servo import jaw_yaw, top_down
+from echo_data.skills.success import place_success
 from echo_data.target import Target
 
 if TYPE_CHECKING:
@@ -43,14 +58,14 @@ CLEARANCE = 0.05  # m: object footprint to other objects
 REACH = (0.45, 0.74)  # m: base centre to the placing point
 PREFERRED_REACH = 0.6
 GRID = 0.03  # m
-TUCK_SPEED = 1.4  # speed scale of the empty-handed tuck (1.8 rad/s, within Fetch's joint limits)
-# Carry for driving, out of the head camera's view: TCP at (0.21, -0.14, 1.25) in the base frame,
-# pointing down (READY holds it at (0.27, 0, 1.15), where hand and object fill 74 % of the head
-# view; here 0-7 % depending on the object, benchmarks/carry_view.py). Found once
-# (benchmarks/carry_search.py) by growing a tree of hand-down configurations from READY with
-# ArmPlanner.ik, keeping moves whose joint-space interpolation tilts the hand < 4 deg and is
-# collision-free, and shortcutting to the nearest node covering < 1 % with arm link origins
-# within 0.36 m of the base axis: the straight joint segment from READY tilts the hand <= 3 deg.
+SPOTS_TRIED = 12
+LOWER_STEPS = 40
+STEADY_STEPS = 20  # at most this long held above the spot and before opening: a swinging object comes to rest
+TUCK_RAISE = -0.5  # shoulder_lift of the tuck path's middle pose (upper arm raised)
+TUCK_SAMPLES = 4  # TCP poses per joint segment of the tuck path
+# The arm configuration whose TCP is the carry pose (pick.APPROACH_TCP, APPROACH_JAW): found once
+# (benchmarks/carry_search.py) with hand and object covering 0-7 % of the head view against READY's
+# 74 % (benchmarks/carry_view.py), every arm link origin within 0.36 m of the base axis.
 CARRY_DRIVE_GROUP = np.array([0.386, 0.679, -1.098, -2.373, 1.701, 0.33, 1.781, 1.144])
 
 
@@ -97,7 +112,7 @@ def place_spots(world: World, name: str, furniture: int) -> list[tuple[float, fl
 
 
 def place(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
-    """Place expert (generator of actions; returns the SkillOutcome)."""
+    """Place expert (generator of `action.ee`; returns the SkillOutcome)."""
     robot = world.robot
     # Place includes a drive across the apartment: the drive gets Navigate's step limit, the
     # arm work Place's own.
@@ -114,9 +129,8 @@ def place(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndar
     if name is None or robot.holding != name:
         return SkillOutcome(call.skill, call.target, False, "not holding", 0)
     try:
-        yield from drive_budget.run(_drive(world, goal, drive_budget))
+        yield from drive_budget.run(_drive(world, goal))
         yield from budget.run(_place(world, name, goal))
-        yield from budget.run(arm.hold(world, 3))
     except SkillFailed as e:
         return SkillOutcome(call.skill, call.target, False, str(e), drive_budget.steps + budget.steps)
     ok = place_success(world, name, goal)
@@ -126,100 +140,96 @@ def place(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndar
     return SkillOutcome(call.skill, call.target, ok, reason, drive_budget.steps + budget.steps)
 
 
-def _drive(world: World, goal: int, budget: Budget) -> Generator[np.ndarray, None, None]:
+def _drive(world: World, goal: int) -> Generator[np.ndarray, None, None]:
     from echo_data.scene.nav import interaction_pose
-    from echo_data.skills.navigate import current_grid, door_angles, drive_to
+    from echo_data.skills.navigate import current_grid, door_angles
 
     grid = current_grid(world)
     try:
         pose = interaction_pose(world.plan, str(Target.furniture(goal)), door_angles=door_angles(world) or None, grid=grid)
     except ValueError:
         raise SkillFailed("no_path") from None
-    name = world.robot.holding
-    folded = name is not None and (yield from _fold(world, name, CARRY_DRIVE_GROUP, straight=True))
-    result = yield from drive_to(world, pose, budget.max_steps - budget.steps, grid=grid, hold=world.robot.rest_action())
-    if not result.success:
-        raise SkillFailed(result.reason)
-    if folded and name is not None:
-        yield from _fold(world, name, arm.READY_GROUP)
+    carry = fixed_in_base(world, APPROACH_TCP, APPROACH_JAW)
+    yield from S.servo(world, carry, max_steps=40, close=True, accel=CARRY_ACCEL)
+    yield from drive_path(world, pose, carry)
 
 
-def _fold(world: World, name: str, goal: np.ndarray, straight: bool = False) -> Generator[np.ndarray, None, bool]:
-    """Move the arm, object in hand, to `goal` (torso + arm) on a collision-free path; False if none.
+class Spot:
+    """The TCP pose that puts the held object, as it sits in the hand, over a spot on a top.
 
-    With `straight`, only the straight joint segment is accepted: a detour found by the planner
-    may tilt the hand and let the object pivot in the pinch grasp.
+    The object's offset in the hand is read by `feel()` (at the start and again once the object
+    has settled above the spot), not at every step: an object pivoting in the pinch would
+    otherwise make the goal chase its swing (measured on a furby: +-3 cm at 10 Hz, never settling).
     """
-    robot = world.robot
-    o = world.plan.object_by_name(name)
-    tcp_to_obj = robot.ee_pose().inv() * world.handles.objects[name].pose
-    planner = arm.arm_planner(world, exclude={name})
-    planner.attach_box(list(object_size(o.category, o.scale)), tcp_to_obj)
-    start, end = arm.commanded_group(robot), np.asarray(goal, dtype=np.float64)
-    if straight:
-        path = [start, end] if planner.segment_free(start, end) else None
-    else:
-        path = planner.path(start, end)
-    planner.detach()
-    if path is None:
-        return False
-    yield from arm.follow_path(world, path)
-    return True
+
+    def __init__(self, world: World, name: str, top: float, x: float, y: float, jaw: float) -> None:
+        self.world, self.name = world, name
+        o = world.plan.object_by_name(name)
+        self.half = object_size(o.category, o.scale)[2] / 2.0
+        self.top, self.x, self.y, self.jaw = top, x, y, jaw
+        self.obj_in_tcp = np.eye(4)
+        self.feel()
+
+    def feel(self) -> None:
+        """Read the held object's pose in the hand now (measured TCP and object)."""
+        w = self.world
+        self.obj_in_tcp = np.linalg.inv(S.measured_tcp(w)) @ w.object_pose(self.name).to_transformation_matrix()
+
+    def tcp(self, bottom_above_top: float) -> np.ndarray:
+        """TCP pose (world) with the object's bottom `bottom_above_top` over the spot."""
+        goal = top_down(self.x, self.y, 0.0, self.jaw)
+        goal[:3, 3] = (self.x, self.y, self.top + bottom_above_top + self.half)
+        goal[:3, 3] -= goal[:3, :3] @ self.obj_in_tcp[:3, 3]
+        return goal
+
+
+def choose_spot(world: World, name: str, goal: int) -> Spot:
+    """The first free spot (best first) whose pose above it the arm reaches, jaws as they are or turned."""
+    top = world.plan.furniture[goal].top_z
+    jaw = jaw_yaw(S.measured_tcp(world))
+    for x, y in place_spots(world, name, goal)[:SPOTS_TRIED]:
+        for yaw in (jaw, jaw + math.pi / 2, jaw - math.pi / 2, jaw + math.pi):
+            spot = Spot(world, name, top, x, y, yaw)
+            if reach_cost(world, spot.tcp(ABOVE)) < 100.0 and reach_cost(world, spot.tcp(RELEASE_GAP)) < 100.0:
+                return spot
+    raise SkillFailed("no IK solution")
+
+
+def tuck_path(world: World) -> list[Callable[[], np.ndarray]]:
+    """Goal callables: TCP poses along the joint path READY -> upper arm raised -> tuck (torso up)."""
+    ee = world.robot.ee
+    torso = float(READY_GROUP[0])
+    raised = TUCK_QPOS.copy()
+    raised[1] = TUCK_RAISE
+    poses = []
+    for a, b in ((READY_GROUP[1:], raised), (raised, TUCK_QPOS)):
+        for t in np.linspace(0.0, 1.0, TUCK_SAMPLES + 1)[1:]:
+            poses.append(ee.tcp_in_base(torso, a + (b - a) * t))
+    return [anchored(world, p) for p in poses]
 
 
 def _place(world: World, name: str, goal: int) -> Generator[np.ndarray, None, None]:
     robot = world.robot
-    plan = world.plan
-    top = plan.furniture[goal].top_z
-    o = plan.object_by_name(name)
-    sx, sy, sz = object_size(o.category, o.scale)
-    tcp = robot.ee_pose()
-    tcp_above_bottom = float(tcp.p[2]) - object_bottom(world, name)
-    tcp_to_obj = tcp.inv() * world.handles.objects[name].pose
-    # keep the object's current yaw relative to the jaws: try the current jaw direction first
-    jaw = arm.jaw_yaw(tcp)
-    planner = arm.arm_planner(world, exclude={name})
-    planner.attach_box([sx, sy, sz], tcp_to_obj)
-    start = arm.commanded_group(robot)
-    chosen = None
-    for x, y in place_spots(world, name, goal)[:12]:
-        options = []
-        for yaw in (jaw, jaw + math.pi, jaw + math.pi / 2, jaw - math.pi / 2):
-            above = arm.top_down_pose(x, y, top + ABOVE + tcp_above_bottom, yaw)
-            q_above = planner.ik(above, start, tries=8)
-            if q_above is None:
-                continue
-            down = arm.top_down_pose(x, y, top + RELEASE_GAP + tcp_above_bottom, yaw)
-            descent = arm.cartesian_path(planner, q_above, arm.line_poses(above, down))
-            if descent is not None:
-                options.append((float(np.max(np.abs(q_above[1:] - start[1:]))), q_above, descent, down))
-        for _, q_above, descent, down in sorted(options, key=lambda t: t[0]):
-            path = planner.path(start, q_above)
-            if path is not None:
-                chosen = (path, descent, down)
-                break
-        if chosen is not None:
-            break
-    planner.detach()
-    if chosen is None:
-        raise SkillFailed("no IK solution")
-    path, descent, down = chosen
-    yield from arm.follow_path(world, path)
+    spot = choose_spot(world, name, goal)
+    yield from S.servo(world, lambda: spot.tcp(ABOVE), max_steps=60, close=True, accel=CARRY_ACCEL)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
-    yield from arm.hold(world, 2)  # let a swinging object come to rest before going down
-    yield from arm.follow_path(world, descent, speed_scale=arm.SLOW)
-    yield from arm.set_gripper(world, GRIPPER_OPEN, OPEN_STEPS)
-    up = arm.top_down_pose(float(down.p[0]), float(down.p[1]), float(down.p[2]) + RETREAT, arm.jaw_yaw(down))
-    retreat = arm.cartesian_path(planner, descent[-1], arm.line_poses(down, up), gripper=GRIPPER_OPEN)
-    if retreat is None:
-        raise SkillFailed("no IK solution")
-    yield from arm.follow_path(world, retreat, gripper=GRIPPER_OPEN, speed_scale=arm.SLOW)
-    planner = arm.arm_planner(world)
-    home = arm.plan_through(planner, arm.tuck_waypoints(np.asarray(retreat[-1])), gripper=GRIPPER_OPEN)
-    if home is None:
-        raise SkillFailed("no motion plan")
-    yield from arm.follow_path(world, home, gripper=GRIPPER_OPEN, speed_scale=TUCK_SPEED, settle=False)
+    yield from S.steady(world, name, STEADY_STEPS, goal=lambda: spot.tcp(ABOVE))
+    spot.feel()
+    # (not reaching the release height within the steps means the object already rests on the
+    # top, tilted or pressed: it is let go there too, and the success test says how it ended)
+    yield from S.servo(world, lambda: spot.tcp(RELEASE_GAP), speed=S.SLOW_SPEED, max_steps=LOWER_STEPS, close=True, settle_tol=0.008, accel=CARRY_ACCEL)
+    here = commanded_pose(world)
+    yield from S.steady(world, name, STEADY_STEPS, goal=here)
+    yield from S.hold_at(world, here, OPEN_STEPS, close=False)
+    up = S.measured_tcp(world)
+    up[2, 3] += RETREAT
+    yield from S.servo(world, in_world_fixed(world, up), speed=S.SLOW_SPEED * 2, max_steps=40, close=False)
+    path = tuck_path(world)
+    for i, pose in enumerate(path):
+        last = i == len(path) - 1
+        yield from S.servo(world, pose, max_steps=30, close=False, pos_tol=S.POS_TOL if last else 0.02, settle_tol=S.SETTLE_TOL if last else 0.05)
+    yield from S.hold_at(world, path[-1], 3, close=False)
 
 
-__all__ = ["place", "place_spots", "held_object"]
+__all__ = ["place", "place_spots", "held_object", "CARRY_DRIVE_GROUP"]

@@ -21,6 +21,7 @@ Poses are 4x4 numpy matrices in the world frame unless a name says `_in_base`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Generator
 from typing import TYPE_CHECKING, Any
 
@@ -41,6 +42,23 @@ TURN = 0.8  # rad/s of the TCP's orientation
 POS_TOL = 0.004  # m: the commanded TCP is at the goal ...
 ROT_TOL = 0.02  # rad
 SETTLE_TOL = 0.015  # m: ... and the measured TCP has followed to within this
+
+
+def top_down(x: float, y: float, z: float, yaw: float) -> np.ndarray:
+    """4x4 TCP pose (world or base frame) pointing straight down with the fingers closing across
+    `yaw` + 90 deg (the jaws close along the object's local y when `yaw` is the object's yaw)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    m = np.eye(4)
+    m[:3, 0] = (0.0, 0.0, -1.0)
+    m[:3, 1] = (-s, c, 0.0)
+    m[:3, 2] = (c, s, 0.0)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def jaw_yaw(pose: np.ndarray) -> float:
+    """The `yaw` of `top_down` that gives this TCP pose's jaw direction (its inverse)."""
+    return math.atan2(-float(pose[0, 1]), float(pose[1, 1]))
 
 
 def gripper_closed(world: World) -> bool:
@@ -91,24 +109,77 @@ def step_towards(delta: np.ndarray, speed: float, turn: float, dt: float) -> np.
 def servo(
     world: World, goal: Goal, *, speed: float = SPEED, turn: float = TURN, max_steps: int = 100,
     close: bool | None = None, torso: float | None = None, pos_tol: float = POS_TOL, rot_tol: float = ROT_TOL,
-    settle_tol: float = SETTLE_TOL, orient: bool = True,
+    settle_tol: float = SETTLE_TOL, orient: bool = True, torso_speed: float | None = None,
+    accel: float | None = None,
 ) -> Generator[np.ndarray, None, bool]:
     """Move the TCP to `goal` (4x4 world pose, or a callable re-read every step); returns True
     once the commanded TCP is within `pos_tol`/`rot_tol` of it and the measured TCP within
     `settle_tol`, False after `max_steps` actions. `orient=False` servos the position only.
-    `torso`: a torso target to hold (or move to) meanwhile; the TCP change accounts for it."""
+    `torso`: a torso target to hold (or move to) meanwhile; the TCP change accounts for it;
+    `torso_speed` (m/s): the torso command ramps towards `torso` at most this fast (else it jumps).
+    `accel` (m/s^2): the TCP speeds up and slows down at most this fast (a trapezoid instead of a
+    jump to `speed`), for an object held by friction that would swing in the pinch."""
     robot = world.robot
     dt = 1.0 / robot.cfg.control_hz
+    v_prev = 0.0
     for _ in range(max_steps):
         g = goal() if callable(goal) else goal
-        d = robot.ee.delta_towards(in_base(world, g), torso=torso)
+        t = torso
+        if torso is not None and torso_speed is not None:
+            now = float(robot.applied_action()[3])
+            if abs(torso - now) > torso_speed * dt:
+                t = now + math.copysign(torso_speed * dt, torso - now)
+        d = robot.ee.delta_towards(in_base(world, g), torso=t)
         if not orient:
             d[3:] = 0.0
         here = float(np.linalg.norm(d[:3])) <= pos_tol and float(np.linalg.norm(d[3:])) <= rot_tol
-        if here and float(np.linalg.norm(measured_tcp(world)[:3, 3] - g[:3, 3])) <= settle_tol:
+        if here and t == torso and float(np.linalg.norm(measured_tcp(world)[:3, 3] - g[:3, 3])) <= settle_tol:
             return True
-        yield ee_command(world, torso=torso, delta=np.zeros(6) if here else step_towards(d, speed, turn, dt), close=close)
+        v = speed
+        if accel is not None:
+            v = min(speed, v_prev + accel * dt, math.sqrt(2.0 * accel * float(np.linalg.norm(d[:3]))))
+        step = np.zeros(6) if here else step_towards(d, v, turn, dt)
+        v_prev = float(np.linalg.norm(step[:3])) / dt
+        yield ee_command(world, torso=t, delta=step, close=close)
     return False
+
+
+def steady(
+    world: World, name: str, max_steps: int, goal: Goal | None = None, speed: float = 0.02, spin: float = 0.3,
+) -> Generator[np.ndarray, None, bool]:
+    """Hold the hand (at `goal` if given, see `hold_at`) until object `name` moves slower than
+    `speed` (m/s) and turns slower than `spin` (rad/s), at most `max_steps` control steps; True once
+    it does (a held object that swings in the pinch comes to rest before it is measured or let go)."""
+    import sapien
+
+    body = world.handles.objects[name].find_component_by_type(sapien.physx.PhysxRigidDynamicComponent)
+    for _ in range(max_steps):
+        if float(np.linalg.norm(body.linear_velocity)) < speed and float(np.linalg.norm(body.angular_velocity)) < spin:
+            return True
+        yield ee_command(world, delta=None if goal is None else delta_to(world, goal))
+    return False
+
+
+HOLD_POS_TOL = 0.001  # m: closer than this (and HOLD_ROT_TOL) a holding command leaves the arm exactly as commanded
+HOLD_ROT_TOL = 0.005  # rad
+
+
+def delta_to(world: World, goal: Goal, speed: float = SLOW_SPEED, turn: float = TURN) -> np.ndarray:
+    """One control step's clipped TCP change towards `goal` (4x4 world pose or a callable); zero
+    within HOLD_POS_TOL / HOLD_ROT_TOL, so holding a reached goal holds the joint targets exactly."""
+    g = goal() if callable(goal) else goal
+    d = world.robot.ee.delta_towards(in_base(world, g))
+    if float(np.linalg.norm(d[:3])) <= HOLD_POS_TOL and float(np.linalg.norm(d[3:])) <= HOLD_ROT_TOL:
+        return np.zeros(6)
+    return step_towards(d, speed, turn, 1.0 / world.robot.cfg.control_hz)
+
+
+def hold_at(world: World, goal: Goal, steps: int, close: bool | None = None, speed: float = SLOW_SPEED) -> EeActions:
+    """`steps` control steps holding the TCP at `goal` (base still), gripper as `close` says: a
+    perturbed hand is brought back meanwhile (unlike `hold`, which keeps whatever is commanded)."""
+    for _ in range(steps):
+        yield ee_command(world, delta=delta_to(world, goal, speed), close=close)
+    return steps
 
 
 def grip(world: World, close: bool, steps: int = 8) -> EeActions:
