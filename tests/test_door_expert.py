@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from support.experts import make_spec, rollout, two_room_plan
+from support.experts import as_joint, make_spec, rollout, two_room_plan
 
 from echo_data.recipe import Recipe
 
@@ -99,7 +99,7 @@ def test_open_door_expert_stopped_mid_swing_lets_go(door_world_factory) -> None:
     gen = open_door(world, spec.chain[0], spec)
     attached_steps = 0
     for _ in range(world.recipe.robot.max_steps["OpenDoor"]):
-        world.step(next(gen))
+        world.step(as_joint(world, next(gen)))
         if leaf_entity.find_component_by_type(sapien.physx.PhysxDriveComponent) is not None:
             attached_steps += 1
             if attached_steps == 5:

@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
+from echo_data.records import EE_ACTION_DIM
 from echo_data.scene.floorplan import Door, Doorway, Faucet, FloorPlan, Furniture, Rect, Room, WallSegment
 
 T = 0.1  # wall thickness
@@ -55,13 +56,23 @@ def make_spec(plan: FloorPlan, target: str, skill: str, start: tuple[float, floa
     )
 
 
+def as_joint(world, action: np.ndarray) -> np.ndarray:
+    """An expert's action as the joint action the world steps: an `action.ee` (11) goes through
+    the robot's one ee map (as `OracleSkills` does), a joint action (12) passes."""
+    action = np.asarray(action)
+    if action.shape == (EE_ACTION_DIM,):
+        assert action.dtype == np.float32
+        return world.robot.ee.to_joint(action)
+    return action
+
+
 def run_expert(world, expert, call, spec) -> tuple[object, list[np.ndarray]]:
-    """Drive an expert generator to its end; returns (outcome, actions)."""
+    """Drive an expert generator to its end; returns (outcome, joint actions)."""
     gen = expert(world, call, spec)
     actions = []
     try:
         while True:
-            action = next(gen)
+            action = as_joint(world, next(gen))
             actions.append(action)
             world.step(action)
     except StopIteration as stop:
@@ -87,7 +98,7 @@ def rollout(world, expert, spec, probe) -> tuple[object, list[float], set[str]]:
     values, hits = [], set()
     while True:
         try:
-            action = next(gen)
+            action = as_joint(world, next(gen))
         except StopIteration as stop:
             return stop.value, values, hits
         assert action.dtype == np.float32 and action.shape == (12,)
