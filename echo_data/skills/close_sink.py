@@ -132,10 +132,11 @@ def _lead(faucet: Faucet) -> float:
 def push_pose(faucet: Faucet, phi: float, yaw: float, lift: float = 0.0) -> np.ndarray:
     """World TCP pose (4x4) with the finger block at angle phi on the contact arc (lever
     convention), `lift` m above the lever: approach along the base heading `yaw` pitched down
-    by PITCH, fingers across it, horizontal."""
+    by PITCH, fingers across it, horizontal, the finger axis to the robot's right as at READY
+    (from READY a small pitch, not a half turn whose direction a tiny heading change flips)."""
     h = np.array([math.cos(yaw), math.sin(yaw), 0.0])
     x_axis = math.cos(PITCH) * h + np.array([0.0, 0.0, -math.sin(PITCH)])
-    y_axis = np.array([-h[1], h[0], 0.0])
+    y_axis = np.array([h[1], -h[0], 0.0])
     m = np.eye(4)
     m[:3, :3] = np.stack([x_axis, y_axis, np.cross(x_axis, y_axis)], axis=1)
     r = faucet.lever_length - CONTACT_INSET

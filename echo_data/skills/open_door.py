@@ -110,14 +110,19 @@ def _swing_is_free(world: World, door: Door, stance: Pose2, q0: float, q1: float
 
 def grasp_pose(door: Door, q: float, back: float = 0.0) -> np.ndarray:
     """World TCP pose (4x4) grasping the swing-side bar at hinge angle q, `back` m in front of it:
-    approach axis into the leaf, fingers closing along it, horizontal."""
+    approach axis into the leaf, fingers closing along it, horizontal.
+
+    Of the two such poses (the jaws are symmetric under a half turn about the approach axis)
+    the one whose finger axis points to the robot's right, as READY's does: from READY it is a
+    quarter turn about one axis. (The other is a half turn away, whose direction a tiny heading
+    change flips: one wrist branch or the other, the multimodality this expert is rid of.)"""
     yaw = door.leaf_yaw(q)
     u = np.array([math.cos(yaw), math.sin(yaw), 0.0])
     n = door.open_sign * np.array([-u[1], u[0], 0.0])
-    x_axis, y_axis = -n, u
+    x_axis = -n  # the robot faces -n at its stance
+    right = np.array([x_axis[1], -x_axis[0], 0.0])
+    y_axis = u if float(u @ right) > 0 else -u
     z_axis = np.cross(x_axis, y_axis)
-    if z_axis[2] < 0:
-        y_axis, z_axis = -y_axis, -z_axis
     m = np.eye(4)
     m[:3, :3] = np.stack([x_axis, y_axis, z_axis], axis=1)
     m[:3, 3] = door_handle_world(door, q, door.open_sign) - back * x_axis

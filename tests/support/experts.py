@@ -1,5 +1,6 @@
 """A hand-made two-room plan with a door and a sink, and helpers that run one expert in a World
-(shared by the OpenDoor and CloseSink expert tests)."""
+(shared by the OpenDoor and CloseSink expert tests): whole runs, runs with a perturbed executed
+end-effector action, and starts off the interaction pose."""
 
 from __future__ import annotations
 
@@ -105,3 +106,58 @@ def rollout(world, expert, spec, probe) -> tuple[object, list[float], set[str]]:
         world.step(action)
         values.append(probe())
         hits |= static_hits(world)
+
+
+def offset_start(plan: FloorPlan, target: str, back: float, side: float) -> tuple[float, float, float]:
+    """A start `back` m behind and `side` m left of the target's interaction pose, facing the
+    target (as a learned Navigate hands over: short and off-axis, inside its success region)."""
+    from echo_data.scene.nav import interaction_pose, target_point
+
+    x, y, yaw = interaction_pose(plan, target)
+    c, s = math.cos(yaw), math.sin(yaw)
+    sx, sy = x - back * c - side * s, y - back * s + side * c
+    tx, ty = target_point(plan, target)
+    return (sx, sy, math.atan2(ty - sy, tx - sx))
+
+
+def rollout_ee(world, expert, spec, perturb=None) -> tuple[object, list[np.ndarray], list[np.ndarray], int | None]:
+    """Run an `action.ee` expert on the spec's only call; returns (outcome, its ee labels, the
+    commanded arm joints after each step, the step perturbed). `perturb(world)` -> a 6-vector:
+    added once (the first time it returns one) to the executed action's TCP change."""
+    gen = expert(world, spec.chain[0], spec)
+    labels, arms, at = [], [], None
+    while True:
+        try:
+            label = next(gen)
+        except StopIteration as stop:
+            return stop.value, labels, arms, at
+        assert label.dtype == np.float32 and label.shape == (EE_ACTION_DIM,)
+        executed = label.copy()
+        if perturb is not None and at is None:
+            kick = perturb(world)
+            if kick is not None:
+                executed[4:10] += np.asarray(kick, dtype=np.float32)
+                at = len(labels)
+        labels.append(label)
+        world.step(world.robot.ee.to_joint(executed))
+        arms.append(world.robot.applied_action()[4:11].astype(np.float64))
+
+
+def first_arm_motion(arms: list[np.ndarray]) -> int:
+    """The step at which the commanded arm first leaves where it started (the untuck's start)."""
+    return next(k for k, q in enumerate(arms) if float(np.max(np.abs(q - arms[0]))) > 1e-4)
+
+
+def path_gap(a: list[np.ndarray], b: list[np.ndarray], steps: int = 60, slack: int = 30) -> float:
+    """How far two arm paths out of the tuck lie apart (rad): over `steps` steps from each one's
+    first arm motion, the largest joint distance (max over joints) from a configuration of one
+    path to the nearest of the other's (within `slack` more steps). Time shifts between phases (a
+    base arriving a step later) do not count; a detour through other joint values does."""
+    pa = np.stack(a[first_arm_motion(a):])
+    pb = np.stack(b[first_arm_motion(b):])
+
+    def one_way(p: np.ndarray, q: np.ndarray) -> float:
+        d = np.max(np.abs(p[:steps, None, :] - q[None, : steps + slack, :]), axis=2)
+        return float(np.max(np.min(d, axis=1)))
+
+    return max(one_way(pa, pb), one_way(pb, pa))
