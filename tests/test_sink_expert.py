@@ -9,8 +9,9 @@ import math
 
 import numpy as np
 import pytest
-from support.experts import make_spec, offset_start, path_gap, rollout, rollout_ee, two_room_plan
+from support.experts import make_spec, offset_start, rollout, rollout_ee, two_room_plan
 
+from echo_data.evaluation.path_spread import path_gap
 from echo_data.recipe import Recipe
 from echo_data.scene.floorplan import Faucet, FloorPlan, Furniture
 

@@ -142,22 +142,3 @@ def rollout_ee(world, expert, spec, perturb=None) -> tuple[object, list[np.ndarr
         world.step(world.robot.ee.to_joint(executed))
         arms.append(world.robot.applied_action()[4:11].astype(np.float64))
 
-
-def first_arm_motion(arms: list[np.ndarray]) -> int:
-    """The step at which the commanded arm first leaves where it started (the untuck's start)."""
-    return next(k for k, q in enumerate(arms) if float(np.max(np.abs(q - arms[0]))) > 1e-4)
-
-
-def path_gap(a: list[np.ndarray], b: list[np.ndarray], steps: int = 60, slack: int = 30) -> float:
-    """How far two arm paths out of the tuck lie apart (rad): over `steps` steps from each one's
-    first arm motion, the largest joint distance (max over joints) from a configuration of one
-    path to the nearest of the other's (within `slack` more steps). Time shifts between phases (a
-    base arriving a step later) do not count; a detour through other joint values does."""
-    pa = np.stack(a[first_arm_motion(a):])
-    pb = np.stack(b[first_arm_motion(b):])
-
-    def one_way(p: np.ndarray, q: np.ndarray) -> float:
-        d = np.max(np.abs(p[:steps, None, :] - q[None, : steps + slack, :]), axis=2)
-        return float(np.max(np.min(d, axis=1)))
-
-    return max(one_way(pa, pb), one_way(pb, pa))
