@@ -11,7 +11,7 @@ World (no cameras: the experts read the world, not images) from
 - `interaction`: the target's interaction pose (`echo_data.scene.nav.interaction_pose`), where
   the scripted Navigate stops;
 - `handover`: a point drawn (seeded by the episode) uniformly in the disc of Navigate's success
-  radius around it, on free floor, facing the target up to the success test's heading tolerance
+  radius around it, on free floor connected to it (not behind the closed door), facing the target up to the success test's heading tolerance
   (`echo_data.skills.success.navigate_success` holds there: a learned Navigate may stop anywhere
   it does).
 
@@ -47,7 +47,7 @@ PHASE_STEPS = (0, 10, 20, 30, 40, 50, 60)
 
 def handover_start(world: Any, target: str, rng: np.random.Generator, tries: int = 200) -> tuple[float, float, float] | None:
     """A start drawn uniformly in Navigate's success disc around the interaction pose, on free
-    floor and facing the target within the success test's tolerance; None when none is found."""
+    floor connected to it and facing the target within the success test's tolerance; None when none is found."""
     from echo_data.scene.nav import interaction_pose, target_point
     from echo_data.skills.success import NAV_SUCCESS_DIST, NAV_SUCCESS_YAW, navigate_success
 
@@ -57,8 +57,8 @@ def handover_start(world: Any, target: str, rng: np.random.Generator, tries: int
         r = NAV_SUCCESS_DIST * math.sqrt(rng.uniform())
         a = rng.uniform(-math.pi, math.pi)
         x, y = x0 + r * math.cos(a), y0 + r * math.sin(a)
-        if not world.nav.is_free(x, y):
-            continue
+        if not world.nav.is_free(x, y) or not world.nav.connected((x, y), (x0, y0)):
+            continue  # (the far side of the closed door is in the disc too, but no Navigate ends there)
         yaw = math.atan2(ty - y, tx - x) + rng.uniform(-1.0, 1.0) * 0.9 * NAV_SUCCESS_YAW
         world.robot.set_base_pose(x, y, yaw)
         if navigate_success(world, target):

@@ -10,8 +10,9 @@ The lever turns about the vertical axis through `Faucet.pivot` and opens counter
 1. **stance**: on the cabinet's front normal through the lever pivot, at least `PIVOT_DISTANCE`
    from the pivot and `FRONT_GAP` from the cabinet face, facing the cabinet, shifted sideways if
    needed — the first of `sink_stances` where the base fits and the arm reaches the push (the
-   robot's own IK). The base first drives (arm held) to a pose `UNTUCK_BACK` behind it, where
-   the arm has room;
+   robot's own IK). The base first drives (arm held; `echo_data.skills.reach_servo.approach`:
+   straight, or first along Navigate's grid path when a wall corner is in the way) to a pose
+   `UNTUCK_BACK` behind it, where the arm has room;
 2. **untuck** there: a straight Cartesian move of the TCP to READY, fingers closing;
 3. **drive in** to the stance with the arm at READY (high above the counter);
 4. **hover** above the lever's opening side (the finger block `lead` ahead of the lever on the
@@ -39,7 +40,7 @@ from echo_data.robot.ee_control import base_frame
 from echo_data.robot.robot import READY_GROUP
 from echo_data.scene.articulated import LEVER_SECTION
 from echo_data.scene.floorplan import Faucet, Furniture
-from echo_data.skills.reach_servo import Pose2, Steps, arm_reaches, drive, retreat, to_ready
+from echo_data.skills.reach_servo import Pose2, Steps, approach, arm_reaches, drive, retreat, to_ready
 from echo_data.skills.servo import SLOW_SPEED, ee_command, in_base, servo, step_towards
 from echo_data.skills.success import sink_closed_success
 from echo_data.target import Target
@@ -64,7 +65,7 @@ SWEEP_PAST = 0.2  # rad beyond closed the finger aims at (the joint limit stops 
 SINK_TORSO = float(READY_GROUP[0])  # m: READY's torso (the lever is ≈1 m up, beyond a counter)
 HOVER_SPEED = 0.25  # m/s of the TCP from READY to above the lever
 # Step limits per phase (the skill's own limit, recipe robot.max_steps.CloseSink, bounds the sum).
-DRIVE_STEPS, HOVER_STEPS, DESCEND_STEPS, PUSH_STEPS, LIFT_STEPS = 60, 50, 30, 60, 20
+DRIVE_STEPS, HOVER_STEPS, DESCEND_STEPS, PUSH_STEPS, LIFT_STEPS = 70, 50, 30, 60, 20
 
 
 def _front(cabinet: Furniture) -> tuple[np.ndarray, np.ndarray, float]:
@@ -202,7 +203,7 @@ def close_sink(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np
     back_pose = _step_back(world, stance)
 
     # 2.-3. unfold the arm a step back from the counter (open space), then drive in with it at READY
-    if not (yield from st.run(drive(world, back_pose, max_steps=DRIVE_STEPS))):
+    if not (yield from st.run(approach(world, target, back_pose, max_steps=DRIVE_STEPS))):
         return fail("stance_not_reached")
     if not (yield from st.run(to_ready(world, close=True))):
         return fail("untuck_failed")

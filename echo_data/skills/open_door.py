@@ -5,8 +5,9 @@ facing the handle; `echo_data.skills.success.navigate_success`), arm tucked or a
 
 Every command is computed from the state the step starts in (docs/SIMULATION_NOTES.md#door-opening):
 
-1. **stance**: the base drives (arm held) to the grasp stance for the door's *current* hinge
-   angle: 0.88 m from the swing-side handle bar along the leaf normal, 0.3 m towards the hinge,
+1. **stance**: the base drives (arm held; `echo_data.skills.reach_servo.approach`: straight, or
+   first along Navigate's grid path when a wall corner is in the way) to the grasp stance for
+   the door's *current* hinge angle: 0.88 m from the swing-side handle bar along the leaf normal, 0.3 m towards the hinge,
    facing the leaf — the first of `STANCES` whose swing stays on free floor and whose grasp the
    arm reaches (the robot's own IK). A fixed order, so every episode of a door takes the same one.
 2. **untuck**: a straight Cartesian move of the TCP to READY (the carry pose, 0.27 m ahead of
@@ -42,7 +43,7 @@ import numpy as np
 from echo_data.records import SkillOutcome
 from echo_data.scene.door_handle import door_handle_world
 from echo_data.scene.floorplan import Door
-from echo_data.skills.reach_servo import Pose2, Steps, arm_reaches, drive, retreat, to_ready, wrap
+from echo_data.skills.reach_servo import Pose2, Steps, approach, arm_reaches, retreat, to_ready, wrap
 from echo_data.skills.servo import SLOW_SPEED, ee_command, grip, servo, step_towards
 from echo_data.skills.success import DOOR_REST_QVEL, door_open_success
 from echo_data.target import Target
@@ -69,7 +70,7 @@ STALL_GAIN = 0.02  # rad ... or the grip is lost / the door blocked
 RELEASE_STEPS = 4  # control steps for the fingers to open
 BACK_OFF = 0.15  # m the base backs away after letting go
 # Step limits per phase (the skill's own limit, recipe robot.max_steps.OpenDoor, bounds the sum).
-DRIVE_STEPS, PREGRASP_STEPS, APPROACH_STEPS = 80, 60, 30
+DRIVE_STEPS, PREGRASP_STEPS, APPROACH_STEPS = 110, 60, 30
 
 
 def _swing_frame(door: Door) -> tuple[np.ndarray, np.ndarray]:
@@ -209,7 +210,7 @@ def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.
             break
     if choice is None:
         return fail("no_grasp_stance")
-    if not (yield from st.run(drive(world, lambda: door_stances(door, _hinge(art))[choice], max_steps=DRIVE_STEPS))):
+    if not (yield from st.run(approach(world, target, lambda: door_stances(door, _hinge(art))[choice], max_steps=DRIVE_STEPS))):
         return fail("stance_not_reached")
 
     # 2.-4. untuck, pre-grasp, straight in, close on the bar

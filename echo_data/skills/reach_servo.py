@@ -85,6 +85,43 @@ def drive(
     return False
 
 
+def _ee_form(world: World, gen: Generator[np.ndarray, None, Any]) -> Generator[np.ndarray, None, Any]:
+    """A joint-action generator that holds the arm (Navigate's drive) in `action.ee` form: base,
+    torso and gripper carry over exactly and the TCP change is exactly zero."""
+    while True:
+        try:
+            a = next(gen)
+        except StopIteration as stop:
+            return stop.value
+        yield world.robot.ee.to_ee(a)
+
+
+def approach(world: World, target: str, goal: Pose2 | Callable[[], Pose2], *, max_steps: int) -> Generator[np.ndarray, None, bool]:
+    """Bring the base from anywhere in Navigate's success region for `target` to `goal`, arm held.
+
+    Straight (`drive`) when the way to the target's interaction pose is clear by the robot's
+    radius on the navigation grid; otherwise (a hand-over behind a door frame or a wall corner,
+    which the success region allows) first along Navigate's own grid path
+    (`echo_data.skills.navigate.drive_to`, deterministic) to the interaction pose, from where the
+    way to `goal` is clear by construction. Returns True on arrival.
+    """
+    from echo_data.scene.nav import interaction_pose
+    from echo_data.skills.navigate import current_grid, door_angles, drive_to
+
+    steps = Steps()
+    x, y, _ = world.robot.base_pose()
+    grid = current_grid(world)
+    try:
+        via = interaction_pose(world.plan, target, door_angles=door_angles(world) or None, grid=grid)
+    except ValueError:
+        via = None
+    if via is not None and grid.segment_clearance((x, y), (via[0], via[1])) < grid.robot_radius:
+        result = yield from steps.run(_ee_form(world, drive_to(world, via, max_steps, grid=grid)))
+        if not result.success:
+            return False
+    return (yield from drive(world, goal, max_steps=max(1, max_steps - steps.n)))
+
+
 def arm_reaches(world: World, stance: Pose2, tcp_world: np.ndarray, torso: float, tol: float = 0.005, rounds: int = 10) -> bool:
     """Whether the arm puts the TCP at `tcp_world` (4x4) from a base at `stance` with the torso at
     `torso`: the robot's own IK (`echo_data.robot.ee_control`) started at READY, within `tol` (m,
