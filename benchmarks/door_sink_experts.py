@@ -21,13 +21,15 @@ first step, at phase steps 0, 10, ..., 60 the largest joint range across episode
 pairwise path gap of `echo_data.evaluation.path_spread.path_gap` (time shifts between phases do not count,
 a detour does), over all episodes and per side (a door hinged on the robot's left is the mirror
 image of one hinged on its right: its arm path is the mirrored one, a different but determined
-path). `--json` writes the figures with the command and commit.
+path). `--json` writes the figures with the command and commit. `--expert SKILL=module:function`
+runs another expert instead (a previous version, for a baseline measured the same way).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import importlib
 import json
 import math
 import os
@@ -76,7 +78,7 @@ def _side(spec: Any, call: Any) -> str:
     return "hinge_right" if spec.plan.doors[Target.parse(call.target).index].open_sign > 0 else "hinge_left"
 
 
-def run_one(recipe: Any, spec: Any, call: Any, start: str) -> dict[str, Any]:
+def run_one(recipe: Any, spec: Any, call: Any, start: str, expert: str | None = None) -> dict[str, Any]:
     """The expert of `call` alone from the chosen start; its outcome and commanded arm joints."""
     from echo_data.scene.nav import interaction_pose
     from echo_data.skills.registry import Situation, skill
@@ -93,7 +95,8 @@ def run_one(recipe: Any, spec: Any, call: Any, start: str) -> dict[str, Any]:
             world.robot.set_base_pose(*drawn)
             pose = drawn
         world.settle(2)
-        gen = skill(call.skill).expert_fn()(world, call, one)
+        module, _, name = (expert or skill(call.skill).expert).partition(":")
+        gen = getattr(importlib.import_module(module), name)(world, call, one)
         arms: list[list[float]] = []
         while True:
             try:
@@ -131,10 +134,13 @@ def main() -> None:
     ap.add_argument("-n", type=int, default=20, help="train episodes 0..n-1 (those with a door or sink call run)")
     ap.add_argument("--start", choices=("interaction", "handover"), default="interaction")
     ap.add_argument("--json", default=None, help="write the figures here")
+    ap.add_argument("--expert", action="append", default=[], metavar="SKILL=module:function",
+                    help="run another expert for SKILL (e.g. a previous version, as a baseline)")
     a = ap.parse_args()
     path = Path(a.recipe).resolve()
     recipe = load_recipe(path)
     library = SoundLibrary.from_recipe(recipe, path.parent)
+    experts = dict(e.split("=", 1) for e in a.expert)
     per: dict[str, list[dict[str, Any]]] = {s: [] for s in SKILLS}
     t0 = time.perf_counter()
     for i in range(a.n):
@@ -144,12 +150,13 @@ def main() -> None:
             continue
         for call in spec.chain:
             if call.skill in SKILLS:
-                r = run_one(recipe, spec, call, a.start)
+                r = run_one(recipe, spec, call, a.start, experts.get(call.skill))
                 r["index"] = i
                 per[call.skill].append(r)
                 print(f"episode {i:4d} {call.skill:9s} {r.get('skipped') or ('ok' if r['success'] else 'FAILED ' + r['reason'])}"
                       f" steps {r.get('steps', 0)}", flush=True)
-    out: dict[str, Any] = {"command": f"python benchmarks/door_sink_experts.py {a.recipe} -n {a.n} --start {a.start}",
+    extra = "".join(f" --expert {e}" for e in a.expert)
+    out: dict[str, Any] = {"command": f"python benchmarks/door_sink_experts.py {a.recipe} -n {a.n} --start {a.start}{extra}",
                            "commit": subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip(),
                            "seconds": round(time.perf_counter() - t0, 1), "skills": {}}
     for s, runs in per.items():

@@ -10,14 +10,15 @@ The lever turns about the vertical axis through `Faucet.pivot` and opens counter
 1. **stance**: on the cabinet's front normal through the lever pivot, at least `PIVOT_DISTANCE`
    from the pivot and `FRONT_GAP` from the cabinet face, facing the cabinet, shifted sideways if
    needed — the first of `sink_stances` where the base fits and the arm reaches the push (the
-   robot's own IK). The base first drives (arm held; `echo_data.skills.reach_servo.approach`:
-   straight, or first along Navigate's grid path when a wall corner is in the way) to a pose
+   robot's own IK). The base first drives (`echo_data.skills.reach_servo.approach`: straight,
+   or first along Navigate's grid path, arm held, when a wall corner is in the way) to a pose
    `UNTUCK_BACK` behind it, where the arm has room;
-2. **untuck** there: a straight Cartesian move of the TCP to READY, fingers closing;
+2. **untuck** on the straight part of that drive and there: a straight Cartesian move of the
+   TCP to READY, fingers closing;
 3. **drive in** to the stance with the arm at READY (high above the counter);
 4. **hover** above the lever's opening side (the finger block `lead` ahead of the lever on the
    contact arc, `CONTACT_INSET` inside its tip, `HOVER` above it; the lever angle read each step),
-   gripper pitched down; **descend** straight to the lever's height at `SLOW_SPEED`;
+   gripper pitched down; **descend** straight to the lever's height at `DESCEND_SPEED`;
 5. **push**: each step the finger's goal on the arc is one step (`SWEEP_RATE`) clockwise of the
    nearer of where it is commanded and where the lever now is plus the lead, down to
    `SWEEP_PAST` beyond closed (the joint limit stops the lever at 0, the water stops);
@@ -41,7 +42,7 @@ from echo_data.robot.robot import READY_GROUP
 from echo_data.scene.articulated import LEVER_SECTION
 from echo_data.scene.floorplan import Faucet, Furniture
 from echo_data.skills.reach_servo import Pose2, Steps, approach, arm_reaches, drive, retreat, to_ready
-from echo_data.skills.servo import SLOW_SPEED, ee_command, in_base, servo, step_towards
+from echo_data.skills.servo import ee_command, in_base, servo, step_towards
 from echo_data.skills.success import sink_closed_success
 from echo_data.target import Target
 
@@ -63,7 +64,8 @@ UNTUCK_BACK = (0.35, 0.25, 0.15)  # m back from the stance where the arm unfolds
 SWEEP_RATE = 0.6  # rad/s of the finger along the arc
 SWEEP_PAST = 0.2  # rad beyond closed the finger aims at (the joint limit stops the lever at 0)
 SINK_TORSO = float(READY_GROUP[0])  # m: READY's torso (the lever is ≈1 m up, beyond a counter)
-HOVER_SPEED = 0.25  # m/s of the TCP from READY to above the lever
+HOVER_SPEED = 0.3  # m/s of the TCP from READY to above the lever
+DESCEND_SPEED = 0.1  # m/s straight down beside the lever (the finger block keeps CONTACT_CLEAR from it)
 # Step limits per phase (the skill's own limit, recipe robot.max_steps.CloseSink, bounds the sum).
 DRIVE_STEPS, HOVER_STEPS, DESCEND_STEPS, PUSH_STEPS, LIFT_STEPS = 70, 50, 30, 60, 20
 
@@ -202,8 +204,8 @@ def close_sink(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np
         return fail("no_push_stance")
     back_pose = _step_back(world, stance)
 
-    # 2.-3. unfold the arm a step back from the counter (open space), then drive in with it at READY
-    if not (yield from st.run(approach(world, target, back_pose, max_steps=DRIVE_STEPS))):
+    # 2.-3. unfold the arm on the way to a step back from the counter (open space), then drive in with it at READY
+    if not (yield from st.run(approach(world, target, back_pose, max_steps=DRIVE_STEPS, close=True))):
         return fail("stance_not_reached")
     if not (yield from st.run(to_ready(world, close=True))):
         return fail("untuck_failed")
@@ -216,7 +218,7 @@ def close_sink(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np
 
     if not (yield from st.run(servo(world, lambda: start(HOVER), speed=HOVER_SPEED, torso=SINK_TORSO, max_steps=HOVER_STEPS, close=True))):
         return fail("hover_not_reached")
-    if not (yield from st.run(servo(world, lambda: start(0.0), speed=SLOW_SPEED, torso=SINK_TORSO, max_steps=DESCEND_STEPS, close=True))):
+    if not (yield from st.run(servo(world, lambda: start(0.0), speed=DESCEND_SPEED, torso=SINK_TORSO, max_steps=DESCEND_STEPS, close=True))):
         return fail("lever_not_reached")
 
     # 5. push the lever closed along its arc

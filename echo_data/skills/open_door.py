@@ -5,13 +5,14 @@ facing the handle; `echo_data.skills.success.navigate_success`), arm tucked or a
 
 Every command is computed from the state the step starts in (docs/SIMULATION_NOTES.md#door-opening):
 
-1. **stance**: the base drives (arm held; `echo_data.skills.reach_servo.approach`: straight, or
-   first along Navigate's grid path when a wall corner is in the way) to the grasp stance for
-   the door's *current* hinge angle: 0.88 m from the swing-side handle bar along the leaf normal, 0.3 m towards the hinge,
-   facing the leaf — the first of `STANCES` whose swing stays on free floor and whose grasp the
+1. **stance**: the base drives (`echo_data.skills.reach_servo.approach`: straight, or first
+   along Navigate's grid path, arm held, when a wall corner is in the way) to the grasp stance
+   for the door's *current* hinge angle: 0.88 m from the swing-side handle bar along the leaf
+   normal, 0.3 m towards the hinge, facing the leaf — the first of `STANCES` whose swing stays on free floor and whose grasp the
    arm reaches (the robot's own IK). A fixed order, so every episode of a door takes the same one.
-2. **untuck**: a straight Cartesian move of the TCP to READY (the carry pose, 0.27 m ahead of
-   the base at 1.15 m): at the stance the leaf is ≥ 0.6 m away, so there is room.
+2. **untuck** on the straight part of that drive and at the stance: a straight Cartesian move
+   of the TCP to READY (the carry pose, 0.27 m ahead of the base at 1.15 m; on the way the arm
+   reaches ≤ 0.53 m ahead): at the stance the leaf is ≥ 0.8 m from the base centre, so there is room.
 3. **pre-grasp**: the TCP goes to `PREGRASP_BACK` in front of the bar (the bar's pose read from
    the hinge angle each step), approach axis into the leaf, fingers along it;
 4. **approach**: straight in at `SLOW_SPEED`; then the fingers close until both touch the bar
@@ -210,7 +211,7 @@ def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.
             break
     if choice is None:
         return fail("no_grasp_stance")
-    if not (yield from st.run(approach(world, target, lambda: door_stances(door, _hinge(art))[choice], max_steps=DRIVE_STEPS))):
+    if not (yield from st.run(approach(world, target, lambda: door_stances(door, _hinge(art))[choice], max_steps=DRIVE_STEPS, close=False))):
         return fail("stance_not_reached")
 
     # 2.-4. untuck, pre-grasp, straight in, close on the bar

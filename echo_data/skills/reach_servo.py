@@ -32,7 +32,7 @@ Pose2 = tuple[float, float, float]
 DRIVE_SPEED = 0.4  # m/s, at most (Fetch's base: 1 m/s max; slow where the arm is out)
 DRIVE_MIN_SPEED = 0.04  # m/s, so the last centimetres do not crawl
 DRIVE_TURN = 0.8  # rad/s, at most
-DRIVE_GAIN = 2.0  # 1/s, proportional gain on position and heading
+DRIVE_GAIN = 3.0  # 1/s, proportional gain on position and heading (0.3 per 0.1 s step: no overshoot)
 DRIVE_TOL = 0.015  # m: the base is at its goal ...
 DRIVE_YAW_TOL = math.radians(1.5)  # ... and heads its way
 READY_TORSO = float(READY_GROUP[0])  # m, READY's torso height
@@ -96,14 +96,19 @@ def _ee_form(world: World, gen: Generator[np.ndarray, None, Any]) -> Generator[n
         yield world.robot.ee.to_ee(a)
 
 
-def approach(world: World, target: str, goal: Pose2 | Callable[[], Pose2], *, max_steps: int) -> Generator[np.ndarray, None, bool]:
-    """Bring the base from anywhere in Navigate's success region for `target` to `goal`, arm held.
+def approach(
+    world: World, target: str, goal: Pose2 | Callable[[], Pose2], *, max_steps: int, close: bool | None = None,
+) -> Generator[np.ndarray, None, bool]:
+    """Bring the base from anywhere in Navigate's success region for `target` to `goal`,
+    unfolding the arm towards READY on the straight part (the way ahead is clear floor and `goal`
+    leaves room in front: the unfolding arm reaches at most 0.53 m ahead of the base centre).
 
     Straight (`drive`) when the way to the target's interaction pose is clear by the robot's
     radius on the navigation grid; otherwise (a hand-over behind a door frame or a wall corner,
     which the success region allows) first along Navigate's own grid path
-    (`echo_data.skills.navigate.drive_to`, deterministic) to the interaction pose, from where the
-    way to `goal` is clear by construction. Returns True on arrival.
+    (`echo_data.skills.navigate.drive_to`, deterministic) to `goal` (or the free cell nearest to
+    it) with the arm held, then straight onto it. Returns True on arrival (the arm may still be
+    on its way to READY: `to_ready` finishes it).
     """
     from echo_data.scene.nav import interaction_pose
     from echo_data.skills.navigate import current_grid, door_angles, drive_to
@@ -116,10 +121,11 @@ def approach(world: World, target: str, goal: Pose2 | Callable[[], Pose2], *, ma
     except ValueError:
         via = None
     if via is not None and grid.segment_clearance((x, y), (via[0], via[1])) < grid.robot_radius:
-        result = yield from steps.run(_ee_form(world, drive_to(world, via, max_steps, grid=grid)))
+        g = goal() if callable(goal) else goal
+        result = yield from steps.run(_ee_form(world, drive_to(world, g, max_steps, grid=grid)))
         if not result.success:
             return False
-    return (yield from drive(world, goal, max_steps=max(1, max_steps - steps.n)))
+    return (yield from drive(world, goal, max_steps=max(1, max_steps - steps.n), arm=lambda: ready_step(world), torso=READY_TORSO, close=close))
 
 
 def arm_reaches(world: World, stance: Pose2, tcp_world: np.ndarray, torso: float, tol: float = 0.005, rounds: int = 10) -> bool:
@@ -170,6 +176,12 @@ def ready_goal(world: World) -> np.ndarray:
     return base_frame(*world.robot.base_pose()) @ tcp
 
 
+def ready_step(world: World) -> np.ndarray:
+    """This step's TCP change of the straight Cartesian move to READY (for `drive`'s `arm`)."""
+    d = world.robot.ee.delta_towards(in_base(world, ready_goal(world)), torso=READY_TORSO)
+    return step_towards(d, UNTUCK_SPEED, UNTUCK_TURN, 1.0 / world.robot.cfg.control_hz)
+
+
 def to_ready(world: World, *, close: bool, max_steps: int = STOW_STEPS) -> Generator[np.ndarray, None, bool]:
     """A straight Cartesian move of the TCP to READY (out of the tuck, or back from a handle or a
     lever), base still; True once there."""
@@ -179,13 +191,7 @@ def to_ready(world: World, *, close: bool, max_steps: int = STOW_STEPS) -> Gener
 def retreat(world: World, goal: Pose2, *, close: bool, max_steps: int = STOW_STEPS) -> Generator[np.ndarray, None, bool]:
     """Back the base to `goal` while the TCP already returns to READY, then finish the move to
     READY; True once both are there (used after letting go of a handle or a lever)."""
-    dt = 1.0 / world.robot.cfg.control_hz
-
-    def arm() -> np.ndarray:
-        d = world.robot.ee.delta_towards(in_base(world, ready_goal(world)), torso=READY_TORSO)
-        return step_towards(d, UNTUCK_SPEED, UNTUCK_TURN, dt)
-
     steps = Steps()
-    arrived = yield from steps.run(drive(world, goal, max_steps=max_steps, arm=arm, torso=READY_TORSO, close=close))
+    arrived = yield from steps.run(drive(world, goal, max_steps=max_steps, arm=lambda: ready_step(world), torso=READY_TORSO, close=close))
     stowed = yield from to_ready(world, close=close, max_steps=max(1, max_steps - steps.n))
     return bool(arrived and stowed)
