@@ -35,6 +35,7 @@ DRIVE_TURN = 0.8  # rad/s, at most
 DRIVE_GAIN = 3.0  # 1/s, proportional gain on position and heading (0.3 per 0.1 s step: no overshoot)
 DRIVE_TOL = 0.015  # m: the base is at its goal ...
 DRIVE_YAW_TOL = math.radians(1.5)  # ... and heads its way
+WAYPOINT_TOL = 0.1  # m: a corner of a grid path is passed
 READY_TORSO = float(READY_GROUP[0])  # m, READY's torso height
 UNTUCK_SPEED = 0.2  # m/s of the TCP to and from READY (faster moves out of the tuck measured slower to settle)
 UNTUCK_TURN = 1.0  # rad/s (the tuck -> READY turn dominates: 35 steps, joints <= 2.1 rad/s)
@@ -69,31 +70,24 @@ def at_pose(here: Pose2, goal: Pose2, tol: float = DRIVE_TOL, yaw_tol: float = D
 def drive(
     world: World, goal: Pose2 | Callable[[], Pose2], *, max_steps: int, speed: float = DRIVE_SPEED,
     arm: Callable[[], np.ndarray] | None = None, torso: float | None = None, close: bool | None = None,
+    tol: float = DRIVE_TOL, yaw_tol: float = DRIVE_YAW_TOL, stop: bool = True,
 ) -> Generator[np.ndarray, None, bool]:
-    """Drive the base to `goal` (x, y, yaw in the world, or a callable re-read each step); one
-    stop action on arrival. `arm`: a callable giving this step's TCP change (default: hold).
-    Returns True on arrival, False after `max_steps` actions."""
+    """Drive the base to `goal` (x, y, yaw in the world, or a callable re-read each step) within
+    `tol` and `yaw_tol`; one stop action on arrival unless `stop` is False (a waypoint). `arm`: a
+    callable giving this step's TCP change (default: hold). Returns True on arrival, False after
+    `max_steps` actions."""
     robot = world.robot
     for _ in range(max_steps):
         g = goal() if callable(goal) else goal
         here = robot.base_pose()
+        if at_pose(here, g, tol, yaw_tol) and not stop:
+            return True
         delta = None if arm is None else arm()
-        if at_pose(here, g):
+        if at_pose(here, g, tol, yaw_tol):
             yield ee_command(world, torso=torso, delta=delta, close=close)
             return True
         yield ee_command(world, base=base_velocity(here, g, speed), torso=torso, delta=delta, close=close)
     return False
-
-
-def _ee_form(world: World, gen: Generator[np.ndarray, None, Any]) -> Generator[np.ndarray, None, Any]:
-    """A joint-action generator that holds the arm (Navigate's drive) in `action.ee` form: base,
-    torso and gripper carry over exactly and the TCP change is exactly zero."""
-    while True:
-        try:
-            a = next(gen)
-        except StopIteration as stop:
-            return stop.value
-        yield world.robot.ee.to_ee(a)
 
 
 def approach(
@@ -105,13 +99,13 @@ def approach(
 
     Straight (`drive`) when the way to the target's interaction pose is clear by the robot's
     radius on the navigation grid; otherwise (a hand-over behind a door frame or a wall corner,
-    which the success region allows) first along Navigate's own grid path
-    (`echo_data.skills.navigate.drive_to`, deterministic) to `goal` (or the free cell nearest to
-    it) with the arm held, then straight onto it. Returns True on arrival (the arm may still be
-    on its way to READY: `to_ready` finishes it).
+    which the success region allows) first through the corners of the grid's shortest path to
+    `goal` (`NavGrid.plan_path`, the one Navigate follows; deterministic), arm held, heading
+    already turning to the goal's (the base is holonomic), then straight onto it. Returns True
+    on arrival (the arm may still be on its way to READY: `to_ready` finishes it).
     """
     from echo_data.scene.nav import interaction_pose
-    from echo_data.skills.navigate import current_grid, door_angles, drive_to
+    from echo_data.skills.navigate import START_SNAP, current_grid, door_angles
 
     steps = Steps()
     x, y, _ = world.robot.base_pose()
@@ -122,9 +116,13 @@ def approach(
         via = None
     if via is not None and grid.segment_clearance((x, y), (via[0], via[1])) < grid.robot_radius:
         g = goal() if callable(goal) else goal
-        result = yield from steps.run(_ee_form(world, drive_to(world, g, max_steps, grid=grid)))
-        if not result.success:
+        path = grid.plan_path((x, y), (g[0], g[1]), start_snap=START_SNAP)
+        if path is None:
             return False
+        for wx, wy in path[1:-1]:
+            if not (yield from steps.run(drive(world, (wx, wy, g[2]), max_steps=max(1, max_steps - steps.n), close=close,
+                                               tol=WAYPOINT_TOL, yaw_tol=math.pi, stop=False))):
+                return False
     return (yield from drive(world, goal, max_steps=max(1, max_steps - steps.n), arm=lambda: ready_step(world), torso=READY_TORSO, close=close))
 
 
