@@ -8,9 +8,8 @@ import math
 
 import numpy as np
 import pytest
-from support.experts import as_joint, make_spec, offset_start, rollout, rollout_ee, two_room_plan
+from support.experts import as_joint, handover_gap, make_spec, offset_start, rollout, rollout_ee, two_room_plan
 
-from echo_data.evaluation.path_spread import path_gap
 from echo_data.recipe import Recipe
 
 
@@ -146,15 +145,8 @@ def test_open_door_expert_from_a_short_off_axis_handover_takes_the_same_path(doo
     region) succeeds, and its arm path out of the tuck is the one from the interaction pose:
     no random via points (the planner-based expert differed by > 1 rad between episodes)."""
     from echo_data.skills.open_door import open_door
-    from echo_data.skills.success import door_open_success, navigate_success
+    from echo_data.skills.success import door_open_success
 
-    runs = []
-    for start in (None, offset_start(two_room_plan(True), "door:0", back=0.4, side=0.25)):
-        world, spec = door_world_factory(True, start=start)
-        assert navigate_success(world, "door:0")
-        outcome, labels, arms, _ = rollout_ee(world, open_door, spec)
-        assert outcome.success, outcome.reason
-        assert door_open_success(world, 0)
-        runs.append(arms)
-    gap = path_gap(runs[0], runs[1])
+    starts = (None, offset_start(two_room_plan(True), "door:0", back=0.4, side=0.25))
+    gap = handover_gap(lambda start: door_world_factory(True, start=start), open_door, "door:0", lambda w: door_open_success(w, 0), starts)
     assert gap < 0.05, f"the two paths out of the tuck lie {gap:.3f} rad apart"

@@ -9,9 +9,8 @@ import math
 
 import numpy as np
 import pytest
-from support.experts import make_spec, offset_start, rollout, rollout_ee, two_room_plan
+from support.experts import handover_gap, make_spec, offset_start, rollout, rollout_ee, two_room_plan
 
-from echo_data.evaluation.path_spread import path_gap
 from echo_data.recipe import Recipe
 from echo_data.scene.floorplan import Faucet, FloorPlan, Furniture
 
@@ -112,15 +111,7 @@ def test_close_sink_expert_from_a_short_off_axis_handover_takes_the_same_path(si
     """A start 0.4 m short of the interaction pose and 0.25 m to the side (inside Navigate's success
     region) succeeds, and its arm path out of the tuck is the one from the interaction pose."""
     from echo_data.skills.close_sink import close_sink, sink_closed_success
-    from echo_data.skills.success import navigate_success
 
-    runs = []
-    for start in (None, offset_start(two_room_plan(), "faucet:0", back=0.4, side=0.25)):
-        world, spec = sink_world_factory(two_room_plan(), start=start)
-        assert navigate_success(world, "faucet:0")
-        outcome, _, arms, _ = rollout_ee(world, close_sink, spec)
-        assert outcome.success, outcome.reason
-        assert sink_closed_success(world, 0)
-        runs.append(arms)
-    gap = path_gap(runs[0], runs[1])
+    starts = (None, offset_start(two_room_plan(), "faucet:0", back=0.4, side=0.25))
+    gap = handover_gap(lambda start: sink_world_factory(two_room_plan(), start=start), close_sink, "faucet:0", lambda w: sink_closed_success(w, 0), starts)
     assert gap < 0.05, f"the two paths out of the tuck lie {gap:.3f} rad apart"

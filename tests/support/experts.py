@@ -142,3 +142,21 @@ def rollout_ee(world, expert, spec, perturb=None) -> tuple[object, list[np.ndarr
         world.step(world.robot.ee.to_joint(executed))
         arms.append(world.robot.applied_action()[4:11].astype(np.float64))
 
+
+
+def handover_gap(make, expert, target: str, done, starts) -> float:
+    """Run `expert` in a fresh world from each start (`make(start)` -> (world, spec); None: the
+    interaction pose), each inside Navigate's success region and ending in success (`done(world)`);
+    returns how far the first two arm paths out of the tuck lie apart (`path_gap`, rad)."""
+    from echo_data.evaluation.path_spread import path_gap
+    from echo_data.skills.success import navigate_success
+
+    runs = []
+    for start in starts:
+        world, spec = make(start)
+        assert navigate_success(world, target)
+        outcome, _, arms, _ = rollout_ee(world, expert, spec)
+        assert outcome.success, outcome.reason
+        assert done(world)
+        runs.append(arms)
+    return path_gap(runs[0], runs[1])
