@@ -40,6 +40,13 @@ READY_TORSO = float(READY_GROUP[0])  # m, READY's torso height
 UNTUCK_SPEED = 0.2  # m/s of the TCP to and from READY (faster moves out of the tuck measured slower to settle)
 UNTUCK_TURN = 1.0  # rad/s (the tuck -> READY turn dominates: 35 steps, joints <= 2.1 rad/s)
 STOW_STEPS = 60  # control steps a move to READY may take
+# Arrival tolerances of the servo moves (commanded TCP position m, rotation rad; measured TCP m).
+# Transit moves (to READY, to a pre-grasp or above a lever) end loosely: the next move starts
+# from wherever it is, and a per-step perturbation of the executed action (DART, ~1 cm at the
+# hand) keeps the commanded pose that far from any goal. Moves onto a handle or beside a lever
+# end within CONTACT_TOL (the open jaws clear the bar by 3.8 cm, the finger block the lever by 6 mm).
+TRANSIT_TOL, TRANSIT_ROT_TOL, TRANSIT_SETTLE = 0.015, 0.05, 0.03
+CONTACT_TOL, CONTACT_ROT_TOL, CONTACT_SETTLE = 0.01, 0.05, 0.015
 
 
 def wrap(a: float) -> float:
@@ -183,7 +190,8 @@ def ready_step(world: World) -> np.ndarray:
 def to_ready(world: World, *, close: bool, max_steps: int = STOW_STEPS) -> Generator[np.ndarray, None, bool]:
     """A straight Cartesian move of the TCP to READY (out of the tuck, or back from a handle or a
     lever), base still; True once there."""
-    return (yield from servo(world, lambda: ready_goal(world), speed=UNTUCK_SPEED, turn=UNTUCK_TURN, torso=READY_TORSO, max_steps=max_steps, close=close))
+    return (yield from servo(world, lambda: ready_goal(world), speed=UNTUCK_SPEED, turn=UNTUCK_TURN, torso=READY_TORSO, max_steps=max_steps,
+                             close=close, pos_tol=TRANSIT_TOL, rot_tol=TRANSIT_ROT_TOL, settle_tol=TRANSIT_SETTLE))
 
 
 def retreat(world: World, goal: Pose2, *, close: bool, max_steps: int = STOW_STEPS) -> Generator[np.ndarray, None, bool]:
