@@ -15,8 +15,9 @@ Every command is computed from the state the step starts in (docs/SIMULATION_NOT
    reaches ≤ 0.53 m ahead): at the stance the leaf is ≥ 0.8 m from the base centre, so there is room.
 3. **pre-grasp**: the TCP goes to `PREGRASP_BACK` in front of the bar (the bar's pose read from
    the hinge angle each step), approach axis into the leaf, fingers along it;
-4. **approach**: straight in at `SLOW_SPEED`; then the fingers close until both touch the bar
-   (the world then holds the leaf in the closed gripper, `echo_data.world`);
+4. **approach**: straight in at `SLOW_SPEED` (a hand stopped short by a jaw on the bar, within
+   `JAW_SLACK`, still closes); then the fingers close until both touch the bar (the world then
+   holds the leaf in the closed gripper, `echo_data.world`);
 5. **swing**: the base turns about the hinge with the leaf: a feed-forward rotation rate about
    the hinge (ramped over `SWING_RAMP`) plus feedback that keeps the base where the grasp put it
    relative to the leaf *at its current angle*; the arm servoes its TCP back to the grasp pose
@@ -59,7 +60,7 @@ from echo_data.skills.reach_servo import (
     to_ready,
     wrap,
 )
-from echo_data.skills.servo import SLOW_SPEED, ee_command, grip, servo, step_towards
+from echo_data.skills.servo import SLOW_SPEED, ee_command, grip, measured_tcp, servo, step_towards
 from echo_data.skills.success import DOOR_REST_QVEL, door_open_success
 from echo_data.target import Target
 
@@ -74,6 +75,7 @@ STANCES = ((0.88, -0.3), (0.95, -0.3), (0.88, -0.15), (0.95, -0.15), (0.95, 0.0)
 PREGRASP_BACK = 0.07  # m, pre-grasp in front of the bar (4 cm clear of the open fingers)
 GRASP_TORSO = 0.15  # m, torso height for a handle at ≈1 m (the shoulder level with the bar)
 PREGRASP_SPEED = 0.25  # m/s of the TCP from READY to the pre-grasp
+JAW_SLACK = 0.03  # m, TCP to the bar's centre within which the open jaws (10 cm) still straddle the 2.4 cm bar
 CLOSE_STEPS = 8  # control steps the fingers have to close on the bar
 SWING_RATE = 0.35  # rad/s hinge rate while the base swings
 SWING_RAMP = 1.0  # s, rate ramp at the start of the swing (docs/SIMULATION_NOTES.md#door-opening)
@@ -85,7 +87,7 @@ STALL_GAIN = 0.02  # rad ... or the grip is lost / the door blocked
 RELEASE_STEPS = 4  # control steps for the fingers to open
 BACK_OFF = 0.15  # m the base backs away after letting go
 # Step limits per phase (the skill's own limit, recipe robot.max_steps.OpenDoor, bounds the sum).
-DRIVE_STEPS, PREGRASP_STEPS, APPROACH_STEPS = 110, 60, 30
+DRIVE_STEPS, PREGRASP_STEPS, APPROACH_STEPS = 110, 60, 50
 
 
 def _swing_frame(door: Door) -> tuple[np.ndarray, np.ndarray]:
@@ -234,8 +236,11 @@ def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.
     if not (yield from st.run(servo(world, lambda: grasp_pose(door, _hinge(art), PREGRASP_BACK), speed=PREGRASP_SPEED, torso=GRASP_TORSO, max_steps=PREGRASP_STEPS, close=False,
                                      pos_tol=TRANSIT_TOL, rot_tol=TRANSIT_ROT_TOL, settle_tol=TRANSIT_SETTLE))):
         return fail("pregrasp_not_reached")
-    if not (yield from st.run(servo(world, lambda: grasp_pose(door, _hinge(art)), speed=SLOW_SPEED, torso=GRASP_TORSO, max_steps=APPROACH_STEPS, close=False,
-                                     pos_tol=CONTACT_TOL, rot_tol=CONTACT_ROT_TOL, settle_tol=CONTACT_SETTLE))):
+    at_bar = yield from st.run(servo(world, lambda: grasp_pose(door, _hinge(art)), speed=SLOW_SPEED, torso=GRASP_TORSO, max_steps=APPROACH_STEPS,
+                                     close=False, pos_tol=CONTACT_TOL, rot_tol=CONTACT_ROT_TOL, settle_tol=CONTACT_SETTLE))
+    # a jaw resting on the bar stops the hand short (seen under DART noise: 2 cm): close anyway
+    # when the open jaws still straddle it; the grasp test below decides
+    if not at_bar and float(np.linalg.norm(measured_tcp(world)[:3, 3] - grasp_pose(door, _hinge(art))[:3, 3])) > JAW_SLACK:
         return fail("handle_not_reached")
     if not (yield from st.run(_close_on_bar(world))):
         return fail("grasp_failed")
