@@ -41,21 +41,7 @@ from echo_data.robot.ee_control import base_frame
 from echo_data.robot.robot import READY_GROUP
 from echo_data.scene.articulated import LEVER_SECTION
 from echo_data.scene.floorplan import Faucet, Furniture
-from echo_data.skills.reach_servo import (
-    CONTACT_ROT_TOL,
-    CONTACT_SETTLE,
-    CONTACT_TOL,
-    TRANSIT_ROT_TOL,
-    TRANSIT_SETTLE,
-    TRANSIT_TOL,
-    Pose2,
-    Steps,
-    approach,
-    arm_reaches,
-    drive,
-    retreat,
-    to_ready,
-)
+from echo_data.skills.reach_servo import CONTACT, TRANSIT, Pose2, Steps, approach, arm_reaches, drive, retreat, to_ready
 from echo_data.skills.servo import ee_command, in_base, servo, step_towards
 from echo_data.skills.success import sink_closed_success
 from echo_data.target import Target
@@ -183,7 +169,7 @@ def _push(world: World, faucet: Faucet, art: Any, max_steps: int) -> Generator[n
         phi = max(end, min(_commanded_phi(world, faucet), lever + lead) - SWEEP_RATE * dt)
         goal = push_pose(faucet, phi, robot.base_pose()[2])
         d = robot.ee.delta_towards(in_base(world, goal), torso=SINK_TORSO)
-        if phi <= end + 1e-3 and float(np.linalg.norm(d[:3])) < CONTACT_TOL:
+        if phi <= end + 1e-3 and float(np.linalg.norm(d[:3])) < CONTACT["pos_tol"]:
             return True
         yield ee_command(world, torso=SINK_TORSO, delta=step_towards(d, 0.2, 0.8, dt), close=True)
     return False
@@ -231,10 +217,10 @@ def close_sink(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np
         return push_pose(faucet, float(art.get_qpos()[0]) + lead, robot.base_pose()[2], lift)
 
     if not (yield from st.run(servo(world, lambda: start(HOVER), speed=HOVER_SPEED, torso=SINK_TORSO, max_steps=HOVER_STEPS, close=True,
-                                     pos_tol=TRANSIT_TOL, rot_tol=TRANSIT_ROT_TOL, settle_tol=TRANSIT_SETTLE))):
+                                     **TRANSIT))):
         return fail("hover_not_reached")
     if not (yield from st.run(servo(world, lambda: start(0.0), speed=DESCEND_SPEED, torso=SINK_TORSO, max_steps=DESCEND_STEPS, close=True,
-                                     pos_tol=CONTACT_TOL, rot_tol=CONTACT_ROT_TOL, settle_tol=CONTACT_SETTLE))):
+                                     **CONTACT))):
         return fail("lever_not_reached")
 
     # 5. push the lever closed along its arc
@@ -245,7 +231,7 @@ def close_sink(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np
     # 6. lift clear, back away from the counter, stow at READY
     phi_end = _commanded_phi(world, faucet)
     yield from st.run(servo(world, lambda: push_pose(faucet, phi_end, robot.base_pose()[2], HOVER), torso=SINK_TORSO, max_steps=LIFT_STEPS, close=True,
-                           pos_tol=TRANSIT_TOL, rot_tol=TRANSIT_ROT_TOL, settle_tol=TRANSIT_SETTLE))
+                           **TRANSIT))
     if not (yield from st.run(retreat(world, _step_back(world, robot.base_pose()), close=True))):
         return fail("stow_failed")
     ok = sink_closed_success(world, i)

@@ -45,21 +45,7 @@ import numpy as np
 from echo_data.records import SkillOutcome
 from echo_data.scene.door_handle import door_handle_world
 from echo_data.scene.floorplan import Door
-from echo_data.skills.reach_servo import (
-    CONTACT_ROT_TOL,
-    CONTACT_SETTLE,
-    CONTACT_TOL,
-    TRANSIT_ROT_TOL,
-    TRANSIT_SETTLE,
-    TRANSIT_TOL,
-    Pose2,
-    Steps,
-    approach,
-    arm_reaches,
-    retreat,
-    to_ready,
-    wrap,
-)
+from echo_data.skills.reach_servo import CONTACT, TRANSIT, Pose2, Steps, approach, arm_reaches, retreat, to_ready, wrap
 from echo_data.skills.servo import SLOW_SPEED, ee_command, grip, measured_tcp, servo, step_towards
 from echo_data.skills.success import DOOR_REST_QVEL, door_open_success
 from echo_data.target import Target
@@ -234,10 +220,10 @@ def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.
     if not (yield from st.run(to_ready(world, close=False))):
         return fail("untuck_failed")
     if not (yield from st.run(servo(world, lambda: grasp_pose(door, _hinge(art), PREGRASP_BACK), speed=PREGRASP_SPEED, torso=GRASP_TORSO, max_steps=PREGRASP_STEPS, close=False,
-                                     pos_tol=TRANSIT_TOL, rot_tol=TRANSIT_ROT_TOL, settle_tol=TRANSIT_SETTLE))):
+                                     **TRANSIT))):
         return fail("pregrasp_not_reached")
     at_bar = yield from st.run(servo(world, lambda: grasp_pose(door, _hinge(art)), speed=SLOW_SPEED, torso=GRASP_TORSO, max_steps=APPROACH_STEPS,
-                                     close=False, pos_tol=CONTACT_TOL, rot_tol=CONTACT_ROT_TOL, settle_tol=CONTACT_SETTLE))
+                                     close=False, **CONTACT))
     # a jaw resting on the bar stops the hand short (seen under DART noise: 2 cm): close anyway
     # when the open jaws still straddle it; the grasp test below decides
     if not at_bar and float(np.linalg.norm(measured_tcp(world)[:3, 3] - grasp_pose(door, _hinge(art))[:3, 3])) > JAW_SLACK:

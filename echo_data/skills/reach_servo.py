@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Generator
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
@@ -44,9 +44,19 @@ STOW_STEPS = 60  # control steps a move to READY may take
 # Transit moves (to READY, to a pre-grasp or above a lever) end loosely: the next move starts
 # from wherever it is, and a per-step perturbation of the executed action (DART, ~1 cm at the
 # hand) keeps the commanded pose that far from any goal. Moves onto a handle or beside a lever
-# end within CONTACT_TOL (the open jaws clear the bar by 3.8 cm, the finger block the lever by 6 mm).
-TRANSIT_TOL, TRANSIT_ROT_TOL, TRANSIT_SETTLE = 0.015, 0.05, 0.03
-CONTACT_TOL, CONTACT_ROT_TOL, CONTACT_SETTLE = 0.01, 0.05, 0.015
+# end within CONTACT (the open jaws clear the bar by 3.8 cm, the finger block the lever by 6 mm).
+
+
+class Tolerances(TypedDict):
+    """`servo`'s arrival keywords."""
+
+    pos_tol: float
+    rot_tol: float
+    settle_tol: float
+
+
+TRANSIT: Tolerances = {"pos_tol": 0.015, "rot_tol": 0.05, "settle_tol": 0.03}
+CONTACT: Tolerances = {"pos_tol": 0.01, "rot_tol": 0.05, "settle_tol": 0.015}
 
 
 def wrap(a: float) -> float:
@@ -191,7 +201,7 @@ def to_ready(world: World, *, close: bool, max_steps: int = STOW_STEPS) -> Gener
     """A straight Cartesian move of the TCP to READY (out of the tuck, or back from a handle or a
     lever), base still; True once there."""
     return (yield from servo(world, lambda: ready_goal(world), speed=UNTUCK_SPEED, turn=UNTUCK_TURN, torso=READY_TORSO, max_steps=max_steps,
-                             close=close, pos_tol=TRANSIT_TOL, rot_tol=TRANSIT_ROT_TOL, settle_tol=TRANSIT_SETTLE))
+                             close=close, **TRANSIT))
 
 
 def retreat(world: World, goal: Pose2, *, close: bool, max_steps: int = STOW_STEPS) -> Generator[np.ndarray, None, bool]:
