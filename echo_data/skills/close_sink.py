@@ -67,7 +67,7 @@ SINK_TORSO = float(READY_GROUP[0])  # m: READY's torso (the lever is ≈1 m up, 
 HOVER_SPEED = 0.3  # m/s of the TCP from READY to above the lever
 DESCEND_SPEED = 0.1  # m/s straight down beside the lever (the finger block keeps CONTACT_CLEAR from it)
 # Step limits per phase (the skill's own limit, recipe robot.max_steps.CloseSink, bounds the sum).
-DRIVE_STEPS, HOVER_STEPS, DESCEND_STEPS, PUSH_STEPS, LIFT_STEPS = 70, 50, 30, 60, 20
+DRIVE_STEPS, HOVER_STEPS, DESCEND_STEPS, PUSH_STEPS, LIFT_STEPS = 90, 50, 30, 60, 20
 
 
 def _front(cabinet: Furniture) -> tuple[np.ndarray, np.ndarray, float]:

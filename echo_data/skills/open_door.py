@@ -73,7 +73,7 @@ STALL_GAIN = 0.02  # rad ... or the grip is lost / the door blocked
 RELEASE_STEPS = 4  # control steps for the fingers to open
 BACK_OFF = 0.15  # m the base backs away after letting go
 # Step limits per phase (the skill's own limit, recipe robot.max_steps.OpenDoor, bounds the sum).
-DRIVE_STEPS, PREGRASP_STEPS, APPROACH_STEPS = 110, 60, 50
+DRIVE_STEPS, PREGRASP_STEPS, APPROACH_STEPS = 160, 60, 50
 
 
 def _swing_frame(door: Door) -> tuple[np.ndarray, np.ndarray]:

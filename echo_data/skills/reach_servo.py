@@ -36,6 +36,7 @@ DRIVE_GAIN = 3.0  # 1/s, proportional gain on position and heading (0.3 per 0.1 
 DRIVE_TOL = 0.015  # m: the base is at its goal ...
 DRIVE_YAW_TOL = math.radians(1.5)  # ... and heads its way
 WAYPOINT_TOL = 0.1  # m: a corner of a grid path is passed
+WAYPOINT_SPEED = 0.6  # m/s between corners, arm tucked (Navigate's cruise speed)
 READY_TORSO = float(READY_GROUP[0])  # m, READY's torso height
 UNTUCK_SPEED = 0.2  # m/s of the TCP to and from READY (faster moves out of the tuck measured slower to settle)
 UNTUCK_TURN = 1.0  # rad/s (the tuck -> READY turn dominates: 35 steps, joints <= 2.1 rad/s)
@@ -138,7 +139,7 @@ def approach(
             return False
         for wx, wy in path[1:-1]:
             if not (yield from steps.run(drive(world, (wx, wy, g[2]), max_steps=max(1, max_steps - steps.n), close=close,
-                                               tol=WAYPOINT_TOL, yaw_tol=math.pi, stop=False))):
+                                               speed=WAYPOINT_SPEED, tol=WAYPOINT_TOL, yaw_tol=math.pi, stop=False))):
                 return False
     return (yield from drive(world, goal, max_steps=max(1, max_steps - steps.n), arm=lambda: ready_step(world), torso=READY_TORSO, close=close))
 
