@@ -1,11 +1,14 @@
-"""OpenDoor in SAPIEN physics (World, no rendering) on a hand-made two-room plan."""
+"""OpenDoor in SAPIEN physics (World, no rendering) on a hand-made two-room plan: it opens the
+door, fails with a reason when the door is blocked, lets go when stopped, corrects a perturbed
+arm, starts from where a learned Navigate hands over, and takes one path out of the tuck."""
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
-from support.experts import make_spec, rollout, two_room_plan
+from support.experts import as_joint, handover_gap, make_spec, offset_start, rollout, rollout_ee, two_room_plan
 
 from echo_data.recipe import Recipe
 
@@ -17,9 +20,9 @@ def door_world_factory():
 
     worlds = []
 
-    def make(hinge_low: bool, builder=None):
+    def make(hinge_low: bool, builder=None, start=None):
         plan = two_room_plan(hinge_low=hinge_low)
-        spec = make_spec(plan, "door:0", "OpenDoor", interaction_pose(plan, "door:0"))
+        spec = make_spec(plan, "door:0", "OpenDoor", start or interaction_pose(plan, "door:0"))
         world = World(spec, Recipe(name="t"), render=False, builder=builder)
         worlds.append(world)
         return world, spec
@@ -99,7 +102,7 @@ def test_open_door_expert_stopped_mid_swing_lets_go(door_world_factory) -> None:
     gen = open_door(world, spec.chain[0], spec)
     attached_steps = 0
     for _ in range(world.recipe.robot.max_steps["OpenDoor"]):
-        world.step(next(gen))
+        world.step(as_joint(world, next(gen)))
         if leaf_entity.find_component_by_type(sapien.physx.PhysxDriveComponent) is not None:
             attached_steps += 1
             if attached_steps == 5:
@@ -111,3 +114,39 @@ def test_open_door_expert_stopped_mid_swing_lets_go(door_world_factory) -> None:
     world.step(open_hand)
     assert not world.holding_door
     assert leaf_entity.find_component_by_type(sapien.physx.PhysxDriveComponent) is None
+
+
+def test_open_door_expert_corrects_an_arm_perturbation_on_the_approach(door_world_factory) -> None:
+    """2 cm sideways on the executed TCP change once, 25 cm before the bar: the next label steers
+    back (the closed loop), and the door still opens."""
+    from echo_data.scene.door_handle import door_handle_world
+    from echo_data.skills.open_door import open_door
+
+    def near_handle(world):
+        door, q = world.plan.doors[0], float(world.handles.doors[0].get_qpos()[0])
+        if np.linalg.norm(np.asarray(world.robot.ee_pose().p) - door_handle_world(door, q, door.open_sign)) < 0.25:
+            return (0.0, 0.02, 0.0, 0.0, 0.0, 0.0)
+        return None
+
+    world, spec = door_world_factory(True)
+    clean, clean_labels, _, _ = rollout_ee(world, open_door, spec)
+    world, spec = door_world_factory(True)
+    outcome, labels, _, at = rollout_ee(world, open_door, spec, perturb=near_handle)
+    assert clean.success and outcome.success, outcome.reason
+    assert at is not None and np.array_equal(labels[at], clean_labels[at])
+    # the labels that follow move the TCP back: within 1.5 s they undo at least 1.8 cm of the 2 cm
+    undone = sum(float(b[5]) - float(a[5]) for a, b in zip(labels[at + 1 : at + 16], clean_labels[at + 1 : at + 16]))
+    assert labels[at + 1][5] < clean_labels[at + 1][5] and undone > 0.018
+    assert world.plan.doors[0].open_threshold <= float(world.handles.doors[0].get_qpos()[0])
+
+
+def test_open_door_expert_from_a_short_off_axis_handover_takes_the_same_path(door_world_factory) -> None:
+    """A start 0.4 m short of the interaction pose and 0.25 m to the side (inside Navigate's success
+    region) succeeds, and its arm path out of the tuck is the one from the interaction pose:
+    no random via points (the planner-based expert differed by > 1 rad between episodes)."""
+    from echo_data.skills.open_door import open_door
+    from echo_data.skills.success import door_open_success
+
+    starts = (None, offset_start(two_room_plan(True), "door:0", back=0.4, side=0.25))
+    gap = handover_gap(lambda start: door_world_factory(True, start=start), open_door, "door:0", lambda w: door_open_success(w, 0), starts)
+    assert gap < 0.05, f"the two paths out of the tuck lie {gap:.3f} rad apart"

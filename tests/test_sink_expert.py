@@ -1,4 +1,6 @@
-"""CloseSink in SAPIEN physics (World, no rendering): the lever is pushed closed, the water stops."""
+"""CloseSink in SAPIEN physics (World, no rendering): the lever is pushed closed, the water stops;
+a perturbed arm is corrected, a start where a learned Navigate hands over succeeds, and the path
+out of the tuck is one path."""
 
 from __future__ import annotations
 
@@ -7,7 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from support.experts import make_spec, rollout, two_room_plan
+from support.experts import handover_gap, make_spec, offset_start, rollout, rollout_ee, two_room_plan
 
 from echo_data.recipe import Recipe
 from echo_data.scene.floorplan import Faucet, FloorPlan, Furniture
@@ -30,8 +32,8 @@ def sink_world_factory():
 
     worlds = []
 
-    def make(plan: FloorPlan):
-        spec = make_spec(plan, "faucet:0", "CloseSink", interaction_pose(plan, "faucet:0"))
+    def make(plan: FloorPlan, start=None):
+        spec = make_spec(plan, "faucet:0", "CloseSink", start or interaction_pose(plan, "faucet:0"))
         world = World(spec, Recipe(name="t"), render=False)
         worlds.append(world)
         return world, spec
@@ -80,3 +82,36 @@ def test_close_sink_expert_is_deterministic(sink_world_factory) -> None:
         _, trace, _ = rollout(world, close_sink, spec, world.robot.last_action)
         runs.append(np.stack(trace))
     assert runs[0].shape == runs[1].shape and np.array_equal(runs[0], runs[1])
+
+
+def test_close_sink_expert_corrects_an_arm_perturbation_on_the_approach(sink_world_factory) -> None:
+    """2 cm sideways on the executed TCP change once, 25 cm from the lever tip: the labels that
+    follow steer back (the closed loop), and the lever is still closed."""
+    from echo_data.scene.articulated import lever_tip_world
+    from echo_data.skills.close_sink import close_sink, sink_closed_success
+
+    def near_lever(world):
+        faucet, a = world.plan.faucets[0], float(world.handles.faucets[0].get_qpos()[0])
+        if np.linalg.norm(np.asarray(world.robot.ee_pose().p) - lever_tip_world(faucet, a)) < 0.25:
+            return (0.0, 0.02, 0.0, 0.0, 0.0, 0.0)
+        return None
+
+    world, spec = sink_world_factory(two_room_plan())
+    clean, clean_labels, _, _ = rollout_ee(world, close_sink, spec)
+    world, spec = sink_world_factory(two_room_plan())
+    outcome, labels, _, at = rollout_ee(world, close_sink, spec, perturb=near_lever)
+    assert clean.success and outcome.success, outcome.reason
+    assert at is not None and np.array_equal(labels[at], clean_labels[at])
+    undone = sum(float(b[5]) - float(a[5]) for a, b in zip(labels[at + 1 : at + 16], clean_labels[at + 1 : at + 16]))
+    assert labels[at + 1][5] < clean_labels[at + 1][5] and undone > 0.018
+    assert sink_closed_success(world, 0)
+
+
+def test_close_sink_expert_from_a_short_off_axis_handover_takes_the_same_path(sink_world_factory) -> None:
+    """A start 0.4 m short of the interaction pose and 0.25 m to the side (inside Navigate's success
+    region) succeeds, and its arm path out of the tuck is the one from the interaction pose."""
+    from echo_data.skills.close_sink import close_sink, sink_closed_success
+
+    starts = (None, offset_start(two_room_plan(), "faucet:0", back=0.4, side=0.25))
+    gap = handover_gap(lambda start: sink_world_factory(two_room_plan(), start=start), close_sink, "faucet:0", lambda w: sink_closed_success(w, 0), starts)
+    assert gap < 0.05, f"the two paths out of the tuck lie {gap:.3f} rad apart"

@@ -1,40 +1,48 @@
-"""The CloseSink expert: push the running faucet's lever back along its arc with closed fingers.
+"""The CloseSink expert: a closed-loop controller in end-effector space (yields `action.ee`).
 
-Where it wants to start: in front of the sink cabinet, facing it — `interaction_pose(plan,
-"faucet:<i>")` of `echo_data.scene.nav` is fine. The expert drives the last few decimetres
-itself to its stance: on the cabinet's front normal through the lever pivot, at least
-`PIVOT_DISTANCE` from the pivot and `FRONT_GAP` from the cabinet face, facing the cabinet,
-shifted sideways if needed (`sink_stances`).
+Where it may start: anywhere in Navigate's success region for "faucet:<i>" (in front of the sink
+cabinet, facing the lever; `echo_data.skills.success.navigate_success`), arm tucked or at READY.
 
 The lever turns about the vertical axis through `Faucet.pivot` and opens counter-clockwise
-(`echo_data.scene.articulated`). With the fingers closed and the gripper pitched down, the
-finger block is lowered beside the lever on its opening side (a lead angle ahead of it on
-the contact arc, `CONTACT_INSET` inside the lever tip) and then swept clockwise along the arc past angle 0, so
-the lever is pushed to its closed limit (docs/SIMULATION_NOTES.md#closing-a-faucet); the water stops. The
-arm then lifts and tucks.
+(`echo_data.scene.articulated`). Every command is computed from the state the step starts in
+(docs/SIMULATION_NOTES.md#closing-a-faucet):
+
+1. **stance**: on the cabinet's front normal through the lever pivot, at least `PIVOT_DISTANCE`
+   from the pivot and `FRONT_GAP` from the cabinet face, facing the cabinet, shifted sideways if
+   needed — the first of `sink_stances` where the base fits and the arm reaches the push (the
+   robot's own IK). The base first drives (`echo_data.skills.reach_servo.approach`: straight,
+   or first along Navigate's grid path, arm held, when a wall corner is in the way) to a pose
+   `UNTUCK_BACK` behind it, where the arm has room;
+2. **untuck** on the straight part of that drive and there: a straight Cartesian move of the
+   TCP to READY, fingers closing;
+3. **drive in** to the stance with the arm at READY (high above the counter);
+4. **hover** above the lever's opening side (the finger block `lead` ahead of the lever on the
+   contact arc, `CONTACT_INSET` inside its tip, `HOVER` above it; the lever angle read each step),
+   gripper pitched down; **descend** straight to the lever's height at `DESCEND_SPEED`;
+5. **push**: each step the finger's goal on the arc is one step (`SWEEP_RATE`) clockwise of the
+   nearer of where it is commanded and where the lever now is plus the lead, down to
+   `SWEEP_PAST` beyond closed (the joint limit stops the lever at 0, the water stops);
+6. **lift** `HOVER`, **back off** to the untuck pose, **stow** at READY (as OpenDoor: a Cartesian
+   move cannot refold the redundant arm into the tuck).
+
+No random choices and no motion planner: two episodes of the same sink take the same path.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Generator
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from echo_data.records import SkillOutcome
+from echo_data.robot.ee_control import base_frame
+from echo_data.robot.robot import READY_GROUP
 from echo_data.scene.articulated import LEVER_SECTION
 from echo_data.scene.floorplan import Faucet, Furniture
-from echo_data.skills import arm
-from echo_data.skills.reach import (
-    approach_base,
-    arm_action,
-    near_ik,
-    planner_at,
-    reach_ik,
-    tuck_arm,
-    untuck_waypoints,
-)
+from echo_data.skills.reach_servo import CONTACT, TRANSIT, Pose2, Steps, approach, arm_reaches, drive, retreat, to_ready
+from echo_data.skills.servo import ee_command, in_base, servo, step_towards
 from echo_data.skills.success import sink_closed_success
 from echo_data.target import Target
 
@@ -49,17 +57,17 @@ BASE_CLEARANCE = 0.02  # m between the base disc and any wall, furniture or door
 LATERAL_SHIFTS = (0.0, -0.1, 0.1, -0.2, 0.2)  # m along the cabinet face, tried in order
 PITCH = math.radians(75)  # gripper approach below the horizontal (steep: the wrist stays far from the shoulder)
 FINGER_HALF = 0.02  # m, horizontal half-extent of the closed finger block
-CONTACT_CLEAR = 0.006  # m between the finger block and the lever before the sweep
+CONTACT_CLEAR = 0.006  # m between the finger block and the lever before the push
 CONTACT_INSET = 0.025  # m from the lever tip to the contact point
 HOVER = 0.08  # m above the lever before descending
-UNTUCK_BACK = (0.35, 0.25, 0.15)  # m back from the stance where the arm unfolds (untuck in open space: docs/SIMULATION_NOTES.md#robot)
+UNTUCK_BACK = (0.35, 0.25, 0.15)  # m back from the stance where the arm unfolds (the first where the base fits)
 SWEEP_RATE = 0.6  # rad/s of the finger along the arc
 SWEEP_PAST = 0.2  # rad beyond closed the finger aims at (the joint limit stops the lever at 0)
-IK_STEP = 0.15  # rad between IK waypoints along the arc (joint-space lines in between)
-SINK_TORSO = 0.38  # m, preferred torso height (the lever is ≈1 m up, beyond a counter)
-# IK reference: the arm in its vertical plane, elbow up, lift + elbow + wrist flex = PITCH
-# (the planar solution for a lever ≈0.75 m ahead at ≈1 m height with the torso at 0.38 m)
-PUSH_REF = np.array([0.0, -0.86, 0.0, 1.29, 0.0, PITCH - 0.43, 0.0])
+SINK_TORSO = float(READY_GROUP[0])  # m: READY's torso (the lever is ≈1 m up, beyond a counter)
+HOVER_SPEED = 0.3  # m/s of the TCP from READY to above the lever
+DESCEND_SPEED = 0.1  # m/s straight down beside the lever (the finger block keeps CONTACT_CLEAR from it)
+# Step limits per phase (the skill's own limit, recipe robot.max_steps.CloseSink, bounds the sum).
+DRIVE_STEPS, HOVER_STEPS, DESCEND_STEPS, PUSH_STEPS, LIFT_STEPS = 90, 50, 30, 60, 20
 
 
 def _front(cabinet: Furniture) -> tuple[np.ndarray, np.ndarray, float]:
@@ -70,7 +78,7 @@ def _front(cabinet: Furniture) -> tuple[np.ndarray, np.ndarray, float]:
     return n, lat, half_depth
 
 
-def sink_stances(faucet: Faucet, cabinet: Furniture) -> list[tuple[float, float, float]]:
+def sink_stances(faucet: Faucet, cabinet: Furniture) -> list[Pose2]:
     """Candidate stances (x, y, yaw) in front of the cabinet, facing it, preferred first."""
     n, lat, half_depth = _front(cabinet)
     pivot = np.array(faucet.pivot[:2])
@@ -109,7 +117,7 @@ def _base_fits(world: World, x: float, y: float) -> bool:
     return True
 
 
-def _step_back(world: World, pose: tuple[float, float, float]) -> tuple[float, float, float]:
+def _step_back(world: World, pose: Pose2) -> Pose2:
     """The pose the first of UNTUCK_BACK behind `pose` (along its heading) where the base fits."""
     x, y, yaw = pose
     for back in UNTUCK_BACK:
@@ -119,126 +127,112 @@ def _step_back(world: World, pose: tuple[float, float, float]) -> tuple[float, f
     return pose
 
 
-def _push_rotation(yaw: float) -> np.ndarray:
-    """Gripper rotation: approach along the base heading, pitched down; fingers across it, horizontal."""
+def _lead(faucet: Faucet) -> float:
+    """Angle on the contact arc between the lever's axis and the finger block's centre, touching."""
+    return (LEVER_SECTION / 2.0 + FINGER_HALF + CONTACT_CLEAR) / (faucet.lever_length - CONTACT_INSET)
+
+
+def push_pose(faucet: Faucet, phi: float, yaw: float, lift: float = 0.0) -> np.ndarray:
+    """World TCP pose (4x4) with the finger block at angle phi on the contact arc (lever
+    convention), `lift` m above the lever: approach along the base heading `yaw` pitched down
+    by PITCH, fingers across it, horizontal, the finger axis to the robot's right as at READY
+    (from READY a small pitch, not a half turn whose direction a tiny heading change flips)."""
     h = np.array([math.cos(yaw), math.sin(yaw), 0.0])
     x_axis = math.cos(PITCH) * h + np.array([0.0, 0.0, -math.sin(PITCH)])
-    y_axis = np.array([-h[1], h[0], 0.0])
-    z_axis = np.cross(x_axis, y_axis)
-    return np.stack([x_axis, y_axis, z_axis], axis=1)
-
-
-def _finger_point(faucet: Faucet, phi: float, z: float) -> np.ndarray:
-    """Where the TCP goes for finger angle phi on the contact arc (lever convention)."""
+    y_axis = np.array([h[1], -h[0], 0.0])
+    m = np.eye(4)
+    m[:3, :3] = np.stack([x_axis, y_axis, np.cross(x_axis, y_axis)], axis=1)
     r = faucet.lever_length - CONTACT_INSET
-    yaw = faucet.yaw + phi
-    return np.array([faucet.pivot[0] + r * math.cos(yaw), faucet.pivot[1] + r * math.sin(yaw), z])
+    a = faucet.yaw + phi
+    m[:3, 3] = (faucet.pivot[0] + r * math.cos(a), faucet.pivot[1] + r * math.sin(a), faucet.pivot[2] + lift)
+    return m
 
 
-def _sweep_waypoints(faucet: Faucet, angle: float) -> tuple[list[float], float]:
-    """Finger angles from the start (ahead of the lever) to past closed, and the lead angle."""
-    r = faucet.lever_length - CONTACT_INSET
-    lead = (LEVER_SECTION / 2.0 + FINGER_HALF + CONTACT_CLEAR) / r
-    start, end = angle + lead, lead - SWEEP_PAST
-    n = max(2, int(math.ceil((start - end) / IK_STEP)) + 1)
-    return [float(v) for v in np.linspace(start, end, n)], lead
+def _commanded_phi(world: World, faucet: Faucet) -> float:
+    """The arc angle (lever convention) of the commanded TCP about the lever pivot."""
+    robot = world.robot
+    ref = robot.applied_action().astype(np.float64)
+    tcp = base_frame(*robot.base_pose()) @ robot.ee.tcp_in_base(float(ref[3]), ref[4:11])
+    a = math.atan2(tcp[1, 3] - faucet.pivot[1], tcp[0, 3] - faucet.pivot[0]) - faucet.yaw
+    return math.remainder(a, 2.0 * math.pi)
 
 
-def _solve_sweep(
-    world: World, faucet: Faucet, angle: float, stance: tuple[float, float, float]
-) -> tuple[np.ndarray, list[np.ndarray]] | None:
-    """IK (torso fixed) for the hover point and every arc waypoint from `stance`, each seeded by the previous."""
-    planner = planner_at(world, stance)
-    rot = _push_rotation(stance[2])
-    phis, _ = _sweep_waypoints(faucet, angle)
-    z = faucet.pivot[2]
-    first = reach_ik(planner, _finger_point(faucet, phis[0], z), rot, SINK_TORSO, PUSH_REF, fix_torso=True)
-    if first is None:
-        return None
-    hover = near_ik(planner, _finger_point(faucet, phis[0], z + HOVER), rot, first, fix_torso=True)
-    if hover is None:
-        return None
-    sweep = [first]
-    for phi in phis[1:]:
-        q = near_ik(planner, _finger_point(faucet, phi, z), rot, sweep[-1], fix_torso=True)
-        if q is None:  # only another arm branch reaches it: that would swing the arm through the lever
-            return None
-        sweep.append(q)
-    return hover, sweep
+def _push(world: World, faucet: Faucet, art: Any, max_steps: int) -> Generator[np.ndarray, None, bool]:
+    """Sweep the closed finger block clockwise along the arc, pushing the lever to its closed
+    limit (phase 5 of the module docstring); True once the finger has reached the end and settled."""
+    robot = world.robot
+    dt = 1.0 / robot.cfg.control_hz
+    lead = _lead(faucet)
+    end = lead - SWEEP_PAST
+    for _ in range(max_steps):
+        lever = float(art.get_qpos()[0])
+        phi = max(end, min(_commanded_phi(world, faucet), lever + lead) - SWEEP_RATE * dt)
+        goal = push_pose(faucet, phi, robot.base_pose()[2])
+        d = robot.ee.delta_towards(in_base(world, goal), torso=SINK_TORSO)
+        if phi <= end + 1e-3 and float(np.linalg.norm(d[:3])) < CONTACT["pos_tol"]:
+            return True
+        yield ee_command(world, torso=SINK_TORSO, delta=step_towards(d, 0.2, 0.8, dt), close=True)
+    return False
 
 
 def close_sink(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
     """The CloseSink expert for `call.target` = "faucet:<i>" (see the module docstring)."""
     skill, target = call.skill, call.target
     robot = world.robot
-    max_steps = int(robot.cfg.max_steps["CloseSink"])
     i = Target.parse(target).index
     faucet: Faucet = world.plan.faucets[i]
     cabinet: Furniture = world.plan.furniture[faucet.furniture]
     art = world.handles.faucets[i]
-    steps = 0
+    st = Steps()
 
     def fail(reason: str) -> SkillOutcome:
-        return SkillOutcome(skill, target, False, reason, steps)
+        return SkillOutcome(skill, target, False, reason, st.n)
 
-    angle = float(art.get_qpos()[0])
     if sink_closed_success(world, i):
         return SkillOutcome(skill, target, True, "", 0)
 
-    # 1. a stance from which the whole sweep is reachable
-    choice = None
-    for stance in sink_stances(faucet, cabinet):
-        if not _base_fits(world, stance[0], stance[1]):
-            continue
-        solved = _solve_sweep(world, faucet, angle, stance)
-        if solved is not None:
-            choice = (stance, solved)
-            break
-    if choice is None:
+    # 1. a stance where the base fits and the arm reaches the start and the end of the push
+    lead = _lead(faucet)
+    angle = float(art.get_qpos()[0])
+    stance = next(
+        (s for s in sink_stances(faucet, cabinet) if _base_fits(world, s[0], s[1])
+         and arm_reaches(world, s, push_pose(faucet, angle + lead, s[2]), SINK_TORSO)
+         and arm_reaches(world, s, push_pose(faucet, lead - SWEEP_PAST, s[2]), SINK_TORSO)),
+        None,
+    )
+    if stance is None:
         return fail("no_push_stance")
-    stance, (q_hover, q_sweep) = choice
-
-    # 2. unfold the arm a step back from the counter (open space), then drive in with it raised
     back_pose = _step_back(world, stance)
-    moved = yield from approach_base(world, back_pose, robot.rest_action(), max_steps - steps)
-    steps += moved.steps
-    if not moved.success:
-        return fail(moved.reason)
-    planner = planner_at(world)
-    path = arm.plan_through(planner, untuck_waypoints(arm.commanded_group(robot), q_hover), gripper=0.0)
-    if path is None:
-        return fail("arm_plan_failed")
-    steps += yield from arm.follow_path(world, path, gripper=0.0)
-    moved = yield from approach_base(world, stance, arm_action(robot, q_hover, gripper=0.0), max_steps - steps)
-    steps += moved.steps
-    if not moved.success:
-        return fail(moved.reason)
 
-    # 3. closed fingers down beside the lever, sweep clockwise along the arc (IK from where the base stands)
-    solved = _solve_sweep(world, faucet, float(art.get_qpos()[0]), robot.base_pose())
-    if solved is None:
-        return fail("no_ik")
-    q_hover_now, q_sweep = solved
-    phis, _ = _sweep_waypoints(faucet, float(art.get_qpos()[0]))
-    steps += yield from arm.follow_path(world, [q_hover, q_hover_now, q_sweep[0]], gripper=0.0, speed_scale=0.5)
-    # the sweep: joint speed scaled so the finger moves at about SWEEP_RATE along the arc
-    widest = max(float(np.max(np.abs(b - a))) for a, b in zip(q_sweep, q_sweep[1:]))
-    scale = min(1.0, widest / IK_STEP * SWEEP_RATE / arm.ARM_SPEED)
-    steps += yield from arm.follow_path(world, q_sweep, gripper=0.0, speed_scale=scale)
-    if steps >= max_steps:
-        return fail("timeout")
+    # 2.-3. unfold the arm on the way to a step back from the counter (open space), then drive in with it at READY
+    if not (yield from st.run(approach(world, target, back_pose, max_steps=DRIVE_STEPS, close=True))):
+        return fail("stance_not_reached")
+    if not (yield from st.run(to_ready(world, close=True))):
+        return fail("untuck_failed")
+    if not (yield from st.run(drive(world, stance, max_steps=DRIVE_STEPS, close=True))):
+        return fail("stance_not_reached")
 
-    # 4. lift clear of the lever, back away from the counter, tuck
-    last = q_sweep[-1]
-    lift_point = _finger_point(faucet, phis[-1], faucet.pivot[2] + HOVER)
-    lift = near_ik(planner_at(world), lift_point, _push_rotation(robot.base_pose()[2]), last, fix_torso=True)
-    lift = last if lift is None else lift
-    steps += yield from arm.follow_path(world, [last, lift], gripper=0.0, settle=False)
-    moved = yield from approach_base(world, _step_back(world, robot.base_pose()), arm_action(robot, lift, gripper=0.0), max(0, max_steps - steps))
-    steps += moved.steps
-    tucked = yield from tuck_arm(world, gripper=0.0)
-    if tucked is None:
-        return fail("tuck_failed")
-    steps += tucked
+    # 4. above the lever's opening side, then straight down beside it
+    def start(lift: float) -> np.ndarray:
+        return push_pose(faucet, float(art.get_qpos()[0]) + lead, robot.base_pose()[2], lift)
+
+    if not (yield from st.run(servo(world, lambda: start(HOVER), speed=HOVER_SPEED, torso=SINK_TORSO, max_steps=HOVER_STEPS, close=True,
+                                     **TRANSIT))):
+        return fail("hover_not_reached")
+    if not (yield from st.run(servo(world, lambda: start(0.0), speed=DESCEND_SPEED, torso=SINK_TORSO, max_steps=DESCEND_STEPS, close=True,
+                                     **CONTACT))):
+        return fail("lever_not_reached")
+
+    # 5. push the lever closed along its arc
+    pushed = yield from st.run(_push(world, faucet, art, PUSH_STEPS))
+    if not pushed:
+        return fail("push_timeout")
+
+    # 6. lift clear, back away from the counter, stow at READY
+    phi_end = _commanded_phi(world, faucet)
+    yield from st.run(servo(world, lambda: push_pose(faucet, phi_end, robot.base_pose()[2], HOVER), torso=SINK_TORSO, max_steps=LIFT_STEPS, close=True,
+                           **TRANSIT))
+    if not (yield from st.run(retreat(world, _step_back(world, robot.base_pose()), close=True))):
+        return fail("stow_failed")
     ok = sink_closed_success(world, i)
-    return SkillOutcome(skill, target, ok, "" if ok else "still_running", steps)
+    return SkillOutcome(skill, target, ok, "" if ok else "still_running", st.n)

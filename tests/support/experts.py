@@ -1,5 +1,6 @@
 """A hand-made two-room plan with a door and a sink, and helpers that run one expert in a World
-(shared by the OpenDoor and CloseSink expert tests)."""
+(shared by the OpenDoor and CloseSink expert tests): whole runs, runs with a perturbed executed
+end-effector action, and starts off the interaction pose."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import math
 import numpy as np
 
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
+from echo_data.records import EE_ACTION_DIM
 from echo_data.scene.floorplan import Door, Doorway, Faucet, FloorPlan, Furniture, Rect, Room, WallSegment
 
 T = 0.1  # wall thickness
@@ -55,13 +57,23 @@ def make_spec(plan: FloorPlan, target: str, skill: str, start: tuple[float, floa
     )
 
 
+def as_joint(world, action: np.ndarray) -> np.ndarray:
+    """An expert's action as the joint action the world steps: an `action.ee` (11) goes through
+    the robot's one ee map (as `OracleSkills` does), a joint action (12) passes."""
+    action = np.asarray(action)
+    if action.shape == (EE_ACTION_DIM,):
+        assert action.dtype == np.float32
+        return world.robot.ee.to_joint(action)
+    return action
+
+
 def run_expert(world, expert, call, spec) -> tuple[object, list[np.ndarray]]:
-    """Drive an expert generator to its end; returns (outcome, actions)."""
+    """Drive an expert generator to its end; returns (outcome, joint actions)."""
     gen = expert(world, call, spec)
     actions = []
     try:
         while True:
-            action = next(gen)
+            action = as_joint(world, next(gen))
             actions.append(action)
             world.step(action)
     except StopIteration as stop:
@@ -87,10 +99,64 @@ def rollout(world, expert, spec, probe) -> tuple[object, list[float], set[str]]:
     values, hits = [], set()
     while True:
         try:
-            action = next(gen)
+            action = as_joint(world, next(gen))
         except StopIteration as stop:
             return stop.value, values, hits
         assert action.dtype == np.float32 and action.shape == (12,)
         world.step(action)
         values.append(probe())
         hits |= static_hits(world)
+
+
+def offset_start(plan: FloorPlan, target: str, back: float, side: float) -> tuple[float, float, float]:
+    """A start `back` m behind and `side` m left of the target's interaction pose, facing the
+    target (as a learned Navigate hands over: short and off-axis, inside its success region)."""
+    from echo_data.scene.nav import interaction_pose, target_point
+
+    x, y, yaw = interaction_pose(plan, target)
+    c, s = math.cos(yaw), math.sin(yaw)
+    sx, sy = x - back * c - side * s, y - back * s + side * c
+    tx, ty = target_point(plan, target)
+    return (sx, sy, math.atan2(ty - sy, tx - sx))
+
+
+def rollout_ee(world, expert, spec, perturb=None) -> tuple[object, list[np.ndarray], list[np.ndarray], int | None]:
+    """Run an `action.ee` expert on the spec's only call; returns (outcome, its ee labels, the
+    commanded arm joints after each step, the step perturbed). `perturb(world)` -> a 6-vector:
+    added once (the first time it returns one) to the executed action's TCP change."""
+    gen = expert(world, spec.chain[0], spec)
+    labels, arms, at = [], [], None
+    while True:
+        try:
+            label = next(gen)
+        except StopIteration as stop:
+            return stop.value, labels, arms, at
+        assert label.dtype == np.float32 and label.shape == (EE_ACTION_DIM,)
+        executed = label.copy()
+        if perturb is not None and at is None:
+            kick = perturb(world)
+            if kick is not None:
+                executed[4:10] += np.asarray(kick, dtype=np.float32)
+                at = len(labels)
+        labels.append(label)
+        world.step(world.robot.ee.to_joint(executed))
+        arms.append(world.robot.applied_action()[4:11].astype(np.float64))
+
+
+
+def handover_gap(make, expert, target: str, done, starts) -> float:
+    """Run `expert` in a fresh world from each start (`make(start)` -> (world, spec); None: the
+    interaction pose), each inside Navigate's success region and ending in success (`done(world)`);
+    returns how far the first two arm paths out of the tuck lie apart (`path_gap`, rad)."""
+    from echo_data.evaluation.path_spread import path_gap
+    from echo_data.skills.success import navigate_success
+
+    runs = []
+    for start in starts:
+        world, spec = make(start)
+        assert navigate_success(world, target)
+        outcome, _, arms, _ = rollout_ee(world, expert, spec)
+        assert outcome.success, outcome.reason
+        assert done(world)
+        runs.append(arms)
+    return path_gap(runs[0], runs[1])
