@@ -12,8 +12,8 @@ import subprocess
 import sys
 from dataclasses import dataclass, field
 
-PACKAGES = ("numpy", "sapien", "mplib", "pyroomacoustics", "librosa", "soundfile", "pyarrow", "scipy", "typer", "pydantic")
-OPTIONAL = ("torch", "datasets", "ray")
+PACKAGES = ("numpy", "sapien", "pyroomacoustics", "librosa", "soundfile", "pyarrow", "scipy", "typer", "pydantic")
+OPTIONAL = ("torch", "datasets", "ray", "mplib")
 
 FIX = (
     "SAPIEN found no usable Vulkan device. On Debian bookworm run `bash scripts/setup_system.sh` as root "
@@ -62,8 +62,9 @@ def run_doctor(timeout: float = 120.0) -> DoctorReport:
     for p in OPTIONAL:
         rep.optional[p] = _version(p)
     np_ver = rep.versions.get("numpy", "")
-    if np_ver and np_ver[0].isdigit() and int(np_ver.split(".")[0]) >= 2:
-        rep.problems.append("numpy >= 2 is installed: mplib 0.2.1 crashes under it; pip install 'numpy<2'")
+    planning = rep.optional.get("mplib", "missing")
+    if np_ver and np_ver[0].isdigit() and int(np_ver.split(".")[0]) >= 2 and not planning.startswith("missing"):
+        rep.problems.append("numpy >= 2 is installed beside mplib (the `planning` extra), which crashes under it; pip install 'numpy<2'")
     try:
         out = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:

@@ -9,8 +9,8 @@ goal given as a callable is re-read too), so a perturbation is undone by the nex
 
 The base drive is straight-line and clipped-proportional: it is meant for the last metre or so
 in front of a door or a counter, where the interaction pose keeps the way clear; longer trips
-are Navigate's job. (The joint-space counterpart with mplib, `echo_data.skills.reach`, is what
-the previous experts used.)
+are Navigate's job. (The previous experts' joint-space counterpart planned with mplib; no expert
+needs a motion planner any more.)
 """
 
 from __future__ import annotations
