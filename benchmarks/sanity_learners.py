@@ -146,16 +146,25 @@ def build(name: str, work: Path, workers: int, tiny: bool, log: Path) -> dict[st
     out = work / "data" / name
     manifest = out / "manifest.json"
     done = work / "data" / f"{name}.build.json"
-    if manifest.is_file() and json.loads(manifest.read_text()).get("complete") and done.is_file():
-        return {**json.loads(done.read_text()), "reused": True}
+    recipe_hash = recipe_of(name).content_hash()
+    if manifest.is_file() and json.loads(manifest.read_text()).get("complete") and done.is_file() \
+            and json.loads(done.read_text()).get("recipe_hash") in (recipe_hash, None):
+        return {**json.loads(done.read_text()), "reused": True}  # (a changed recipe: `build --resume` decides)
     args = ["build", str(ROOT / "recipes" / f"{name}.yaml"), "--split", "train", "--workers", str(workers), "--out", str(out), "--no-progress"]
     if tiny:
         args += ["--limit", str(TINY_EPISODES)]
     _, seconds = echo_data(args + (["--resume"] if manifest.is_file() else []), log)
     meta = json.loads(manifest.read_text())
-    entry = {"command": shown(args, work), "seconds": round(seconds, 1), "episodes": meta.get("episodes", {})}
+    entry = {"command": shown(args, work), "seconds": round(seconds, 1), "episodes": meta.get("episodes", {}), "recipe_hash": recipe_hash}
     done.write_text(json.dumps(entry, indent=1) + "\n")
     return entry
+
+
+def recipe_of(name: str) -> Any:
+    """recipes/NAME.yaml, loaded."""
+    from echo_data.recipe import load_recipe
+
+    return load_recipe(ROOT / "recipes" / f"{name}.yaml")
 
 
 def check_columns(data: Path, inputs: tuple[str, ...]) -> None:
