@@ -131,7 +131,11 @@ def echo_data(args: list[str], log: Path) -> tuple[str, float]:
     """Run `echo-data ARGS` from this checkout, its output appended to `log`; (stdout, seconds).
     Raises Failed with the last lines of its errors when it exits non-zero."""
     t0 = time.perf_counter()
-    r = subprocess.run([sys.executable, "-m", "echo_data.cli", *args], cwd=ROOT, capture_output=True, text=True)
+    # One torch thread per process: evaluation runs --workers processes that each act with the
+    # network on the CPU; with torch's default (all cores each) a 2-core machine under load took
+    # 700 ms per ACT step instead of 9 ms (measured here).
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    r = subprocess.run([sys.executable, "-m", "echo_data.cli", *args], cwd=ROOT, capture_output=True, text=True, env=env)
     seconds = time.perf_counter() - t0
     with log.open("a") as f:
         f.write(f"$ echo-data {' '.join(args)}\n# exit {r.returncode} after {seconds:.1f} s\n{r.stdout}{r.stderr}\n")

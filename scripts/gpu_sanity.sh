@@ -34,7 +34,7 @@ fi
 export PYTHONPATH=$GS/site:$PWD:$PWD/benchmarks
 J=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
 [ -f "$J" ] && export VK_ICD_FILENAMES=$J VK_DRIVER_FILES=$J
-export LP_NUM_THREADS=1 PYTHONDONTWRITEBYTECODE=1
+export LP_NUM_THREADS=1 PYTHONDONTWRITEBYTECODE=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1  # one torch thread per worker process
 PY=${PY:-python3}
 {
   date -u; nproc; free -g | head -2
