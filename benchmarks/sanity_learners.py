@@ -68,6 +68,9 @@ ACTION_COLUMNS = ("action.ee", "action")
 TINY_EPISODES = 3  # --tiny: train episodes built per dataset (`build --limit`)
 
 
+SPENT: list[str] = []  # one line per echo-data command: seconds, what, on what (printed at the end)
+
+
 class Failed(Exception):
     """A step of one skill failed (its command, exit status and last output lines)."""
 
@@ -137,6 +140,11 @@ def echo_data(args: list[str], log: Path) -> tuple[str, float]:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
     r = subprocess.run([sys.executable, "-m", "echo_data.cli", *args], cwd=ROOT, capture_output=True, text=True, env=env)
     seconds = time.perf_counter() - t0
+    words = [str(x) for x in args]
+    what = " ".join(words[:2] if words[0] == "train" else words[:1])
+    about = next((w.rsplit("/", 1)[-1] for w in words if w.endswith(".yaml")), words[1].rsplit("/", 1)[-1] if len(words) > 1 else "")
+    skill = words[words.index("--skill") + 1] if "--skill" in words else next((w.split("=")[1] for w in words if w.startswith("--policy=")), "")
+    SPENT.append(f"{seconds:9.1f} s  {what} {skill} {about} (exit {r.returncode})")
     with log.open("a") as f:
         f.write(f"$ echo-data {' '.join(args)}\n# exit {r.returncode} after {seconds:.1f} s\n{r.stdout}{r.stderr}\n")
     if r.returncode != 0:
@@ -318,6 +326,7 @@ def main() -> None:
         a.out.parent.mkdir(parents=True, exist_ok=True)
         a.out.write_text(json.dumps(doc, indent=1) + "\n")  # after every skill: a kill loses at most the one running
     print(json.dumps({k: doc[k] for k in ("skills", "skills_handover", "timings", "failed")}, indent=1))
+    print("where the time went:\n" + "\n".join(SPENT), file=sys.stderr)
     sys.exit(1 if doc["failed"] else 0)
 
 

@@ -66,9 +66,8 @@ done
 cp -f "$WORK/sanity_learners.log" "$OUT/" 2>/dev/null
 
 # --- where the time went ------------------------------------------------------------------------
-echo "=== where the time went (s):"
-grep -h "^# exit" -B1 "$OUT/sanity_learners.log" 2>/dev/null | paste - - - 2>/dev/null \
-  | sed -E 's/^\$ echo-data ([a-z]+ ?[a-z]*) .*# exit ([0-9]+) after ([0-9.]+) s.*/  \1: \3 s (exit \2)/' | head -40
+echo "=== where the time went (s): every echo-data command, from each skill's output"
+grep -h "^  *[0-9.]* s  " "$OUT"/*.txt 2>/dev/null
 $PY - "$OUT/sanity_learners.json" <<'EOF' 2>/dev/null || true
 import json, sys
 d = json.load(open(sys.argv[1]))
