@@ -118,16 +118,23 @@ def machine() -> str:
 
 
 def shown(args: list[str], work: Path) -> str:
-    """A command as the JSON records it: the work folder written as WORK, recipes relative."""
-    out = []
-    for a in args:
-        s = str(a)
-        if s.startswith(str(work)):
-            s = "WORK" + s[len(str(work)):]
-        elif s.startswith(str(ROOT) + os.sep):
-            s = s[len(str(ROOT)) + 1:]
-        out.append(s)
-    return "echo-data " + " ".join(out)
+    """A command as the JSON records it (`public` words)."""
+    return "echo-data " + " ".join(public(str(a), work) if not str(a).startswith("--policy=") else
+                                   "=".join([*str(a).split("=")[:2], public(str(a).split("=", 2)[2], work)]) for a in args)
+
+
+def public(arg: str, work: Path) -> str:
+    """One command-line word as the results may show it: no path of this machine (inside the
+    checkout: relative; under the work folder: WORK/...; elsewhere: OUT/<file name>)."""
+    p = Path(arg)
+    if not p.is_absolute():
+        return arg
+    p = Path(os.path.abspath(p))
+    if p.is_relative_to(ROOT):
+        return str(p.relative_to(ROOT))
+    if p.is_relative_to(work):
+        return str(Path("WORK") / p.relative_to(work))
+    return str(Path("OUT") / p.name)
 
 
 def echo_data(args: list[str], log: Path) -> tuple[str, float]:
@@ -167,7 +174,7 @@ def build(name: str, work: Path, workers: int, tiny: bool, log: Path) -> dict[st
         args += ["--limit", str(TINY_EPISODES)]
     _, seconds = echo_data(args + (["--resume"] if manifest.is_file() else []), log)
     meta = json.loads(manifest.read_text())
-    entry = {"command": shown(args, work), "seconds": round(seconds, 1), "episodes": meta.get("episodes", {}), "recipe_hash": recipe_hash}
+    entry = {"command": shown(args, work), "seconds": round(seconds, 1), "counts": meta.get("counts", {}), "skills": meta.get("skills", {}), "recipe_hash": recipe_hash}
     done.write_text(json.dumps(entry, indent=1) + "\n")
     return entry
 
@@ -304,7 +311,7 @@ def main() -> None:
     a.work.mkdir(parents=True, exist_ok=True)
     log = a.work / "sanity_learners.log"
 
-    argv = " ".join(x if not x.startswith(str(a.work)) else "WORK" for x in sys.argv[1:])
+    argv = " ".join(public(x, a.work) for x in sys.argv[1:])
     doc: dict[str, Any] = {"command": f"python benchmarks/sanity_learners.py {argv}".strip(), "commit": commit(), "machine": machine(),
                            "episodes_per_row": a.episodes, "datasets": {}, "skills": {}, "skills_handover": {}, "timings": {},
                            "details": {}, "failed": {}}
