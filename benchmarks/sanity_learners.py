@@ -98,8 +98,14 @@ def parse_inputs(overrides: list[str]) -> dict[str, tuple[str, ...]]:
 
 
 def commit() -> str:
-    """The checkout's commit (+dirty with local changes to tracked files)."""
-    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    """The checkout's commit (+dirty with local changes to tracked files); on a copy without git
+    (a GPU machine), the environment's SANITY_COMMIT (the caller names the commit it copied)."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    except OSError:
+        head = ""
+    if not head:
+        return os.environ.get("SANITY_COMMIT", "") or "unknown"
     dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
     return (head or "unknown") + ("+dirty" if dirty else "")
 
@@ -315,9 +321,9 @@ def main() -> None:
     doc: dict[str, Any] = {"command": f"python benchmarks/sanity_learners.py {argv}".strip(), "commit": commit(), "machine": machine(),
                            "episodes_per_row": a.episodes, "datasets": {}, "skills": {}, "skills_handover": {}, "timings": {},
                            "details": {}, "failed": {}}
-    if a.out.is_file() and not a.tiny:  # an earlier run's skills stay unless measured again
+    if a.out.is_file():  # an earlier run's skills stay unless measured again (scripts/gpu_sanity.sh runs one skill a call)
         old = json.loads(a.out.read_text())
-        for key in ("skills", "skills_handover", "timings", "details"):
+        for key in ("skills", "skills_handover", "timings", "details", "failed", "datasets"):
             doc[key].update({s: v for s, v in old.get(key, {}).items() if s not in a.skills})
     for skill in a.skills:
         t0 = time.perf_counter()

@@ -4,6 +4,8 @@
 # CUDA). Needs the bundle of what that image lacks in the git-ignored .gpu_bundle/site312.tar.xz of
 # the checkout (as scripts/gpu_bench.sh). From the checkout's root:
 #   OUT=/some/dir bash scripts/gpu_sanity.sh      # outputs under $OUT (default ./gpu_out)
+# (SANITY_COMMIT=<hash> names the commit in the JSON where the copy has no .git; WORKERS, BUDGET_S,
+# SKILLS="Pick OpenDoor" and EXTRA="--epochs 20 ..." are optional.)
 # Skills in the order Pick, OpenDoor, CloseSink, Place, each with its own share of one overall
 # deadline (BUDGET_S, default 480 s); a skill that fails or runs out of time is reported and the
 # next goes on (datasets, run folders and evaluations already done are reused by the next skill and
@@ -27,8 +29,8 @@ exec > >(tee -a "$OUT/gpu_sanity.log") 2>&1
 START=$(date +%s)
 
 # --- the bundle and the environment -----------------------------------------------------------
-GS=/tmp/gs
-if [ ! -f "$GS/.unpacked" ]; then
+GS=${GS:-/tmp/gs}
+if [ -f .gpu_bundle/site312.tar.xz ] && [ ! -f "$GS/.unpacked" ]; then
   rm -rf "$GS" && mkdir -p "$GS" && tar -xJf .gpu_bundle/site312.tar.xz -C "$GS" && touch "$GS/.unpacked" || echo "BUNDLE UNPACK FAILED"
 fi
 export PYTHONPATH=$GS/site:$PWD:$PWD/benchmarks
