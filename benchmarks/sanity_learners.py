@@ -155,7 +155,7 @@ def echo_data(args: list[str], log: Path) -> tuple[str, float]:
     seconds = time.perf_counter() - t0
     words = [str(x) for x in args]
     what = " ".join(words[:2] if words[0] == "train" else words[:1])
-    about = next((w.rsplit("/", 1)[-1] for w in words if w.endswith(".yaml")), words[1].rsplit("/", 1)[-1] if len(words) > 1 else "")
+    about = next((w.rsplit("/", 1)[-1] for w in words if w.endswith(".yaml")), words[2].rsplit("/", 1)[-1] if len(words) > 2 else "")
     skill = words[words.index("--skill") + 1] if "--skill" in words else next((w.split("=")[1] for w in words if w.startswith("--policy=")), "")
     SPENT.append(f"{seconds:9.1f} s  {what} {skill} {about} (exit {r.returncode})")
     with log.open("a") as f:
@@ -279,7 +279,7 @@ def run_skill(skill: str, inputs: tuple[str, ...], a: argparse.Namespace, doc: d
     doc["skills_handover"][skill] = handover
     timing["eval_s"] = round(cmd_alone["seconds"] + cmd_handover["seconds"], 1)
     timing["total_s"] = round(time.perf_counter() - t0, 1)
-    doc["details"][skill] = {"inputs": list(inputs), "action_column": column, "training": trained,
+    doc["details"][skill] = {"driver": doc["command"], "inputs": list(inputs), "action_column": column, "training": trained,
                              "evaluation": {"skills": cmd_alone["command"], "skills_handover": cmd_handover["command"]}}
     doc["timings"][skill] = timing
 
