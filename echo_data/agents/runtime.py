@@ -21,8 +21,11 @@ under evaluation:
 
 What a policy is given is observations only (`echo_data.protocols`): its reset info is the call
 as a listener says it (`skill_info`), `act` gets the environment's observation plus, when the
-policy lists it in `observations`, `GOAL_POSE` (the starred rows' target position). The world,
-the skill call and the episode spec go to privileged policies (the scripted experts) only.
+policy lists them in `observations`, `GOAL_POSE` (the starred rows' target position) and the
+`observation.privileged.*` columns (the privileged sanity learner: computed from the world by
+the build's own `envs.privileged.PrivilegedProbe` before each action, so acting sees what the
+rows hold; `RUNTIME_OBSERVATIONS`). The world, the skill call and the episode spec go to
+privileged policies (the scripted experts) only.
 
 A non-finite action ends the episode as failed with that reason; an action that is not 12 real
 numbers (wrong shape, complex, not numbers) is the policy's bug and raises `AgentActionError`.
@@ -45,7 +48,7 @@ import numpy as np
 
 from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.protocols import Planner, Policy, is_privileged
-from echo_data.records import ACTION_DIM, EE_ACTION_DIM, GOAL_POSE, SkillOutcome
+from echo_data.records import ACTION_DIM, EE_ACTION_DIM, GOAL_POSE, PRIVILEGED_COLUMNS, SkillOutcome
 
 if TYPE_CHECKING:
     from echo_data.envs.env import EchoDataEnv
@@ -154,6 +157,10 @@ def _expert_path_length(env: EchoDataEnv, call: SkillCall) -> float:
     return path_length(grid, world.robot.base_pose(), goal)
 
 
+# Observation keys the runtime adds for a policy that lists them (no env observation holds them).
+RUNTIME_OBSERVATIONS = (GOAL_POSE, *PRIVILEGED_COLUMNS)
+
+
 def _goal_observation(env: EchoDataEnv, call: SkillCall) -> np.ndarray:
     """`GOAL_POSE` for skill `call`: its target's interaction pose now (NaN when it has none)."""
     from echo_data.skills.navigate import goal_pose
@@ -192,6 +199,7 @@ def run_episode(
     `skills`: run only the chain's first `skills` skills.
     """
     from echo_data.envs.env import EnvInputError, as_action
+    from echo_data.envs.privileged import PrivilegedProbe
     from echo_data.skills.registry import SKILLS, skill_budget
 
     env = getattr(env, "unwrapped", env)  # gymnasium wrappers around an EchoDataEnv
@@ -233,7 +241,9 @@ def run_episode(
         stops = ends_itself and not is_privileged(getattr(policy, "active", policy))  # a learned policy's STOP: the env waits for it
         if stops or getattr(env, "agent_stops", False):
             env.agent_stops = stops
-        goal = _goal_observation(env, call) if GOAL_POSE in (getattr(policy, "observations", None) or ()) else None
+        wanted = getattr(policy, "observations", None) or ()
+        goal = _goal_observation(env, call) if GOAL_POSE in wanted else None
+        probe = PrivilegedProbe() if any(c in wanted for c in PRIVILEGED_COLUMNS) else None
         approach = SKILLS[call.skill].role == "approach"  # Navigate: scored by SPL too
         expert_len = _expert_path_length(env, call) if approach else math.nan
         path = 0.0
@@ -245,6 +255,8 @@ def run_episode(
                 break
             if goal is not None:
                 obs = {**obs, GOAL_POSE: goal}
+            if probe is not None:  # the state this observation shows, as the build's rows
+                obs = {**obs, **probe(env.world, spec, call)}
             action = policy.act(obs)
             if action is None:  # the policy ended the skill itself (STOP)
                 if stops:  # its success test on the state it stopped in decides (the env's STOP)

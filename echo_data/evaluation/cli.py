@@ -67,7 +67,7 @@ def run_evaluate(
 
     from echo_data.agents.compose import is_composite, spec_name
     from echo_data.agents.loading import AgentLoadError, check_observations, identity, load_planner, load_policy
-    from echo_data.agents.runtime import AgentActionError
+    from echo_data.agents.runtime import RUNTIME_OBSERVATIONS, AgentActionError
     from echo_data.envs.env import observation_space
     from echo_data.evaluation.journal import Journal, JournalError, journal_path
     from echo_data.evaluation.run import evaluate
@@ -90,7 +90,7 @@ def run_evaluate(
         policy = policy[0]  # one plain policy: as before
     try:
         pol, plan = load_policy(policy), load_planner(planner)
-        known = tuple(observation_space(recipe).spaces)
+        known = (*observation_space(recipe).spaces, *RUNTIME_OBSERVATIONS)  # GOAL_POSE, privileged: the runtime adds them
         check_observations(pol, f"policy {spec_name(policy)!r}", known)
         check_observations(plan, f"planner {planner!r}", known)
         key = {"recipe": recipe.content_hash(), "split": split, "policy": identity(pol, policy), "planner": identity(plan, planner), "video": video is not None}

@@ -1,0 +1,346 @@
+"""The privileged sanity learner per manipulation skill (issue 28, point 5), closed loop: build the
+camera-free training data, train `echo-data train act` on proprioception + the skill's
+`observation.privileged.*` columns (no images, so nothing is rendered, in the build or in
+evaluation), choose the checkpoint closed loop on the validation split, then evaluate on the test
+split (test sounds) and write benchmarks/results/sanity_learners.json.
+
+It separates "the demonstrations cannot teach this skill" from "the cameras are too weak": a
+learner that knows where the target is and still fails points at the data.
+
+Two test rows per skill, both "the skill alone" as benchmarks/paper_table.py scores it (the
+learner drives its skill, the experts every other one, success = the skill's success test over
+its attempts):
+- `skills`: the experts before it hand over exactly (Navigate stops at the interaction pose,
+  `experts.handover_noise` 0: recipes/sanity_test_<group>.yaml);
+- `skills_handover`: the oracle Navigate stops anywhere in its success region
+  (`handover_noise` 1.0: recipes/sanity_test_<group>_handover.yaml), where a learned Navigate
+  hands over. The same test episodes: the hand-over point has its own random stream.
+
+Data: recipes/sanity_pick_place.yaml and recipes/sanity_door_sink.yaml (episode counts in
+recipes/sanity.yaml), train split only; the val split is sampled by `--select-every`.
+
+Resumable: a complete dataset is not built again (an incomplete one resumes), a run folder with
+a summary.json is not trained again, an evaluation with its JSON is not run again. A skill that
+fails is reported and the next one goes on.
+
+Usage:
+  python benchmarks/sanity_learners.py --workers 14                  # every skill
+  python benchmarks/sanity_learners.py --skills Pick --workers 14    # one skill
+  python benchmarks/sanity_learners.py --tiny --work /tmp/s --out /tmp/s.json   # the whole path in minutes
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from echo_data.records import PRIVILEGED_COLUMNS, PRIVILEGED_PREFIX  # noqa: E402
+
+P = PRIVILEGED_PREFIX
+# Most informative first (Pick is the hardest grasp, OpenDoor the multimodal one, Place shares
+# Pick's data): the order `scripts/gpu_sanity.sh` runs them in under its budget.
+SKILLS = ("Pick", "OpenDoor", "CloseSink", "Place")
+# Skill -> its training recipe and its test recipes' group (recipes/sanity_test_<group>[_handover].yaml).
+DATA = {"Pick": "sanity_pick_place", "Place": "sanity_pick_place", "OpenDoor": "sanity_door_sink", "CloseSink": "sanity_door_sink"}
+TEST = {"Pick": "pick_place", "Place": "pick_place", "OpenDoor": "door", "CloseSink": "sink"}
+# What each skill's learner reads: base-frame proprioception, the target kind (the grasp differs
+# per object), the target's pose and the hand's offset to it; the door and the lever also their
+# angle. Place's target pose is its place spot (docs/privileged_observations.md).
+INPUTS = {
+    "Pick": ("state", "kind", P + "target_pose", P + "tcp_to_target"),
+    "Place": ("state", "kind", P + "target_pose", P + "tcp_to_target"),
+    "OpenDoor": ("state", "kind", P + "target_pose", P + "tcp_to_target", P + "joint_angle"),
+    "CloseSink": ("state", "kind", P + "target_pose", P + "tcp_to_target", P + "joint_angle"),
+}
+NON_PRIVILEGED = ("state", "kind")
+ACTION_COLUMNS = ("action.ee", "action")
+TINY_EPISODES = 3  # --tiny: train episodes built per dataset (`build --limit`)
+
+
+SPENT: list[str] = []  # one line per echo-data command: seconds, what, on what (printed at the end)
+
+
+class Failed(Exception):
+    """A step of one skill failed (its command, exit status and last output lines)."""
+
+
+def usage_error(message: str) -> None:
+    """Bad input: one line, exit 2, nothing written."""
+    print(f"sanity_learners.py: {message}", file=sys.stderr)
+    sys.exit(2)
+
+
+def parse_inputs(overrides: list[str]) -> dict[str, tuple[str, ...]]:
+    """INPUTS with `SKILL=a,b,...` overrides; every name checked before any work."""
+    inputs = dict(INPUTS)
+    for item in overrides:
+        skill, sep, cols = item.partition("=")
+        if not sep or skill not in INPUTS:
+            usage_error(f"--inputs {item!r}: expected SKILL=COLUMN,... with SKILL one of {', '.join(SKILLS)}")
+        names = tuple(c.strip() for c in cols.split(",") if c.strip())
+        bad = [c for c in names if c not in NON_PRIVILEGED and c not in PRIVILEGED_COLUMNS]
+        if bad or not names:
+            usage_error(f"--inputs {skill}: unknown column {', '.join(bad) or '(none given)'} "
+                        f"(known: {', '.join(NON_PRIVILEGED)}, {', '.join(PRIVILEGED_COLUMNS)}; no images: this learner renders nothing)")
+        inputs[skill] = names
+    return inputs
+
+
+def commit() -> str:
+    """The checkout's commit (+dirty with local changes to tracked files); on a copy without git
+    (a GPU machine), the environment's SANITY_COMMIT (the caller names the commit it copied)."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    except OSError:
+        head = ""
+    if not head:
+        return os.environ.get("SANITY_COMMIT", "") or "unknown"
+    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    return (head or "unknown") + ("+dirty" if dirty else "")
+
+
+def machine() -> str:
+    """The machine in words (no paths, no host name): cores, accelerator, Python, torch."""
+    words = [f"{os.cpu_count()} CPU cores", platform.machine(), f"Python {platform.python_version()}"]
+    try:
+        import torch
+
+        words.append(f"torch {torch.__version__}")
+        words.append(torch.cuda.get_device_name(0) if torch.cuda.is_available() else "no CUDA device")
+    except ImportError:
+        words.append("no torch")
+    return ", ".join(words)
+
+
+def shown(args: list[str], work: Path) -> str:
+    """A command as the JSON records it (`public` words)."""
+    return "echo-data " + " ".join(public(str(a), work) if not str(a).startswith("--policy=") else
+                                   "=".join([*str(a).split("=")[:2], public(str(a).split("=", 2)[2], work)]) for a in args)
+
+
+def public(arg: str, work: Path) -> str:
+    """One command-line word as the results may show it: no path of this machine (inside the
+    checkout: relative; under the work folder: WORK/...; elsewhere: OUT/<file name>)."""
+    p = Path(arg)
+    if not p.is_absolute():
+        return arg
+    p = Path(os.path.abspath(p))
+    if p.is_relative_to(ROOT):
+        return str(p.relative_to(ROOT))
+    if p.is_relative_to(work):
+        return str(Path("WORK") / p.relative_to(work))
+    return str(Path("OUT") / p.name)
+
+
+def echo_data(args: list[str], log: Path) -> tuple[str, float]:
+    """Run `echo-data ARGS` from this checkout, its output appended to `log`; (stdout, seconds).
+    Raises Failed with the last lines of its errors when it exits non-zero."""
+    t0 = time.perf_counter()
+    # One torch thread per process: evaluation runs --workers processes that each act with the
+    # network on the CPU; with torch's default (all cores each) a 2-core machine under load took
+    # 700 ms per ACT step instead of 9 ms (measured here).
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    r = subprocess.run([sys.executable, "-m", "echo_data.cli", *args], cwd=ROOT, capture_output=True, text=True, env=env)
+    seconds = time.perf_counter() - t0
+    words = [str(x) for x in args]
+    what = " ".join(words[:2] if words[0] == "train" else words[:1])
+    about = next((w.rsplit("/", 1)[-1] for w in words if w.endswith(".yaml")), words[2].rsplit("/", 1)[-1] if len(words) > 2 else "")
+    skill = words[words.index("--skill") + 1] if "--skill" in words else next((w.split("=")[1] for w in words if w.startswith("--policy=")), "")
+    SPENT.append(f"{seconds:9.1f} s  {what} {skill} {about} (exit {r.returncode})")
+    with log.open("a") as f:
+        f.write(f"$ echo-data {' '.join(args)}\n# exit {r.returncode} after {seconds:.1f} s\n{r.stdout}{r.stderr}\n")
+    if r.returncode != 0:
+        tail = " | ".join((r.stderr or r.stdout).strip().splitlines()[-3:])
+        raise Failed(f"echo-data {args[0]} {args[1] if len(args) > 1 else ''} exited {r.returncode}: {tail}")
+    return r.stdout, seconds
+
+
+def build(name: str, work: Path, workers: int, tiny: bool, log: Path) -> dict[str, Any]:
+    """Build (or resume) the train split of recipes/NAME.yaml into WORK/data/NAME unless complete."""
+    out = work / "data" / name
+    manifest = out / "manifest.json"
+    done = work / "data" / f"{name}.build.json"
+    recipe_hash = recipe_of(name).content_hash()
+    if manifest.is_file() and json.loads(manifest.read_text()).get("complete") and done.is_file() \
+            and json.loads(done.read_text()).get("recipe_hash") in (recipe_hash, None):
+        return {**json.loads(done.read_text()), "reused": True}  # (a changed recipe: `build --resume` decides)
+    args = ["build", str(ROOT / "recipes" / f"{name}.yaml"), "--split", "train", "--workers", str(workers), "--out", str(out), "--no-progress"]
+    if tiny:
+        args += ["--limit", str(TINY_EPISODES)]
+    _, seconds = echo_data(args + (["--resume"] if manifest.is_file() else []), log)
+    meta = json.loads(manifest.read_text())
+    entry = {"command": shown(args, work), "seconds": round(seconds, 1), "counts": meta.get("counts", {}), "skills": meta.get("skills", {}), "recipe_hash": recipe_hash}
+    done.write_text(json.dumps(entry, indent=1) + "\n")
+    return entry
+
+
+def recipe_of(name: str) -> Any:
+    """recipes/NAME.yaml, loaded."""
+    from echo_data.recipe import load_recipe
+
+    return load_recipe(ROOT / "recipes" / f"{name}.yaml")
+
+
+def check_columns(data: Path, inputs: tuple[str, ...]) -> None:
+    """A privileged input the dataset does not hold: one line naming the file and the column, exit 2."""
+    info = data / "meta" / "info.json"
+    held = set(json.loads(info.read_text()).get("privileged", [])) if info.is_file() else set()
+    missing = [c for c in inputs if c.startswith(P) and c not in held]
+    if missing:
+        usage_error(f"{info}: no column {', '.join(missing)} in its 'privileged' list (a dataset built before the privileged columns?)")
+
+
+def train(skill: str, data: Path, inputs: tuple[str, ...], column: str, a: argparse.Namespace, log: Path) -> dict[str, Any]:
+    """`echo-data train act` of one skill and action column unless its run folder holds a summary."""
+    folder = a.work / "runs" / f"{skill}-{column}"
+    done = folder / "summary.json"
+    if done.is_file():
+        return {**json.loads(done.read_text()), "reused": True}
+    if folder.exists():
+        shutil.rmtree(folder)  # unfinished: train again (a resumed run would need its exact options)
+    args = ["train", "act", str(data), "--skill", skill, "--inputs", ",".join(inputs), "--action-column", column,
+            "--device", a.device, "--epochs", str(a.epochs), "--select-every", str(a.select_every),
+            "--select-episodes", str(a.select_episodes), "--seed", str(a.seed), "--out", str(folder), "--no-progress"]
+    stdout, seconds = echo_data(args, log)
+    summary = json.loads(stdout)
+    entry = {"command": shown(args, a.work), "seconds": round(seconds, 1), "run": folder.name,
+             "steps": summary.get("step"), "device": summary.get("device"), "rows": summary.get("rows"),
+             "validation": summary.get("last")}  # the last epoch's validation: loss and closed-loop val_success
+    done.write_text(json.dumps(entry, indent=1) + "\n")
+    return entry
+
+
+def evaluate(skill: str, run: str, recipe: str, a: argparse.Namespace, log: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Closed loop on the test split of recipes/RECIPE.yaml (test sounds): the learner drives
+    `skill`, the experts every other skill; (the skill's k/n with Wilson 95 %, timing and command)."""
+    out = a.work / "eval" / f"{skill}-{recipe}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    args = ["evaluate", str(ROOT / "recipes" / f"{recipe}.yaml"), "--split", "test", "-n", str(a.episodes),
+            f"--policy={skill}={a.work / 'runs' / run}", "--policy", "oracle", "--planner", "oracle",
+            "--workers", str(a.workers), "--json", str(out)]
+    seconds = 0.0
+    if not out.is_file():
+        resume = ["--resume"] if out.with_suffix(".episodes.jsonl").is_file() else []
+        _, seconds = echo_data(args + resume, log)
+    doc = json.loads(out.read_text())
+    return score(doc["episodes"], skill), {"command": shown(args, a.work), "seconds": round(seconds, 1)}
+
+
+def score(episodes: list[dict[str, Any]], skill: str) -> dict[str, Any]:
+    """The skill's successes over its attempts in evaluate's per-episode records, Wilson 95 %."""
+    from echo_data.evaluation.metrics import wilson
+
+    tries = [bool(s["success"]) for e in episodes for s in e.get("skills", ()) if s["skill"] == skill]
+    low, high = wilson(sum(tries), len(tries))
+    return {"successes": sum(tries), "n": len(tries), "low": round(low, 4), "high": round(high, 4)}
+
+
+def best_column(trained: dict[str, dict[str, Any]]) -> str:
+    """The action column whose run scored best closed loop on validation (ties: the first tried)."""
+    def val(entry: dict[str, Any]) -> float:
+        v = entry.get("validation")
+        for key in ("val_success",):
+            if isinstance(v, dict) and isinstance(v.get(key), (int, float)):
+                return float(v[key])
+        return -1.0
+    return max(trained, key=lambda c: val(trained[c]))
+
+
+def run_skill(skill: str, inputs: tuple[str, ...], a: argparse.Namespace, doc: dict[str, Any], log: Path) -> None:
+    """Build, train, choose, evaluate one skill; its entries go into `doc`."""
+    timing: dict[str, float] = {}
+    t0 = time.perf_counter()
+    name = DATA[skill]
+    if name not in doc["datasets"] or doc["datasets"][name].get("failed"):
+        doc["datasets"][name] = build(name, a.work, a.workers, a.tiny, log)
+        timing["build_s"] = 0.0 if doc["datasets"][name].get("reused") else doc["datasets"][name]["seconds"]
+    else:
+        timing["build_s"] = 0.0  # built for an earlier skill of this run
+    data = a.work / "data" / name
+    check_columns(data, inputs)
+    trained = {c: train(skill, data, inputs, c, a, log) for c in a.action_columns}
+    column = best_column(trained)
+    timing["train_s"] = round(sum(0.0 if t.get("reused") else t["seconds"] for t in trained.values()), 1)
+    run = trained[column]["run"]
+    alone, cmd_alone = evaluate(skill, run, f"sanity_test_{TEST[skill]}", a, log)
+    doc["skills"][skill] = alone
+    handover, cmd_handover = evaluate(skill, run, f"sanity_test_{TEST[skill]}_handover", a, log)
+    doc["skills_handover"][skill] = handover
+    timing["eval_s"] = round(cmd_alone["seconds"] + cmd_handover["seconds"], 1)
+    timing["total_s"] = round(time.perf_counter() - t0, 1)
+    doc["details"][skill] = {"driver": doc["command"], "inputs": list(inputs), "action_column": column, "training": trained,
+                             "evaluation": {"skills": cmd_alone["command"], "skills_handover": cmd_handover["command"]}}
+    doc["timings"][skill] = timing
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--skills", nargs="*", default=list(SKILLS), help=f"in this order (default {' '.join(SKILLS)})")
+    ap.add_argument("--workers", type=int, default=2, help="build and evaluation worker processes")
+    ap.add_argument("--work", type=Path, default=ROOT / "out" / "sanity", help="datasets, run folders, evaluation JSONs and the log")
+    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "sanity_learners.json")
+    ap.add_argument("-n", "--episodes", type=int, default=50, help="test episodes per row (>= 50 for the acceptance figure)")
+    ap.add_argument("--epochs", type=int, default=30)
+    ap.add_argument("--select-every", type=int, default=10, help="closed-loop validation every N epochs (and after the last)")
+    ap.add_argument("--select-episodes", type=int, default=10, help="validation episodes per checkpoint choice")
+    ap.add_argument("--action-columns", default="action.ee",
+                    help="comma list of action columns to train; with two, the one with the better closed-loop validation is tested "
+                         "(action needs recipes with robot.action_space: joint, see recipes/sanity.yaml)")
+    ap.add_argument("--inputs", action="append", default=[], metavar="SKILL=COLUMNS", help="another input list for SKILL (repeatable)")
+    ap.add_argument("--device", default="auto")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--tiny", action="store_true", help=f"{TINY_EPISODES} train episodes, 1 epoch (a few steps) chosen on 1 val episode, 2 test episodes per row: the whole path in minutes")
+    a = ap.parse_args()
+    bad = [s for s in a.skills if s not in SKILLS]
+    if bad or not a.skills:
+        usage_error(f"--skills: unknown {', '.join(bad) or '(none given)'} (known: {', '.join(SKILLS)})")
+    a.action_columns = [c.strip() for c in a.action_columns.split(",") if c.strip()]
+    if not a.action_columns or any(c not in ACTION_COLUMNS for c in a.action_columns):
+        usage_error(f"--action-columns {','.join(a.action_columns)!r}: each must be one of {', '.join(ACTION_COLUMNS)}")
+    if a.workers < 1 or a.episodes < 1:
+        usage_error("--workers and --episodes must be >= 1")
+    inputs = parse_inputs(a.inputs)
+    if a.tiny:
+        a.episodes, a.epochs, a.select_every, a.select_episodes = 2, 1, 1, 1
+    a.work = a.work.resolve()
+    a.work.mkdir(parents=True, exist_ok=True)
+    log = a.work / "sanity_learners.log"
+
+    argv = " ".join(public(x, a.work) for x in sys.argv[1:])
+    doc: dict[str, Any] = {"command": f"python benchmarks/sanity_learners.py {argv}".strip(), "commit": commit(), "machine": machine(),
+                           "episodes_per_row": a.episodes, "datasets": {}, "skills": {}, "skills_handover": {}, "timings": {},
+                           "details": {}, "failed": {}}
+    if a.out.is_file():  # an earlier run's skills stay unless measured again (scripts/gpu_sanity.sh runs one skill a call)
+        old = json.loads(a.out.read_text())
+        for key in ("skills", "skills_handover", "timings", "details", "failed", "datasets"):
+            doc[key].update({s: v for s, v in old.get(key, {}).items() if s not in a.skills})
+    for skill in a.skills:
+        t0 = time.perf_counter()
+        try:
+            run_skill(skill, inputs[skill], a, doc, log)
+            s, h = doc["skills"][skill], doc["skills_handover"][skill]
+            print(f"{skill}: alone {s['successes']}/{s['n']}, after a hand-over {h['successes']}/{h['n']}; "
+                  f"{json.dumps(doc['timings'][skill])}", file=sys.stderr)
+        except Failed as e:  # go on with the next skill
+            doc["failed"][skill] = {"error": str(e), "seconds": round(time.perf_counter() - t0, 1)}
+            print(f"{skill}: FAILED after {time.perf_counter() - t0:.0f} s: {e}", file=sys.stderr)
+        a.out.parent.mkdir(parents=True, exist_ok=True)
+        a.out.write_text(json.dumps(doc, indent=1) + "\n")  # after every skill: a kill loses at most the one running
+    print(json.dumps({k: doc[k] for k in ("skills", "skills_handover", "timings", "failed")}, indent=1))
+    print("where the time went:\n" + "\n".join(SPENT), file=sys.stderr)
+    sys.exit(1 if doc["failed"] else 0)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,70 @@
+"""benchmarks/sanity_learners.py: the privileged sanity learner's whole path (camera-free build,
+`train act` on state + privileged columns with closed-loop checkpoint choice, evaluation on the test
+split alone and after a hand-over) in its --tiny form, and its bad input (one line, exit 2)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from echo_data.evaluation.metrics import wilson
+
+ROOT = Path(__file__).resolve().parents[1]
+DRIVER = ROOT / "benchmarks" / "sanity_learners.py"
+
+
+def _driver(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, str(DRIVER), *args], cwd=ROOT, capture_output=True, text=True, timeout=900)
+
+
+@pytest.mark.slow
+def test_the_tiny_path_writes_both_blocks_with_wilson_intervals(tmp_path: Path) -> None:
+    out = tmp_path / "sanity.json"
+    r = _driver("--tiny", "--skills", "Pick", "--workers", "1", "--work", str(tmp_path / "work"), "--out", str(out))
+    assert r.returncode == 0, r.stderr[-3000:]
+    doc = json.loads(out.read_text())
+    assert doc["commit"] and doc["machine"] and doc["command"].startswith("python benchmarks/sanity_learners.py")
+    assert str(tmp_path) not in json.dumps(doc)  # no paths of this machine in the results
+    for block in ("skills", "skills_handover"):
+        e = doc[block]["Pick"]
+        assert set(e) == {"successes", "n", "low", "high"}
+        assert 1 <= e["n"] <= 2 and 0 <= e["successes"] <= e["n"]  # 2 test episodes, each with one Pick at most
+        low, high = wilson(e["successes"], e["n"])
+        assert (e["low"], e["high"]) == (round(low, 4), round(high, 4))
+    t = doc["timings"]["Pick"]
+    assert t["build_s"] > 0 and t["train_s"] > 0 and t["eval_s"] > 0
+    d = doc["details"]["Pick"]
+    assert d["action_column"] == "action.ee" and not any(i in d["inputs"] for i in ("depth", "wrist_depth", "rgb"))
+    # the camera-free build stored no image column
+    info = json.loads((tmp_path / "work" / "data" / "sanity_pick_place" / "meta" / "info.json").read_text())
+    assert not any("images" in k for k in json.dumps(info.get("features", {})).split('"'))
+
+
+@pytest.mark.parametrize("args, says", [
+    (("--skills", "Pick", "Jump"), "--skills: unknown Jump"),
+    (("--inputs", "Pick=state,observation.privileged.nope"), "unknown column observation.privileged.nope"),
+    (("--inputs", "Pick=state,depth"), "unknown column depth"),
+    (("--action-columns", "action.joint"), "--action-columns"),
+])
+def test_bad_arguments_are_one_line_and_exit_2(tmp_path: Path, args: tuple[str, ...], says: str) -> None:
+    out = tmp_path / "sanity.json"
+    r = _driver(*args, "--work", str(tmp_path / "work"), "--out", str(out))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and says in r.stderr, r.stderr
+    assert not out.exists()
+
+
+def test_a_dataset_without_the_privileged_column_is_one_line_naming_file_and_column(tmp_path: Path) -> None:
+    data = tmp_path / "work" / "data" / "sanity_pick_place"
+    (data / "meta").mkdir(parents=True)
+    (data / "manifest.json").write_text(json.dumps({"complete": True, "episodes": {"train": 1}}))
+    (tmp_path / "work" / "data" / "sanity_pick_place.build.json").write_text(json.dumps({"command": "x", "seconds": 1.0}))
+    (data / "meta" / "info.json").write_text(json.dumps({"privileged": ["observation.privileged.target_pose"]}))
+    out = tmp_path / "sanity.json"
+    r = _driver("--skills", "Pick", "--work", str(tmp_path / "work"), "--out", str(out))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "info.json" in r.stderr and "observation.privileged.tcp_to_target" in r.stderr
+    assert not out.exists()
