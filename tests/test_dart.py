@@ -41,7 +41,7 @@ def noisy_rollout() -> tuple:
     from echo_data.sounds import SoundLibrary
 
     base = load_recipe(ROOT / "recipes" / "object_relocation.yaml")
-    experts = base.experts.model_copy(update={"perturbation": Perturbation(position_cm=0.5, rotation_deg=1.0)})
+    experts = base.experts.model_copy(update={"perturbation": Perturbation(position_cm=0.1, rotation_deg=0.2)})
     recipe = base.model_copy(update={"experts": experts})
     spec, _ = sample_episode(recipe, "train", 0, SoundLibrary.from_recipe(recipe))
     return spec, recipe, simulate(spec, recipe, observe=False)
@@ -65,26 +65,17 @@ def test_label_and_executed_differ_by_the_drawn_noise(noisy_rollout: tuple) -> N
 
 @pytest.mark.slow
 def test_the_expert_corrects_rather_than_drifts(noisy_rollout: tuple) -> None:
-    """Holding its arm, the expert's label brings it back where it holds it (its own target, not
-    the noisy one it executed), so the noise does not add up into a random walk of the arm.
-    Navigate holds the tool point (action.ee, a TCP change back to where the drive began): its
-    labels keep the TCP in place while the executed arm wanders by the noise."""
-    from echo_data.world import World
-
+    """The label is the expert's command from the perturbed state, never the perturbed command
+    copied: after a perturbed step the next label differs from what was executed. While Navigate
+    drives, its labels hold the torso and the arm exactly (a zero TCP change; the perturbation
+    only touches what the expert moves: there, the base)."""
     spec, _recipe, ro = noisy_rollout
-    labels = np.stack([s.action for s in ro.steps])[:, 3:11]
-    executed = np.stack([s.action_executed for s in ro.steps])[:, 3:11]
+    labels = np.stack([s.action_ee for s in ro.steps])
+    executed = np.stack([s.action_ee_executed for s in ro.steps])
     noisy = np.any(executed != labels, axis=1)[:-1]
     copied = np.all(labels[1:] == executed[:-1], axis=1) & noisy
-    assert not copied.any()  # never took the perturbed target as its own
+    assert noisy.any() and not copied.any()  # never took the perturbed command as its own
     nav = [i for i, s in enumerate(ro.steps) if s.skill == "Navigate"]
-    assert len(nav) > 20 and np.all(labels[nav, 0] == labels[nav[0], 0])  # the torso held exactly
-    world = World(spec, load_recipe(ROOT / "recipes" / "object_relocation.yaml"), render=False)
-    try:
-        tcp = lambda arm: world.robot.ee.tcp_in_torso(arm.astype(np.float64))[:3, 3]  # noqa: E731
-        home = tcp(labels[nav[0], 1:])
-        held = [float(np.linalg.norm(tcp(labels[i, 1:]) - home)) for i in nav]
-        wander = [float(np.linalg.norm(tcp(executed[i, 1:]) - home)) for i in nav]
-    finally:
-        world.close()
-    assert max(held) < 1e-4 and float(np.median(wander)) > 1e-3  # labels hold the TCP to 0.1 mm; the noise moves it mm
+    joint = np.stack([s.action for s in ro.steps])
+    assert len(nav) > 20 and np.all(joint[nav, 3:11] == joint[nav[0], 3:11])  # torso and arm held exactly
+    assert np.mean(np.any(executed[nav, :3] != labels[nav, :3], axis=1)) > 0.3  # the base was perturbed

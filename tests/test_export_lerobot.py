@@ -29,6 +29,7 @@ from typer.testing import CliRunner
 
 from echo_data.cli import app
 from echo_data.dataset.lerobot import depth_image
+from echo_data.records import PRIVILEGED_COLUMNS
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +63,11 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
         "observation.state", "observation.environment_state", *(c for c in info["features"] if c.startswith("observation.images."))}
     assert info["echo_data"]["renamed"] == {
         "extra.action.executed": "action.executed", "observation.environment_state": "observation.audio.spectrogram",
-        "extra.observation.audio.mel": "observation.audio.mel"}
+        "extra.observation.audio.mel": "observation.audio.mel",
+        "extra.action.ee": "action.ee", "extra.action.ee.executed": "action.ee.executed",
+        **{"extra." + c: c for c in PRIVILEGED_COLUMNS}}
+    for c in PRIVILEGED_COLUMNS:  # simulator-only columns say so in the export's features
+        assert info["features"]["extra." + c]["info"] == {"privileged": True}
     assert info["echo_data"]["cameras"]["head"]["K"][0][2] == 12.0
     eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
     assert [e["episode_index"] for e in eps] == list(range(6))

@@ -162,7 +162,6 @@ def test_binary_gripper_is_classified() -> None:
         (["--lr", "0"], "--lr 0.0: must be a finite number > 0"),
         (["--seed", str(2**64)], "--seed 18446744073709551616: must be within [0, 2**64)"),
         (["--inputs", "depth", "--image-size", "0", "--encoder", "spatial_softmax", "--shift", "16"], "--shift 16: must be below the image side (16 px)"),
-        (["--action-column", "action.ee"], "--action-column action.ee: "),
         (["--device", "tpu"], "--device 'tpu': choose from cpu, cuda, auto"),
     ],
 )
@@ -207,26 +206,16 @@ def _count(policy: SkillPolicy) -> list[int]:
 
 
 def test_every_algorithm_clones_the_end_effector_form_with_a_binary_gripper(ds: Path, tmp_path: Path) -> None:
-    """A copy of the dataset given an `action.ee` column (11 floats, `gripper_close` 0/1, as the
-    end-effector action space stores it): every algorithm trains on it and acts in its form."""
-    import shutil
-
-    import pyarrow as pa
+    """The dataset's `action.ee` column (11 floats, `gripper_close` 0/1): every algorithm trains on
+    it and acts in its form."""
     import pyarrow.parquet as pq
 
     from echo_data.learn.fit import train_skill
 
-    copy = tmp_path / "ee"
-    shutil.copytree(ds, copy)
-    rng = np.random.default_rng(0)
-    for f in sorted(copy.rglob("*.parquet")):
-        table = pq.read_table(f)
-        if ACTION not in table.column_names:
-            continue
-        joint = np.asarray(table.column(ACTION).to_pylist(), dtype=np.float32)
-        ee = np.concatenate([joint[:, :4], rng.normal(0, 0.01, (len(joint), 6)), (np.arange(len(joint)) % 3 == 0)[:, None]], axis=1).astype(np.float32)
-        col = pa.FixedSizeListArray.from_arrays(pa.array(ee.reshape(-1)), len(EE_ACTION_NAMES))
-        pq.write_table(table.append_column("action.ee", col), f)
+    copy = ds  # the build records the end-effector form of every step (docs/action_spaces.md)
+    table = pq.read_table(sorted((ds / "data").glob("train-*.parquet"))[0], columns=["action.ee"])
+    grip = np.asarray(table.column("action.ee").to_pylist(), np.float32)[:, -1]
+    assert set(np.unique(grip)) <= {0.0, 1.0}
     obs = _observations(copy)
     for name in ALGORITHMS:
         cfg = algorithm(name).config(dataset=str(copy), skill="Navigate", inputs=("state",), action_column="action.ee", max_steps=2,

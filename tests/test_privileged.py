@@ -102,7 +102,7 @@ def test_privileged_columns_are_flagged_and_documented() -> None:
     for col in PRIVILEGED_COLUMNS:
         assert col.startswith(PRIVILEGED_PREFIX) and is_privileged(col) and PRIVILEGED_NOTES[col]
         assert schema.field(col).metadata == {b"privileged": b"true"}
-        assert lerobot_features(layout)[col]["info"] == {"privileged": True}
+        assert lerobot_features(layout)["extra." + col]["info"] == {"privileged": True}  # the export's name for it
     flagged = [f.name for f in schema if (f.metadata or {}).get(b"privileged")]
     assert flagged == list(PRIVILEGED_COLUMNS)
 

@@ -122,7 +122,7 @@ def _episode_bar(path: Path, desc: str, split: str | None = None, unit: str = "e
     else:
         counts = m.get("counts", {}).get("episodes", {})
         total = (counts.get(split, 0) if split is not None else sum(counts.values())) or None
-    return tqdm(total=total, unit=unit, desc=desc, dynamic_ncols=True, leave=False)
+    return tqdm(total=total, unit=unit, desc=desc, dynamic_ncols=True, leave=False, disable=None)  # none when stderr is no terminal (logs, pipes)
 
 
 def export_cmd(

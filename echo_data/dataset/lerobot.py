@@ -210,8 +210,15 @@ def _hf_features(layout: StepLayout, video: tuple[str, ...]) -> dict[str, Any]:
             continue
         if f["_type"] == "Array3D":
             f = {"feature": {"dtype": f["dtype"], "_type": "Value"}, "length": int(np.prod(f["shape"])), "_type": "List"}
+        elif _single(f):  # LeRobot reads a feature of shape (1,) as one value per frame
+            f = dict(f["feature"])
         out[lerobot_name(col, layout)] = f
     return out
+
+
+def _single(f: dict[str, Any]) -> bool:
+    """A fixed-length list of one element (e.g. `observation.privileged.joint_angle`)."""
+    return f.get("_type") == "List" and f.get("length") == 1
 
 
 def _export_rows(rows: pa.Table, layout: StepLayout, video: tuple[str, ...], hf: dict[str, Any], depth: dict[str, np.ndarray]) -> pa.Table:
@@ -228,6 +235,8 @@ def _export_rows(rows: pa.Table, layout: StepLayout, video: tuple[str, ...], hf:
             data = pa.FixedSizeListArray.from_arrays(pa.array(flat), int(np.prod(layout.arrays[col])))
         elif col in depth:
             data = _png_cells(depth[col])
+        elif pa.types.is_fixed_size_list(data.type) and data.type.list_size == 1:
+            data = data.flatten()  # as `_hf_features` declares it: one value per frame
         arrays.append(data)
         fields.append(pa.field(lerobot_name(col, layout), data.type))
     schema = pa.schema(fields, metadata={"huggingface": json.dumps({"info": {"features": hf}})})
