@@ -101,6 +101,8 @@ class World:
         self.spec = spec
         self.recipe = recipe
         self.plan = spec.plan
+        cams = (recipe.robot.head_camera, recipe.robot.wrist_camera)
+        render = render and any(c.rgb or c.depth for c in cams)  # no camera: no render system, no lights (the URDF loader still wants a Vulkan device)
         self.render = render
         if render:
             keep_render_alive()

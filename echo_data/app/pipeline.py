@@ -40,8 +40,6 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
     # which for an ee-born command is `robot.ee.to_joint` of its ee form from this very commanded
     # state, i.e. exactly what the env computes in ee mode: both replays are bit-identical
     # (agents/dart.py). Joint-born commands (experts not yet rewritten) stay exact this way.
-    cameras = (recipe.robot.head_camera, recipe.robot.wrist_camera)
-    observe = observe and any(c.rgb or c.depth for c in cameras)  # no camera: a physics-only world (no render device needed)
     env = EchoDataEnv(recipe, split=spec.split, images=observe, audio=library is not None, library=library, action_mode="joint")
     policy = Demonstrator(recipe.experts, recipe.robot.control_hz, spec.seed)  # labels its own, executes perturbed
     recorder = _Recorder(recipe.robot.control_hz, policy)
