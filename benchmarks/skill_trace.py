@@ -79,7 +79,7 @@ def main() -> None:
 
         def hook(env: Any, obs: Any, action: Any, k: int, call: Any, flags: Any, rows: list = rows) -> None:
             if call.skill == args.skill:
-                rows.append({**trace_row(env, call), "action_gripper": float(action[11])})
+                rows.append({**trace_row(env, call), "action_gripper": float(action[-1])})
 
         run = run_episode(env, obs, info, planner, policy, on_step=hook)
         print(f"== {args.split}[{index}] {env.episode.setting}: {run.failure or 'success'} ({run.steps} steps)")
