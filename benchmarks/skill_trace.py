@@ -27,8 +27,10 @@ os.environ.setdefault("LP_NUM_THREADS", "1")
 
 def trace_row(env: Any, call: Any) -> dict[str, float]:
     """What the active manipulation skill's success test reads, now."""
+    from echo_data.envs.privileged import target_world
     from echo_data.records import STATE_NAMES
     from echo_data.skills.success import CARRY_TCP, object_bottom, receptacle_of, tcp_in_base
+    from echo_data.target import Target
 
     world = env.world
     robot = world.robot
@@ -48,6 +50,10 @@ def trace_row(env: Any, call: Any) -> dict[str, float]:
         px, py, _ = goal_pose(world, name)
         bx, by, _ = robot.base_pose()
         row["base_to_goal_m"] = float(np.hypot(px - bx, py - by))
+        if Target.parse(name).kind in ("door", "faucet"):  # the handle bar / lever tip and its joint
+            target, angle = target_world(world, env.episode, call)
+            row["tcp_target_m"] = float(np.linalg.norm(tcp - target[:3, 3]))
+            row["joint_angle_rad"] = angle
     held = robot.holding
     row["held"] = float(held == name) if name in world.handles.objects else float(held is not None)
     row["carry_dist_m"] = float(np.linalg.norm(tcp_in_base(world) - np.asarray(CARRY_TCP)))
