@@ -67,6 +67,18 @@ def all_files(folder: Path) -> list[str]:
     return sorted(out)
 
 
+def apart_problem(src: Path, out: Path, what: str, option: str = "--out") -> str | None:
+    """Why `out` may not be written (it is, lies in or holds the dataset `src` the command
+    reads: an `--overwrite` of a parent folder would delete the dataset and its neighbours),
+    or None."""
+    s, o = src.resolve(), out.resolve()
+    if o == s or s in o.parents:
+        return f"{option} {out} lies inside the {what} {src}"
+    if o in s.parents:
+        return f"{option} {out} contains the {what} {src}"
+    return None
+
+
 def _refuse(folder: Path, why: str) -> NotWrittenByUs:
     return NotWrittenByUs(f"{folder}: {why}; --overwrite deletes only what echo-data wrote (nothing was touched)")
 
@@ -74,24 +86,25 @@ def _refuse(folder: Path, why: str) -> NotWrittenByUs:
 def written_files(folder: Path, kind: str, known: Callable[[str], bool] | None = None) -> list[str]:
     """The files `--overwrite` may delete from `folder` (an echo-data output of `kind`): all of
     them, or `NotWrittenByUs` naming the first that echo-data did not write. `known(rel)` says
-    whether a dataset's manifest implies a file; an export's marker lists its files."""
+    whether a dataset's manifest implies a file; other outputs' markers list their files, and
+    `known` then recognises only an output written before the marker existed (no marker)."""
     if not folder.is_dir() or folder.is_symlink():
         raise _refuse(folder, "is not a folder")
     files = all_files(folder)
     if not files:
         return []
     marker = read_marker(folder)
+    if marker is not None and marker.get("kind") != kind:
+        raise _refuse(folder, f"holds an echo-data {marker.get('kind')}, not a {kind}")
     if kind == DATASET:
-        if marker is not None and marker.get("kind") != DATASET:
-            raise _refuse(folder, f"holds an echo-data {marker.get('kind')}, not a dataset")
         if known is None:
             raise _refuse(folder, "holds no readable echo-data manifest")
         listed: Callable[[str], bool] = known
-    else:
-        if marker is None:
+    elif marker is None:
+        if known is None:
             raise _refuse(folder, f"has no {MARKER} marker (not an echo-data {kind})")
-        if marker.get("kind") != kind:
-            raise _refuse(folder, f"holds an echo-data {marker.get('kind')}, not a {kind}")
+        listed = known  # an output from before the marker, recognised by its caller
+    else:
         names = marker.get("files")
         wrote = {n for n in names if isinstance(n, str)} if isinstance(names, list) else set()
         listed = wrote.__contains__
@@ -125,11 +138,12 @@ def remove_written(folder: Path, files: Iterable[str], keep: Iterable[str] = ())
             d.rmdir()
 
 
-def replace_folder(tmp: Path, out: Path, kind: str) -> None:
+def replace_folder(tmp: Path, out: Path, kind: str, known: Callable[[str], bool] | None = None) -> None:
     """Move the finished output `tmp` to `out`; an existing `out` is first checked again (the
-    user may have put files there since the command started) and removed by its file list."""
+    user may have put files there since the command started) and removed by its file list
+    (`known`: as in `written_files`)."""
     if out.exists():
-        files = written_files(out, kind)
+        files = written_files(out, kind, known)
         old = out.with_name(f".{out.name}.old-{os.getpid()}")
         os.replace(out, old)
         os.replace(tmp, out)
