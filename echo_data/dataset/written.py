@@ -80,7 +80,7 @@ def apart_problem(src: Path, out: Path, what: str, option: str = "--out") -> str
 
 
 def _refuse(folder: Path, why: str) -> NotWrittenByUs:
-    return NotWrittenByUs(f"{folder}: {why}; --overwrite deletes only what echo-data wrote (nothing was touched)")
+    return NotWrittenByUs(f"{folder}: {why}; echo-data replaces only what it wrote (nothing was touched)")
 
 
 def written_files(folder: Path, kind: str, known: Callable[[str], bool] | None = None) -> list[str]:
