@@ -143,10 +143,10 @@ def preview(
     except NotWrittenByUs as e:  # files put there while it ran
         typer.echo(f"error: --out {e}", err=True)
         raise typer.Exit(2) from None
-    except OSError as e:
-        if e.filename is None:
-            raise
-        typer.echo(f"error: --out {out}: cannot write {e.filename} ({e.strerror or e})", err=True)
+    except OSError as e:  # a writer that names no file (matplotlib, soundfile) on a full disk too
+        from echo_data.targets import write_failed
+
+        typer.echo(f"error: {write_failed('--out', out, e)}", err=True)
         raise typer.Exit(2) from None
     typer.echo(json.dumps(summary, indent=2))
     typer.echo(f"wrote {', '.join(sorted(p.name for p in out.iterdir() if not p.name.startswith('.')))} to {out}")

@@ -142,3 +142,15 @@ def test_training_onto_a_full_disk_is_one_line_and_leaves_nothing_half_written(a
     ok = subprocess.run([sys.executable, "-m", "echo_data.cli", *_argv(algo, ds, run, "--overwrite")], capture_output=True, text=True, timeout=600)
     assert ok.returncode == 0, ok.stderr[-2000:]
     _whole(run)
+
+
+@pytest.mark.parametrize("algo, extra, says", [
+    ("bc", ["--seed", str(10**23)], f"--seed {10**23}: must be within [0, 2**64)"),
+    ("planner", ["--seed", str(10**23)], f"--seed {10**23}: must be within [0, 2**64)"),
+    ("bc", ["--inputs", "depth", "--shift", "100000"], "--shift 100000: must be below the image side"),
+])
+def test_numbers_past_their_range_are_one_line(algo: str, extra: list[str], says: str, ds: Path, tmp_path: Path) -> None:
+    """The issue's literal cases (a 64-bit overflow traceback; a 100000-pixel pad that failed to allocate)."""
+    run = tmp_path / "run"
+    one_line_exit_2([*_argv(algo, ds, run), *extra], says)
+    assert not run.exists()

@@ -8,12 +8,16 @@ delete: a folder without the marker, or holding any file that is not on the list
 whole (one line, nothing touched). Only then are the listed files unlinked one by one and the
 folders they leave empty removed.
 
+A training run's marker (learn/runs.py) lists its files as they are written; a preview's
+(preview.py) and an export's list theirs once, before the finished folder is swapped in.
+
 A dataset's file list is the one its manifest implies (shards, WAVs, planner media, meta/,
 staged episodes, temporary siblings of any of them): it grows to millions of files, so it is
 matched by pattern rather than stored. Datasets built before the marker existed are recognised
 the same way: a manifest that loads as an echo-data manifest, and no file outside its list. An
 export without the marker is refused (an export is minutes to redo; guessing its files is not
-worth a user's folder).
+worth a user's folder); run and preview folders from before the marker are recognised by their
+callers (`known`: a run's policy.json and the names runs always wrote; a preview's seven names).
 """
 
 from __future__ import annotations
