@@ -60,10 +60,10 @@ def _check(dataset: Path, folder: Path) -> None:
     from echo_data.targets import check_folder
 
     check_folder(folder, "--out")
-    why = apart_problem(dataset, folder, "training dataset")
-    if why:
-        raise RunError(why)
     if (dataset / "manifest.json").is_file():  # no dataset at all: training's own message says so
+        why = apart_problem(dataset, folder, "training dataset")
+        if why:
+            raise RunError(why)
         check_whole(dataset)
 
 
