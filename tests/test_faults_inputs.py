@@ -163,9 +163,6 @@ def test_preview_replaces_only_an_earlier_preview(tmp_path: Path, capsys: pytest
     other files is refused before the simulation with every byte kept."""
     from test_faults_overwrite import _thesis, tree_digest
 
-    from echo_data.dataset.written import MARKER, NotWrittenByUs, write_marker
-    from echo_data.preview import FILES, FORMAT, KIND, check_preview_out
-
     r = str(Path(__file__).resolve().parents[1] / "recipes" / "quickstart.yaml")
     thesis = _thesis(tmp_path / "thesis")
     (thesis / "topdown.png").write_bytes(b"my own plan")  # a name preview also writes
@@ -173,6 +170,9 @@ def test_preview_replaces_only_an_earlier_preview(tmp_path: Path, capsys: pytest
     code, err = _run(["preview", r, "--out", str(thesis)], capsys)
     _one_line_exit_2(code, err, "--out", str(thesis), "nothing was touched")
     assert tree_digest(thesis) == before
+
+    from echo_data.dataset.written import MARKER, NotWrittenByUs, write_marker
+    from echo_data.preview import FILES, FORMAT, KIND, check_preview_out
     old = tmp_path / "old"  # a preview from before the marker: only preview files
     old.mkdir()
     for name in FILES:
