@@ -154,3 +154,39 @@ def test_numbers_past_their_range_are_one_line(algo: str, extra: list[str], says
     run = tmp_path / "run"
     one_line_exit_2([*_argv(algo, ds, run), *extra], says)
     assert not run.exists()
+
+
+def test_a_killed_run_resumes_and_overwrite_clears_what_it_left(ds: Path, tmp_path: Path) -> None:
+    """SIGKILL mid-training (between or inside atomic writes): every file left reads back whole,
+    `--resume` continues from the checkpoint, and `--overwrite` clears even a killed write's
+    temporary sibling (its name is on the marker's list)."""
+    import os
+    import signal
+    import time
+
+    run = tmp_path / "run"
+    argv = [sys.executable, "-m", "echo_data.cli", "train", "bc", str(ds), "--skill", "Navigate", "--inputs", "state", "--out", str(run), "--epochs", "100000", "--no-progress"]
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 300
+        while not (run / runs.CHECKPOINT).is_file() and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.2)
+        time.sleep(0.5)
+    finally:
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+    assert (run / runs.CHECKPOINT).is_file()
+    (run / f".{runs.CHECKPOINT}.tmp-{proc.pid}").write_bytes(b"half a checkpoint")  # as a kill inside the write leaves
+    left_whole = [rel for rel in all_files(run) if ".tmp-" not in rel]
+    for rel in left_whole:
+        if rel.endswith(".json"):
+            json.loads((run / rel).read_text())
+        elif rel.endswith(".pt"):
+            runs.load_torch(run / rel)
+    step = runs.load_torch(run / runs.CHECKPOINT)["state"]["step"]
+    r = CliRunner().invoke(app, ["train", "bc", str(ds), "--skill", "Navigate", "--inputs", "state", "--out", str(run), "--epochs", "100000",
+                                 "--max-steps", str(step + 1), "--resume", "--no-progress"])
+    assert r.exit_code == 0, r.output
+    assert runs.load_torch(run / runs.CHECKPOINT)["state"]["step"] == step + 1
+    _train("bc", ds, run, "--overwrite")
+    _whole(run)
