@@ -134,7 +134,9 @@ def main() -> None:
             else:
                 train.append("--overwrite")
             summary, train_s = run(*train)
-            done.write_text(summary)
+            from echo_data.learn.runs import write_file
+
+            write_file(runs / name, done.name, summary.encode())  # listed in the run's marker: train --overwrite may replace it
         res = out.parent / f"{out.stem}-{name}.json"
         evaluate = ["evaluate", a.recipe, "--split", "test", "-n", str(a.episodes), "--policy", f"Navigate={runs / name}", "--policy", "oracle",
                     "--planner", "oracle", "--workers", str(a.workers), "--json", str(res)]

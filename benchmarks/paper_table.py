@@ -41,6 +41,7 @@ from echo_data.dataset.lock import BuildLock
 from echo_data.dataset.storage import atomic_write_bytes, atomic_write_json
 from echo_data.evaluation import table
 from echo_data.evaluation.table import LEARNERS, PLANNER, ROWS, ComposedRow, DerivedRow, EvaluatedRow
+from echo_data.learn import runs as run_files
 
 README = ROOT / "README.md"
 DEFAULT_OUT = ROOT / "benchmarks" / "results" / "paper_table.json"  # the README's copy renders this one
@@ -101,7 +102,7 @@ def train(data: Path, runs: Path, name: str, tiny: bool) -> dict[str, Any] | Non
             *(["--max-steps", "2"] if tiny else [])]
     stdout, seconds = cli(*args)
     summary = {**json.loads(stdout), "command": command(args), "wall_seconds": round(seconds, 1), "run": rel(folder), "commit": _commit()}
-    atomic_write_json(folder / "summary.json", summary)
+    run_files.write_json(folder, "summary.json", summary)  # listed in the run's marker: train --overwrite may replace it
     return summary
 
 
@@ -117,7 +118,7 @@ def train_planner(data: Path, runs: Path, tiny: bool) -> dict[str, Any]:
     report = json.loads(stdout)
     summary = {"command": command(args), "wall_seconds": round(seconds, 1), "run": rel(folder), "commit": _commit(),
                **{k: report[k] for k in ("episodes", "best", "test") if k in report}}
-    atomic_write_json(done, summary)
+    run_files.write_json(folder, done.name, summary)
     return summary
 
 

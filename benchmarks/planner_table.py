@@ -86,7 +86,9 @@ def main() -> None:
             doc["commands"].append(command)
             text, secs = cli(*args, "--overwrite")
             report = json.loads(text)
-            (run / "command.txt").write_text(command)
+            from echo_data.learn.runs import write_file
+
+            write_file(run, "command.txt", command.encode())  # listed in the run's marker: train --overwrite may replace it
         doc["rows"].append({"inputs": inputs, "flags": flags, "run": _rel(run), "trained_in": _rel(report["run"]), "wall_seconds": secs, "train_seconds": report["seconds"],
                             "episodes": report["episodes"], "best": report.get("best"), **_validation_max(run),
                             "val_episodes_hearing_fitted_sounds": report.get("val_episodes_hearing_fitted_sounds"),

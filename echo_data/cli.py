@@ -118,13 +118,15 @@ def preview(
     out: Path = typer.Option(Path("preview"), "--out", help="Folder for the pictures and sound."),
 ) -> None:
     """Write one episode's spec, top-down plan, first head frame, a contact sheet of head frames every 2 s, heard audio and acoustic map."""
+    from echo_data.dataset.written import NotWrittenByUs
     from echo_data.outputs import OutputError, check_output_path
-    from echo_data.preview import PREVIEW_STAGES, write_preview
+    from echo_data.preview import PREVIEW_STAGES, check_preview_out, write_preview
 
     recipe = _load(recipe_path)
-    try:  # before minutes of simulation: a file, a read-only or too long path is refused now
+    try:  # before minutes of simulation: a file, a read-only or too long path, a folder of other files is refused now
         check_output_path(out)
-    except OutputError as e:
+        check_preview_out(out)
+    except (OutputError, NotWrittenByUs) as e:
         typer.echo(f"error: --out {e}", err=True)
         raise typer.Exit(2) from None
     _check_sounds(recipe, recipe_path)
@@ -138,13 +140,16 @@ def preview(
                 bar.update(1)
 
             summary = write_preview(recipe, recipe_path.resolve().parent, seed, out, progress=stage)
-    except OSError as e:
-        if e.filename is None:
-            raise
-        typer.echo(f"error: --out {out}: cannot write {e.filename} ({e.strerror or e})", err=True)
+    except NotWrittenByUs as e:  # files put there while it ran
+        typer.echo(f"error: --out {e}", err=True)
+        raise typer.Exit(2) from None
+    except OSError as e:  # a writer that names no file (matplotlib, soundfile) on a full disk too
+        from echo_data.targets import write_failed
+
+        typer.echo(f"error: {write_failed('--out', out, e)}", err=True)
         raise typer.Exit(2) from None
     typer.echo(json.dumps(summary, indent=2))
-    typer.echo(f"wrote {', '.join(sorted(p.name for p in out.iterdir()))} to {out}")
+    typer.echo(f"wrote {', '.join(sorted(p.name for p in out.iterdir() if not p.name.startswith('.')))} to {out}")
 
 
 @app.command()

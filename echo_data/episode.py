@@ -21,6 +21,11 @@ from echo_data.scene.floorplan import FloorPlan, Vec3
 SPLIT_KEYS = {"train": 0, "val": 1, "test": 2}
 
 
+def episode_id(split: str, index: int) -> str:
+    """The name of episode `index` of `split` (its files and records carry it)."""
+    return f"{split}-{index:06d}"
+
+
 def episode_seed(recipe_seed: int, split: str, index: int, attempt: int = 0) -> int:
     """Seed of one episode attempt, derived with SeedSequence from (recipe seed, split, index, attempt).
 

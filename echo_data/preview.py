@@ -5,11 +5,18 @@ Writes the sampled spec (episode.json), a top-down plan with the expert's path
 of the expert run (frames.png), what the robot hears at its start
 pose for the first 2 s (heard.wav), its spectrogram (spectrogram.png) and a dB map of every
 event's source over the floor plan at ear height (acoustic_map.png).
+
+The folder is written whole or not at all: into a temporary sibling, then swapped in. It
+replaces an earlier preview (its marker lists its files; a preview from before the marker is
+recognised by holding only preview files) and nothing else: a folder holding anything echo-data's
+preview did not write is refused before the simulation, every byte kept.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 
@@ -20,6 +27,9 @@ from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 
 HEARD_SECONDS = 2.0
+KIND = "preview"  # the marker's kind (dataset/written.py)
+FORMAT = "echo-data-preview/1"
+FILES = ("episode.json", "topdown.png", "head_rgb.png", "frames.png", "heard.wav", "spectrogram.png", "acoustic_map.png")
 PREVIEW_STAGES = 5  # progress calls of write_preview: sampled, simulated, pictures, heard, acoustic map
 
 
@@ -88,24 +98,52 @@ def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float 
     save_acoustic_maps(spec.plan, maps, grid, cfg.noise_floor_dba, out)
 
 
+def _before_marker(rel: str) -> bool:
+    return rel in FILES
+
+
+def check_preview_out(out: Path) -> None:
+    """`out` may take a preview: absent, empty or an earlier preview (else `NotWrittenByUs`)."""
+    from echo_data.dataset.written import written_files
+
+    if out.is_dir() and any(out.iterdir()):
+        written_files(out, KIND, _before_marker)
+
+
 def write_preview(
     recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path, index: int = 0, progress: Callable[[str], None] = lambda s: None
 ) -> dict[str, object]:
     """Sample episode `index` with the recipe's seed replaced by `seed`; simulate; write the files.
     `progress(stage)` is called PREVIEW_STAGES times, as each stage ends (the acoustic map also per event)."""
-    import soundfile as sf
-
-    from echo_data.app.pipeline import simulate
     from echo_data.scene.sampling import sample_episode
     from echo_data.sounds import SoundLibrary
-    from echo_data.viz.spectrogram import save_spectrogram
-    from echo_data.viz.topdown import draw_topdown
 
     recipe = recipe.model_copy(update={"seed": seed})
     library = SoundLibrary.from_recipe(recipe, recipe_dir)
     spec, rejected = sample_episode(recipe, "train", index, library)
     progress("sampled")
-    out.mkdir(parents=True, exist_ok=True)
+    from echo_data.dataset.written import mark_export, replace_folder
+
+    tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")  # this process's own
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    try:
+        summary = _write_files(spec, rejected, recipe, library, tmp, progress)
+        mark_export(tmp, KIND, FORMAT)
+        replace_folder(tmp, out, KIND, _before_marker)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return summary
+
+
+def _write_files(spec: EpisodeSpec, rejected: object, recipe: Recipe, library: SoundLibrary, out: Path, progress: Callable[[str], None]) -> dict[str, object]:
+    """The preview's files in `out`."""
+    import soundfile as sf
+
+    from echo_data.app.pipeline import simulate
+    from echo_data.viz.spectrogram import save_spectrogram
+    from echo_data.viz.topdown import draw_topdown
+
     (out / "episode.json").write_text(json.dumps(spec.to_dict(), indent=2))
     rollout = simulate(spec, recipe, observe=True)
     progress("simulated")

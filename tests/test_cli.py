@@ -65,6 +65,11 @@ def test_preview_writes_pictures_and_sound(tmp_path: Path) -> None:
     assert res.exit_code == 0, res.output
     for name in ("episode.json", "topdown.png", "head_rgb.png", "frames.png", "heard.wav", "spectrogram.png", "acoustic_map.png"):
         assert (out / name).is_file(), name
+    from echo_data.dataset.written import MARKER, all_files
+
+    marker = json.loads((out / MARKER).read_text())  # what a later preview into this folder may replace
+    assert marker["kind"] == "preview" and set(marker["files"]) == set(all_files(out)) - {MARKER}
+    assert not list(tmp_path.glob(".pv.tmp-*"))  # written aside, then swapped in whole
     spec = json.loads((out / "episode.json").read_text())
     assert [c["skill"] for c in spec["chain"]] == ["Navigate", "Pick", "Place"]
     audio, fs = sf.read(out / "heard.wav")

@@ -160,3 +160,34 @@ def test_build_onto_a_real_write_limit_is_one_line_and_resumes(reference: Path, 
     _build(out, mode="resume")
     assert file_digests(out) == file_digests(reference)
     assert validate(out) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("size", ["8k", "64k"])
+def test_preview_onto_a_full_disk_is_one_line_and_leaves_nothing(size: str, tmp_path: Path) -> None:
+    """The preview is written aside and swapped in whole: a full disk (a small tmpfs; a write
+    limit would also stop the renderer's own mapped files) leaves no folder and no temporary sibling."""
+    recipe = tmp_path / "r.yaml"
+    recipe.write_text(f"extends: {TESTS.parent / 'recipes' / 'quickstart.yaml'}\nrobot:\n  head_camera: {{width: 48, height: 48}}\n"
+                      "  wrist_camera: {width: 32, height: 32, rgb: false}\n")
+    disk = tmp_path / "disk"
+    if shutil.which("mount") is None or not _mount_tmpfs(disk, size):
+        pytest.skip("cannot mount a tmpfs here (needs root and CAP_SYS_ADMIN)")
+    try:
+        res = subprocess.run([sys.executable, "-m", "echo_data.cli", "preview", str(recipe), "--out", str(disk / "pv")], capture_output=True, text=True, timeout=600)
+        _one_line_exit_2(res, "--out", "No space left on device")
+        assert list(disk.iterdir()) == []
+    finally:
+        subprocess.run(["umount", "-l", str(disk)])
+
+
+@pytest.mark.slow
+def test_evaluate_onto_a_full_disk_is_one_line_and_keeps_the_finished_episodes(tmp_path: Path) -> None:
+    """`--json` under a write limit smaller than the results: one line; the finished episode's
+    record stays whole beside it and no half-written results file is left."""
+    out = tmp_path / "r.json"
+    res = _limited(1500, ["-m", "echo_data.cli", "evaluate", str(TESTS.parent / "recipes" / "quickstart.yaml"), "-n", "1", "--policy", "still", "--json", str(out)])
+    _one_line_exit_2(res, "--json", str(out))
+    assert not out.exists() and not list(tmp_path.glob(".*tmp*"))
+    for line in (tmp_path / "r.episodes.jsonl").read_text().splitlines():
+        assert isinstance(__import__("json").loads(line), dict)

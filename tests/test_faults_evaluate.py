@@ -165,3 +165,33 @@ def test_a_planner_answer_json_cannot_hold_fails_the_episode_with_the_reason(cls
     assert not ep["success"] and says in ep["failure"], ep["failure"]
     assert ep["planned_chain"] is None or all(type(v) is str for c in ep["planned_chain"] for v in c.values())
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.json"]  # no record file, no temporary left
+
+
+def test_json_and_video_never_overwrite_a_users_file(tmp_path: Path) -> None:
+    """`--json OUT` replaces only an earlier evaluation result; `--video DIR` refuses a folder
+    already holding a name it would write. Both before the first episode, every byte kept."""
+    mine = tmp_path / "results.json"
+    mine.write_text('{"my": "numbers"}')
+    _one_error_line(_evaluate("--json", str(mine)), "--json", str(mine), "no echo-data evaluation result", "nothing was touched")
+    assert mine.read_text() == '{"my": "numbers"}'
+    films = tmp_path / "films"
+    films.mkdir()
+    (films / "test-000000.mp4").write_bytes(b"my own film")
+    (films / "notes.txt").write_text("mine")
+    _one_error_line(_evaluate("--video", str(films)), "--video", "holds test-000000.mp4 already", "nothing was touched")
+    assert (films / "test-000000.mp4").read_bytes() == b"my own film" and sorted(p.name for p in films.iterdir()) == ["notes.txt", "test-000000.mp4"]
+
+
+def test_an_earlier_result_is_recognised_and_nothing_else(tmp_path: Path) -> None:
+    from echo_data.evaluation.run import RESULT_KEYS, is_result
+
+    doc: dict[str, Any] = {k: {} for k in RESULT_KEYS}
+    doc["versions"] = {"echo-data": "0.1.0"}
+    p = tmp_path / "r.json"
+    p.write_text(json.dumps(doc))
+    assert is_result(p)
+    for broken in ({**doc, "versions": {"other-tool": "1"}}, {k: v for k, v in doc.items() if k != "episodes"}, [doc]):
+        p.write_text(json.dumps(broken))
+        assert not is_result(p)
+    p.write_bytes(b"\xff\xfe not json")
+    assert not is_result(p)

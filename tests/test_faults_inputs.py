@@ -156,3 +156,36 @@ def test_episode_plan_memory_does_not_grow_with_the_count() -> None:
     assert peak < 200_000, peak
     assert plans["train"].of_file(plans["train"][7].file) == plans["train"][7]
     assert plans["train"].of_file("data/train-00007-of-00008.parquet") is None
+
+
+def test_preview_replaces_only_an_earlier_preview(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`preview --out DIR` writes into a new, empty or earlier preview folder only: a folder of
+    other files is refused before the simulation with every byte kept."""
+    from test_faults_overwrite import _thesis, tree_digest
+
+    r = str(Path(__file__).resolve().parents[1] / "recipes" / "quickstart.yaml")
+    thesis = _thesis(tmp_path / "thesis")
+    (thesis / "topdown.png").write_bytes(b"my own plan")  # a name preview also writes
+    before = tree_digest(thesis)
+    code, err = _run(["preview", r, "--out", str(thesis)], capsys)
+    _one_line_exit_2(code, err, "--out", str(thesis), "nothing was touched")
+    assert tree_digest(thesis) == before
+
+    from echo_data.dataset.written import MARKER, NotWrittenByUs, write_marker
+    from echo_data.preview import FILES, FORMAT, KIND, check_preview_out
+    old = tmp_path / "old"  # a preview from before the marker: only preview files
+    old.mkdir()
+    for name in FILES:
+        (old / name).write_bytes(b"x")
+    check_preview_out(old)
+    (old / "mine.txt").write_text("mine")
+    with pytest.raises(NotWrittenByUs, match="holds mine.txt"):
+        check_preview_out(old)
+    (old / "mine.txt").unlink()
+    write_marker(old, KIND, FORMAT, FILES[:2])  # a marked preview: its list, not the names, decides
+    with pytest.raises(NotWrittenByUs, match="holds acoustic_map.png, which echo-data did not write"):
+        check_preview_out(old)
+    write_marker(old, "dataset", "echo-data/2")
+    with pytest.raises(NotWrittenByUs, match="not a preview"):
+        check_preview_out(old)
+    assert (old / MARKER).is_file()

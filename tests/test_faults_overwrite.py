@@ -128,3 +128,20 @@ def test_robomimic_overwrite_replaces_only_its_own_file(pristine: Path, tmp_path
     for extra in ([], ["--overwrite"]):
         r = CliRunner().invoke(app, ["export", str(pristine), "--format", "robomimic", "--out", str(ours), *extra])
         assert r.exit_code == 0, r.output
+
+
+def test_zarr_export_targets_and_sources_that_cannot_be_used_are_one_line(pristine: Path, tmp_path: Path) -> None:
+    """The issue's Zarr cases that were tracebacks: into the dataset itself, into an existing
+    folder without --overwrite, from a folder that is no dataset (read-only: test_faults_writes)."""
+    before = tree_digest(pristine)
+    one_line_exit_2(["export", str(pristine), "--format", "zarr", "--out", str(pristine)], "inside the source dataset")
+    one_line_exit_2(["export", str(pristine), "--format", "zarr", "--out", str(pristine / "z")], "inside the source dataset")
+    assert tree_digest(pristine) == before
+    thesis = _thesis(tmp_path / "thesis")
+    kept = tree_digest(thesis)
+    one_line_exit_2(["export", str(pristine), "--format", "zarr", "--out", str(thesis)], str(thesis), "already exists", "--overwrite")
+    one_line_exit_2(["export", str(thesis), "--format", "zarr", "--out", str(tmp_path / "z")], str(thesis / "manifest.json"), "not an echo-data")
+    (thesis / "manifest.json").unlink()
+    kept = tree_digest(thesis)
+    one_line_exit_2(["export", str(thesis), "--format", "zarr", "--out", str(tmp_path / "z")], str(thesis), "not an echo-data dataset")
+    assert tree_digest(thesis) == kept and not (tmp_path / "z").exists()

@@ -53,11 +53,11 @@ def check_source(src: Path) -> dict[str, Any]:
 def _check_apart(src: Path, out: Path) -> None:
     """An export is never written into its source dataset, onto it, or around it (an
     `--overwrite` of a parent folder would delete the dataset and its neighbours)."""
-    s, o = src.resolve(), out.resolve()
-    if o == s or s in o.parents:
-        raise ExportError(f"--out {out} lies inside the source dataset {src}")
-    if o in s.parents:
-        raise ExportError(f"--out {out} contains the source dataset {src}")
+    from echo_data.dataset.written import apart_problem
+
+    why = apart_problem(src, out, "source dataset")
+    if why:
+        raise ExportError(why)
 
 
 def check_out_file(src: Path, out: Path, overwrite: bool) -> None:

@@ -8,12 +8,16 @@ delete: a folder without the marker, or holding any file that is not on the list
 whole (one line, nothing touched). Only then are the listed files unlinked one by one and the
 folders they leave empty removed.
 
+A training run's marker (learn/runs.py) lists its files as they are written; a preview's
+(preview.py) and an export's list theirs once, before the finished folder is swapped in.
+
 A dataset's file list is the one its manifest implies (shards, WAVs, planner media, meta/,
 staged episodes, temporary siblings of any of them): it grows to millions of files, so it is
 matched by pattern rather than stored. Datasets built before the marker existed are recognised
 the same way: a manifest that loads as an echo-data manifest, and no file outside its list. An
 export without the marker is refused (an export is minutes to redo; guessing its files is not
-worth a user's folder).
+worth a user's folder); run and preview folders from before the marker are recognised by their
+callers (`known`: a run's policy.json and the names runs always wrote; a preview's seven names).
 """
 
 from __future__ import annotations
@@ -67,31 +71,44 @@ def all_files(folder: Path) -> list[str]:
     return sorted(out)
 
 
+def apart_problem(src: Path, out: Path, what: str, option: str = "--out") -> str | None:
+    """Why `out` may not be written (it is, lies in or holds the dataset `src` the command
+    reads: an `--overwrite` of a parent folder would delete the dataset and its neighbours),
+    or None."""
+    s, o = src.resolve(), out.resolve()
+    if o == s or s in o.parents:
+        return f"{option} {out} lies inside the {what} {src}"
+    if o in s.parents:
+        return f"{option} {out} contains the {what} {src}"
+    return None
+
+
 def _refuse(folder: Path, why: str) -> NotWrittenByUs:
-    return NotWrittenByUs(f"{folder}: {why}; --overwrite deletes only what echo-data wrote (nothing was touched)")
+    return NotWrittenByUs(f"{folder}: {why}; echo-data replaces only what it wrote (nothing was touched)")
 
 
 def written_files(folder: Path, kind: str, known: Callable[[str], bool] | None = None) -> list[str]:
     """The files `--overwrite` may delete from `folder` (an echo-data output of `kind`): all of
     them, or `NotWrittenByUs` naming the first that echo-data did not write. `known(rel)` says
-    whether a dataset's manifest implies a file; an export's marker lists its files."""
+    whether a dataset's manifest implies a file; other outputs' markers list their files, and
+    `known` then recognises only an output written before the marker existed (no marker)."""
     if not folder.is_dir() or folder.is_symlink():
         raise _refuse(folder, "is not a folder")
     files = all_files(folder)
     if not files:
         return []
     marker = read_marker(folder)
+    if marker is not None and marker.get("kind") != kind:
+        raise _refuse(folder, f"holds an echo-data {marker.get('kind')}, not a {kind}")
     if kind == DATASET:
-        if marker is not None and marker.get("kind") != DATASET:
-            raise _refuse(folder, f"holds an echo-data {marker.get('kind')}, not a dataset")
         if known is None:
             raise _refuse(folder, "holds no readable echo-data manifest")
         listed: Callable[[str], bool] = known
-    else:
-        if marker is None:
+    elif marker is None:
+        if known is None:
             raise _refuse(folder, f"has no {MARKER} marker (not an echo-data {kind})")
-        if marker.get("kind") != kind:
-            raise _refuse(folder, f"holds an echo-data {marker.get('kind')}, not a {kind}")
+        listed = known  # an output from before the marker, recognised by its caller
+    else:
         names = marker.get("files")
         wrote = {n for n in names if isinstance(n, str)} if isinstance(names, list) else set()
         listed = wrote.__contains__
@@ -125,11 +142,12 @@ def remove_written(folder: Path, files: Iterable[str], keep: Iterable[str] = ())
             d.rmdir()
 
 
-def replace_folder(tmp: Path, out: Path, kind: str) -> None:
+def replace_folder(tmp: Path, out: Path, kind: str, known: Callable[[str], bool] | None = None) -> None:
     """Move the finished output `tmp` to `out`; an existing `out` is first checked again (the
-    user may have put files there since the command started) and removed by its file list."""
+    user may have put files there since the command started) and removed by its file list
+    (`known`: as in `written_files`)."""
     if out.exists():
-        files = written_files(out, kind)
+        files = written_files(out, kind, known)
         old = out.with_name(f".{out.name}.old-{os.getpid()}")
         os.replace(out, old)
         os.replace(tmp, out)

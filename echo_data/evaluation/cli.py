@@ -37,14 +37,26 @@ def format_tables(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _check_targets(json_out: Path | None, video: Path | None, resume: bool) -> str:
-    """Why `--json`/`--video`/`--resume` cannot be used ("" when they can): checked before the first episode."""
+def _check_targets(json_out: Path | None, video: Path | None, resume: bool, split: str, n: int) -> str:
+    """Why `--json`/`--video`/`--resume` cannot be used ("" when they can): checked before the first episode.
+
+    Neither overwrites a user's file: `--json OUT` replaces only an earlier evaluation result;
+    `--video DIR` writes one `<episode id>.mp4` per episode and nothing else, and refuses a
+    folder already holding one of those names (with `--resume`, the same evaluation's)."""
+    from echo_data.episode import episode_id
+    from echo_data.evaluation.run import is_result, video_path
     from echo_data.targets import TargetError, check_file, check_folder
 
     if resume and json_out is None:
         return "--resume: continues the evaluation recorded next to --json; give --json"
     if json_out is not None and not json_out.parent.is_dir():
         return f"--json {json_out}: folder {json_out.parent} does not exist"
+    if json_out is not None and json_out.is_file() and not is_result(json_out):
+        return f"--json {json_out}: exists and is no echo-data evaluation result; echo-data replaces only what it wrote (nothing was touched)"
+    if video is not None and video.is_dir() and not resume:
+        taken = next((p for i in range(n) if (p := video_path(video, episode_id(split, i))).exists() or p.is_symlink()), None)
+        if taken is not None:
+            return f"--video {video}: holds {taken.name} already; evaluate writes only new files there (give another folder, or remove it; nothing was touched)"
     try:
         if json_out is not None:
             check_file(json_out, "--json")
@@ -77,7 +89,7 @@ def run_evaluate(
         return _fail(f"--split {split}: recipe {recipe_path} has no such split ({', '.join(recipe.splits)})")
     if n > size:
         return _fail(f"-n {n}: index {n - 1} is past the {split} split of {recipe_path} ({size} episodes)")
-    why = _check_targets(json_out, video, resume)
+    why = _check_targets(json_out, video, resume, split, n)
     if why:
         return _fail(why)
     from echo_data.sounds import SoundLibrary, SoundLibraryError

@@ -38,6 +38,23 @@ class EvalJob:
     video_dir: str | None = None
 
 
+RESULT_KEYS = ("recipe", "split", "n", "policy", "planner", "versions", "metrics", "episodes")  # evaluate's document
+
+
+def is_result(path: Path) -> bool:
+    """Whether `path` holds an evaluation result echo-data wrote (what `--json` may replace)."""
+    try:
+        doc = json.loads(path.read_bytes().decode("utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return False
+    return isinstance(doc, dict) and all(k in doc for k in RESULT_KEYS) and isinstance(doc["versions"], dict) and "echo-data" in doc["versions"]
+
+
+def video_path(folder: Path, episode: str) -> Path:
+    """Where `--video` puts episode `episode`'s recording: the one file per episode it writes."""
+    return folder / f"{episode}.mp4"
+
+
 def needs(*agents: Any) -> tuple[bool, bool]:
     """(images, audio): which observation groups the agents (policy, planner) read; an agent
     that does not say (no `observations`) gets everything."""
@@ -128,7 +145,7 @@ def evaluate_episode(job: EvalJob, index: int) -> dict[str, Any]:
             close()
     rec = episode_record(run, index)
     if video is not None and video.frames:
-        rec["video"] = video.write(Path(job.video_dir) / f"{spec.episode_id}.mp4")  # type: ignore[arg-type]
+        rec["video"] = video.write(video_path(Path(job.video_dir), spec.episode_id))  # type: ignore[arg-type]
     rec["seconds"] = time.perf_counter() - t0
     return json.loads(json.dumps(rec))  # the record as a results file holds it (and as a resumed run reads it back)
 

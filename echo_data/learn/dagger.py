@@ -26,7 +26,7 @@ import numpy as np
 
 from echo_data.learn import runs
 
-DAGGER_LOG = "dagger.csv"
+DAGGER_LOG = runs.DAGGER_LOG
 
 
 class DaggerError(runs.RunError):
@@ -151,7 +151,7 @@ def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_st
         summary = train_bc(cfg, out, overwrite=True, progress=progress, extra=agg)
         rate = sum(new.success) / len(new.success) if new.success else math.nan
         log.append(f"{r},{' '.join(map(str, eps))},{len(new)},{len(agg)},{rate:.4f},{new.agreement:.4f},{summary['best_val_loss']}")
-        (out / DAGGER_LOG).write_text("\n".join(log) + "\n")
+        runs.write_file(out, DAGGER_LOG, ("\n".join(log) + "\n").encode())
     summary["dagger"] = {"rounds": rounds, "rows_aggregated": len(agg) if agg is not None else 0, "log": str(out / DAGGER_LOG)}
     return summary
 

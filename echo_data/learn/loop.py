@@ -87,7 +87,7 @@ def fit(
 
     def checkpoint() -> None:
         check_finite(model, out, state["step"])
-        runs.save_torch(out / runs.CHECKPOINT, {"model": model.state_dict(), "optim": opt.state_dict(), "state": state})
+        runs.save_torch(out, runs.CHECKPOINT, {"model": model.state_dict(), "optim": opt.state_dict(), "state": state})
 
     per_epoch = math.ceil(len(train_ix) / cfg.batch_size)
     total = per_epoch * cfg.epochs if cfg.max_steps is None else min(per_epoch * cfg.epochs, cfg.max_steps)
@@ -125,7 +125,7 @@ def fit(
             if not math.isnan(v):
                 state["best_val"] = v
             check_finite(model, out, state["step"])
-            runs.save_torch(out / runs.BEST, {"model": model.state_dict(), "step": state["step"], "epoch": state["epoch"] + 1, **val})
+            runs.save_torch(out, runs.BEST, {"model": model.state_dict(), "step": state["step"], "epoch": state["epoch"] + 1, **val})
         state.update(epoch=state["epoch"] + 1, batch=0, running=[0.0, 0])
         if time.perf_counter() - saved >= CHECKPOINT_SECONDS:
             checkpoint()
@@ -136,5 +136,5 @@ def fit(
     checkpoint()
     runs.write_losses(out, state["history"])
     if not (out / runs.BEST).is_file():  # stopped before the first epoch ended
-        runs.save_torch(out / runs.BEST, {"model": model.state_dict(), "step": state["step"], "val_loss": math.nan})
+        runs.save_torch(out, runs.BEST, {"model": model.state_dict(), "step": state["step"], "val_loss": math.nan})
     return state

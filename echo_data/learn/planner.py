@@ -435,7 +435,5 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
             for name, sets in decoders.items()
         },
     }
-    from echo_data.dataset.writer import atomic_write_json
-
-    atomic_write_json(out / "eval.json", report)
+    runs.write_json(out, runs.EVAL, report)
     return report

@@ -8,6 +8,14 @@ runs/NAME/
   checkpoint.pt   last state (weights, optimiser, position in the epoch): `--resume` reads it
   best.pt         weights with the lowest validation loss: what `from_run` loads
   losses.csv      one row per epoch; curves.png plots it
+  eval.json       the planner's test-split scores; dagger.csv: DAgger's rounds
+  select/         closed-loop selection's scored weights, each a run folder
+  .echo-data.json the marker (dataset/written.py): kind "run" and every file the run wrote
+
+Every file goes through the writers here, which add its name to the marker before writing it, so
+`--overwrite` deletes exactly what runs wrote (a killed write's temporary sibling included) and
+refuses a folder without the marker or holding anything else, touching nothing. Run folders from
+before the marker are recognised by their policy.json and the file names runs have always had.
 """
 
 from __future__ import annotations
@@ -15,12 +23,13 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
-import shutil
+import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from echo_data.dataset.writer import atomic_write_bytes, atomic_write_json
+from echo_data.dataset.storage import atomic_write_bytes, canonical_json
+from echo_data.dataset.written import NotWrittenByUs, all_files, read_marker, remove_written, write_marker, written_files
 
 CONFIG = "config.json"
 POLICY = "policy.json"
@@ -29,18 +38,52 @@ CHECKPOINT = "checkpoint.pt"
 BEST = "best.pt"
 LOSSES = "losses.csv"
 CURVES = "curves.png"
+EVAL = "eval.json"
+DAGGER_LOG = "dagger.csv"
+SELECT_DIR = "select"  # select/scored-NNN: the weights scored at the N-th selection, each a run folder
+RUN = "run"  # the marker's kind
+RUN_FORMAT = "echo-data-run/1"
+_BEFORE_MARKER = re.compile(  # every file a run folder held before the marker existed
+    rf"(?:{SELECT_DIR}/scored-\d+/)?(?:config|policy|agent)\.json|(?:{SELECT_DIR}/scored-\d+/)?(?:checkpoint|best)\.pt"
+    r"|losses\.csv|curves\.png|eval\.json|dagger\.csv"
+    r"|summary\.json|command\.txt"  # what benchmarks/ablation, paper_table and planner_table put beside a run then
+)
 
 
 class RunError(ValueError):
     """A run folder that cannot be used as asked (one line, names the file)."""
 
 
-def save_torch(path: Path, obj: Any) -> None:
+def _note(run: Path, rel: str) -> None:
+    """Add `rel` to the file list of the run folder `run`'s marker, before the file is written."""
+    marker = read_marker(run)
+    if marker is not None and marker["kind"] != RUN:
+        raise RunError(f"{run}: holds an echo-data {marker['kind']}, not a training run")
+    files = marker.get("files") if marker is not None else None
+    listed = [f for f in files if isinstance(f, str)] if isinstance(files, list) else []
+    if rel not in listed:
+        run.mkdir(parents=True, exist_ok=True)
+        write_marker(run, RUN, RUN_FORMAT, [*listed, rel])
+
+
+def write_file(run: Path, rel: str, data: bytes) -> None:
+    """`run/rel`, written atomically (a crash or a full disk leaves the old file or none) and
+    listed in the run's marker: the one way a file enters a run folder."""
+    _note(run, rel)
+    (run / rel).parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(run / rel, data)
+
+
+def write_json(run: Path, rel: str, obj: Any) -> None:
+    write_file(run, rel, canonical_json(obj))
+
+
+def save_torch(run: Path, rel: str, obj: Any) -> None:
     import torch
 
     buf = io.BytesIO()
     torch.save(obj, buf)
-    atomic_write_bytes(path, buf.getvalue())
+    write_file(run, rel, buf.getvalue())
 
 
 def load_torch(path: Path) -> Any:
@@ -61,12 +104,12 @@ def read_json(path: Path) -> dict[str, Any]:
         raise RunError(f"{path}: not valid JSON ({e})") from None
 
 
-def write_run_files(folder: Path, kind: str, cls: str, config: dict[str, Any], extra: dict[str, Any] | None = None) -> None:
-    """config.json, policy.json and agent.json."""
-    folder.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(folder / CONFIG, config)
-    atomic_write_json(folder / POLICY, {"kind": kind, "class": cls, **(extra or {})})
-    atomic_write_json(folder / AGENT, {"class": cls, "kwargs": {}})
+def write_run_files(run: Path, kind: str, cls: str, config: dict[str, Any], extra: dict[str, Any] | None = None, at: str = "") -> None:
+    """config.json, policy.json and agent.json of the run `run` (of its sub-folder `at`)."""
+    sub = f"{at}/" if at else ""
+    write_json(run, sub + CONFIG, config)
+    write_json(run, sub + POLICY, {"kind": kind, "class": cls, **(extra or {})})
+    write_json(run, sub + AGENT, {"class": cls, "kwargs": {}})
 
 
 def write_losses(folder: Path, rows: list[dict[str, Any]]) -> None:
@@ -77,11 +120,11 @@ def write_losses(folder: Path, rows: list[dict[str, Any]]) -> None:
     w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
     w.writeheader()
     w.writerows(rows)
-    atomic_write_bytes(folder / LOSSES, buf.getvalue().encode())
-    _plot(folder / CURVES, rows)
+    write_file(folder, LOSSES, buf.getvalue().encode())
+    write_file(folder, CURVES, _plot(rows))
 
 
-def _plot(path: Path, rows: list[dict[str, Any]]) -> None:
+def _plot(rows: list[dict[str, Any]]) -> bytes:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -103,7 +146,7 @@ def _plot(path: Path, rows: list[dict[str, Any]]) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    return buf.getvalue()
 
 
 def check_same_run(folder: Path, given: dict[str, Any], saved: dict[str, Any], keys: tuple[str, ...]) -> None:
@@ -120,7 +163,8 @@ def check_same_run(folder: Path, given: dict[str, Any], saved: dict[str, Any], k
 
 
 def check_out(folder: Path, resume: bool, overwrite: bool) -> None:
-    """Refuse to mix runs: a new run needs an empty or absent folder (or --overwrite)."""
+    """Refuse to mix runs: a new run needs an empty or absent folder, or --overwrite of a run
+    folder holding only what runs wrote (then removed by the marker's list, never rmtree)."""
     if resume and overwrite:
         raise RunError("--resume and --overwrite exclude each other")
     if folder.exists() and not folder.is_dir():
@@ -128,12 +172,30 @@ def check_out(folder: Path, resume: bool, overwrite: bool) -> None:
     if resume:
         if not (folder / CHECKPOINT).is_file():
             raise RunError(f"{folder / CHECKPOINT}: nothing to resume")
+        marker = read_marker(folder)
+        if marker is not None and marker["kind"] != RUN:
+            raise RunError(f"--out {folder}: holds an echo-data {marker['kind']}, not a training run")
+        if marker is None:  # a run from before the marker: its own files are listed from now on
+            write_marker(folder, RUN, RUN_FORMAT, [f for f in all_files(folder) if _BEFORE_MARKER.fullmatch(f)])
         return
-    if folder.is_dir() and any(folder.iterdir()) and not overwrite:
-        raise RunError(f"--out {folder}: not empty; pass --resume to continue it or --overwrite to replace it")
-    if overwrite and folder.is_dir():
-        for name in (CONFIG, POLICY, AGENT, CHECKPOINT, BEST, LOSSES, CURVES, "eval.json"):
-            if (folder / name).exists():
-                os.remove(folder / name)
-        if (folder / "select").is_dir():  # learn.select's scored weights
-            shutil.rmtree(folder / "select")
+    if folder.is_dir() and any(folder.iterdir()):
+        if not overwrite:
+            raise RunError(f"--out {folder}: not empty; pass --resume to continue it or --overwrite to replace it")
+        try:  # every file is checked before the first is deleted
+            files = written_files(folder, RUN, _run_before_marker(folder))
+        except NotWrittenByUs as e:
+            raise RunError(f"--out {e}") from None
+        remove_written(folder, files)
+
+
+def _run_before_marker(folder: Path) -> Callable[[str], bool] | None:
+    """For a folder without the marker whose policy.json is an echo-data run's: the names run
+    folders held before the marker existed (None: not recognised, refused)."""
+    if read_marker(folder) is not None:
+        return None
+    try:
+        policy = json.loads((folder / POLICY).read_bytes().decode("utf-8"))
+    except (OSError, ValueError):
+        return None
+    ours = isinstance(policy, dict) and policy.get("kind") in ("policy", "planner") and str(policy.get("class", "")).startswith("echo_data.learn.")
+    return (lambda rel: _BEFORE_MARKER.fullmatch(rel) is not None) if ours else None

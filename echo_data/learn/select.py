@@ -17,7 +17,7 @@ from typing import Any
 
 from echo_data.learn import runs
 
-SELECT_DIR = "select"  # select/scored-NNN: the weights scored at the N-th selection, each a run folder
+SELECT_DIR = runs.SELECT_DIR
 
 
 def validation_recipe(dataset: Path, skill: str, episodes: int) -> Any:
@@ -48,9 +48,10 @@ def closed_loop_success(cfg: Any, model: Any, out: Path) -> float:
     scored = out / SELECT_DIR
     # One folder per scoring: evaluate keeps a loaded policy per (recipe, split, policy path) in
     # its in-process worker, so a reused path would score the first weights again.
-    folder = scored / f"scored-{len(list(scored.glob('scored-*'))) + 1:03d}"
-    runs.write_run_files(folder, "policy", POLICY_CLASS, cfg.to_dict(), {"algo": cfg.ALGO, "skill": cfg.skill})
-    runs.save_torch(folder / runs.BEST, {"model": {k: v.detach().cpu() for k, v in model.state_dict().items()}})
+    at = f"{SELECT_DIR}/scored-{len(list(scored.glob('scored-*'))) + 1:03d}"
+    folder = out / at
+    runs.write_run_files(out, "policy", POLICY_CLASS, cfg.to_dict(), {"algo": cfg.ALGO, "skill": cfg.skill}, at=at)
+    runs.save_torch(out, f"{at}/{runs.BEST}", {"model": {k: v.detach().cpu() for k, v in model.state_dict().items()}})
     recipe = validation_recipe(Path(cfg.dataset), cfg.skill, cfg.select_episodes)
     was_training = model.training
     doc = evaluate(recipe, None, "val", cfg.select_episodes, (f"{cfg.skill}={folder}", "oracle"), "oracle")

@@ -18,7 +18,7 @@ import numpy as np
 from scipy import ndimage
 
 from echo_data.categories import RELOCATION_CATEGORIES, STATE_CATEGORIES
-from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, fresh_sound_seed
+from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, episode_id, fresh_sound_seed
 from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.scene.floorplan import FloorPlan, Rect, Vec3
@@ -251,7 +251,7 @@ def draw_episode(recipe: Recipe, split: str, index: int, attempt: int, seed: int
     _check_paths(plan, grid, start, chain)
 
     return EpisodeSpec(
-        episode_id=f"{split}-{index:06d}",
+        episode_id=episode_id(split, index),
         split=split,
         index=index,
         attempt=attempt,
