@@ -142,10 +142,7 @@ class OnlineTrack(StreamRenderer):
         the last second. The same calls, in the same order, as a caller making them one by one."""
         for angles in doors:
             self.open_doors(angles, at=self.samples + self.hop)
-        return self._after(self.step(pose), silenced)
-
-    def _after(self, block: np.ndarray, silenced: Sequence[int]) -> Heard:
-        """The end of `hear` once its block is rendered: the resolved events fall silent, then the features."""
+        block = self.step(pose)
         for e in silenced:
             self.stop(e)
         spec, mel = self.features()
@@ -161,27 +158,6 @@ class OnlineTrack(StreamRenderer):
         if not listener_enabled():
             return run_now(self.hear, *args)
         return listener().submit(self.hear, *args, idle=self)
-
-    def block_soon(self, pose: Sequence[float]) -> Future[np.ndarray]:
-        """The first half of `hear` with no door opening: the block heard at `pose`, started on the
-        listening thread before the caller's physics step (the block needs only the pose; what the
-        step resolves comes after it, `after_soon`). No idle work follows it: the second half is
-        on its way, and a prefetch in between would delay it."""
-        from echo_data.envs.listener import listener, listener_enabled, run_now
-
-        head = tuple(float(v) for v in pose)
-        if not listener_enabled():
-            return run_now(self.step, head)
-        return listener().submit(self.step, head)
-
-    def after_soon(self, block: Future[np.ndarray], silenced: Sequence[int] = ()) -> Future[Heard]:
-        """The second half of `hear` after `block_soon`: the same calls in the same order as `hear`
-        with no doors, so the same values."""
-        from echo_data.envs.listener import listener, listener_enabled, run_now
-
-        if not listener_enabled():
-            return run_now(self._after, block.result(), list(silenced))
-        return listener().submit(lambda: self._after(block.result(), list(silenced)), idle=self)
 
     def prefetch_one(self) -> bool:
         """Idle-time work (`echo_data.envs.listener`): the RIR and spectrum of one key the head will

@@ -299,18 +299,12 @@ class EchoDataEnv(gym.Env):
         if self.action_mode == "ee_delta":  # the one ee map, from the commanded state (float32 joint targets)
             a = self.world.robot.ee.to_joint(a)
         pose = self.ear_pose()  # the head during this control period
-        # With no door left to open, this period's block depends on the pose alone: it is heard on
-        # the listening thread from here, beside the physics as well as the cameras (what the step
-        # resolves falls silent from the next block, so it is handed over afterwards).
-        block = self.track.block_soon(pose) if self.track is not None and not self._door_may_open() else None
         self.world.step(a)
         self.steps += 1
         self.success_flags = self._evaluate()  # the one evaluation of this step: events, progress, reward, info
         newly = self._update_events()
         heard = None
-        if block is not None:
-            heard = self.track.after_soon(block, newly)
-        elif self.track is not None:  # heard on the listening thread while the cameras render (`_observe` waits for it)
+        if self.track is not None:  # heard on the listening thread while the cameras render (`_observe` waits for it)
             doors = [self.world.door_angles() for e in newly if self._opens_door(e)]
             heard = self.track.hear_soon(pose, doors, newly)
         for e in newly:
@@ -333,11 +327,6 @@ class EchoDataEnv(gym.Env):
                 self.resolved_step[e] = self.steps
                 newly.append(e)
         return sorted(newly)
-
-    def _door_may_open(self) -> bool:
-        """Whether this step could resolve an event by opening a door (a new acoustic epoch that
-        reaches into this step's block)."""
-        return any(self.sounding[e] and self._opens_door(e) for e in self._resolver)
 
     def _opens_door(self, event: int) -> bool:
         return SKILLS[self.episode.chain[self._resolver[event]].skill].effect == "opens_door"
