@@ -10,6 +10,9 @@ to that dataset's build time (acceptance: <= 1/3). Last, the floor: bare SAPIEN 
 (`timing.bare_step_render`) on the slice's first episodes, and the hours the whole recipe
 would take with each worker count if a step cost only that floor and the workers scaled
 perfectly: no build on this machine can be faster, so it says what a target in hours means here.
+Each run also prints the peak resident memory of its worker processes (`PeakMemory`: resident
+set sampled every 0.2 s, the largest and the mean over the workers) and of this process (with
+one worker the build runs in this process: then its high-water mark is the worker's).
 
   python benchmarks/bench_build.py [--limit 20] [--workers 1 2] [--recipe recipes/stmm_1_9k.yaml]
 
@@ -48,6 +51,54 @@ def _timed(cls: Any, names: tuple[str, ...], spent: dict[str, float]) -> None:
                 spent[_name] = spent.get(_name, 0.0) + time.perf_counter() - t0
 
         setattr(cls, name, wrapper)
+
+
+class PeakMemory:
+    """Peak resident memory of this process's child processes (the build's workers), sampled on a
+    thread while a build runs. Sampled, not the kernel's high-water mark, because the pool's workers
+    are gone (and their /proc entries with them) by the time `build` returns; a 0.2 s period misses
+    only spikes shorter than that."""
+
+    def __init__(self, period_s: float = 0.2) -> None:
+        import threading
+
+        self.period_s = period_s
+        self.peaks: dict[int, int] = {}  # pid -> largest resident set seen (bytes)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        import psutil
+
+        me = psutil.Process()
+        while not self._stop.is_set():
+            for child in me.children(recursive=True):
+                try:
+                    if "resource_tracker" in " ".join(child.cmdline()):  # multiprocessing's helper, not a worker
+                        continue
+                    rss = child.memory_info().rss
+                except psutil.Error:  # gone between listing and reading
+                    continue
+                self.peaks[child.pid] = max(self.peaks.get(child.pid, 0), rss)
+            self._stop.wait(self.period_s)
+
+    def __enter__(self) -> PeakMemory:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def line(self) -> str:
+        import resource
+
+        parent = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
+        if not self.peaks:  # one worker runs the episodes in this process
+            return f"peak memory per worker: {parent:.0f} MiB (the one worker is this process: its high-water mark so far)"
+        mib = [v / 2**20 for v in self.peaks.values()]
+        return (f"peak memory per worker: {max(mib):.0f} MiB largest, {sum(mib) / len(mib):.0f} MiB mean over "
+                f"{len(mib)} worker process(es) (resident set, sampled every {self.period_s:g} s); this process {parent:.0f} MiB")
 
 
 def _floor_ms(recipe: Any, recipe_dir: Path, episodes: int = 3, steps: int = 50) -> float:
@@ -99,7 +150,8 @@ def main() -> None:
                 shutil.rmtree(out)
             spent.clear()
             t0 = time.perf_counter()
-            s = build(recipe, Path(args.recipe), out, workers=w, limit=args.limit, progress=False)
+            with PeakMemory() as memory:
+                s = build(recipe, Path(args.recipe), out, workers=w, limit=args.limit, progress=False)
             dt = time.perf_counter() - t0
             n, steps = sum(s.episodes.values()), sum(s.steps.values())
             rates[w] = n / dt
@@ -110,6 +162,7 @@ def main() -> None:
                 f"{s.bytes / steps / 1e3:.1f} KB/step; whole {recipe.name} ({whole} episodes) at this rate: {whole / rates[w] / 3600:.2f} h; "
                 f"parent-side writing {serial:.1f} s ({serial / dt:.0%} of the build: {parts})"
             )
+            print(f"  {memory.line()}")
             last = (out, dt)
         if 1 in rates:
             for w, r in rates.items():

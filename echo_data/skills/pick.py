@@ -55,7 +55,7 @@ TORSO_UP = float(READY_GROUP[0])
 TORSO_SPEED = 0.15  # m/s
 # Out of the tuck the hand goes to a point high on the robot's right, pointing down: the TCP of
 # Place's CARRY_DRIVE_GROUP (whose arm covers 0-7 % of the head view against READY's 74 %,
-# benchmarks/carry_view.py). The ee map's IK reaches that TCP with another arm shape (its
+# tests/test_carry_pose.py). The ee map's IK reaches that TCP with another arm shape (its
 # redundant degree of freedom pulled towards READY): the elbow rises into the head view, 30-50 %
 # of the head pixels measured (docs/manipulation_experts.md).
 APPROACH_TCP = (0.214, -0.138, 1.248)  # m, base frame: the TCP of place.CARRY_DRIVE_GROUP ...

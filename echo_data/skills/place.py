@@ -65,7 +65,7 @@ TUCK_RAISE = -0.5  # shoulder_lift of the tuck path's middle pose (upper arm rai
 TUCK_SAMPLES = 4  # TCP poses per joint segment of the tuck path
 # The arm configuration whose TCP is the carry pose (pick.APPROACH_TCP, APPROACH_JAW): found once
 # (benchmarks/carry_search.py) with hand and object covering 0-7 % of the head view against READY's
-# 74 % (benchmarks/carry_view.py), every arm link origin within 0.36 m of the base axis.
+# 74 % (tests/test_carry_pose.py measures both), every arm link origin within 0.36 m of the base axis.
 CARRY_DRIVE_GROUP = np.array([0.386, 0.679, -1.098, -2.373, 1.701, 0.33, 1.781, 1.144])
 
 
