@@ -257,6 +257,7 @@ class _LiveBar:
         self.bar, self.slots, self.rate = bar, slots, rate
         self.done = float(bar.n)
         self.postfix = ""
+        self.started = False
         self.lock = threading.Lock()
         self.stop = threading.Event()
 
@@ -264,8 +265,9 @@ class _LiveBar:
         expected = self.rate.steps / self.rate.episodes if self.rate.episodes else None
         inside = episode_progress.running_fraction(self.slots, expected) if self.slots is not None else 0.0
         sampling = episode_progress.preparing(self.slots) if self.slots is not None else 0
+        self.started = self.started or self.slots is None or any(self.slots[1::2])  # a worker has taken an episode
         with self.lock:
-            note = f"{sampling} sampling (scene, acoustics)" if sampling else ""
+            note = f"{sampling} sampling (scene, acoustics)" if sampling else "" if self.started else "starting workers"
             self.bar.set_postfix_str("; ".join(p for p in (note, self.postfix) if p), refresh=False)
             self.bar.update(min(self.done + inside, self.bar.total) - self.bar.n)
 
