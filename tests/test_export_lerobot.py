@@ -91,6 +91,7 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
     assert "Parquet (this folder)" not in card and "rebuilds these bytes" not in card and "16-bit PNG" not in card
     assert "| `extra.action.executed` |" in card and "not a policy input or output" in card and "@article{gardner1995kemar" in card
     assert "in manifest.json" not in card and "in meta/episodes.parquet" not in card  # files only the source has
+    assert "manifest.json's recipe" not in card and "the dataset's manifest.json" not in card
     # the Hub viewer's playable audio: one Audio table per split, in the export's episode numbering
     configs = yaml.safe_load(card.split("---\n")[1])["configs"]
     assert configs[1] == {"config_name": "audio", "data_files": [{"split": s, "path": f"meta/audio/{s}.parquet"} for s in ("train", "test")]}

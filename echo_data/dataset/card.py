@@ -316,11 +316,12 @@ def links_and_citation(name: str, export: bool = False) -> list[str]:
         "The data was generated with echo-data:",
         "",
         "```bibtex",
-        ECHO_DATA_BIBTEX,
+        ECHO_DATA_BIBTEX.replace("the dataset's manifest.json", "echo_data_manifest.json") if export else ECHO_DATA_BIBTEX,
         "```",
         "",
         "The binaural audio is rendered through the MIT KEMAR head-related impulse responses (recipe `acoustics.hrtf: kemar`, "
-        "the default; manifest.json's recipe says which), whose licence asks that their authors be cited wherever the data is used:",
+        f"the default; {'the source dataset' if export else 'manifest.json'}'s recipe says which), whose licence asks that "
+        "their authors be cited wherever the data is used:",
         "",
         "```bibtex",
         KEMAR_BIBTEX,
