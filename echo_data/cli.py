@@ -133,13 +133,14 @@ def preview(
     from tqdm.auto import tqdm
 
     try:
-        with tqdm(total=PREVIEW_STAGES, unit="stage", desc="preview", dynamic_ncols=True, leave=False) as bar:
+        # disable=None: no bar when stderr is no terminal (logs, pipes)
+        with tqdm(total=PREVIEW_STAGES, unit="stage", desc="preview", dynamic_ncols=True, leave=False, disable=None) as bar:
 
             def stage(name: str) -> None:
                 bar.set_postfix_str(name, refresh=False)
                 bar.update(1)
 
-            summary = write_preview(recipe, recipe_path.resolve().parent, seed, out, progress=stage)
+            summary = write_preview(recipe, recipe_path.resolve().parent, seed, out, progress=stage, note=bar.set_postfix_str)
     except NotWrittenByUs as e:  # files put there while it ran
         typer.echo(f"error: --out {e}", err=True)
         raise typer.Exit(2) from None

@@ -73,7 +73,8 @@ def heard_at_start(spec: EpisodeSpec, recipe: Recipe, library: SoundLibrary) -> 
 
 def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float = 0.25, progress: Callable[[str], None] = lambda s: None) -> None:
     """Steady sound pressure level (dB SPL, at each source's drawn level) of every event's source
-    over the plan at ear height (`echo_data.viz.acoustic_map` draws it on the one top-down map)."""
+    over the plan at ear height (`echo_data.viz.acoustic_map` draws it on the one top-down map).
+    `progress(note)` after each grid row: the map is minutes of image-source responses."""
     from echo_data.acoustics.room import AcousticScene, omni_rir
     from echo_data.viz.acoustic_map import save_acoustic_maps
 
@@ -92,8 +93,8 @@ def draw_acoustic_map(spec: EpisodeSpec, recipe: Recipe, out: Path, step: float 
                     continue
                 h = omni_rir(scene.response(ev.source, (x, y, cfg.ear_height)))  # direct sound at 1 m = 0 dB
                 level[j, i] = l1m + 10 * np.log10(np.sum(h.astype(np.float64) ** 2) + 1e-20)
+            progress(f"acoustic map {e + 1}/{len(spec.events)} ({ev.category}), row {j + 1}/{len(ys)}")
         maps.append((ev.category, (float(ev.source[0]), float(ev.source[1]), float(ev.source[2])), l1m, level))
-        progress(f"acoustic map {e + 1}/{len(spec.events)} ({ev.category})")
     grid = (float(xs[0] - step / 2), float(xs[-1] + step / 2), float(ys[0] - step / 2), float(ys[-1] + step / 2))
     save_acoustic_maps(spec.plan, maps, grid, cfg.noise_floor_dba, out)
 
@@ -111,10 +112,12 @@ def check_preview_out(out: Path) -> None:
 
 
 def write_preview(
-    recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path, index: int = 0, progress: Callable[[str], None] = lambda s: None
+    recipe: Recipe, recipe_dir: Path | None, seed: int, out: Path, index: int = 0, progress: Callable[[str], None] = lambda s: None,
+    note: Callable[[str], None] = lambda s: None,
 ) -> dict[str, object]:
     """Sample episode `index` with the recipe's seed replaced by `seed`; simulate; write the files.
-    `progress(stage)` is called PREVIEW_STAGES times, as each stage ends (the acoustic map also per event)."""
+    `progress(stage)` is called PREVIEW_STAGES times, as each stage ends; `note(text)` says how
+    far the running stage is, any number of times (the acoustic map, per grid row)."""
     from echo_data.scene.sampling import sample_episode
     from echo_data.sounds import SoundLibrary
 
@@ -128,7 +131,7 @@ def write_preview(
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
     try:
-        summary = _write_files(spec, rejected, recipe, library, tmp, progress)
+        summary = _write_files(spec, rejected, recipe, library, tmp, progress, note)
         mark_export(tmp, KIND, FORMAT)
         replace_folder(tmp, out, KIND, _before_marker)
     finally:
@@ -136,8 +139,9 @@ def write_preview(
     return summary
 
 
-def _write_files(spec: EpisodeSpec, rejected: object, recipe: Recipe, library: SoundLibrary, out: Path, progress: Callable[[str], None]) -> dict[str, object]:
-    """The preview's files in `out`."""
+def _write_files(spec: EpisodeSpec, rejected: object, recipe: Recipe, library: SoundLibrary, out: Path, progress: Callable[[str], None],
+                 note: Callable[[str], None]) -> dict[str, object]:
+    """The preview's files in `out` (`note`: how far the acoustic map is)."""
     import soundfile as sf
 
     from echo_data.app.pipeline import simulate
@@ -161,7 +165,7 @@ def _write_files(spec: EpisodeSpec, rejected: object, recipe: Recipe, library: S
     cats = " + ".join(ev.category for ev in spec.events)
     save_spectrogram(heard, fs, out / "spectrogram.png", f"heard at start: {cats}")
     progress("heard")
-    draw_acoustic_map(spec, recipe, out / "acoustic_map.png", progress=lambda s: None)
+    draw_acoustic_map(spec, recipe, out / "acoustic_map.png", progress=note)
     progress("acoustic map")
     return {
         "episode_id": spec.episode_id,

@@ -160,7 +160,7 @@ def test_manifest_records_failures_and_rejections(built: Path) -> None:
 
 
 def test_workers_and_resume_give_identical_bytes(built: Path, tmp_path: Path) -> None:
-    summary = _build(tmp_path / "synth", workers=2)
+    summary = _build(tmp_path / "synth", workers=2, progress=True)  # the bar's shared step slots travel to the workers
     assert summary.episodes == {"train": 5, "test": 3}
     assert _digests(tmp_path / "synth") == _digests(built)
     again = _build(tmp_path / "synth", mode="resume")

@@ -90,6 +90,15 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
     # the export's card describes the export, not the source folder it came from
     assert "Parquet (this folder)" not in card and "rebuilds these bytes" not in card and "16-bit PNG" not in card
     assert "| `extra.action.executed` |" in card and "not a policy input or output" in card and "@article{gardner1995kemar" in card
+    assert "in manifest.json" not in card and "in meta/episodes.parquet" not in card  # files only the source has
+    assert "manifest.json's recipe" not in card and "the dataset's manifest.json" not in card
+    # the Hub viewer's playable audio: one Audio table per split, in the export's episode numbering
+    configs = yaml.safe_load(card.split("---\n")[1])["configs"]
+    assert configs[1] == {"config_name": "audio", "data_files": [{"split": s, "path": f"meta/audio/{s}.parquet"} for s in ("train", "test")]}
+    heard = pq.read_table(out / "meta" / "audio" / "test.parquet")
+    assert heard.column("episode_index").to_pylist() == [4, 5] and heard.column("episode_id").to_pylist() == [e["episode_id"] for e in eps[4:]]
+    assert heard.column("audio")[0].as_py()["bytes"] == (out / eps[4]["audio_path"]).read_bytes()
+    assert json.loads(heard.schema.metadata[b"huggingface"])["info"]["features"]["audio"] == {"_type": "Audio"}
     again = CliRunner().invoke(app, ["export", str(ds), "--out", str(out)])
     assert again.exit_code == 2 and "already exists" in again.output
     assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out), "--overwrite"]).exit_code == 0

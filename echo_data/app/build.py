@@ -12,13 +12,16 @@ build -> writer -> shards (`echo_data.dataset.shards`) / manifest -> storage.
 from __future__ import annotations
 
 import errno
+import threading
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from multiprocessing import get_context
 from pathlib import Path
 from typing import Any, Literal
 
+from echo_data.app import episode_progress
 from echo_data.app.executors import ExecutorError, make_executor
 from echo_data.dataset.encode import EncodedEpisode
 from echo_data.dataset.lock import LOCK_NAME, BuildLock, BuildLockedError
@@ -112,9 +115,11 @@ _JOB: _Job | None = None
 _LIBRARY: Any = _UNSET
 
 
-def _init_job(job: _Job) -> None:
+def _init_job(job: _Job, slots: Any = None, counter: Any = None) -> None:
     global _JOB, _LIBRARY
     _JOB, _LIBRARY = job, _UNSET
+    if slots is not None:
+        episode_progress.install(slots, counter)
 
 
 def default_library(recipe: Recipe, recipe_dir: Path) -> SoundLibrary:
@@ -136,7 +141,16 @@ def _one_line(text: str) -> str:
 
 
 def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
-    """Try attempts 0, 1, ... of one episode until one succeeds; encode it (runs in a worker)."""
+    """Try attempts 0, 1, ... of one episode until one succeeds; encode it (runs in a worker).
+    The worker's progress slot is cleared before the result leaves (episode_progress)."""
+    try:
+        episode_progress.prepare()
+        return _attempt_episode(task)
+    finally:
+        episode_progress.end()
+
+
+def _attempt_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
     global _LIBRARY
     from echo_data.dataset.encode import encode_episode
 
@@ -232,6 +246,52 @@ def _prepare(
 
 
 # ---------------------------------------------------------------- parent side
+
+
+class _LiveBar:
+    """The build's bar: finished episodes plus the share done of the running ones (read from the
+    workers' progress slots every second by a thread, so the bar and its ETA, which is over this
+    run's episodes, i.e. `--limit`, move inside a long episode)."""
+
+    def __init__(self, bar: Any, slots: Any, rate: _Rate) -> None:
+        self.bar, self.slots, self.rate = bar, slots, rate
+        self.done = float(bar.n)
+        self.postfix = ""
+        self.started = False
+        self.lock = threading.Lock()
+        self.stop = threading.Event()
+
+    def _show(self) -> None:
+        expected = self.rate.steps / self.rate.episodes if self.rate.episodes else None
+        inside = episode_progress.running_fraction(self.slots, expected) if self.slots is not None else 0.0
+        sampling = episode_progress.preparing(self.slots) if self.slots is not None else 0
+        self.started = self.started or self.slots is None or any(self.slots[1::2])  # a worker has taken an episode
+        with self.lock:
+            note = f"{sampling} sampling (scene, acoustics)" if sampling else "" if self.started else "starting workers"
+            self.bar.set_postfix_str("; ".join(p for p in (note, self.postfix) if p), refresh=False)
+            self.bar.update(min(self.done + inside, self.bar.total) - self.bar.n)
+
+    def _watch(self) -> None:
+        while not self.stop.wait(1.0):
+            self._show()
+
+    def finished(self, postfix: str) -> None:
+        with self.lock:
+            self.done += 1
+            self.postfix = postfix
+        self._show()
+
+    def __enter__(self) -> _LiveBar:
+        self.thread = None
+        if self.slots is not None and not self.bar.disable:
+            self.thread = threading.Thread(target=self._watch, name="build-bar", daemon=True)
+            self.thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop.set()
+        if self.thread is not None:
+            self.thread.join()
 
 
 class _Rate:
@@ -381,8 +441,10 @@ def _build_locked(
 ) -> BuildSummary:
     """The build proper, run while this process holds the folder's build lock."""
     job = _Job(recipe, Path(recipe_path).resolve().parent, layout, gen, make_library)
+    # Ray workers cannot share memory with us: their bar moves per finished episode only.
+    slots, counter = episode_progress.make_slots(workers, get_context("spawn")) if executor == "local" and progress else (None, None)
     try:  # before anything is written: a cluster that cannot be joined is bad input
-        ex = make_executor(executor, workers, _init_job, (job,), address)
+        ex = make_executor(executor, workers, _init_job, (job, slots, counter), address)
     except ExecutorError as e:
         raise OutputError(str(e)) from None
     from tqdm.auto import tqdm
@@ -405,25 +467,29 @@ def _build_locked(
             for i in p.indices
             if not writer.stored(split, i)
         )
-        bar = tqdm(total=total, initial=reused, unit="ep", desc=f"build {recipe.name}", disable=not progress, dynamic_ncols=True)
+        bar = tqdm(
+            total=total, initial=reused, unit="ep", desc=f"build {recipe.name}", dynamic_ncols=True,
+            disable=None if progress else True,  # None: none when stderr is no terminal (logs, pipes)
+            bar_format="{l_bar}{bar}| {n:.1f}/{total_fmt} [{elapsed}<{remaining}, {rate_fmt}{postfix}]",
+        )
         rate = _Rate(sum(split_sizes(recipe, None).values()) - reused, total - reused)
         attempts = successes = 0
-        for res in ex.imap_unordered(_run_episode, todo):
-            if isinstance(res, FailedEpisode) and res.error:
-                raise BuildError(f"{res.split} episode {res.index}: {res.error}")
-            if isinstance(res, FailedEpisode):
-                reasons = "; ".join(f"attempt {f['attempt']}: {f['reason']}" for f in res.failures[-3:])
-                raise BuildError(
-                    f"{res.split} episode {res.index}: no success in {len(res.failures)} attempts "
-                    f"(max_attempts_per_episode); last: {reasons}"
-                )
-            writer.store(res)
-            attempts += 1 + len(res.failures)
-            successes += 1
-            bar.update(1)
-            rate.add(int(res.episode["n_steps"]))
-            bar.set_postfix_str(f"success {successes / attempts:.0%}, {rate}", refresh=False)
-            writer.flush(res.split)
+        with _LiveBar(bar, slots, rate) as live:
+            for res in ex.imap_unordered(_run_episode, todo):
+                if isinstance(res, FailedEpisode) and res.error:
+                    raise BuildError(f"{res.split} episode {res.index}: {res.error}")
+                if isinstance(res, FailedEpisode):
+                    reasons = "; ".join(f"attempt {f['attempt']}: {f['reason']}" for f in res.failures[-3:])
+                    raise BuildError(
+                        f"{res.split} episode {res.index}: no success in {len(res.failures)} attempts "
+                        f"(max_attempts_per_episode); last: {reasons}"
+                    )
+                writer.store(res)
+                attempts += 1 + len(res.failures)
+                successes += 1
+                rate.add(int(res.episode["n_steps"]))
+                live.finished(f"success {successes / attempts:.0%}, {rate}")
+                writer.flush(res.split)
     except BuildError:
         raise
     except Exception as e:
@@ -432,6 +498,7 @@ def _build_locked(
         raise
     finally:
         ex.close()
+        episode_progress.uninstall()  # the inline executor installed it in this process
         if bar is not None:
             bar.close()
     for split in plans:

@@ -34,6 +34,7 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
     from echo_data.agents.builtin import OraclePlanner
     from echo_data.agents.dart import Demonstrator
     from echo_data.agents.runtime import run_episode
+    from echo_data.app import episode_progress
     from echo_data.envs.env import EchoDataEnv
 
     # The build's env speaks joint actions: the Demonstrator hands it the joint form of each step,
@@ -43,6 +44,8 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
     env = EchoDataEnv(recipe, split=spec.split, images=observe, audio=library is not None, library=library, action_mode="joint")
     policy = Demonstrator(recipe.experts, recipe.robot.control_hz, spec.seed)  # labels its own, executes perturbed
     recorder = _Recorder(recipe.robot.control_hz, policy)
+    budget = sum(recipe.robot.max_steps.get(c.skill, 0) for c in spec.chain)
+    episode_progress.begin(min(budget, recipe.outputs.max_frames or budget))
     try:
         obs, info = env.reset(options={"spec": spec})
         run = run_episode(env, obs, info, OraclePlanner(), policy, on_step=recorder, max_steps=recipe.outputs.max_frames)
@@ -99,6 +102,7 @@ class _Recorder:
         self.mel: list[np.ndarray] = []
 
     def __call__(self, env: EchoDataEnv, obs: dict[str, np.ndarray], action: np.ndarray, k: int, call: SkillCall, flags: tuple[bool, ...]) -> None:
+        from echo_data.app import episode_progress
         from echo_data.dataset.schema import IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE
 
         x, y, z, yaw = env.ear_pose()
@@ -132,6 +136,7 @@ class _Recorder:
             self.spectrogram.append(obs[SPECTROGRAM])
         if MEL in obs:
             self.mel.append(obs[MEL])
+        episode_progress.step(len(self.steps))
 
 
 def render_episode_audio(spec: EpisodeSpec, rollout: EpisodeResult, recipe: Recipe, library: SoundLibrary) -> tuple[np.ndarray, np.ndarray]:

@@ -316,11 +316,12 @@ def links_and_citation(name: str, export: bool = False) -> list[str]:
         "The data was generated with echo-data:",
         "",
         "```bibtex",
-        ECHO_DATA_BIBTEX,
+        ECHO_DATA_BIBTEX.replace("the dataset's manifest.json", "echo_data_manifest.json") if export else ECHO_DATA_BIBTEX,
         "```",
         "",
         "The binaural audio is rendered through the MIT KEMAR head-related impulse responses (recipe `acoustics.hrtf: kemar`, "
-        "the default; manifest.json's recipe says which), whose licence asks that their authors be cited wherever the data is used:",
+        f"the default; {'the source dataset' if export else 'manifest.json'}'s recipe says which), whose licence asks that "
+        "their authors be cited wherever the data is used:",
         "",
         "```bibtex",
         KEMAR_BIBTEX,
@@ -391,11 +392,12 @@ DOCTOR_NOTES = [
 ]
 
 
-def export_card(info: dict[str, Any], src_card: Path) -> str:
-    """README.md of a LeRobot export: LeRobot-style front matter, the export's own numbering,
-    features (named as the export names them, with what LeRobot's policies make of each),
-    cameras, why lerobot-doctor warns, then the source card's sections that hold for the export
-    too (counts, sounds, how it was made, success, uses, limits)."""
+def export_card(info: dict[str, Any], src_card: Path, folder: Path) -> str:
+    """README.md of the LeRobot export in `folder`: LeRobot-style front matter (with the playable
+    `audio` config), the export's own numbering, features (named as the export names them, with
+    what LeRobot's policies make of each), cameras, why lerobot-doctor warns, then the source
+    card's sections that hold for the export too (counts, sounds, how it was made, success, uses,
+    limits), their pointers to files only the source has made to say so."""
     ed = info["echo_data"]
     front = {
         "license": LICENSE,
@@ -403,11 +405,11 @@ def export_card(info: dict[str, Any], src_card: Path) -> str:
         "annotations_creators": ["machine-generated"],
         "tags": ["LeRobot", "echo-data", "binaural-audio"],
         "size_categories": [size_category(info["total_frames"])],
-        "configs": [{"config_name": "default", "data_files": "data/*/*.parquet"}],
+        "configs": [{"config_name": "default", "data_files": "data/*/*.parquet"}, *audio_config(folder, list(info["splits"]))],
     }
     body = src_card.read_text().split("---\n", 2)[-1] if src_card.is_file() else ""
     own = ("Features", "Loading", "Links", "Citation", "Cameras")  # written here for the export
-    kept = [sec for sec in body.split("\n## ")[1:] if sec.split("\n", 1)[0] not in own]
+    kept = [_source_pointers(sec) for sec in body.split("\n## ")[1:] if sec.split("\n", 1)[0] not in own]
     feats = info["features"]
     renamed = ed.get("renamed", {})
     lines = [
@@ -422,7 +424,8 @@ def export_card(info: dict[str, Any], src_card: Path) -> str:
         f"are numbered across the whole export, train first: `splits` {info['splits']} are episode ranges, so "
         "`LeRobotDataset(repo_id, root=..., episodes=list(range(*map(int, info['splits']['train'].split(':')))))` is the train split; "
         "a data file never holds two splits. `index` counts frames across the export. The episode WAVs are under audio/ "
-        "(`audio_path`).",
+        "(`audio_path`), and once more as a Parquet `Audio` column per split in meta/audio/ (the `audio` config: "
+        "episode_id, the export's episode_index and the WAV, which the Hub's viewer plays).",
         "",
         "## Features",
         "",
@@ -466,6 +469,15 @@ def export_card(info: dict[str, Any], src_card: Path) -> str:
         *links_and_citation(ed["source"], export=True),
     ]
     return "\n".join(lines)
+
+
+def _source_pointers(section: str) -> str:
+    """A source-card section with its pointers to files the export does not carry (the resolved
+    recipe and failures in manifest.json, source positions in meta/episodes.parquet) made to
+    name the source dataset."""
+    for name in ("manifest.json", "meta/episodes.parquet"):
+        section = section.replace(f"in {name}", f"in the source dataset's {name}")
+    return section
 
 
 def _export_note(name: str, renamed: dict[str, str]) -> str:

@@ -468,13 +468,15 @@ def export_lerobot(
         }
         # column order, not sorted: LeRobot builds its Arrow schema from this order
         atomic_write_bytes(tmp / "meta" / "info.json", (json.dumps(info, indent=4) + "\n").encode())
+        from echo_data.dataset.audio import write_audio_tables
         from echo_data.dataset.card import export_card
 
-        (tmp / "README.md").write_text(export_card(info, src / "README.md"))
         for e in episodes:
             dst = tmp / e["audio_path"]
             dst.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(src / e["audio_path"], dst)
+        write_audio_tables(tmp, episodes)  # the card's playable `audio` config, in the export's episode numbering
+        (tmp / "README.md").write_text(export_card(info, src / "README.md", tmp))
         (tmp / "echo_data_manifest.json").write_bytes(canonical_json({k: manifest[k] for k in ("name", "recipe_hash", "format", "versions", "counts")}))
         mark_export(tmp, KIND, CODEBASE_VERSION)
         replace_folder(tmp, out, KIND)

@@ -72,6 +72,6 @@ def save_spectrogram(audio: np.ndarray, fs: int, out: Path, title: str) -> None:
         ax.set_ylabel(f"{name}\nkHz")
     axes[-1].set_xlabel("time (s)")
     fig.suptitle(title)
-    fig.colorbar(im, ax=axes, label="dB")
+    fig.colorbar(im, ax=axes, label="dB re full scale (STFT bin magnitude)")
     fig.savefig(out, dpi=110)
     plt.close(fig)

@@ -241,11 +241,13 @@ class TopDownMap:
 
 def legend_entries(categories: Sequence[str]) -> list[tuple[str, tuple[int, int, int], str]]:
     """(label, colour, shape) of every mark the map draws: the robot, each source category, a
-    silenced source, a chain target and the start pose."""
+    silenced source, the other (never sounding) objects, a doorbell's button, a chain target and
+    the start pose."""
     return (
         [("robot and path", palette.ROBOT, "disc")]
         + [(c, palette.source(c), "disc") for c in dict.fromkeys(categories)]
-        + [("silenced source", palette.SILENT, "ring"), ("chain target (in order)", palette.TARGET, "square"), ("start pose", palette.ROBOT, "ring")]
+        + ([("doorbell button", palette.DOOR, "diamond")] if "doorbell" in categories else [])
+        + [("silenced source", palette.SILENT, "ring"), ("other object", palette.SILENT, "dot"), ("chain target (in order)", palette.TARGET, "square"), ("start pose", palette.ROBOT, "ring")]
     )
 
 
@@ -259,6 +261,10 @@ def draw_legend(d: ImageDraw.ImageDraw, entries: Sequence[tuple[str, tuple[int, 
         box = [x, y + 1, x + 8, y + 9]
         if shape == "disc":
             d.ellipse(box, fill=colour, outline=(0, 0, 0))
+        elif shape == "diamond":  # as the map draws a door's bell button
+            d.polygon([(x + 4, y + 1), (x + 8, y + 5), (x + 4, y + 9), (x, y + 5)], fill=colour)
+        elif shape == "dot":  # as the map draws an object that never sounds: small, no outline
+            d.ellipse([x + 2, y + 3, x + 6, y + 7], fill=colour)
         elif shape == "ring":
             d.ellipse(box, outline=colour, width=2)
         else:
