@@ -122,3 +122,38 @@ def test_servo_reaches_a_goal_under_physics_and_corrects_a_perturbation() -> Non
         assert stop.value is True
     assert perturbed
     assert np.linalg.norm(robot.ee_pose().p - goal[:3, 3]) < S.SETTLE_TOL
+
+
+def _servo_under_perturbation(seed: int, sigma_m: float, sigma_rad: float, max_steps: int) -> tuple[bool, float]:
+    """Run the servo with DART-style noise (agents/dart.py: on every step that moves the hand);
+    returns whether it reported arrival and the measured TCP's distance to the goal then."""
+    robot, scene = _robot(READY_GROUP[1:])
+    world = SimpleNamespace(robot=robot)
+    goal = robot.ee_pose().to_transformation_matrix()
+    goal[:3, 3] += (0.06, -0.04, -0.05)
+    rng = np.random.default_rng(seed)
+    gen = S.servo(world, goal, speed=S.SLOW_SPEED, max_steps=max_steps)  # type: ignore[arg-type]
+    try:
+        while True:
+            a = next(gen).copy()
+            if np.any(a[4:10] != 0.0):
+                a[4:7] += rng.normal(0.0, sigma_m, 3)
+                a[7:10] += rng.normal(0.0, sigma_rad, 3)
+            robot.apply(robot.ee.to_joint(a))
+            _physics(robot, scene, 1)
+    except StopIteration as stop:
+        arrived = bool(stop.value)
+    return arrived, float(np.linalg.norm(robot.ee_pose().p - goal[:3, 3]))
+
+
+def test_servo_arrives_under_a_per_step_perturbation() -> None:
+    # 0.5 cm / 1 deg per step (the sanity recipe's level): every aimed step lands ~0.9 cm off. The
+    # servo accepts what an aimed step leaves within AIMED_POS_TOL (it re-aimed until max_steps
+    # when it demanded POS_TOL, 4 mm: Pick 3 of 10). Ten stretches of 8.8 cm, 40 steps each (the
+    # clean servo needs ~17 at 6 cm/s).
+    results = [_servo_under_perturbation(seed, 0.005, np.radians(1.0), 40) for seed in range(10)]
+    assert all(ok for ok, _ in results), results
+    assert all(dist <= S.AIMED_POS_TOL + 0.005 for _, dist in results), results
+    # and without noise it still ends within the strict tolerance
+    ok, dist = _servo_under_perturbation(0, 0.0, 0.0, 40)
+    assert ok and dist < S.SETTLE_TOL
