@@ -9,6 +9,11 @@ category's box hanging from the pads as Pick holds it (echo_data.robot.head_view
 share of pixels showing a robot link or the box (smallest and largest over the categories), the
 TCP in the base frame, and the largest horizontal distance of an arm link origin from the base
 axis (what a turn in place sweeps).
+
+The groups are joint shapes: CARRY_DRIVE_GROUP is the former joint-space experts' carry pose.
+The closed-loop experts hold the hand at its TCP (`skills.pick.APPROACH_TCP`) with the ee map's
+own arm shape, which is not this one (docs/manipulation_experts.md); pass that shape with
+`--group` to measure what they show the head camera.
 """
 
 from __future__ import annotations
