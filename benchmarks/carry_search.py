@@ -11,6 +11,12 @@ down" with ArmPlanner.ik seeded there), keeping an edge only if the hand stays w
 along its joint-space interpolation and it is free of self-collision; the nodes whose head view a
 furby-sized box plus the robot covers < 1 % with arm link origins within 0.36 m of the base axis
 are shortcut back to READY, and the shortest are printed with their waypoints.
+
+What it found is a joint configuration (`skills.place.CARRY_DRIVE_GROUP`), searched for the
+former joint-space experts. Today's experts are closed-loop end-effector controllers: they take
+only its TCP (`skills.pick.APPROACH_TCP`), which the ee map's IK reaches with another arm shape
+(docs/manipulation_experts.md). The search stays as the record of how that TCP was chosen; it
+needs mplib (`pip install -e '.[planning]'`).
 """
 
 from __future__ import annotations

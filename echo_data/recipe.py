@@ -350,7 +350,7 @@ class ExpertsConfig(_Strict):
     # expert's plus zero-mean Gaussian noise per control step, on the TCP change while the expert
     # moves the hand and on the base velocities while it drives; the label is the expert's own
     # command from the perturbed state. Off when both are 0. Applies to commands born in ee form;
-    # `action_noise` keeps perturbing joint-born commands (experts not yet rewritten).
+    # `action_noise` perturbs only joint-born commands (no built-in expert yields them any more).
     perturbation: Perturbation = Field(default_factory=lambda: Perturbation())
     # Hand-over starts (M3-style): the build's Navigate stops at a random point of its own success
     # region instead of the exact interaction pose, so the next skill's demonstration starts where

@@ -49,8 +49,8 @@ class OracleSkills:
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray | None:
         """The expert's next command as a joint action. Experts compute theirs in end-effector form
         (`action.ee`, docs/action_spaces.md): it is kept in `last_ee` and turned into joint targets by
-        the robot's one ee map, so the recorded ee form replays exactly. (Experts still yielding joint
-        actions pass through: the transition while they are rewritten.) In an environment in ee
+        the robot's one ee map, so the recorded ee form replays exactly. (An expert yielding joint
+        actions, e.g. one a caller passes in `experts`, passes through; no built-in one does.) In an environment in ee
         mode (`info["action_mode"]`) the ee form is returned: the expert's own, or the joint
         action's `to_ee` twin."""
         try:

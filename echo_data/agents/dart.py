@@ -18,7 +18,9 @@ in joint form (`action`, `action.executed`) and in end-effector form (`action.ee
   handed the ee form, so a replay from either `action.executed` (joint mode) or
   `action.ee.executed` (ee mode) applies the same float32 joint targets: bit-identical. The
   expert reads the commanded state (servo) and so labels from the perturbed state: it corrects.
-- **joint-born** (experts not yet rewritten, still yielding 12-float joint actions): the joint
+- **joint-born** (an expert yielding 12-float joint actions: no built-in expert does any more;
+  the path stays for experts a caller hands `OracleSkills(experts=...)`, and the recipe key
+  `experts.action_noise` and the shipped recipes that set it still name it): the joint
   form is exact; the legacy joint-space DART noise (`experts.action_noise`) perturbs it; the ee
   forms are `robot.ee.to_ee` twins (approximate: a replay of those in ee mode is close, not
   bit-identical; docs/action_spaces.md).
@@ -33,8 +35,8 @@ jolt then is a missed grasp rather than a state worth demonstrating from).
 
 Joint-space DART (`JointNoise`, legacy): `level * NOISE_STD` per joint-action dimension; the
 robot is told the label (`Robot.intend`) so a joint expert continuing "from where the arm is
-commanded" continues from its own command. A dimension is left unperturbed where the legacy
-experts could not correct it: base velocities only while driving; the gripper only while held
+commanded" continues from its own command. A dimension is left unperturbed where the former
+joint-space experts could not correct it: base velocities only while driving; the gripper only while held
 open; nothing for `QUIET_STEPS` from a gripper change.
 
 Each noise is drawn every step from its own stream salted onto the episode seed
