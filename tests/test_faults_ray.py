@@ -30,7 +30,10 @@ from echo_data.dataset.validate import validate
 pytestmark = pytest.mark.slow
 
 TESTS = Path(__file__).resolve().parent
-RAY = shutil.which("ray") or str(Path(sys.executable).parent / "ray")
+# the `ray` of the interpreter running the tests first: a cluster started by another Python's ray
+# (one earlier on PATH, e.g. 3.11's beside a 3.12 venv) refuses this process's workers (version mismatch)
+_OWN_RAY = Path(sys.executable).parent / "ray"
+RAY = str(_OWN_RAY) if _OWN_RAY.is_file() else (shutil.which("ray") or str(_OWN_RAY))
 
 
 def _free_port() -> int:
