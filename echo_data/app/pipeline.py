@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from echo_data.app import episode_progress
 from echo_data.envs.audio import PRE_ROLL_SECONDS, event_waveform, step_samples  # noqa: F401  (re-exported)
 from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.recipe import Recipe
@@ -34,7 +35,6 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
     from echo_data.agents.builtin import OraclePlanner
     from echo_data.agents.dart import Demonstrator
     from echo_data.agents.runtime import run_episode
-    from echo_data.app import episode_progress
     from echo_data.envs.env import EchoDataEnv
 
     # The build's env speaks joint actions: the Demonstrator hands it the joint form of each step,
@@ -102,7 +102,6 @@ class _Recorder:
         self.mel: list[np.ndarray] = []
 
     def __call__(self, env: EchoDataEnv, obs: dict[str, np.ndarray], action: np.ndarray, k: int, call: SkillCall, flags: tuple[bool, ...]) -> None:
-        from echo_data.app import episode_progress
         from echo_data.dataset.schema import IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE
 
         x, y, z, yaw = env.ear_pose()
