@@ -272,3 +272,47 @@ def test_diffusion_reads_the_last_two_observations_as_it_trained(ds: Path, train
         later, _ = policy.model.predict({k: torch.stack([x[3][k], x[4][k]], dim=1) for k in x[0]}, None, gen)
     np.testing.assert_allclose(acts[0], first[0, 0].numpy() * policy.std + policy.mean, rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(acts[4], later[0, 0].numpy() * policy.std + policy.mean, rtol=1e-5, atol=1e-6)
+
+
+def test_a_binary_entry_switches_when_the_chunk_switches_it_within_switch_ahead(ds: Path, tmp_path: Path) -> None:
+    """`--switch-ahead h`: the gripper command follows the newest chunk's look-ahead (see
+    `echo_data.learn.policy.switched`), it changes as soon as one of the next h predicted steps
+    changes it, and only from what was commanded last; h = 1 is the plain threshold."""
+    from echo_data.learn.fit import train_skill
+    from echo_data.learn.policy import switched
+
+    open_, close = np.array([0.0], np.float32), np.array([1.0], np.float32)
+    ahead = np.array([[0.1], [0.2], [0.9], [0.8]], np.float32)  # the expert closes two steps from now
+    assert switched(ahead, None)[0] == 0.0  # a segment's start: this step's prediction
+    assert switched(ahead, open_)[0] == 1.0 and switched(ahead[:2], open_)[0] == 0.0
+    assert switched(ahead[2:], close)[0] == 1.0  # closed stays closed while every step says so ...
+    assert switched(np.array([[0.9], [0.3]], np.float32), close)[0] == 0.0  # ... and opens on a predicted release
+
+    with pytest.raises(Exception, match="--switch-ahead 5"):  # at most the chunk
+        algorithm("bc").config(skill="Navigate", chunk=4, switch_ahead=5).check()
+    cfg = algorithm("bc").config(dataset=str(ds), skill="Navigate", inputs=("state",), action_column="action.ee", max_steps=2, chunk=4, switch_ahead=3)
+    train_skill(cfg, tmp_path / "bc", progress=False)
+    policy = SkillPolicy.from_run(tmp_path / "bc")
+    assert policy.switch_ahead == 3
+    chunks: list[np.ndarray] = []
+    grip = len(EE_ACTION_NAMES) - 1
+    for step, value in enumerate((0.2, 0.2, 0.7)):  # the chunk predicts the close at its third step
+        c = np.zeros((4, len(EE_ACTION_NAMES)), np.float32)
+        c[:, grip] = 0.1
+        c[2:, grip] = value if step == 0 else 0.1
+        chunks.append(c)
+    feed = iter(chunks)
+    policy._predict = lambda o: next(feed)  # type: ignore[method-assign]
+    policy.reset({})
+    obs = _observations(ds)
+    assert policy.act(obs[0])[-1] == 0.0  # 0.2 three steps ahead: no switch predicted
+    policy.reset({})
+    chunks[0][2:, grip] = 0.7
+    feed = iter(chunks)
+    assert policy.act(obs[0])[-1] == 0.0  # the segment's first step: its own prediction (0.1)
+    assert policy.act(obs[1])[-1] == 0.0  # the next chunk says open throughout
+    policy.reset({})
+    policy._last_binary = open_
+    feed = iter([chunks[0]])
+    policy._rest = None
+    assert policy.act(obs[0])[-1] == 1.0  # commanded open, a close predicted within 3 steps: close now

@@ -76,6 +76,8 @@ class SkillConfig:
     action_column: str = opt("action", f"Action column cloned: {', '.join(ACTION_COLUMNS)}.")
     select_every: int = opt(0, "Every N epochs run the policy closed loop on validation-split episodes; best.pt = the best success (0 = lowest validation loss).")
     select_episodes: int = opt(3, "Validation-split episodes per closed-loop selection.")
+    switch_ahead: int = opt(1, "A binary entry (the gripper) switches as soon as the newest predicted chunk switches it within "
+                               "this many steps (1: the current step's prediction alone; at most the chunk).")
     # Filled in when the run starts:
     algo: str = resolved("")
     features: dict[str, Any] = resolved({})
@@ -116,6 +118,8 @@ class SkillConfig:
                 raise ConfigError(f"--{name.replace('_', '-')} {getattr(self, name)}: must be >= 1")
         if self.max_steps is not None and self.max_steps < 1:
             raise ConfigError(f"--max-steps {self.max_steps}: must be >= 1")
+        if not 1 <= self.switch_ahead <= self.window():
+            raise ConfigError(f"--switch-ahead {self.switch_ahead}: need 1 <= switch-ahead <= the actions predicted per step ({self.window()})")
         if self.select_every < 0 or self.shift < 0 or self.image_size < 0:
             raise ConfigError("--select-every, --shift and --image-size must be >= 0")
         if self.device not in DEVICES:
