@@ -56,20 +56,31 @@ DATA = {"Pick": "sanity_pick_place", "Place": "sanity_pick_place", "OpenDoor": "
 TEST = {"Pick": "pick_place", "Place": "pick_place", "OpenDoor": "door", "CloseSink": "sink"}
 # What each skill's learner reads: base-frame proprioception, the target kind (the grasp differs
 # per object), the target's pose and the hand's offset to it; the door and the lever also their
-# angle. Place's target pose is its place spot (docs/privileged_observations.md).
+# angle. Place's target pose is its place spot (docs/privileged_observations.md). Pick, Place and
+# CloseSink also read `target`, the goal position of the paper's starred rows: the target's
+# interaction pose (`skills.navigate.goal_pose`), which the learner sees in training as the
+# segment's final base pose; for Pick and Place the two are the same pose, CloseSink's stance is
+# 10 cm behind it along the facing direction in every episode checked (a fixed offset a learner
+# takes in). Without it a learner cannot tell where its base must stop after a hand-over
+# (validation, Pick after a hand-over: 2/10 without, 4/10 with; docs/learners.md). OpenDoor's base
+# moves on with the leaf, so its final pose is not known when it starts: it does not read it.
 INPUTS = {
-    "Pick": ("state", "kind", P + "target_pose", P + "tcp_to_target"),
-    "Place": ("state", "kind", P + "target_pose", P + "tcp_to_target"),
+    "Pick": ("state", "kind", "target", P + "target_pose", P + "tcp_to_target"),
+    "Place": ("state", "kind", "target", P + "target_pose", P + "tcp_to_target"),
     "OpenDoor": ("state", "kind", P + "target_pose", P + "tcp_to_target", P + "joint_angle"),
-    "CloseSink": ("state", "kind", P + "target_pose", P + "tcp_to_target", P + "joint_angle"),
+    "CloseSink": ("state", "kind", "target", P + "target_pose", P + "tcp_to_target", P + "joint_angle"),
 }
-NON_PRIVILEGED = ("state", "kind")
+NON_PRIVILEGED = ("state", "kind", "target")
 ACTION_COLUMNS = ("action.ee", "action")
-# The learner measured (chosen closed loop on the validation split, docs/learners.md): an MLP over
-# the state predicting 10-step action chunks, acting on the first action of each new chunk, its
-# gripper switching when the chunk switches it within 6 steps (`--switch-ahead`); ACT with
-# temporal ensembling scored 0/10 on the same validation episodes (Pick, 20 epochs).
-DEFAULT_TRAIN_OPTIONS = "--chunk 10 --execute 1 --switch-ahead 6 --hidden 512 --batch-size 256"
+# The learners tried per skill, each with its own options; the one with the best closed-loop
+# validation success is tested (ties: the first listed). ACT as in docs/learners.md (chunk 20,
+# temporal ensembling); "bc": an MLP over the state predicting 10-step chunks, acting on each new
+# chunk's first action, its gripper switching when the chunk switches it within 6 steps
+# (`--switch-ahead`, chosen on validation: docs/learners.md).
+LEARNERS: dict[str, tuple[str, str]] = {
+    "act": ("act", "--epochs 20 --select-every 10"),
+    "bc": ("bc", "--epochs 150 --select-every 50 --chunk 10 --execute 1 --switch-ahead 6 --hidden 512 --batch-size 256"),
+}
 TINY_EPISODES = 3  # --tiny: train episodes built per dataset (`build --limit`)
 
 
@@ -206,22 +217,26 @@ def check_columns(data: Path, inputs: tuple[str, ...]) -> None:
         usage_error(f"{info}: no column {', '.join(missing)} in its 'privileged' list (a dataset built before the privileged columns?)")
 
 
-def train(skill: str, data: Path, inputs: tuple[str, ...], column: str, a: argparse.Namespace, log: Path) -> dict[str, Any]:
-    """`echo-data train act` of one skill and action column unless its run folder holds a summary."""
-    folder = a.work / "runs" / f"{skill}-{column}"
+def train(skill: str, data: Path, inputs: tuple[str, ...], column: str, learner: str, a: argparse.Namespace, log: Path) -> dict[str, Any]:
+    """`echo-data train` of one skill, action column and learner (`LEARNERS`) unless its run folder holds a summary."""
+    folder = a.work / "runs" / f"{skill}-{column}-{learner}"
     done = folder / "summary.json"
     if done.is_file():
         return {**json.loads(done.read_text()), "reused": True}
     if folder.exists():
         shutil.rmtree(folder)  # unfinished: train again (a resumed run would need its exact options)
-    args = ["train", a.algo, str(data), "--skill", skill, "--inputs", ",".join(inputs), "--action-column", column,
-            "--device", a.device, "--epochs", str(a.epochs), "--select-every", str(a.select_every),
+    algo, options = LEARNERS[learner]
+    own = [*(["--epochs", str(a.epochs)] if a.epochs is not None else []),  # after the learner's own: the command line wins
+           *(["--select-every", str(a.select_every)] if a.select_every is not None else [])]
+    args = ["train", algo, str(data), "--skill", skill, "--inputs", ",".join(inputs), "--action-column", column,
+            "--device", a.device, *options.split(), *own,
             "--select-episodes", str(a.select_episodes), "--seed", str(a.seed), "--out", str(folder), "--no-progress", *a.train_options.split()]
     stdout, seconds = echo_data(args, log)
     summary = json.loads(stdout)
-    entry = {"command": shown(args, a.work), "seconds": round(seconds, 1), "run": folder.name,
+    entry = {"command": shown(args, a.work), "seconds": round(seconds, 1), "run": folder.name, "learner": learner,
              "steps": summary.get("step"), "device": summary.get("device"), "rows": summary.get("rows"),
-             "validation": summary.get("last")}  # the last epoch's validation: loss and closed-loop val_success
+             "validation": summary.get("last"),  # the last epoch's validation: loss and closed-loop val_success
+             "best_val_success": best_val_success(folder)}  # what best.pt scored: the candidates are compared on it
     done.write_text(json.dumps(entry, indent=1) + "\n")
     return entry
 
@@ -229,7 +244,7 @@ def train(skill: str, data: Path, inputs: tuple[str, ...], column: str, a: argpa
 def evaluate(skill: str, run: str, recipe: str, a: argparse.Namespace, log: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     """Closed loop on the test split of recipes/RECIPE.yaml (test sounds): the learner drives
     `skill`, the experts every other skill; (the skill's k/n with Wilson 95 %, timing and command)."""
-    out = a.work / "eval" / f"{skill}-{recipe}.json"
+    out = a.work / "eval" / f"{run}-{recipe}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     args = ["evaluate", str(ROOT / "recipes" / f"{recipe}.yaml"), "--split", "test", "-n", str(a.episodes),
             f"--policy={skill}={a.work / 'runs' / run}", "--policy", "oracle", "--planner", "oracle",
@@ -251,14 +266,26 @@ def score(episodes: list[dict[str, Any]], skill: str) -> dict[str, Any]:
     return {"successes": sum(tries), "n": len(tries), "low": round(low, 4), "high": round(high, 4)}
 
 
-def best_column(trained: dict[str, dict[str, Any]]) -> str:
-    """The action column whose run scored best closed loop on validation (ties: the first tried)."""
+def best_val_success(folder: Path) -> float | None:
+    """The best closed-loop validation success of a run's checkpoint choices (its best.pt), from
+    the run's losses file (None: no closed-loop choice ran)."""
+    import csv
+    import math
+
+    from echo_data.learn.runs import LOSSES
+
+    with (folder / LOSSES).open() as f:
+        seen = [float(r["val_success"]) for r in csv.DictReader(f) if r.get("val_success") not in (None, "", "nan")]
+    seen = [v for v in seen if not math.isnan(v)]
+    return max(seen) if seen else None
+
+
+def best_run(trained: dict[str, dict[str, Any]]) -> str:
+    """The candidate (action column and learner) whose best checkpoint scored best closed loop on
+    validation (ties: the first tried)."""
     def val(entry: dict[str, Any]) -> float:
-        v = entry.get("validation")
-        for key in ("val_success",):
-            if isinstance(v, dict) and isinstance(v.get(key), (int, float)):
-                return float(v[key])
-        return -1.0
+        best = entry.get("best_val_success")
+        return float(best) if isinstance(best, (int, float)) else -1.0
     return max(trained, key=lambda c: val(trained[c]))
 
 
@@ -274,17 +301,18 @@ def run_skill(skill: str, inputs: tuple[str, ...], a: argparse.Namespace, doc: d
         timing["build_s"] = 0.0  # built for an earlier skill of this run
     data = a.work / "data" / name
     check_columns(data, inputs)
-    trained = {c: train(skill, data, inputs, c, a, log) for c in a.action_columns}
-    column = best_column(trained)
+    trained = {f"{c}-{k}": train(skill, data, inputs, c, k, a, log) for c in a.action_columns for k in a.learners}
+    chosen = best_run(trained)
+    column = chosen.rsplit("-", 1)[0]
     timing["train_s"] = round(sum(0.0 if t.get("reused") else t["seconds"] for t in trained.values()), 1)
-    run = trained[column]["run"]
+    run = trained[chosen]["run"]
     alone, cmd_alone = evaluate(skill, run, f"sanity_test_{TEST[skill]}", a, log)
     doc["skills"][skill] = alone
     handover, cmd_handover = evaluate(skill, run, f"sanity_test_{TEST[skill]}_handover", a, log)
     doc["skills_handover"][skill] = handover
     timing["eval_s"] = round(cmd_alone["seconds"] + cmd_handover["seconds"], 1)
     timing["total_s"] = round(time.perf_counter() - t0, 1)
-    doc["details"][skill] = {"driver": doc["command"], "inputs": list(inputs), "action_column": column, "training": trained,
+    doc["details"][skill] = {"driver": doc["command"], "inputs": list(inputs), "action_column": column, "learner": trained[chosen]["learner"], "training": trained,
                              "evaluation": {"skills": cmd_alone["command"], "skills_handover": cmd_handover["command"]}}
     doc["timings"][skill] = timing
 
@@ -296,11 +324,11 @@ def main() -> None:
     ap.add_argument("--work", type=Path, default=ROOT / "out" / "sanity", help="datasets, run folders, evaluation JSONs and the log")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "sanity_learners.json")
     ap.add_argument("-n", "--episodes", type=int, default=50, help="test episodes per row (>= 50 for the acceptance figure)")
-    ap.add_argument("--algo", default="bc", help="the learner (`echo-data train ALGO`)")
-    ap.add_argument("--train-options", default=DEFAULT_TRAIN_OPTIONS,
-                    help=f"more `echo-data train` options, one string (default: {DEFAULT_TRAIN_OPTIONS!r})")
-    ap.add_argument("--epochs", type=int, default=150)
-    ap.add_argument("--select-every", type=int, default=50, help="closed-loop validation every N epochs (and after the last)")
+    ap.add_argument("--learners", default=",".join(LEARNERS),
+                    help=f"comma list of {', '.join(f'{k} ({v[0]} {v[1]})' for k, v in LEARNERS.items())}: each is trained, the best on validation tested")
+    ap.add_argument("--train-options", default="", help="more `echo-data train` options for every learner, one string")
+    ap.add_argument("--epochs", type=int, default=None, help="epochs of every learner (default: each learner's own)")
+    ap.add_argument("--select-every", type=int, default=None, help="closed-loop validation every N epochs and after the last (default: each learner's own)")
     ap.add_argument("--select-episodes", type=int, default=10, help="validation episodes per checkpoint choice")
     ap.add_argument("--action-columns", default="action.ee",
                     help="comma list of action columns to train; with two, the one with the better closed-loop validation is tested "
@@ -313,6 +341,9 @@ def main() -> None:
     bad = [s for s in a.skills if s not in SKILLS]
     if bad or not a.skills:
         usage_error(f"--skills: unknown {', '.join(bad) or '(none given)'} (known: {', '.join(SKILLS)})")
+    a.learners = [k.strip() for k in a.learners.split(",") if k.strip()]
+    if not a.learners or any(k not in LEARNERS for k in a.learners):
+        usage_error(f"--learners {','.join(a.learners)!r}: each must be one of {', '.join(LEARNERS)}")
     a.action_columns = [c.strip() for c in a.action_columns.split(",") if c.strip()]
     if not a.action_columns or any(c not in ACTION_COLUMNS for c in a.action_columns):
         usage_error(f"--action-columns {','.join(a.action_columns)!r}: each must be one of {', '.join(ACTION_COLUMNS)}")

@@ -5,8 +5,11 @@ tool) with the oracle planner, the scripted experts for every other skill and th
 `--skill`, and prints for each step of that skill what its success test depends on: the hand's
 distance to the target object (3-D and horizontal), the gripper opening, whether the object is
 held, its height above its receptacle and the hand's distance to the carry pose; for a target
-that is furniture (Place), a door or a sink, the base's distance to the expert's interaction pose. With `--video`
-it also writes the episode's MP4 (the evaluate frame).
+that is furniture (Place), a door or a sink, the base's distance to the expert's interaction pose.
+To look at the same episode, `echo-data evaluate RECIPE --split val -n K --policy=SKILL=RUN
+--policy oracle --planner oracle --video DIR` writes its MP4; a camera-free recipe (the sanity
+learners') shows only the plan there, so extend it with `robot.head_camera.rgb: true` (and the
+wrist camera's) for the pictures: the learner reads no image, so its actions are the same.
 
   python benchmarks/skill_trace.py recipes/paper_table_object_relocation.yaml --run runs/Pick \
       --skill Pick --split train --index 0 1 2 [--every 10]

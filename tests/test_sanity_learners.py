@@ -39,6 +39,11 @@ def test_the_tiny_path_writes_both_blocks_with_wilson_intervals(tmp_path: Path) 
     assert t["build_s"] > 0 and t["train_s"] > 0 and t["eval_s"] > 0
     d = doc["details"]["Pick"]
     assert d["action_column"] == "action.ee" and not any(i in d["inputs"] for i in ("depth", "wrist_depth", "rgb"))
+    # every learner was trained, and the one tested is the best on validation (ties: the first listed)
+    tried = d["training"]
+    assert {e["learner"] for e in tried.values()} == {"act", "bc"} and d["learner"] in ("act", "bc")
+    best = max(tried.values(), key=lambda e: -1.0 if e["best_val_success"] is None else e["best_val_success"])["best_val_success"]
+    assert tried[f"action.ee-{d['learner']}"]["best_val_success"] == best
     # the camera-free build stored no image column
     info = json.loads((tmp_path / "work" / "data" / "sanity_pick_place" / "meta" / "info.json").read_text())
     assert not any("images" in k for k in json.dumps(info.get("features", {})).split('"'))
@@ -48,6 +53,7 @@ def test_the_tiny_path_writes_both_blocks_with_wilson_intervals(tmp_path: Path) 
     (("--skills", "Pick", "Jump"), "--skills: unknown Jump"),
     (("--inputs", "Pick=state,observation.privileged.nope"), "unknown column observation.privileged.nope"),
     (("--inputs", "Pick=state,depth"), "unknown column depth"),
+    (("--learners", "act,gpt"), "--learners"),
     (("--action-columns", "action.joint"), "--action-columns"),
 ])
 def test_bad_arguments_are_one_line_and_exit_2(tmp_path: Path, args: tuple[str, ...], says: str) -> None:
