@@ -10,6 +10,9 @@ python3 -m pip install -q --disable-pip-version-check -e '.[test]'
 python3 -m pip install -q --disable-pip-version-check --no-deps "robomimic==0.3.0"
 # robomimic's train.py (tests/robomimic_train.py) imports psutil and imageio, and its encoders torchvision.
 python3 -m pip install -q --disable-pip-version-check "psutil>=5" "imageio>=2.30,<3"
-bash scripts/install_cpu_torchvision.sh "$(command -v python3)"
+# torchvision runs on torch, which the test extra installs below Python 3.12 only (pyproject.toml).
+if python3 -c 'import sys; sys.exit(sys.version_info >= (3, 12))'; then
+  bash scripts/install_cpu_torchvision.sh "$(command -v python3)"
+fi
 # LeRobot's dataset library in its own environment (its pins clash with ours); used by tests.
 bash scripts/setup_lerobot.sh

@@ -19,6 +19,7 @@ import pyarrow.parquet as pq
 import pytest
 import soundfile as sf
 import yaml
+from support.optional import needs_torch
 from typer.testing import CliRunner
 
 from echo_data.agents.runtime import run_episode
@@ -122,6 +123,7 @@ def test_whole_build_counts_no_cut_episodes(builds: tuple[Path, Path]) -> None:
     assert "control steps (`outputs.max_frames`)" not in (whole / "README.md").read_text()
 
 
+@needs_torch
 def test_planner_trains_on_a_cut_build(builds: tuple[Path, Path], tmp_path: Path) -> None:
     _, cut = builds
     run = tmp_path / "planner"

@@ -16,6 +16,7 @@ import pyarrow.parquet as pq
 import pytest
 import zarr
 from PIL import Image
+from support.optional import needs_torch
 from support.synth import build_synth
 from typer.testing import CliRunner
 
@@ -53,6 +54,7 @@ def _png(cell: dict) -> np.ndarray:
     return np.asarray(Image.open(io.BytesIO(cell["bytes"])))
 
 
+@needs_torch
 def test_robomimic_sequence_dataset_reads_the_export(ds: Path, tmp_path: Path) -> None:
     import robomimic.utils.obs_utils as obs_utils
     from robomimic.utils.dataset import SequenceDataset
@@ -121,6 +123,7 @@ def test_robomimic_next_obs_and_split(ds: Path, tmp_path: Path) -> None:
     assert bad.exit_code == 2 and "--split val" in bad.output and not (tmp_path / "v.hdf5").exists()
 
 
+@needs_torch
 def test_robomimic_bc_trains_on_the_export(ds: Path, tmp_path: Path) -> None:
     """robomimic's own train() (BC, low-dimensional state + spectrogram, train mask) takes steps on the export."""
     _needs("torchvision", "psutil", "imageio")

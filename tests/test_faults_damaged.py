@@ -7,6 +7,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from support.optional import cli_param
 from support.synth import build_synth, damageable_copy
 from typer.testing import CliRunner
 
@@ -41,7 +42,7 @@ COMMANDS = {
 
 
 @pytest.mark.parametrize("damage", sorted(DAMAGE))
-@pytest.mark.parametrize("command", sorted(COMMANDS))
+@pytest.mark.parametrize("command", [cli_param(c, COMMANDS[c]) for c in sorted(COMMANDS)])
 def test_damaged_dataset_is_one_line_naming_the_file(damage: str, command: str, pristine: Path, tmp_path: Path) -> None:
     ds = damageable_copy(pristine, tmp_path)
     says = DAMAGE[damage](ds)

@@ -11,6 +11,7 @@ from typing import Any
 
 import pytest
 from support.cli import one_line_exit_2
+from support.optional import cli_param
 from support.synth import build_synth, damageable_copy
 
 QUICK = str(Path(__file__).resolve().parents[1] / "recipes" / "quickstart.yaml")
@@ -53,7 +54,7 @@ COMMANDS = {
 }
 
 
-@pytest.mark.parametrize("command", sorted(COMMANDS))
+@pytest.mark.parametrize("command", [cli_param(c, COMMANDS[c]) for c in sorted(COMMANDS)])
 @pytest.mark.parametrize("case", sorted(DAMAGE))
 def test_damaged_manifest_is_one_line_naming_file_and_key(case: str, command: str, pristine: Path, tmp_path: Path) -> None:
     damage, says = DAMAGE[case]

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 from support.cli import one_line_exit_2
+from support.optional import needs_torch
 from support.synth import build_synth, damageable_copy
 from test_faults_disk import _limited, _one_line_exit_2
 from test_faults_overwrite import _thesis, tree_digest
@@ -20,6 +21,8 @@ from typer.testing import CliRunner
 from echo_data.cli import app
 from echo_data.dataset.written import MARKER, all_files
 from echo_data.learn import runs
+
+pytestmark = needs_torch  # every test here trains (`echo-data train`)
 
 TRAIN = {
     "bc": ["bc", "--skill", "Navigate", "--inputs", "state"],

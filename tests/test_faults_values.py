@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 from support.cli import one_line_exit_2
+from support.optional import needs_torch
 from support.synth import build_synth, damageable_copy
 from typer.testing import CliRunner
 
@@ -29,6 +30,7 @@ def pristine(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (["planner", "--inputs", "image", "--audio", "spectrogram"], "--audio: does not apply without audio in --inputs"),
     (["planner", "--train-episodes", "99"], "--train-episodes 99: the train split of"),
 ])
+@needs_torch
 def test_train_options_that_do_not_apply_or_exceed_the_data(extra: list[str], says: str, pristine: Path, tmp_path: Path) -> None:
     run = tmp_path / "run"
     one_line_exit_2(["train", extra[0], str(pristine), *extra[1:], "--out", str(run), "--max-steps", "1", "--no-progress"], says)

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 from support.cli import one_line_exit_2
+from support.optional import cli_param
 from support.synth import build_synth
 
 RO = Path("/sys/echo-data-test")  # not writable, even for root
@@ -18,14 +19,14 @@ def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_synth(tmp_path_factory.mktemp("writes") / "synth", {"train": 2, "test": 1})
 
 
-@pytest.mark.parametrize("command", [
+@pytest.mark.parametrize("command", [cli_param(c, c) for c in [
     ["export", "{ds}", "--out", "{ro}/export"],
     ["export", "{ds}", "--format", "zarr", "--out", "{ro}/export"],
     ["export", "{ds}", "--format", "robomimic", "--out", "{ro}/export.hdf5"],
     ["view", "{ds}", "--out", "{ro}/ep.mp4"],
     ["train", "bc", "{ds}", "--skill", "Navigate", "--inputs", "state", "--out", "{ro}/run", "--no-progress"],
     ["train", "planner", "{ds}", "--out", "{ro}/run", "--no-progress"],
-])
+]])
 def test_output_that_cannot_be_written_is_one_line_exit_2(command: list[str], ds: Path) -> None:
     args = [a.format(ds=ds, ro=RO) for a in command]
     one_line_exit_2(args, "--out", "not writable")

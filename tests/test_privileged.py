@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from support.optional import needs_torch
 
 from echo_data.envs import EchoDataEnv
 from echo_data.envs.privileged import JOINT_ANGLE, PLACE_SPOT, TARGET_POSE, TCP_TO_TARGET, PrivilegedProbe
@@ -107,8 +108,8 @@ def test_privileged_columns_are_flagged_and_documented() -> None:
     assert flagged == list(PRIVILEGED_COLUMNS)
 
 
+@needs_torch
 def test_no_loader_reads_privileged_columns_by_default(synth_dataset: Callable[[dict[str, int]], Path]) -> None:
-    pytest.importorskip("torch")
     from echo_data.dataset.torch import SequenceDataset, StepDataset
 
     out = synth_dataset({"train": 4, "test": 1})

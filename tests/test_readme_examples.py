@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 import yaml
 from support.lerobot_env import HERE, run_lerobot
+from support.optional import needs_torch
 from support.synth import build_synth
 from typer.testing import CliRunner
 
@@ -40,7 +41,7 @@ def test_all_four_examples_are_there() -> None:
     assert set(EXAMPLES) == {"datasets", "torch", "lerobot", "robomimic", "zarr", "llamafactory"}
 
 
-@pytest.mark.parametrize("name", ["datasets", "torch", "robomimic", "zarr"])
+@pytest.mark.parametrize("name", ["datasets", pytest.param("torch", marks=needs_torch), pytest.param("robomimic", marks=needs_torch), "zarr"])
 def test_python_example_runs(name: str, workdir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(workdir)
     if name in ("robomimic", "zarr"):

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from support.optional import needs_torch
 
 from echo_data.evaluation.metrics import wilson
 
@@ -22,6 +23,7 @@ def _driver(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 @pytest.mark.slow
+@needs_torch
 def test_the_tiny_path_writes_both_blocks_with_wilson_intervals(tmp_path: Path) -> None:
     out = tmp_path / "sanity.json"
     r = _driver("--tiny", "--skills", "Pick", "--workers", "1", "--work", str(tmp_path / "work"), "--out", str(out))

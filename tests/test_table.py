@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from support.optional import needs_torch
 from typer.testing import CliRunner
 
 from echo_data.cli import app
@@ -191,6 +192,7 @@ def quickstart(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+@needs_torch
 def test_paper_table_tiny_evaluates_a_learner_in_evaluate_and_resumes(quickstart: Path, tmp_path: Path) -> None:
     runs_dir, out = tmp_path / "runs", tmp_path / "table.json"
     cmd = [sys.executable, str(ROOT / "benchmarks" / "paper_table.py"), "--tiny", "--data", str(quickstart), "--runs", str(runs_dir), "--out", str(out),

@@ -8,6 +8,7 @@ import importlib.util
 from pathlib import Path
 
 import pytest
+from support.optional import needs_torch
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -20,6 +21,7 @@ def _probe():
 
 
 @pytest.mark.slow
+@needs_torch
 def test_probe_tells_objects_apart_on_unseen_homes() -> None:
     probe = _probe()
     recipe = ROOT / "recipes" / "object_relocation.yaml"
