@@ -1,7 +1,7 @@
 """The privileged sanity learner per manipulation skill (issue 28, point 5), closed loop: build the
-camera-free training data, train `echo-data train bc` (chunked; `--algo`) on proprioception + the skill's
+camera-free training data, train each learner of `LEARNERS` (ACT, a chunked MLP) on proprioception + the skill's
 `observation.privileged.*` columns (no images, so nothing is rendered, in the build or in
-evaluation), choose the checkpoint closed loop on the validation split, then evaluate on the test
+evaluation), choose the checkpoint and the learner closed loop on the validation split, then evaluate on the test
 split (test sounds) and write benchmarks/results/sanity_learners.json.
 
 It separates "the demonstrations cannot teach this skill" from "the cameras are too weak": a
@@ -230,7 +230,7 @@ def train(skill: str, data: Path, inputs: tuple[str, ...], column: str, learner:
            *(["--select-every", str(a.select_every)] if a.select_every is not None else [])]
     args = ["train", algo, str(data), "--skill", skill, "--inputs", ",".join(inputs), "--action-column", column,
             "--device", a.device, *options.split(), *own,
-            "--select-episodes", str(a.select_episodes), "--seed", str(a.seed), "--out", str(folder), "--no-progress", *a.train_options.split()]
+            "--select-episodes", str(a.select_episodes), "--seed", str(a.seed), "--out", str(folder), "--no-progress"]
     stdout, seconds = echo_data(args, log)
     summary = json.loads(stdout)
     entry = {"command": shown(args, a.work), "seconds": round(seconds, 1), "run": folder.name, "learner": learner,
@@ -326,7 +326,6 @@ def main() -> None:
     ap.add_argument("-n", "--episodes", type=int, default=50, help="test episodes per row (>= 50 for the acceptance figure)")
     ap.add_argument("--learners", default=",".join(LEARNERS),
                     help=f"comma list of {', '.join(f'{k} ({v[0]} {v[1]})' for k, v in LEARNERS.items())}: each is trained, the best on validation tested")
-    ap.add_argument("--train-options", default="", help="more `echo-data train` options for every learner, one string")
     ap.add_argument("--epochs", type=int, default=None, help="epochs of every learner (default: each learner's own)")
     ap.add_argument("--select-every", type=int, default=None, help="closed-loop validation every N epochs and after the last (default: each learner's own)")
     ap.add_argument("--select-episodes", type=int, default=10, help="validation episodes per checkpoint choice")

@@ -1,5 +1,5 @@
 """benchmarks/sanity_learners.py: the privileged sanity learner's whole path (camera-free build,
-`train bc` (chunked, `--algo`) on state + privileged columns with closed-loop checkpoint choice, evaluation on the test
+every candidate learner (ACT, a chunked MLP) on state + privileged columns with closed-loop checkpoint choice, evaluation on the test
 split alone and after a hand-over) in its --tiny form, and its bad input (one line, exit 2)."""
 
 from __future__ import annotations
