@@ -163,6 +163,8 @@ def test_binary_gripper_is_classified() -> None:
         (["--seed", str(2**64)], "--seed 18446744073709551616: must be within [0, 2**64)"),
         (["--inputs", "depth", "--image-size", "0", "--encoder", "spatial_softmax", "--shift", "16"], "--shift 16: must be below the image side (16 px)"),
         (["--device", "tpu"], "--device 'tpu': choose from cpu, cuda, auto"),
+        # a closed-loop choice whose episodes act in the other form: refused before 10 epochs are spent
+        (["--select-every", "1", "--action-column", "action.ee"], "acts in robot.action_space joint, whose policies clone action "),
     ],
 )
 def test_training_inputs_are_checked_before_anything_is_written(ds: Path, tmp_path: Path, args: list[str], message: str) -> None:

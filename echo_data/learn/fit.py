@@ -164,6 +164,10 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
         cfg.check()
     else:
         cfg = resolve(cfg)
+    if cfg.select_every:
+        from echo_data.learn.select import check_action_space
+
+        check_action_space(Path(cfg.dataset), cfg.action_column)
     device = resolve_device(cfg.device)
     if device == "cuda":  # cuBLAS is deterministic only with a fixed workspace (torch's reproducibility notes)
         os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")

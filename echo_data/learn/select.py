@@ -39,6 +39,22 @@ def validation_recipe(dataset: Path, skill: str, episodes: int) -> Any:
     return recipe.model_copy(update={"composition": comp, "splits": {**recipe.splits, "val": episodes}})
 
 
+# The env's action form (`robot.action_space`) -> the action column a policy must clone to act in it.
+COLUMN_OF_SPACE = {"joint": "action", "ee_delta": "action.ee"}
+
+
+def check_action_space(dataset: Path, action_column: str) -> None:
+    """Refuse, before any training, a closed-loop choice that could never act: validation episodes
+    run in the dataset recipe's `robot.action_space`, which takes one action column's form."""
+    from echo_data.learn.dagger import recipe_of
+
+    recipe, _ = recipe_of(dataset)
+    want = COLUMN_OF_SPACE[recipe.robot.action_space]
+    if action_column != want:
+        raise runs.RunError(f"--select-every with --action-column {action_column}: {dataset}'s recipe acts in robot.action_space "
+                            f"{recipe.robot.action_space}, whose policies clone {want} (pass --action-column {want})")
+
+
 def closed_loop_success(cfg: Any, model: Any, out: Path) -> float:
     """Success rate of `cfg.skill` over `cfg.select_episodes` validation episodes with the
     model's current weights (nan when no episode reached the skill)."""
