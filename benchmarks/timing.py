@@ -60,15 +60,21 @@ def floor_times(world: object, steps: int) -> tuple[float, float]:
     return wall / steps, proc / steps
 
 
-def replay_step_render(world: object, actions: list[np.ndarray], cpu: bool = False) -> float:
-    """Seconds per control step of `World.step(action)` for the recorded actions + render + readback."""
+def replay_times(world: object, actions: list[np.ndarray]) -> tuple[float, float]:
+    """(wall-clock, process-CPU) seconds per control step of `World.step(action)` for the recorded
+    actions + render + readback, one run (the floor along a recorded path)."""
     cams = _cameras(world)
     clock = Clock()
     for a in actions:
         world.step(a)  # type: ignore[attr-defined]
         _read_pictures(world, cams)
     wall, proc = clock.lap()
-    return (proc if cpu else wall) / max(len(actions), 1)
+    return wall / max(len(actions), 1), proc / max(len(actions), 1)
+
+
+def replay_step_render(world: object, actions: list[np.ndarray], cpu: bool = False) -> float:
+    """Seconds per control step of `World.step(action)` for the recorded actions + render + readback."""
+    return replay_times(world, actions)[1 if cpu else 0]
 
 
 def ratio_row(label: str, what: str, wall: float, cpu: float, floor: tuple[float, float], tail: str = "") -> str:
