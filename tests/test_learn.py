@@ -23,7 +23,7 @@ from echo_data.dataset.schema import ACTION, STATE, column_to_numpy
 from echo_data.dataset.torch import StepDataset
 from echo_data.learn import runs
 from echo_data.learn.features import HEAD_DEPTH, LEAKING_STATE, feature_spec, prepare, single
-from echo_data.learn.models import AudioEncoder
+from echo_data.learn.models import AudioEncoder, PooledAudioEncoder
 from echo_data.learn.policy import BCPolicy, PlannerModel
 from echo_data.records import ACTION_DIM, STATE_DIM, STATE_NAMES
 
@@ -271,10 +271,18 @@ def test_planner_augmentation_shifts_pitch_and_gain_alike_in_both_ears() -> None
 def test_planner_options_select_by_accuracy_with_augmentation(ds: Path, tmp_path: Path) -> None:
     run = tmp_path / "aug"
     res = runner.invoke(app, ["train", "planner", str(ds), "--epochs", "2", "--augment", "--select", "accuracy", "--val-by", "sounds",
-                              "--out", str(run), "--no-progress"])
+                              "--encoder", "pooled", "--order", "priority", "--mix", "0.5", "--out", str(run), "--no-progress"])
     assert res.exit_code == 0, res.output
     report = json.loads(res.stdout)
     assert report["augment"] and report["select"] == "accuracy" and report["val_by"] == "sounds"
+    assert (report["encoder"], report["order"], report["mix"]) == ("pooled", "priority", 0.5)
+    assert report["test_errors"]["of"] == report["episodes"]["test"]
+    cfg = json.loads((run / runs.CONFIG).read_text())
+    assert cfg["priority"] == ["sink", "doorbell", "alarm", "phone", "furby"]  # the quickstart recipe's rule
+    plan = PlannerModel.from_run(run)
+    assert plan.priority == cfg["priority"] and isinstance(plan.model.enc.parts["audio"], PooledAudioEncoder)
+    res = runner.invoke(app, ["train", "planner", str(ds), "--encoder", "wide", "--out", str(tmp_path / "bad"), "--no-progress"])
+    assert res.exit_code == 2 and "--encoder: unknown 'wide'" in res.output, res.output
     res = runner.invoke(app, ["train", "planner", str(ds), "--select", "luck", "--out", str(tmp_path / "bad"), "--no-progress"])
     assert res.exit_code == 2 and "--select: unknown 'luck'" in res.output, res.output
 

@@ -203,6 +203,9 @@ def planner_cmd(
     val_by: Annotated[str, typer.Option("--val-by", help="Validation: episodes (held-out train episodes) or sounds (episodes of held-out train sound instances, unheard like the test's).")] = "episodes",
     select: Annotated[str, typer.Option("--select", help="Checkpoint kept: lowest validation loss (loss) or highest validation accuracy of the events in order, single- and multi-event episodes weighing half each (accuracy).")] = "loss",
     augment: Annotated[bool, typer.Option("--augment/--no-augment", help="Augment training audio: pitch shift, gain, SpecAugment masks.")] = False,
+    encoder: Annotated[str, typer.Option("--encoder", help="Audio encoder: flat (SoundSpaces' CNN, flattened) or pooled (batch-normed CNN pooled over time).")] = "flat",
+    order: Annotated[str, typer.Option("--order", help="Order of the sounding events: learned (priority scores) or priority (the recipe's priority rule from the manifest).")] = "learned",
+    mix: Annotated[float, typer.Option("--mix", min=0.0, max=0.99, help="Share of single-event training rows mixed with a single event of the other kind (state + relocation) into a multi-event example; 0 = off.")] = 0.0,
     epochs: _Epochs = None,
     seed: _Seed = 0,
     out: Annotated[Path | None, typer.Option("--out", help="Run folder (default runs/planner-<inputs>).")] = None,
@@ -222,10 +225,10 @@ def planner_cmd(
         names = parse_inputs(inputs, PLANNER_INPUTS)
         if not 0 <= seed < SEED_LIMIT:
             raise _fail(f"--seed {seed}: must be within [0, 2**64)")
-        _not_applying(ctx, {"audio": ("audio" in names, "without audio in --inputs"), "augment": ("audio" in names, "without audio in --inputs")})
+        _not_applying(ctx, {name: ("audio" in names, "without audio in --inputs") for name in ("audio", "augment", "encoder", "mix")})
         folder = out or Path("runs") / f"planner-{'-'.join(names)}"
         cfg = PlannerConfig(str(dataset), names, seed=seed, audio=audio, max_steps=max_steps, threads=threads, train_frames=train_frames, train_episodes=train_episodes,
-                            val_by=val_by, select=select, augment=augment)
+                            val_by=val_by, select=select, augment=augment, encoder=encoder, order=order, mix=mix)
         if epochs is not None:
             cfg.epochs = epochs
         _check(dataset, folder)

@@ -64,6 +64,17 @@ class PlannerConfig:
     select: str = "loss"
     # Training-time augmentation of the audio input (see `augment_audio`): off by default.
     augment: bool = False
+    # The audio encoder (models.AUDIO_ENCODERS): "flat" (SoundSpaces' CNN, flattened) or "pooled"
+    # (batch-normed blocks, pooled over time: a pattern counts wherever in the second it sounds).
+    encoder: str = "flat"
+    # How the sounding events are ordered: "learned" (the priority scores) or "priority" (the
+    # dataset recipe's priority rule, `events.priority` in the manifest, which the task states:
+    # the order is then a fixed function of the set and only the set must be heard).
+    order: str = "learned"
+    # The share of training examples replaced by a mix of two single-event training examples of
+    # a state and a relocation category (their powers summed, labels united): multi-event scenes
+    # the recipe composes, from voices of the single-event episodes. 0: off.
+    mix: float = 0.0
     # Filled in by resolve():
     features: dict[str, Any] = field(default_factory=dict)
     audio_shape: list[int] | None = None
@@ -74,6 +85,7 @@ class PlannerConfig:
     # from the logits (see `decode`): chosen after training on validation, written to config.json.
     event_sets: list[list[str]] = field(default_factory=list)
     decode: str = "threshold"
+    priority: list[str] = field(default_factory=list)  # the recipe's priority rule, most urgent first
 
     @staticmethod
     def from_dict(d: dict[str, Any]) -> PlannerConfig:
@@ -81,6 +93,8 @@ class PlannerConfig:
 
 
 VAL_BY = ("episodes", "sounds")
+ENCODERS = ("flat", "pooled")
+ORDERS = ("learned", "priority")
 # "accuracy": the mean of the single-event and the multi-event validation accuracy (each group
 # weighs half, as the goals are stated per group): validation by sounds holds few multi-event
 # episodes (both sounds must be held out), and the plain accuracy let single events choose alone.
@@ -232,27 +246,32 @@ def resolve(cfg: PlannerConfig) -> PlannerConfig:
     # Every category the recipe can sound, so a test-only category is at least representable.
     recipe_cats = manifest.get("recipe", {}).get("events", {}).get("categories", {})
     cats = sorted(set(recipe_cats) | {e["category"] for r in rows for e in r["events"]})
+    priority = list(manifest.get("recipe", {}).get("events", {}).get("priority", []))
+    if cfg.order == "priority" and not set(cats) <= set(priority):
+        raise runs.RunError(f"{root / 'manifest.json'}: recipe.events.priority does not rank every category (--order priority needs it)")
     return PlannerConfig(
         **{**asdict(cfg), "dataset": str(root.resolve()), "features": spec.to_dict(), "audio_shape": list(shape) if shape else None,
-           "categories": cats, "templates": learn_templates(rows), "event_sets": event_sets(rows)}
+           "categories": cats, "templates": learn_templates(rows), "event_sets": event_sets(rows), "priority": priority}
     )
 
 
 def build_model(cfg: PlannerConfig) -> Any:
     from echo_data.learn.models import PlannerNet, stored_audio_shape
 
-    return PlannerNet(FeatureSpec.from_dict(cfg.features), stored_audio_shape(cfg.audio_shape), len(cfg.categories))
+    return PlannerNet(FeatureSpec.from_dict(cfg.features), stored_audio_shape(cfg.audio_shape), len(cfg.categories), audio_encoder=cfg.encoder)
 
 
 DECODERS = ("threshold", "sets")
 
 
-def decode(logits: np.ndarray, scores: np.ndarray, categories: list[str], sets: list[list[str]] | None = None) -> list[str]:
+def decode(logits: np.ndarray, scores: np.ndarray, categories: list[str], sets: list[list[str]] | None = None,
+           priority: list[str] | None = None) -> list[str]:
     """Sounding categories, most urgent first. Without `sets` ("threshold"): every category whose
     logit is > 0, at least the most likely one. With `sets` ("sets": the event sets of the training
     episodes, e.g. one relocation and one state event at most): the most probable of those sets
     under independent per-category probabilities sigmoid(logit) -- the answer cannot be a set the
-    recipe never makes, such as two state events."""
+    recipe never makes, such as two state events. Ordered by `priority` (the recipe's rule) when
+    given, else by the learned scores."""
     if sets:
         index = {c: i for i, c in enumerate(categories)}
         gain = -np.logaddexp(0.0, -logits) + np.logaddexp(0.0, logits)  # log p(on) - log p(off)
@@ -260,6 +279,8 @@ def decode(logits: np.ndarray, scores: np.ndarray, categories: list[str], sets: 
         on = [index[c] for c in best]
     else:
         on = [i for i in range(len(categories)) if logits[i] > 0] or [int(np.argmax(logits))]
+    if priority:
+        return sorted((categories[i] for i in on), key=priority.index)
     return [categories[i] for i in sorted(on, key=lambda i: -scores[i])]
 
 
@@ -314,12 +335,40 @@ def score(predicted: list[list[str]], ep: Episodes, templates: dict[str, list[li
     return out
 
 
-def predict(model: Any, ep: Episodes, categories: list[str], sets: list[list[str]] | None = None) -> list[list[str]]:
+def predict(model: Any, ep: Episodes, categories: list[str], sets: list[list[str]] | None = None, priority: list[str] | None = None) -> list[list[str]]:
     import torch
 
     with torch.no_grad():
         logits, scores = model(ep.inputs)
-    return [decode(logits[n].numpy(), scores[n].numpy(), categories, sets) for n in range(len(ep.events))]
+    return [decode(logits[n].numpy(), scores[n].numpy(), categories, sets, priority) for n in range(len(ep.events))]
+
+
+def errors(predicted: list[list[str]], events: list[list[str]]) -> dict[str, Any]:
+    """What went wrong, by kind: per true event list, the wrong answers counted ("true -> said"),
+    and how many wrong answers had the right set in the wrong order, a missing or an extra event,
+    or a wrong category in its place."""
+    wrong = [(e, p) for p, e in zip(predicted, events) if p != e]
+    kinds: Counter[str] = Counter()
+    for e, p in wrong:
+        se, sp = set(e), set(p)
+        kinds["order" if se == sp else "missed" if sp < se else "extra" if se < sp else "swapped"] += 1
+    pairs = Counter(f"{'+'.join(e)} -> {'+'.join(p)}" for e, p in wrong)
+    return {"wrong": len(wrong), "of": len(events), "kinds": dict(sorted(kinds.items())), "pairs": dict(pairs.most_common())}
+
+
+def mix_examples(a: Any, b: Any, ya: Any, yb: Any, std: Any, mean: Any, rank: dict[int, int]) -> tuple[Any, Any, Any]:
+    """Row n of single-event batches `a` and `b` (normalised log-mel (B, 2, F, T), multi-hot labels
+    (B, C)) -> the mix heard at once: the powers summed (normalised dB -> power -> sum -> dB), the
+    labels united and the (first, second) category pair ordered by `rank` (category index ->
+    position in the priority rule). Why power: two sources heard together add their intensities
+    (an incoherent sum), not their levels in dB."""
+    import torch
+
+    da, db = a * std + mean, b * std + mean
+    mixed = (10.0 * torch.log10(torch.pow(10.0, da / 10.0) + torch.pow(10.0, db / 10.0)) - mean) / std
+    first, second = ya.argmax(dim=1).tolist(), yb.argmax(dim=1).tolist()
+    pairs = torch.tensor([sorted((i, j), key=lambda c: rank[c]) for i, j in zip(first, second)], dtype=torch.long).view(-1, 2)
+    return mixed, torch.clamp(ya + yb, max=1.0), pairs
 
 
 def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite: bool = False, progress: bool = True) -> dict[str, Any]:
@@ -328,13 +377,20 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     runs.check_out(out, resume, overwrite)
     if resume:
         saved = PlannerConfig.from_dict(runs.read_json(out / runs.CONFIG))
-        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "inputs", "seed", "audio", "image_size", "train_episodes", "val_by", "select", "augment"))
+        runs.check_same_run(out, asdict(cfg), asdict(saved), ("dataset", "inputs", "seed", "audio", "image_size", "train_episodes", "val_by", "select", "augment",
+                                                                "encoder", "order", "mix"))
         cfg = PlannerConfig.from_dict({**asdict(saved), "epochs": cfg.epochs, "max_steps": cfg.max_steps})
     else:
         if cfg.val_by not in VAL_BY:
             raise runs.RunError(f"--val-by: unknown {cfg.val_by!r}; choose from {', '.join(VAL_BY)}")
         if cfg.select not in SELECT:
             raise runs.RunError(f"--select: unknown {cfg.select!r}; choose from {', '.join(SELECT)}")
+        if cfg.encoder not in ENCODERS:
+            raise runs.RunError(f"--encoder: unknown {cfg.encoder!r}; choose from {', '.join(ENCODERS)}")
+        if cfg.order not in ORDERS:
+            raise runs.RunError(f"--order: unknown {cfg.order!r}; choose from {', '.join(ORDERS)}")
+        if not 0.0 <= cfg.mix < 1.0:
+            raise runs.RunError(f"--mix {cfg.mix}: must be within [0, 1)")
         cfg = resolve(cfg)
     torch = setup_torch(cfg.seed, cfg.threads)
     spec = FeatureSpec.from_dict(cfg.features)
@@ -356,6 +412,13 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     tr, va = np.flatnonzero(~is_val), np.flatnonzero(is_val & (train.frame == 0))
     y, pairs = _targets(train, cfg.categories)
     audio_std = torch.tensor(spec.audio_std, dtype=torch.float32).view(1, -1, 1, 1)
+    audio_mean = torch.tensor(spec.audio_mean, dtype=torch.float32).view(1, -1, 1, 1)
+    priority = cfg.priority if cfg.order == "priority" else None
+    # Mixing partners: training rows of single-event episodes, by kind of event (state, relocation).
+    state_cats = {c for c, tpl in cfg.templates.items() if not any(skill == "Place" for skill, _ in tpl)}
+    singles = {kind: np.asarray([n for n in tr if len(train.events[n]) == 1 and (train.events[n][0] in state_cats) == kind], dtype=np.int64)
+               for kind in (True, False)}
+    rank = {cfg.categories.index(c): k for k, c in enumerate(cfg.priority) if c in cfg.categories}
 
     torch.manual_seed(cfg.seed)
     model = build_model(cfg)
@@ -368,15 +431,28 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
 
     def loss_fn(ix: np.ndarray) -> Any:
         x = part(ix)
-        if cfg.augment and "audio" in x:  # seeded by the batch itself, so a resumed run draws the same
-            x["audio"] = augment_audio(x["audio"], audio_std, np.random.default_rng([cfg.seed, *ix[:8].tolist()]))
+        yb, pb = y[ix], pairs[ix]
+        rng = np.random.default_rng([cfg.seed, *ix[:8].tolist()])  # seeded by the batch itself, so a resumed run draws the same
+        if cfg.mix > 0 and "audio" in x and all(len(v) for v in singles.values()):
+            partner = torch.full((len(ix),), -1, dtype=torch.long)
+            for n, i in enumerate(ix):
+                if len(train.events[i]) == 1 and rng.random() < cfg.mix:
+                    other = singles[train.events[i][0] not in state_cats]
+                    partner[n] = int(other[rng.integers(len(other))])
+            rows = torch.nonzero(partner >= 0).flatten()
+            if len(rows):
+                mixed, ym, pm = mix_examples(x["audio"][rows], train.inputs["audio"][partner[rows]], yb[rows], y[partner[rows]], audio_std, audio_mean, rank)
+                x["audio"], yb, pb = x["audio"].clone(), yb.clone(), pb.clone()
+                x["audio"][rows], yb[rows], pb[rows] = mixed, ym, pm
+        if cfg.augment and "audio" in x:
+            x["audio"] = augment_audio(x["audio"], audio_std, rng)
         logits, scores = model(x)
-        return planner_loss(logits, scores, y[ix], pairs[ix])
+        return planner_loss(logits, scores, yb, pb)
 
     def val_accuracy(logits: Any, scores: Any, sets: list[list[str]] | None) -> tuple[float, float]:
         """(plain, balanced) validation accuracy of the events in order: balanced is the mean of the
         single- and the multi-event episodes' accuracies."""
-        pred = [decode(logits[n].numpy(), scores[n].numpy(), cfg.categories, sets) for n in range(len(va))]
+        pred = [decode(logits[n].numpy(), scores[n].numpy(), cfg.categories, sets, priority) for n in range(len(va))]
         right = np.asarray([p == train.events[i] for p, i in zip(pred, va)], dtype=float)
         multi = np.asarray([len(train.events[i]) >= 2 for i in va])
         return float(right.mean()), float(np.mean([right[g].mean() for g in (~multi, multi) if g.any()]))
@@ -402,9 +478,12 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         with torch.no_grad():
             logits, scores = model(part(va))
         val_by_decoder = {name: val_accuracy(logits, scores, sets)[1] for name, sets in decoders.items()}
+        val_said = [decode(logits[n].numpy(), scores[n].numpy(), cfg.categories, decoders[max(DECODERS, key=lambda d: (val_by_decoder[d], d == "threshold"))], priority)
+                    for n in range(len(va))]
         cfg.decode = max(DECODERS, key=lambda d: (val_by_decoder[d], d == "threshold"))
         runs.write_run_files(out, "planner", PLANNER_CLASS, asdict(cfg), {"inputs": list(cfg.inputs)})
     test = load_episodes(root, "test", spec)
+    test_said = predict(model, test, cfg.categories, decoders[cfg.decode], priority)
     heard = {s for ss in train.sounds for s in ss}
     fitted = {s for n in tr for s in train.sounds[n]}
     report = {
@@ -428,10 +507,17 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         "templates": cfg.templates,
         "decode": cfg.decode,
         "val_balanced_accuracy_by_decoder": val_by_decoder,
-        "test": score(predict(model, test, cfg.categories, decoders[cfg.decode]), test, cfg.templates),
+        "encoder": cfg.encoder,
+        "order": cfg.order,
+        "mix": cfg.mix,
+        # what the kept checkpoint gets wrong on validation (the diagnosis that chooses)
+        "val_errors": errors(val_said, [train.events[i] for i in va]) if len(va) else {},
+        "test": score(test_said, test, cfg.templates),
+        # the same on the test split, for the record (never used to choose)
+        "test_errors": errors(test_said, test.events),
         # both decoders on the test split, for the record; the one scored above was chosen on validation
         "test_events_in_order_by_decoder": {
-            name: {g: v["events_in_order"] for g, v in score(predict(model, test, cfg.categories, sets), test, cfg.templates).items()}
+            name: {g: v["events_in_order"] for g, v in score(predict(model, test, cfg.categories, sets, priority), test, cfg.templates).items()}
             for name, sets in decoders.items()
         },
     }

@@ -206,6 +206,7 @@ class PlannerModel:
         self.categories = cfg.categories
         self.templates = cfg.templates
         self.sets = cfg.event_sets if cfg.decode == "sets" else None  # the decoder chosen on validation
+        self.priority = cfg.priority if cfg.order == "priority" else None
         self.observations = tuple(self.spec.columns)
 
     @classmethod
@@ -220,7 +221,7 @@ class PlannerModel:
 
         with torch.no_grad():
             logits, scores = self.model(prepare(single(first_obs, self.spec), self.spec))
-        return decode(logits[0].numpy(), scores[0].numpy(), self.categories, self.sets)
+        return decode(logits[0].numpy(), scores[0].numpy(), self.categories, self.sets, self.priority)
 
     def plan(self, first_obs: Mapping[str, Any]) -> list[dict[str, str]]:
         from echo_data.learn.planner import chain_of
