@@ -285,6 +285,8 @@ def test_planner_options_select_by_accuracy_with_augmentation(ds: Path, tmp_path
     assert res.exit_code == 2 and "--encoder: unknown 'wide'" in res.output, res.output
     res = runner.invoke(app, ["train", "planner", str(ds), "--select", "luck", "--out", str(tmp_path / "bad"), "--no-progress"])
     assert res.exit_code == 2 and "--select: unknown 'luck'" in res.output, res.output
+    res = runner.invoke(app, ["train", "planner", str(ds), "--audio", "spectrogram", "--mix", "0.5", "--out", str(tmp_path / "bad"), "--no-progress"])
+    assert res.exit_code == 2 and "--mix 0.5 needs --audio mel" in res.output, res.output  # log1p magnitudes do not sum as powers
 
 
 @pytest.mark.parametrize(

@@ -391,6 +391,8 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
             raise runs.RunError(f"--order: unknown {cfg.order!r}; choose from {', '.join(ORDERS)}")
         if not 0.0 <= cfg.mix < 1.0:
             raise runs.RunError(f"--mix {cfg.mix}: must be within [0, 1)")
+        if cfg.mix > 0 and cfg.audio != "mel":  # mix_examples sums powers from dB; the spectrogram is log1p of magnitudes
+            raise runs.RunError(f"--mix {cfg.mix} needs --audio mel (the log-mel in dB; mixing sums powers)")
         cfg = resolve(cfg)
     torch = setup_torch(cfg.seed, cfg.threads)
     spec = FeatureSpec.from_dict(cfg.features)
