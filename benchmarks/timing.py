@@ -72,11 +72,6 @@ def replay_times(world: object, actions: list[np.ndarray]) -> tuple[float, float
     return wall / max(len(actions), 1), proc / max(len(actions), 1)
 
 
-def replay_step_render(world: object, actions: list[np.ndarray], cpu: bool = False) -> float:
-    """Seconds per control step of `World.step(action)` for the recorded actions + render + readback."""
-    return replay_times(world, actions)[1 if cpu else 0]
-
-
 def ratio_row(label: str, what: str, wall: float, cpu: float, floor: tuple[float, float], tail: str = "") -> str:
     """One figure as every benchmark prints it: wall and process-CPU seconds per step, each with its ratio to the floor measured in the same run."""
     return f"{label:9s} {what:36s} {wall * 1e3:7.2f} ms/step  ratio {wall / floor[0]:5.2f}x | CPU {cpu * 1e3:7.2f} ms/step  ratio {cpu / floor[1]:5.2f}x{tail}"
