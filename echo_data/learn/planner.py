@@ -480,9 +480,8 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         with torch.no_grad():
             logits, scores = model(part(va))
         val_by_decoder = {name: val_accuracy(logits, scores, sets)[1] for name, sets in decoders.items()}
-        val_said = [decode(logits[n].numpy(), scores[n].numpy(), cfg.categories, decoders[max(DECODERS, key=lambda d: (val_by_decoder[d], d == "threshold"))], priority)
-                    for n in range(len(va))]
         cfg.decode = max(DECODERS, key=lambda d: (val_by_decoder[d], d == "threshold"))
+        val_said = [decode(logits[n].numpy(), scores[n].numpy(), cfg.categories, decoders[cfg.decode], priority) for n in range(len(va))]
         runs.write_run_files(out, "planner", PLANNER_CLASS, asdict(cfg), {"inputs": list(cfg.inputs)})
     test = load_episodes(root, "test", spec)
     test_said = predict(model, test, cfg.categories, decoders[cfg.decode], priority)
