@@ -23,6 +23,11 @@ Resumable: a complete dataset is not built again (an incomplete one resumes), a 
 a summary.json is not trained again, an evaluation with its JSON is not run again. A skill that
 fails is reported and the next one goes on.
 
+The same path serves the camera learners (benchmarks/camera_learners.py: `CAMERAS` below): the
+same episodes rendered with the head and wrist depth cameras on, learners that read depth and
+proprioception, no privileged column and no target position. Each is a `Study`: its data and
+test recipes, inputs, learners and default output.
+
 Usage:
   python benchmarks/sanity_learners.py --workers 14                  # every skill
   python benchmarks/sanity_learners.py --skills Pick --workers 14    # one skill
@@ -39,6 +44,7 @@ import shutil
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -84,6 +90,40 @@ LEARNERS: dict[str, tuple[str, str]] = {
 TINY_EPISODES = 3  # --tiny: train episodes built per dataset (`build --limit`)
 
 
+@dataclass(frozen=True)
+class Study:
+    """One comparison of skill learners: which data each skill learns from (recipes/NAME.yaml),
+    which test recipes score it (recipes/TEST.yaml and TEST_handover.yaml), what each learner
+    reads, the candidate learners, and where the driver writes by default."""
+
+    script: str  # the driver that runs it, as the results JSON names it
+    data: dict[str, str]
+    test: dict[str, str]
+    inputs: dict[str, tuple[str, ...]]
+    learners: dict[str, tuple[str, str]]
+    plain_inputs: tuple[str, ...]  # the non-privileged inputs --inputs may name
+    privileged: bool  # whether --inputs may name observation.privileged.* columns
+    out: str  # default results file, relative to the checkout
+    work: str  # default work folder, relative to the checkout
+
+
+PRIVILEGED = Study("benchmarks/sanity_learners.py", DATA, {s: f"sanity_test_{g}" for s, g in TEST.items()}, INPUTS, LEARNERS,
+                   NON_PRIVILEGED, True, "benchmarks/results/sanity_learners.json", "out/sanity")
+
+# The camera learners (issue 29's goal rows "each skill alone, from cameras and proprioception"):
+# the sanity episodes rendered (recipes/cameras_*.yaml: the same recipes with head and wrist depth
+# on), read as head depth, wrist depth (both area-downsampled to 64 px, random shift of 4 px:
+# robomimic's augmentation), base-frame proprioception and the target kind. No privileged column
+# and no target position. The learner is the privileged study's ACT, so the two compare the
+# inputs alone.
+CAMERA_INPUTS = ("depth", "wrist_depth", "state", "kind")
+CAMERAS = Study("benchmarks/camera_learners.py",
+                {"Pick": "cameras_pick_place", "Place": "cameras_pick_place", "OpenDoor": "cameras_door_sink", "CloseSink": "cameras_door_sink"},
+                {s: f"cameras_test_{g}" for s, g in TEST.items()}, {s: CAMERA_INPUTS for s in SKILLS},
+                {"act": ("act", "--epochs 20 --select-every 10 --shift 4")},
+                ("depth", "wrist_depth", "rgb", "state", "kind"), False, "benchmarks/results/camera_learners.json", "out/cameras")
+
+
 SPENT: list[str] = []  # one line per echo-data command: seconds, what, on what (printed at the end)
 
 
@@ -97,18 +137,19 @@ def usage_error(message: str) -> None:
     sys.exit(2)
 
 
-def parse_inputs(overrides: list[str]) -> dict[str, tuple[str, ...]]:
-    """INPUTS with `SKILL=a,b,...` overrides; every name checked before any work."""
-    inputs = dict(INPUTS)
+def parse_inputs(overrides: list[str], study: Study = PRIVILEGED) -> dict[str, tuple[str, ...]]:
+    """The study's inputs with `SKILL=a,b,...` overrides; every name checked before any work."""
+    inputs = dict(study.inputs)
+    known = study.plain_inputs + (tuple(PRIVILEGED_COLUMNS) if study.privileged else ())
+    why = "no images: this learner renders nothing" if study.privileged else "no privileged column: this learner sees what a robot sees"
     for item in overrides:
         skill, sep, cols = item.partition("=")
-        if not sep or skill not in INPUTS:
+        if not sep or skill not in study.inputs:
             usage_error(f"--inputs {item!r}: expected SKILL=COLUMN,... with SKILL one of {', '.join(SKILLS)}")
         names = tuple(c.strip() for c in cols.split(",") if c.strip())
-        bad = [c for c in names if c not in NON_PRIVILEGED and c not in PRIVILEGED_COLUMNS]
+        bad = [c for c in names if c not in known]
         if bad or not names:
-            usage_error(f"--inputs {skill}: unknown column {', '.join(bad) or '(none given)'} "
-                        f"(known: {', '.join(NON_PRIVILEGED)}, {', '.join(PRIVILEGED_COLUMNS)}; no images: this learner renders nothing)")
+            usage_error(f"--inputs {skill}: unknown column {', '.join(bad) or '(none given)'} (known: {', '.join(known)}; {why})")
         inputs[skill] = names
     return inputs
 
@@ -225,7 +266,7 @@ def train(skill: str, data: Path, inputs: tuple[str, ...], column: str, learner:
         return {**json.loads(done.read_text()), "reused": True}
     if folder.exists():
         shutil.rmtree(folder)  # unfinished: train again (a resumed run would need its exact options)
-    algo, options = LEARNERS[learner]
+    algo, options = a.study.learners[learner]
     own = [*(["--epochs", str(a.epochs)] if a.epochs is not None else []),  # after the learner's own: the command line wins
            *(["--select-every", str(a.select_every)] if a.select_every is not None else [])]
     args = ["train", algo, str(data), "--skill", skill, "--inputs", ",".join(inputs), "--action-column", column,
@@ -293,7 +334,7 @@ def run_skill(skill: str, inputs: tuple[str, ...], a: argparse.Namespace, doc: d
     """Build, train, choose, evaluate one skill; its entries go into `doc`."""
     timing: dict[str, float] = {}
     t0 = time.perf_counter()
-    name = DATA[skill]
+    name = a.study.data[skill]
     if name not in doc["datasets"] or doc["datasets"][name].get("failed"):
         doc["datasets"][name] = build(name, a.work, a.workers, a.tiny, log)
         timing["build_s"] = 0.0 if doc["datasets"][name].get("reused") else doc["datasets"][name]["seconds"]
@@ -306,9 +347,9 @@ def run_skill(skill: str, inputs: tuple[str, ...], a: argparse.Namespace, doc: d
     column = chosen.rsplit("-", 1)[0]
     timing["train_s"] = round(sum(0.0 if t.get("reused") else t["seconds"] for t in trained.values()), 1)
     run = trained[chosen]["run"]
-    alone, cmd_alone = evaluate(skill, run, f"sanity_test_{TEST[skill]}", a, log)
+    alone, cmd_alone = evaluate(skill, run, a.study.test[skill], a, log)
     doc["skills"][skill] = alone
-    handover, cmd_handover = evaluate(skill, run, f"sanity_test_{TEST[skill]}_handover", a, log)
+    handover, cmd_handover = evaluate(skill, run, f"{a.study.test[skill]}_handover", a, log)
     doc["skills_handover"][skill] = handover
     timing["eval_s"] = round(cmd_alone["seconds"] + cmd_handover["seconds"], 1)
     timing["total_s"] = round(time.perf_counter() - t0, 1)
@@ -317,15 +358,16 @@ def run_skill(skill: str, inputs: tuple[str, ...], a: argparse.Namespace, doc: d
     doc["timings"][skill] = timing
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(study: Study = PRIVILEGED, description: str | None = None) -> None:
+    """The driver of `study` (its command line, then every skill asked for)."""
+    ap = argparse.ArgumentParser(description=description or __doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--skills", nargs="*", default=list(SKILLS), help=f"in this order (default {' '.join(SKILLS)})")
     ap.add_argument("--workers", type=int, default=2, help="build and evaluation worker processes")
-    ap.add_argument("--work", type=Path, default=ROOT / "out" / "sanity", help="datasets, run folders, evaluation JSONs and the log")
-    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "sanity_learners.json")
+    ap.add_argument("--work", type=Path, default=ROOT / study.work, help="datasets, run folders, evaluation JSONs and the log")
+    ap.add_argument("--out", type=Path, default=ROOT / study.out)
     ap.add_argument("-n", "--episodes", type=int, default=50, help="test episodes per row (>= 50 for the acceptance figure)")
-    ap.add_argument("--learners", default=",".join(LEARNERS),
-                    help=f"comma list of {', '.join(f'{k} ({v[0]} {v[1]})' for k, v in LEARNERS.items())}: each is trained, the best on validation tested")
+    ap.add_argument("--learners", default=",".join(study.learners),
+                    help=f"comma list of {', '.join(f'{k} ({v[0]} {v[1]})' for k, v in study.learners.items())}: each is trained, the best on validation tested")
     ap.add_argument("--epochs", type=int, default=None, help="epochs of every learner (default: each learner's own)")
     ap.add_argument("--select-every", type=int, default=None, help="closed-loop validation every N epochs and after the last (default: each learner's own)")
     ap.add_argument("--select-episodes", type=int, default=10, help="validation episodes per checkpoint choice")
@@ -341,22 +383,23 @@ def main() -> None:
     if bad or not a.skills:
         usage_error(f"--skills: unknown {', '.join(bad) or '(none given)'} (known: {', '.join(SKILLS)})")
     a.learners = [k.strip() for k in a.learners.split(",") if k.strip()]
-    if not a.learners or any(k not in LEARNERS for k in a.learners):
-        usage_error(f"--learners {','.join(a.learners)!r}: each must be one of {', '.join(LEARNERS)}")
+    if not a.learners or any(k not in study.learners for k in a.learners):
+        usage_error(f"--learners {','.join(a.learners)!r}: each must be one of {', '.join(study.learners)}")
     a.action_columns = [c.strip() for c in a.action_columns.split(",") if c.strip()]
     if not a.action_columns or any(c not in ACTION_COLUMNS for c in a.action_columns):
         usage_error(f"--action-columns {','.join(a.action_columns)!r}: each must be one of {', '.join(ACTION_COLUMNS)}")
     if a.workers < 1 or a.episodes < 1:
         usage_error("--workers and --episodes must be >= 1")
-    inputs = parse_inputs(a.inputs)
+    inputs = parse_inputs(a.inputs, study)
+    a.study = study
     if a.tiny:
         a.episodes, a.epochs, a.select_every, a.select_episodes = 2, 1, 1, 1
     a.work = a.work.resolve()
     a.work.mkdir(parents=True, exist_ok=True)
-    log = a.work / "sanity_learners.log"
+    log = a.work / f"{Path(study.script).stem}.log"
 
     argv = " ".join(public(x, a.work) for x in sys.argv[1:])
-    doc: dict[str, Any] = {"command": f"python benchmarks/sanity_learners.py {argv}".strip(), "commit": commit(), "machine": machine(),
+    doc: dict[str, Any] = {"command": f"python {study.script} {argv}".strip(), "commit": commit(), "machine": machine(),
                            "episodes_per_row": a.episodes, "datasets": {}, "skills": {}, "skills_handover": {}, "timings": {},
                            "details": {}, "failed": {}}
     if a.out.is_file():  # an earlier run's skills stay unless measured again (scripts/gpu_sanity.sh runs one skill a call)

@@ -76,3 +76,36 @@ def test_a_dataset_without_the_privileged_column_is_one_line_naming_file_and_col
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "info.json" in r.stderr and "observation.privileged.tcp_to_target" in r.stderr
     assert not out.exists()
+
+
+CAMERA_DRIVER = ROOT / "benchmarks" / "camera_learners.py"
+
+
+def test_the_camera_learners_read_no_privileged_column(tmp_path: Path) -> None:
+    out = tmp_path / "cameras.json"
+    r = subprocess.run([sys.executable, str(CAMERA_DRIVER), "--inputs", "CloseSink=depth,observation.privileged.joint_angle",
+                        "--work", str(tmp_path / "work"), "--out", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "unknown column observation.privileged.joint_angle" in r.stderr and "no privileged column" in r.stderr
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("name", ["cameras_door_sink", "cameras_pick_place", *(f"cameras_test_{g}{h}" for g in ("pick_place", "door", "sink")
+                                                                               for h in ("", "_handover"))])
+def test_a_camera_recipe_is_its_sanity_recipe_with_both_depth_cameras_on(name: str) -> None:
+    """The camera learners see the privileged learners' episodes (same seed, counts, events, experts):
+    only the cameras and the stored observations differ, so their rows compare the inputs alone."""
+    from echo_data.recipe import load_recipe
+
+    cams = load_recipe(ROOT / "recipes" / f"{name}.yaml").model_dump(mode="json")
+    sanity = load_recipe(ROOT / "recipes" / f"{name.replace('cameras_', 'sanity_')}.yaml").model_dump(mode="json")
+    for doc in (cams, sanity):
+        del doc["name"]
+    assert cams["robot"]["head_camera"]["depth"] and cams["robot"]["wrist_camera"]["depth"]
+    assert not cams["robot"]["head_camera"]["rgb"] and not sanity["robot"]["head_camera"]["depth"]
+    assert cams["outputs"]["observations"] == ["head_depth", "wrist_depth"]
+    for doc in (cams, sanity):
+        for cam in ("head_camera", "wrist_camera"):
+            doc["robot"][cam].pop("depth")
+        doc["outputs"].pop("observations")
+    assert cams == sanity
