@@ -551,16 +551,16 @@ def score_test(run: Path, dataset: Path | None = None) -> dict[str, Any]:
     if not (root / "manifest.json").is_file():
         raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)" + ("; give the dataset the run was trained on: evaluate-planner RUN DATASET" if dataset is None else ""))
     if "test" not in runs.read_json(root / "manifest.json")["splits"]:
-        raise runs.RunError(f"{root / 'manifest.json'}: no 'test' split to score (echo-data build RECIPE --split test --resume builds it)")
+        raise runs.RunError(f"{root / 'manifest.json'}: no 'test' split to score (build the recipe whole into another folder, whose train split is the same, and give it: evaluate-planner RUN DATASET)")
     check_whole(root)
     _same_dataset(cfg, root, run)
-    torch = setup_torch(cfg.seed, cfg.threads)
-    torch.manual_seed(cfg.seed)
+    setup_torch(cfg.seed, cfg.threads)
     model = build_model(cfg)
     model.load_state_dict(runs.load_torch(run / runs.BEST)["model"])
     model.eval()
-    chosen, _, _ = chosen_episodes(cfg, episode_rows(root, "train"))
-    heard = {e["sound_id"] for r in episode_rows(root, "train") if r["episode_index"] in chosen for e in r["events"]}
+    meta = episode_rows(root, "train")
+    chosen, _, _ = chosen_episodes(cfg, meta)
+    heard = {e["sound_id"] for r in meta if r["episode_index"] in chosen for e in r["events"]}  # the sounds of the episodes training read
     test = load_episodes(root, "test", FeatureSpec.from_dict(cfg.features))
     priority = cfg.priority if cfg.order == "priority" else None
     decoders = {"threshold": None, "sets": cfg.event_sets}
