@@ -9,7 +9,7 @@ Rows (issue: reference policies):
   every Navigate skill attempted (and over each episode's first Navigate alone, the one the sound
   has to guide), with 95 % Wilson intervals;
 - the planner with {image, audio, audio + image}: `echo-data train planner`, scored on the
-  dataset's test split (test sounds only) by its `eval.json`.
+  dataset's test split (test sounds only) by `echo-data evaluate-planner RUN` (its `test.json`).
 Test episodes come from the recipe's test split (the sounds no training episode uses); nothing
 is tuned on them: every hyper-parameter is the CLI default unless given here.
 
@@ -161,16 +161,17 @@ def main() -> None:
     if not a.no_planner:
         for inputs in a.planner_rows:
             name = "planner-" + inputs.replace(",", "-")
-            report, secs = run("train", "planner", str(data), "--inputs", inputs, "--seed", str(a.seed), "--out", str(runs / name), "--overwrite", "--no-progress")
-            doc["planner"].append({"inputs": inputs, "run": str(runs / name), "train_seconds": round(secs, 1), "test": json.loads(report)["test"]})
+            _, secs = run("train", "planner", str(data), "--inputs", inputs, "--seed", str(a.seed), "--out", str(runs / name), "--overwrite", "--no-progress")
+            tested = json.loads(run("evaluate-planner", str(runs / name), str(data))[0])
+            doc["planner"].append({"inputs": inputs, "run": str(runs / name), "train_seconds": round(secs, 1), "test": tested["test"]})
             out.write_text(json.dumps(doc, indent=1))
         doc["planner_curve"] = []
         for n in a.curve:
             name = f"planner-audio-{n}ep"
             report, secs = run("train", "planner", str(data), "--inputs", "audio", "--train-episodes", str(n), "--seed", str(a.seed),
                                "--out", str(runs / name), "--overwrite", "--no-progress")
-            r = json.loads(report)
-            doc["planner_curve"].append({"train_episodes": n, "episodes": r["episodes"], "train_seconds": round(secs, 1), "test": r["test"]})
+            r, tested = json.loads(report), json.loads(run("evaluate-planner", str(runs / name), str(data))[0])
+            doc["planner_curve"].append({"train_episodes": n, "episodes": {**r["episodes"], **tested["episodes"]}, "train_seconds": round(secs, 1), "test": tested["test"]})
             out.write_text(json.dumps(doc, indent=1))
     out.write_text(json.dumps(doc, indent=1))
     print(f"wrote {out}")

@@ -107,8 +107,10 @@ def train(data: Path, runs: Path, name: str, tiny: bool) -> dict[str, Any] | Non
 
 
 def train_planner(data: Path, runs: Path, tiny: bool) -> dict[str, Any]:
-    """Train the planner (`echo-data train planner`) unless its run folder holds a finished run;
-    its summary: the command and the test-split scores of its own dataset (eval.json)."""
+    """Train the planner (`echo-data train planner`, options fixed in PLANNER, chosen on
+    validation) unless its run folder holds a finished run, then score it once on the test split
+    of its own dataset (`echo-data evaluate-planner`: training never reads it); its summary: both
+    commands, the validation choice (eval.json) and the test-split scores (test.json)."""
     folder = runs / "planner"
     done = folder / "summary.json"
     if done.is_file():
@@ -116,8 +118,11 @@ def train_planner(data: Path, runs: Path, tiny: bool) -> dict[str, Any]:
     args = ["train", "planner", str(data), *PLANNER.options, "--out", str(folder), "--overwrite", "--no-progress", *(["--max-steps", "2"] if tiny else [])]
     stdout, seconds = cli(*args)
     report = json.loads(stdout)
-    summary = {"command": command(args), "wall_seconds": round(seconds, 1), "run": rel(folder), "commit": _commit(),
-               **{k: report[k] for k in ("episodes", "best", "test") if k in report}}
+    test_args = ["evaluate-planner", str(folder), str(data)]
+    scored = json.loads(cli(*test_args)[0])
+    summary = {"command": command(args), "test_command": command(test_args), "wall_seconds": round(seconds, 1), "run": rel(folder), "commit": _commit(),
+               **{k: report[k] for k in ("episodes", "best") if k in report}, "test": scored["test"]}
+    summary["episodes"] = {**summary.get("episodes", {}), **scored["episodes"]}
     run_files.write_json(folder, done.name, summary)
     return summary
 

@@ -1,8 +1,10 @@
 """The planner rows on `recipes/planner_audio.yaml`: build, train each configuration, write the JSON.
 
-Each row is `echo-data train planner DATA --inputs I [flags]`; the command scores the run on the
-dataset's test split (test sounds only, never heard in training) and writes eval.json, which
-this script collects into one JSON with the commands and the commit. Which row is "the" planner
+Each row is `echo-data train planner DATA --inputs I [flags] --out RUN` (training chooses on
+validation and writes eval.json without reading the test split), then `echo-data evaluate-planner
+RUN DATA`, which scores the run on the dataset's test split (test sounds only, never heard in
+training) and writes test.json; this script collects both into one JSON with the commands and the
+commit. Which row is "the" planner
 is chosen on validation only: with `--val-by sounds` the validation episodes play held-out train
 instances, unheard like the test's, and the row's best validation accuracy is reported beside
 its test scores (docs/learners.md).
@@ -14,7 +16,7 @@ Fresh training voices (`recipes/planner_fresh.yaml`, docs/learners.md):
   python benchmarks/planner_table.py --recipe recipes/planner_fresh.yaml --data out/planner_fresh --runs runs/planner_fresh \
       --out benchmarks/results/planner_fresh.json --rows "audio|--select accuracy --epochs 20" "audio|--select accuracy --augment --epochs 20"
 `--reuse` collects run folders whose eval.json was written by the same arguments instead of
-training them again.
+training them again (and scores them on the test split where their test.json is missing).
 """
 
 from __future__ import annotations
@@ -79,7 +81,8 @@ def main() -> None:
         run = runs / _name(row)
         args = ["train", "planner", str(data), "--inputs", inputs, *shlex.split(flags), "--out", str(run), "--no-progress"]
         command = "echo-data " + " ".join(args)
-        if a.reuse and (run / "eval.json").is_file() and (run / "command.txt").is_file() and (run / "command.txt").read_text() == command:
+        reused = a.reuse and (run / "eval.json").is_file() and (run / "command.txt").is_file() and (run / "command.txt").read_text() == command
+        if reused:
             report, secs = json.loads((run / "eval.json").read_text()), None
             doc["commands"].append(command + "  # reused")
         else:
@@ -89,11 +92,18 @@ def main() -> None:
             from echo_data.learn.runs import write_file
 
             write_file(run, "command.txt", command.encode())  # listed in the run's marker: train --overwrite may replace it
+        score = ["evaluate-planner", str(run), str(data)]
+        if reused and (run / "test.json").is_file():
+            tested = json.loads((run / "test.json").read_text())
+            doc["commands"].append("echo-data " + " ".join(score) + "  # reused")
+        else:
+            doc["commands"].append("echo-data " + " ".join(score))
+            tested = json.loads(cli(*score)[0])
         doc["rows"].append({"inputs": inputs, "flags": flags, "run": _rel(run), "trained_in": _rel(report["run"]), "wall_seconds": secs, "train_seconds": report["seconds"],
-                            "episodes": report["episodes"], "best": report.get("best"), **_validation_max(run),
+                            "episodes": {**report["episodes"], **tested["episodes"]}, "best": report.get("best"), **_validation_max(run),
                             "val_episodes_hearing_fitted_sounds": report.get("val_episodes_hearing_fitted_sounds"),
-                            "test_sounds_heard_in_training": report["test_sounds_heard_in_training"], "test": report["test"]})
-        t = report["test"]
+                            "test_sounds_heard_in_training": tested["test_sounds_heard_in_training"], "test": tested["test"]})
+        t = tested["test"]
         print(f"{row:60s} single {t['single_event']['events_in_order']['correct']}/{t['single_event']['events_in_order']['n']} "
               f"multi {t['multi_event']['events_in_order']['correct']}/{t['multi_event']['events_in_order']['n']}", flush=True)
         out.write_text(json.dumps(doc, indent=1))

@@ -18,7 +18,7 @@ from echo_data.sounds.cli import sounds_app  # noqa: E402
 
 app.add_typer(sounds_app, name="sounds")
 
-from echo_data.learn.cli import train_app  # noqa: E402
+from echo_data.learn.cli import evaluate_planner_cmd, train_app  # noqa: E402
 
 app.add_typer(train_app, name="train")
 
@@ -175,6 +175,8 @@ def evaluate(
     code = run_evaluate(_load(recipe_path), recipe_path, split, n, tuple(policy), planner, workers, json_out, video, resume)
     raise typer.Exit(code)
 
+
+app.command("evaluate-planner")(evaluate_planner_cmd)  # beside evaluate: the planner alone, open loop on the test split
 
 # Dataset commands (build, validate, info) live in echo_data.app.commands.
 from echo_data.app.commands import register as _register_dataset_commands  # noqa: E402

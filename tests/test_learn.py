@@ -181,23 +181,34 @@ def test_state_velocities_echo_the_previous_action(ds: Path) -> None:
 
 
 def test_planner_trains_scores_and_plans(ds: Path, tmp_path: Path) -> None:
+    from echo_data.learn.planner import episode_rows, export_chain
+
     run = tmp_path / "planner"
     res = runner.invoke(app, ["train", "planner", str(ds), "--inputs", "audio,image", "--epochs", "2", "--out", str(run), "--threads", "1", "--no-progress"])
     assert res.exit_code == 0, res.output
     report = json.loads(res.stdout)
     assert report == json.loads((run / "eval.json").read_text())
-    assert report["episodes"]["test"] == 1 and report["test_sounds_heard_in_training"] == []
-    acc = report["test"]["all"]["events_in_order"]
-    assert acc["n"] == 1 and 0.0 <= acc["ci95"][0] <= acc["ci95"][1] <= 1.0
+    assert "test" not in report["episodes"] and not any(k.startswith("test") for k in report)  # training never reads the test split
     assert json.loads((run / runs.POLICY).read_text())["kind"] == "planner"
+    # asked for, the test split is scored (test.json) by the kept checkpoint with the decoder chosen on validation
+    res = runner.invoke(app, ["evaluate-planner", str(run)])
+    assert res.exit_code == 0, res.output
+    scored = json.loads(res.stdout)
+    assert scored == json.loads((run / runs.TEST).read_text())
+    assert scored["episodes"]["test"] == 1 and scored["test_sounds_heard_in_training"] == []
+    acc = scored["test"]["all"]["events_in_order"]
+    assert acc["n"] == 1 and 0.0 <= acc["ci95"][0] <= acc["ci95"][1] <= 1.0
     # the decoder is chosen on validation and stored where PlannerModel reads it
     config = json.loads((run / runs.CONFIG).read_text())
-    assert report["decode"] == config["decode"] and set(report["test_events_in_order_by_decoder"]) == {"threshold", "sets"}
+    assert report["decode"] == config["decode"] == scored["decode"] and set(scored["test_events_in_order_by_decoder"]) == {"threshold", "sets"}
     assert config["event_sets"] and all(s == sorted(s) for s in config["event_sets"])
     item = StepDataset(ds, "test", columns=["frame_index", "observation.audio.mel", "observation.images.head_rgb"])[0]
     assert int(item["frame_index"]) == 0
     chain = PlannerModel.from_run(run).plan({k: v for k, v in item.items() if k != "frame_index"})
     assert chain and all(set(c) == {"skill", "target"} for c in chain)
+    # the score is the acting planner's: its chain for the one test episode is right exactly when test.json counts it right
+    (truth,) = [export_chain(r) for r in episode_rows(ds, "test")]
+    assert scored["test"]["all"]["chain_exact"]["correct"] == int(chain == truth)
     # resuming is continuing the same run: other inputs are refused, one line, exit 2
     res = runner.invoke(app, ["train", "planner", str(ds), "--inputs", "audio", "--epochs", "3", "--out", str(run), "--resume", "--no-progress"])
     assert res.exit_code == 2 and "inputs is ['audio', 'image'], not ['audio']" in res.output, res.output
@@ -276,7 +287,10 @@ def test_planner_options_select_by_accuracy_with_augmentation(ds: Path, tmp_path
     report = json.loads(res.stdout)
     assert report["augment"] and report["select"] == "accuracy" and report["val_by"] == "sounds"
     assert (report["encoder"], report["order"], report["mix"]) == ("pooled", "priority", 0.5)
-    assert report["test_errors"]["of"] == report["episodes"]["test"]
+    res = runner.invoke(app, ["evaluate-planner", str(run), str(ds)])  # the recipe's priority order on the test split too
+    assert res.exit_code == 0, res.output
+    scored = json.loads(res.stdout)
+    assert scored["test_errors"]["of"] == scored["episodes"]["test"] == scored["test"]["all"]["events_in_order"]["n"]
     cfg = json.loads((run / runs.CONFIG).read_text())
     assert cfg["priority"] == ["sink", "doorbell", "alarm", "phone", "furby"]  # the quickstart recipe's rule
     plan = PlannerModel.from_run(run)

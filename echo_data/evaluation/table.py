@@ -56,7 +56,8 @@ class LearnerSpec:
 
 @dataclass(frozen=True)
 class PlannerSpec:
-    """The learned planner: `echo-data train planner DATASET OPTIONS...`."""
+    """The learned planner: `echo-data train planner DATASET OPTIONS... --out RUN` (trains and
+    chooses on validation), then `echo-data evaluate-planner RUN DATASET` (the test split, asked for once)."""
 
     dataset: str
     options: tuple[str, ...]
@@ -130,7 +131,8 @@ Row = EvaluatedRow | ComposedRow | DerivedRow
 # state-transition build (recipes/paper_table_door_sink.yaml: 60 episodes, same noise), Navigate
 # from recipes/paper_table.yaml (all three settings: it serves every chain). The planner learns
 # from recipes/planner_fresh.yaml (episodes cut after 10 frames, a fresh synthesised voice per
-# training event; built whole: `train planner` scores its own test split). The magic-grasp build
+# training event; built whole: once trained (choosing on validation), the planner is scored on
+# that build's own test split by `echo-data evaluate-planner RUN`). The magic-grasp build
 # is the paper-comparable rows' Pick and Place data (its recipe comes with `robot.grasp`).
 DATASETS: dict[str, DatasetSpec] = {
     "paper_table": DatasetSpec("paper_table.yaml"),

@@ -215,7 +215,7 @@ def planner_cmd(
     overwrite: _Overwrite = False,
     progress: _Progress = True,
 ) -> None:
-    """Train the planner on the train split, score it on the test split (unheard sounds); prints and saves eval.json."""
+    """Train the planner on the train split, choosing on validation; prints and saves eval.json. The test split is not read: `echo-data evaluate-planner RUN` scores it."""
     _need_torch()
     from echo_data.learn.algos.base import SEED_LIMIT
     from echo_data.learn.features import PLANNER_INPUTS, parse_inputs
@@ -237,4 +237,21 @@ def planner_cmd(
         raise _fail(str(e)) from None
     except OSError as e:
         raise _fail(write_failed("--out", folder, e)) from None
+    typer.echo(json.dumps(report, indent=1))
+
+
+def evaluate_planner_cmd(
+    run: Annotated[Path, typer.Argument(metavar="RUN", help="A finished `echo-data train planner` run folder.")],
+    dataset: Annotated[Path | None, typer.Argument(metavar="DATASET", help="The dataset it was trained on (default: the folder its config.json names).")] = None,
+) -> None:
+    """Score a trained planner on its dataset's test split (unheard sounds), once its options are chosen on validation; prints and saves RUN/test.json."""
+    _need_torch()
+    from echo_data.learn.planner import score_test
+
+    try:
+        report = score_test(run, dataset)
+    except _errors() as e:
+        raise _fail(str(e)) from None
+    except OSError as e:
+        raise _fail(write_failed("RUN", run, e)) from None
     typer.echo(json.dumps(report, indent=1))

@@ -9,7 +9,10 @@ doorbell -> Navigate door, OpenDoor door). The Place target of an object (the ne
 receptacle) cannot be heard; the template uses its most frequent kind in training, and the
 evaluation reports chain accuracy with and without that target.
 
-Evaluated on the test split, whose sound instances are never heard in training.
+Training chooses (checkpoint, decoder) on validation only and never reads the test split;
+`score_test` scores a finished run on the test split, whose sound instances are never heard in
+training, as a separate act (`echo-data evaluate-planner RUN`), so that the options are not
+tuned by looking at test figures.
 """
 
 from __future__ import annotations
@@ -192,6 +195,17 @@ def chain_of(categories: list[str], templates: dict[str, list[list[str]]]) -> li
     return [{"skill": s, "target": t} for cat in categories for s, t in templates.get(cat, [])]
 
 
+def chosen_episodes(cfg: PlannerConfig, meta: list[dict[str, Any]]) -> tuple[set[int], set[int] | None, list[str]]:
+    """(the train episodes the run reads, its validation episodes when drawn by sounds (None:
+    drawn from those read, by `split_episodes`), the held-out sound instances) of the train
+    split's rows `meta`: one place, so that scoring the test split later knows what was heard."""
+    chosen = subset([r["episode_index"] for r in meta], cfg.train_episodes, cfg.seed)
+    if cfg.val_by != "sounds":
+        return chosen, None, []
+    fit_eps, val_set, held = split_by_sounds([r for r in meta if r["episode_index"] in chosen], cfg.val_fraction, cfg.seed)
+    return fit_eps | val_set, val_set, held
+
+
 def subset(indices: list[int], n: int | None, seed: int) -> set[int]:
     """The first `n` episodes of a permutation drawn from `seed` (all when `n` is None): a size
     that mixes the settings (episode indices run setting by setting), nested across sizes so a
@@ -237,9 +251,8 @@ def resolve(cfg: PlannerConfig) -> PlannerConfig:
     if not (root / "manifest.json").is_file():
         raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)")
     manifest = runs.read_json(root / "manifest.json")
-    for split in ("train", "test"):
-        if split not in manifest["splits"]:
-            raise runs.RunError(f"{root / 'manifest.json'}: no {split!r} split (the planner trains on train and is scored on test)")
+    if "train" not in manifest["splits"]:
+        raise runs.RunError(f"{root / 'manifest.json'}: no 'train' split (the planner trains on train)")
     rows = episode_rows(root, "train")
     spec = feature_spec(root, cfg.inputs, audio=cfg.audio, image_size=cfg.image_size)
     shape = audio_shape(spec, manifest["layout"])
@@ -372,8 +385,9 @@ def mix_examples(a: Any, b: Any, ya: Any, yb: Any, std: Any, mean: Any, rank: di
 
 
 def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite: bool = False, progress: bool = True) -> dict[str, Any]:
-    """Train on the train split (validation: held-out train episodes), then score the test split;
-    writes eval.json in the run folder and returns it."""
+    """Train on the train split and choose the checkpoint and decoder on validation (held-out
+    train episodes); writes eval.json (validation figures only: the test split is not read, see
+    `score_test`) in the run folder and returns it."""
     runs.check_out(out, resume, overwrite)
     if resume:
         saved = PlannerConfig.from_dict(runs.read_json(out / runs.CONFIG))
@@ -400,15 +414,9 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     meta = episode_rows(root, "train")
     if cfg.train_episodes is not None and cfg.train_episodes > len(meta):
         raise runs.RunError(f"--train-episodes {cfg.train_episodes}: the train split of {root} has {len(meta)} episodes")
-    chosen = subset([r["episode_index"] for r in meta], cfg.train_episodes, cfg.seed)
-    held: list[str] = []
-    if cfg.val_by == "sounds":
-        fit_eps, val_set, held = split_by_sounds([r for r in meta if r["episode_index"] in chosen], cfg.val_fraction, cfg.seed)
-        chosen = fit_eps | val_set
-        val_eps = np.asarray(sorted(val_set), dtype=np.int64)
+    chosen, val_set, held = chosen_episodes(cfg, meta)
     train = load_episodes(root, "train", spec, frames=cfg.train_frames, episodes=chosen)
-    if cfg.val_by == "episodes":
-        val_eps = split_episodes(train.index, cfg.val_fraction, cfg.seed)
+    val_eps = split_episodes(train.index, cfg.val_fraction, cfg.seed) if val_set is None else np.asarray(sorted(val_set), dtype=np.int64)
     cfg.val_episodes = [int(e) for e in val_eps]
     is_val = np.isin(train.index, val_eps)
     tr, va = np.flatnonzero(~is_val), np.flatnonzero(is_val & (train.frame == 0))
@@ -483,17 +491,13 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         cfg.decode = max(DECODERS, key=lambda d: (val_by_decoder[d], d == "threshold"))
         val_said = [decode(logits[n].numpy(), scores[n].numpy(), cfg.categories, decoders[cfg.decode], priority) for n in range(len(va))]
         runs.write_run_files(out, "planner", PLANNER_CLASS, asdict(cfg), {"inputs": list(cfg.inputs)})
-    test = load_episodes(root, "test", spec)
-    test_said = predict(model, test, cfg.categories, decoders[cfg.decode], priority)
-    heard = {s for ss in train.sounds for s in ss}
     fitted = {s for n in tr for s in train.sounds[n]}
     report = {
         "run": str(out),
         "inputs": list(cfg.inputs),
         "audio": cfg.audio,
-        "episodes": {"train": int(len(np.unique(train.index[tr]))), "val": int(len(va)), "test": len(test.events)},
+        "episodes": {"train": int(len(np.unique(train.index[tr]))), "val": int(len(va))},
         "train_rows": int(len(tr)),
-        "test_sounds_heard_in_training": sorted({s for ss in test.sounds for s in ss} & heard),
         "step": state["step"],
         "seconds": round(state["seconds"], 1),
         "val_by": cfg.val_by,
@@ -513,8 +517,61 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
         "mix": cfg.mix,
         # what the kept checkpoint gets wrong on validation (the diagnosis that chooses)
         "val_errors": errors(val_said, [train.events[i] for i in va]) if len(va) else {},
+    }
+    runs.write_json(out, runs.EVAL, report)
+    return report
+
+
+def _same_dataset(cfg: PlannerConfig, root: Path, run: Path) -> None:
+    """Refuse a dataset other than the one `run` was trained on: what training derived from its
+    train split (feature constants, categories, skill templates, event sets, priority rule) must
+    be what the run's config.json holds, or the test figures would not be the run's."""
+    again = asdict(resolve(PlannerConfig(str(root), cfg.inputs, audio=cfg.audio, image_size=cfg.image_size, order=cfg.order)))
+    saved = asdict(cfg)
+    for key in ("features", "audio_shape", "categories", "templates", "event_sets", "priority"):
+        if json.loads(json.dumps(again[key])) != json.loads(json.dumps(saved[key])):
+            raise runs.RunError(f"{root}: not the dataset {run} was trained on ({key} of its train split differs from {run / runs.CONFIG})")
+
+
+def score_test(run: Path, dataset: Path | None = None) -> dict[str, Any]:
+    """Score a finished planner run on the test split of its dataset (`dataset`, default the one
+    in config.json): the kept checkpoint (best.pt) with the decoder chosen on validation, plus
+    both decoders for the record (neither chooses anything). Writes test.json in the run folder
+    and returns it; the figures and keys are those eval.json carried when training scored the
+    test split itself."""
+    from echo_data.dataset.validate import check_whole
+
+    policy = runs.read_json(run / runs.POLICY)
+    if policy.get("kind") != "planner":
+        raise runs.RunError(f"{run / runs.POLICY}: a {policy.get('kind')!r} run, not a planner run")
+    if not (run / runs.EVAL).is_file():
+        raise runs.RunError(f"{run / runs.EVAL}: missing (training of {run} has not finished; `echo-data train planner ... --resume` finishes it)")
+    cfg = PlannerConfig.from_dict(runs.read_json(run / runs.CONFIG))
+    root = Path(cfg.dataset) if dataset is None else dataset
+    if not (root / "manifest.json").is_file():
+        raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)" + ("; give the dataset the run was trained on: evaluate-planner RUN DATASET" if dataset is None else ""))
+    if "test" not in runs.read_json(root / "manifest.json")["splits"]:
+        raise runs.RunError(f"{root / 'manifest.json'}: no 'test' split to score (build the recipe whole into another folder, whose train split is the same, and give it: evaluate-planner RUN DATASET)")
+    check_whole(root)
+    _same_dataset(cfg, root, run)
+    setup_torch(cfg.seed, cfg.threads)
+    model = build_model(cfg)
+    model.load_state_dict(runs.load_torch(run / runs.BEST)["model"])
+    model.eval()
+    meta = episode_rows(root, "train")
+    chosen, _, _ = chosen_episodes(cfg, meta)
+    heard = {e["sound_id"] for r in meta if r["episode_index"] in chosen for e in r["events"]}  # the sounds of the episodes training read
+    test = load_episodes(root, "test", FeatureSpec.from_dict(cfg.features))
+    priority = cfg.priority if cfg.order == "priority" else None
+    decoders = {"threshold": None, "sets": cfg.event_sets}
+    test_said = predict(model, test, cfg.categories, decoders[cfg.decode], priority)
+    report = {
+        "run": str(run),
+        "decode": cfg.decode,
+        "episodes": {"test": len(test.events)},
+        "test_sounds_heard_in_training": sorted({s for ss in test.sounds for s in ss} & heard),
         "test": score(test_said, test, cfg.templates),
-        # the same on the test split, for the record (never used to choose)
+        # what the kept checkpoint gets wrong on the test split, for the record (never used to choose)
         "test_errors": errors(test_said, test.events),
         # both decoders on the test split, for the record; the one scored above was chosen on validation
         "test_events_in_order_by_decoder": {
@@ -522,5 +579,6 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
             for name, sets in decoders.items()
         },
     }
-    runs.write_json(out, runs.EVAL, report)
+    runs.adopt(run)
+    runs.write_json(run, runs.TEST, report)
     return report

@@ -8,7 +8,8 @@ runs/NAME/
   checkpoint.pt   last state (weights, optimiser, position in the epoch): `--resume` reads it
   best.pt         weights with the lowest validation loss: what `from_run` loads
   losses.csv      one row per epoch; curves.png plots it
-  eval.json       the planner's test-split scores; dagger.csv: DAgger's rounds
+  eval.json       the run's validation figures (training never reads the test split); dagger.csv: DAgger's rounds
+  test.json       the planner's test-split scores, written only by `echo-data evaluate-planner RUN`
   select/         closed-loop selection's scored weights, each a run folder
   .echo-data.json the marker (dataset/written.py): kind "run" and every file the run wrote
 
@@ -39,6 +40,7 @@ BEST = "best.pt"
 LOSSES = "losses.csv"
 CURVES = "curves.png"
 EVAL = "eval.json"
+TEST = "test.json"
 DAGGER_LOG = "dagger.csv"
 SELECT_DIR = "select"  # select/scored-NNN: the weights scored at the N-th selection, each a run folder
 RUN = "run"  # the marker's kind
@@ -175,8 +177,7 @@ def check_out(folder: Path, resume: bool, overwrite: bool) -> None:
         marker = read_marker(folder)
         if marker is not None and marker["kind"] != RUN:
             raise RunError(f"--out {folder}: holds an echo-data {marker['kind']}, not a training run")
-        if marker is None:  # a run from before the marker: its own files are listed from now on
-            write_marker(folder, RUN, RUN_FORMAT, [f for f in all_files(folder) if _BEFORE_MARKER.fullmatch(f)])
+        adopt(folder)
         return
     if folder.is_dir() and any(folder.iterdir()):
         if not overwrite:
@@ -186,6 +187,13 @@ def check_out(folder: Path, resume: bool, overwrite: bool) -> None:
         except NotWrittenByUs as e:
             raise RunError(f"--out {e}") from None
         remove_written(folder, files)
+
+
+def adopt(folder: Path) -> None:
+    """A run folder from before the marker gets one listing its own files (from now on
+    `--overwrite` removes them), before anything adds a file to it; a marked folder is left as is."""
+    if read_marker(folder) is None:
+        write_marker(folder, RUN, RUN_FORMAT, [f for f in all_files(folder) if _BEFORE_MARKER.fullmatch(f)])
 
 
 def _run_before_marker(folder: Path) -> Callable[[str], bool] | None:
