@@ -5,12 +5,14 @@
 # the checkout (as scripts/gpu_bench.sh). From the checkout's root:
 #   OUT=/some/dir bash scripts/gpu_sanity.sh      # outputs under $OUT (default ./gpu_out)
 # (SANITY_COMMIT=<hash> names the commit in the JSON where the copy has no .git; WORKERS, BUDGET_S,
-# SKILLS="Pick OpenDoor" and EXTRA="--epochs 20 ..." are optional.)
+# SKILLS="Pick OpenDoor" and EXTRA="--epochs 20 ..." are optional; STUDY=camera_learners runs the
+# camera learners instead, benchmarks/camera_learners.py: the same path with both depth cameras
+# rendered, so that one needs the NVIDIA Vulkan ICD.)
 # Skills in the order Pick, OpenDoor, CloseSink, Place, each with its own share of one overall
 # deadline (BUDGET_S, default 480 s); a skill that fails or runs out of time is reported and the
 # next goes on (datasets, run folders and evaluations already done are reused by the next skill and
-# by a second run with the same WORK). Writes $OUT/sanity_learners.json, $OUT/<skill>.txt (the
-# driver's output), $OUT/sanity_learners.log (every echo-data command's output), $OUT/versions.txt
+# by a second run with the same WORK). Writes $OUT/$STUDY.json, $OUT/<skill>.txt (the
+# driver's output), $OUT/$STUDY.log (every echo-data command's output), $OUT/versions.txt
 # and prints where the time went.
 # Rendering: the sanity recipes turn both cameras off and the learner reads no image, so the build
 # takes no picture and evaluation makes no render system at all: Vulkan is not needed. The ICD is
@@ -19,11 +21,16 @@
 # to fail at its first episode.
 set -u
 OUT=${OUT:-$PWD/gpu_out}
-WORK=${WORK:-$PWD/out/sanity}     # datasets and run folders (large; not copied back)
 WORKERS=${WORKERS:-14}
 BUDGET_S=${BUDGET_S:-480}
 SKILLS=${SKILLS:-"Pick OpenDoor CloseSink Place"}
 EXTRA=${EXTRA:-}                  # more options for the driver, e.g. "--epochs 20 --select-every 10"
+STUDY=${STUDY:-sanity_learners}   # or camera_learners
+case "$STUDY" in
+  sanity_learners) WORK=${WORK:-$PWD/out/sanity} ;;    # datasets and run folders (large; not copied back)
+  camera_learners) WORK=${WORK:-$PWD/out/cameras} ;;
+  *) echo "gpu_sanity.sh: STUDY=$STUDY: expected sanity_learners or camera_learners" >&2; exit 2 ;;
+esac
 mkdir -p "$OUT" "$WORK"
 exec > >(tee -a "$OUT/gpu_sanity.log") 2>&1
 START=$(date +%s)
@@ -58,19 +65,19 @@ for SKILL in "$@"; do
   T0=$(date +%s)
   echo "=== $SKILL (limit ${SHARE} s) $(date -u +%T)"
   # The driver merges into the JSON it finds, so every skill's figures end up in one file.
-  timeout -k 10 "$SHARE" $PY benchmarks/sanity_learners.py --skills "$SKILL" --workers "$WORKERS" \
-      --work "$WORK" --out "$OUT/sanity_learners.json" $EXTRA > "$OUT/$SKILL.txt" 2>&1
+  timeout -k 10 "$SHARE" $PY "benchmarks/$STUDY.py" --skills "$SKILL" --workers "$WORKERS" \
+      --work "$WORK" --out "$OUT/$STUDY.json" $EXTRA > "$OUT/$SKILL.txt" 2>&1
   RC=$?
   echo "=== $SKILL rc=$RC in $(( $(date +%s) - T0 )) s (total $(( $(date +%s) - START )) s)"
   tail -n 12 "$OUT/$SKILL.txt"
   COUNT=$(( COUNT - 1 ))
 done
-cp -f "$WORK/sanity_learners.log" "$OUT/" 2>/dev/null
+cp -f "$WORK/$STUDY.log" "$OUT/" 2>/dev/null
 
 # --- where the time went ------------------------------------------------------------------------
 echo "=== where the time went (s): every echo-data command, from each skill's output"
 grep -h "^  *[0-9.]* s  " "$OUT"/*.txt 2>/dev/null
-$PY - "$OUT/sanity_learners.json" <<'EOF' 2>/dev/null || true
+$PY - "$OUT/$STUDY.json" <<'EOF' 2>/dev/null || true
 import json, sys
 d = json.load(open(sys.argv[1]))
 for s, t in d.get("timings", {}).items():
