@@ -8,6 +8,9 @@
   N async     `gymnasium.make_vec(id, num_envs=N, vectorization_mode="async")` with the spawn
               context: steps/s of all envs together, per env, and the share of N x one process
   threads     threads per worker process, by name (BLAS pools, renderer, listening thread)
+  floor       the bare SAPIEN step + render + readback (`timing.floor_times`) in N processes at
+              once against one: how far the machine itself scales N renderers, the bound the
+              N async envs are judged against (on CPU rendering, cores are shared by everything)
 `ECHO_DATA_PREFETCH=0` turns the listening thread's idle-time RIR prefetch off (to compare).
 
   python benchmarks/bench_vec.py [RECIPE] [--n 2] [--n 4 ...] [--steps 60] [--no-images] [--no-audio]
@@ -101,6 +104,37 @@ def vector(recipe: Any, n: int, steps: int, images: bool, audio: bool) -> tuple[
     return n * steps / dt, threads
 
 
+def _floor_worker(recipe: Any, steps: int, start: Any, out: Any) -> None:
+    """One process: an env's world at its start pose, then the bare floor timed once every
+    process is ready (`start`, a barrier); puts its wall seconds per step on `out`."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from timing import floor_times
+
+    env = _make(recipe, True, False)
+    env.reset(options={"index": 0})
+    floor_times(env.world, 5)  # past the first render
+    start.wait()
+    out.put(floor_times(env.world, steps)[0])
+    env.close()
+
+
+def floor_processes(recipe: Any, n: int, steps: int) -> float:
+    """Steps/s of the bare floor run in n spawned processes at once (all of them together)."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    start, out = ctx.Barrier(n), ctx.Queue()
+    procs = [ctx.Process(target=_floor_worker, args=(recipe, steps, start, out)) for _ in range(n)]
+    for p in procs:
+        p.start()
+    walls = [out.get() for _ in procs]
+    for p in procs:
+        p.join()
+    return float(sum(1.0 / w for w in walls))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("recipe", nargs="?", default=str(ROOT / "recipes" / "multi_event.yaml"))
@@ -124,6 +158,12 @@ def main() -> None:
         sn, threads = vector(recipe, n, args.steps, images, audio)
         print(f"N = {n:2d} async {sn:7.1f} steps/s in all = {sn / n:6.1f} per env = {sn / (n * one):.2f} of N x one process"
               f" (stragglers alone bound it to {bound:.2f}); worker threads {sum(threads.values())}: {threads}", flush=True)
+    if images:
+        f1 = floor_processes(recipe, 1, 3 * args.steps)
+        for n in args.n or [2]:
+            fn = floor_processes(recipe, n, 3 * args.steps)
+            print(f"floor       1 process {f1:7.1f} steps/s; {n} processes {fn:7.1f} steps/s in all = {fn / (n * f1):.2f} of N x one process"
+                  " (the machine's own scaling: the async envs' share above is judged against it)", flush=True)
 
 
 if __name__ == "__main__":
