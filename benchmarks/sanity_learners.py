@@ -121,7 +121,7 @@ CAMERAS = Study("benchmarks/camera_learners.py",
                 {"Pick": "cameras_pick_place", "Place": "cameras_pick_place", "OpenDoor": "cameras_door_sink", "CloseSink": "cameras_door_sink"},
                 {s: f"cameras_test_{g}" for s, g in TEST.items()}, {s: CAMERA_INPUTS for s in SKILLS},
                 {"act": ("act", "--epochs 20 --select-every 10 --shift 4")},
-                ("depth", "wrist_depth", "rgb", "state", "kind"), False, "benchmarks/results/camera_learners.json", "out/cameras")
+                CAMERA_INPUTS, False, "benchmarks/results/camera_learners.json", "out/cameras")  # what recipes/cameras_*.yaml store: no RGB
 
 
 SPENT: list[str] = []  # one line per echo-data command: seconds, what, on what (printed at the end)
