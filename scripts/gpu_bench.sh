@@ -6,6 +6,7 @@
 #   EXTRA="threadpoolctl==3.8.0" bash make_bundle.sh .gpu_bundle      # writes .gpu_bundle/site312.tar.xz
 # Then, from the checkout's root on the GPU machine:
 #   OUT=/some/dir bash scripts/gpu_bench.sh        # outputs under $OUT (default ./gpu_out); about 5 minutes
+#   TRAIN_DATA=DATASET OUT=/some/dir bash scripts/gpu_bench.sh   # training a skill on the GPU first
 # Every part runs under a share of one overall deadline (BUDGET_S, default 330 s) and the script
 # goes on past a part that fails or runs out of time; each part's output is in its own file.
 set -u
@@ -58,6 +59,20 @@ print("render devices:", sapien.render.get_device_summary())
 EOF
 } > "$OUT/versions.txt" 2>&1
 cat "$OUT/versions.txt"
+
+# --- training a skill on the GPU (issue 29), when a dataset travels in TRAIN_DATA ------------------
+# TRAIN_DATA: a `recipes/cameras_pick_place.yaml` build (or its Pick rows alone: a dataset must fit the
+# 64 MiB the working tree may carry). The camera learners' Pick: ACT on head and wrist depth,
+# proprioception and the target kind, end-effector actions, random shift 4 px.
+TRAIN_DATA=${TRAIN_DATA:-}
+CAM="--skill Pick --inputs depth,wrist_depth,state,kind --action-column action.ee --shift 4"
+if [ -n "$TRAIN_DATA" ] && [ -f "$TRAIN_DATA/manifest.json" ]; then
+  # samples/s on the GPU and on one CPU thread of the same machine (same data, same run), then the
+  # camera learners' whole Pick optimisation (7,500 steps: 20 epochs of the 150-episode build) on the
+  # GPU, or as many steps as its measured rate fits in FULL_S seconds
+  part train_speed ${TRAIN_S:-260} $PY benchmarks/train_speed.py "$TRAIN_DATA" --algo act --steps 200 $CAM --devices cuda,cpu \
+      --full-steps 7500 --full-budget ${FULL_S:-150}
+fi
 
 # --- the benchmarks, most wanted first -------------------------------------------------------------
 # 1. one env (listening thread + prefetch, the default) against the floor, and 2 async processes
