@@ -171,7 +171,7 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
     device = resolve_device(cfg.device)
     if device == "cuda":  # cuBLAS is deterministic only with a fixed workspace (torch's reproducibility notes)
         os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
-    torch = setup_torch(cfg.seed, cfg.threads, device)
+    torch = setup_torch(cfg.seed, cfg.threads)
     spec = FeatureSpec.from_dict(cfg.features)
     root = Path(cfg.dataset)
     total_rows = count_rows(root, "train", cfg.skill)

@@ -35,18 +35,18 @@ def check_finite(model: Any, out: Path, step: int) -> None:
             raise runs.RunError(f"{out}: weight {name} is not finite at optimiser step {step}; nothing saved (lower --lr?)")
 
 
-def setup_torch(seed: int, threads: int, device: str = "cpu") -> Any:
+def setup_torch(seed: int, threads: int) -> Any:
     """Deterministic training: fixed thread count, deterministic kernels, seeded init.
 
     One thread by default: with other processes on the cores, two OpenMP threads wait on each
-    other (measured here: 1.7 s per BC step with 2 threads against 0.22 s with 1). On a CUDA
-    device a kernel with no deterministic implementation warns instead of stopping the run
-    (torch's `warn_only`): a GPU run is repeatable as far as torch's CUDA kernels allow, a CPU run
-    exactly."""
+    other (measured here: 1.7 s per BC step with 2 threads against 0.22 s with 1). On CUDA too:
+    two seeded ACT and diffusion runs on an H200 gave identical weights; ACT's attention backward
+    then takes torch's deterministic kernel, 5x slower than the default one (2,738 against 13,559
+    samples/s, benchmarks/results/gpu_figures.json) and still 6x one CPU thread."""
     import torch
 
     torch.set_num_threads(threads)
-    torch.use_deterministic_algorithms(True, warn_only=device == "cuda")
+    torch.use_deterministic_algorithms(True)
     torch.manual_seed(seed % 2**63)  # torch takes 64-bit seeds; the config allows [0, 2**64)
     return torch
 
