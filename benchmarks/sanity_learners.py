@@ -105,6 +105,7 @@ class Study:
     privileged: bool  # whether --inputs may name observation.privileged.* columns
     out: str  # default results file, relative to the checkout
     work: str  # default work folder, relative to the checkout
+    default_learners: tuple[str, ...] = ()  # the candidates without --learners (empty: every learner)
 
 
 PRIVILEGED = Study("benchmarks/sanity_learners.py", DATA, {s: f"sanity_test_{g}" for s, g in TEST.items()}, INPUTS, LEARNERS,
@@ -120,8 +121,9 @@ CAMERA_INPUTS = ("depth", "wrist_depth", "state", "kind")
 CAMERAS = Study("benchmarks/camera_learners.py",
                 {"Pick": "cameras_pick_place", "Place": "cameras_pick_place", "OpenDoor": "cameras_door_sink", "CloseSink": "cameras_door_sink"},
                 {s: f"cameras_test_{g}" for s, g in TEST.items()}, {s: CAMERA_INPUTS for s in SKILLS},
-                {"act": ("act", "--epochs 20 --select-every 10 --shift 4")},
-                CAMERA_INPUTS, False, "benchmarks/results/camera_learners.json", "out/cameras")  # what recipes/cameras_*.yaml store: no RGB
+                {"act": ("act", "--epochs 20 --select-every 10 --shift 4"),
+                 "act_chunk1": ("act", "--epochs 20 --select-every 10 --shift 4 --chunk 1")},  # the chunking ablation (--learners act_chunk1)
+                CAMERA_INPUTS, False, "benchmarks/results/camera_learners.json", "out/cameras", ("act",))  # what recipes/cameras_*.yaml store: no RGB
 
 
 SPENT: list[str] = []  # one line per echo-data command: seconds, what, on what (printed at the end)
@@ -366,7 +368,7 @@ def main(study: Study = PRIVILEGED, description: str | None = None) -> None:
     ap.add_argument("--work", type=Path, default=ROOT / study.work, help="datasets, run folders, evaluation JSONs and the log")
     ap.add_argument("--out", type=Path, default=ROOT / study.out)
     ap.add_argument("-n", "--episodes", type=int, default=50, help="test episodes per row (>= 50 for the acceptance figure)")
-    ap.add_argument("--learners", default=",".join(study.learners),
+    ap.add_argument("--learners", default=",".join(study.default_learners or study.learners),
                     help=f"comma list of {', '.join(f'{k} ({v[0]} {v[1]})' for k, v in study.learners.items())}: each is trained, the best on validation tested")
     ap.add_argument("--epochs", type=int, default=None, help="epochs of every learner (default: each learner's own)")
     ap.add_argument("--select-every", type=int, default=None, help="closed-loop validation every N epochs and after the last (default: each learner's own)")
