@@ -18,8 +18,20 @@ OPTIONAL = ("torch", "datasets", "ray", "mplib")
 FIX = (
     "SAPIEN found no usable Vulkan device. On Debian bookworm run `bash scripts/setup_system.sh` as root "
     "(installs Mesa >= 23 lavapipe from bookworm-backports), or set "
-    "VK_ICD_FILENAMES=/usr/share/vulkan/icd.d/lvp_icd.json; on an NVIDIA machine install the driver's Vulkan ICD."
+    "VK_ICD_FILENAMES=/usr/share/vulkan/icd.d/lvp_icd.json; on an NVIDIA machine install the Vulkan loader "
+    "(libvulkan1) and name the driver's ICD file (nvidia_icd.json) in VK_ICD_FILENAMES."
 )
+# Why the loader is looked for on its own: without a system libvulkan SAPIEN falls back to a loader of
+# its own, which found no device on an NVIDIA H200 machine whose driver ICD was present (2026-11-27);
+# with libvulkan1 unpacked there, the same SAPIEN listed the GPU.
+NO_LOADER = "no Vulkan loader (libvulkan.so.1) on this machine: apt-get install libvulkan1 (SAPIEN's own fallback loader may find no device)"
+
+
+def vulkan_loader() -> str | None:
+    """The system Vulkan loader's file name, or None where there is none."""
+    import ctypes.util
+
+    return ctypes.util.find_library("vulkan")
 
 _PROBE = r"""
 import json, sapien, numpy as np
@@ -65,6 +77,8 @@ def run_doctor(timeout: float = 120.0) -> DoctorReport:
     planning = rep.optional.get("mplib", "missing")
     if np_ver and np_ver[0].isdigit() and int(np_ver.split(".")[0]) >= 2 and not planning.startswith("missing"):
         rep.problems.append("numpy >= 2 is installed beside mplib (the `planning` extra), which crashes under it; pip install 'numpy<2'")
+    if vulkan_loader() is None:
+        rep.problems.append(NO_LOADER)
     try:
         out = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:

@@ -34,6 +34,15 @@ def test_doctor_finds_a_render_device() -> None:
     assert rep["versions"]["sapien"] == "3.0.3"
 
 
+def test_doctor_names_a_missing_vulkan_loader(monkeypatch: pytest.MonkeyPatch) -> None:
+    import echo_data.doctor as doctor
+
+    assert doctor.vulkan_loader()  # this machine renders through its system loader
+    monkeypatch.setattr(doctor, "vulkan_loader", lambda: None)
+    rep = doctor.run_doctor()
+    assert doctor.NO_LOADER in rep.problems
+
+
 def test_bad_recipe_is_one_line_exit_2(tmp_path: Path) -> None:
     bad = tmp_path / "bad.yaml"
     bad.write_text("name: x\nrobot:\n  control_hz: fast\n")
