@@ -122,7 +122,8 @@ CAMERAS = Study("benchmarks/camera_learners.py",
                 {"Pick": "cameras_pick_place", "Place": "cameras_pick_place", "OpenDoor": "cameras_door_sink", "CloseSink": "cameras_door_sink"},
                 {s: f"cameras_test_{g}" for s, g in TEST.items()}, {s: CAMERA_INPUTS for s in SKILLS},
                 {"act": ("act", "--epochs 20 --select-every 10 --shift 4"),
-                 "act_chunk1": ("act", "--epochs 20 --select-every 10 --shift 4 --chunk 1")},  # the chunking ablation (--learners act_chunk1)
+                 "act_chunk1": ("act", "--epochs 20 --select-every 10 --shift 4 --chunk 1"),  # the chunking ablation (--learners act_chunk1)
+                 "diffusion": ("diffusion", "--epochs 20 --select-every 10 --shift 4")},  # multimodal actions (--learners diffusion)
                 CAMERA_INPUTS, False, "benchmarks/results/camera_learners.json", "out/cameras", ("act",))  # what recipes/cameras_*.yaml store: no RGB
 
 
