@@ -50,6 +50,12 @@ def timed_run(data: Path, algo: str, skill: str, inputs: tuple[str, ...], device
             "resumed_run_seconds": round(total, 2), "train_seconds": s["seconds"]}
 
 
+def samples_per_second(row: dict[str, Any]) -> float:
+    """Rows per second of a `timed_run` row: `train_seconds` is the loop's own clock over all its
+    steps (the warm-up's included)."""
+    return round(row["batch_size"] * (WARMUP + row["steps"]) / max(row["train_seconds"], 1e-9), 1)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("data", type=Path)
@@ -79,18 +85,16 @@ def main() -> None:
         if dev == "cuda":
             rows[-1]["gpu"] = torch.cuda.get_device_name(0)
     for r in rows:
-        # `train_seconds` is the loop's own clock over all steps so far (warm-up included in the resumed total).
-        r["samples_per_second"] = round(r["batch_size"] * (WARMUP + r["steps"]) / max(r["train_seconds"], 1e-9), 1)
+        r["samples_per_second"] = samples_per_second(r)
     doc: dict[str, Any] = {"algo": a.algo, "skill": a.skill, "inputs": list(inputs), **over, "rows": rows}
     if a.full_steps and rows:
         first = rows[0]
         fits = int(a.full_budget * first["samples_per_second"] / first["batch_size"]) if math.isfinite(a.full_budget) else a.full_steps
         steps = max(1, min(a.full_steps, fits))
         print(json.dumps(doc, indent=1), flush=True)  # the short rows survive if the long run is stopped
-        full = timed_run(a.data, a.algo, a.skill, inputs, first["device"], steps - WARMUP if steps > WARMUP else 1, a.threads, a.batch_size, over)
+        full = timed_run(a.data, a.algo, a.skill, inputs, first["device"], max(1, steps - WARMUP), a.threads, a.batch_size, over)
         full.update(asked_steps=a.full_steps, cut=steps < a.full_steps, total_steps=full["steps"] + WARMUP,
-                    train_minutes=round(full["train_seconds"] / 60, 2),
-                    samples_per_second=round(full["batch_size"] * (full["steps"] + WARMUP) / max(full["train_seconds"], 1e-9), 1))
+                    train_minutes=round(full["train_seconds"] / 60, 2), samples_per_second=samples_per_second(full))
         doc["full"] = full
     by = {r["device"]: r["samples_per_second"] for r in rows}
     if "cpu" in by and "cuda" in by:
