@@ -31,21 +31,7 @@ part() {  # part NAME SECONDS CMD...: run CMD with at most SECONDS (less if the 
 }
 
 # --- the bundle and the environment -----------------------------------------------------------
-GS=/tmp/gs
-if [ ! -f "$GS/.unpacked" ]; then
-  rm -rf "$GS" && mkdir -p "$GS" && tar -xJf .gpu_bundle/site312.tar.xz -C "$GS" && touch "$GS/.unpacked" || echo "BUNDLE UNPACK FAILED"
-fi
-export PYTHONPATH=$GS/site:$PWD:$PWD/benchmarks
-# The image has no Vulkan loader (SAPIEN then finds no rendering device): unpack the one carried as
-# Debian packages in the git-ignored .gl/ (`apt-get download libvulkan1` where a package source is
-# reachable), as root.
-if ! ldconfig -p | grep -q libvulkan && ls .gl/*.deb >/dev/null 2>&1; then
-  for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig
-fi
-J=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
-[ -f "$J" ] && export VK_ICD_FILENAMES=$J VK_DRIVER_FILES=$J
-export LP_NUM_THREADS=1 PYTHONDONTWRITEBYTECODE=1
-PY=${PY:-python3}
+source scripts/gpu_env.sh  # the bundle, the Vulkan loader and ICD, PYTHONPATH, $PY
 
 # --- versions and the machine ---------------------------------------------------------------------
 {

@@ -36,19 +36,8 @@ exec > >(tee -a "$OUT/gpu_sanity.log") 2>&1
 START=$(date +%s)
 
 # --- the bundle and the environment -----------------------------------------------------------
-GS=${GS:-/tmp/gs}
-if [ -f .gpu_bundle/site312.tar.xz ] && [ ! -f "$GS/.unpacked" ]; then
-  rm -rf "$GS" && mkdir -p "$GS" && tar -xJf .gpu_bundle/site312.tar.xz -C "$GS" && touch "$GS/.unpacked" || echo "BUNDLE UNPACK FAILED"
-fi
-export PYTHONPATH=$GS/site:$PWD:$PWD/benchmarks
-# The image has no Vulkan loader: unpack the one carried in the git-ignored .gl/ (as gpu_bench.sh).
-if ! ldconfig -p | grep -q libvulkan && ls .gl/*.deb >/dev/null 2>&1; then
-  for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig
-fi
-J=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
-[ -f "$J" ] && export VK_ICD_FILENAMES=$J VK_DRIVER_FILES=$J
-export LP_NUM_THREADS=1 PYTHONDONTWRITEBYTECODE=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1  # one torch thread per worker process
-PY=${PY:-python3}
+source scripts/gpu_env.sh  # the bundle, the Vulkan loader and ICD, PYTHONPATH, $PY
+export OMP_NUM_THREADS=1 MKL_NUM_THREADS=1  # one torch thread per worker process
 {
   date -u; nproc; free -g | head -2
   nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv 2>&1 | head -3
