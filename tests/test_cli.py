@@ -39,8 +39,10 @@ def test_doctor_names_a_missing_vulkan_loader(monkeypatch: pytest.MonkeyPatch) -
 
     assert doctor.vulkan_loader()  # this machine renders through its system loader
     monkeypatch.setattr(doctor, "vulkan_loader", lambda: None)
+    assert doctor.NO_LOADER not in doctor.run_doctor().problems  # rendering works: no loader problem to name
+    monkeypatch.setattr(doctor, "_PROBE", "raise SystemExit('RuntimeError: failed to find a rendering device')")
     rep = doctor.run_doctor()
-    assert doctor.NO_LOADER in rep.problems
+    assert doctor.NO_LOADER in rep.problems and any(p.startswith("rendering failed") for p in rep.problems)
 
 
 def test_bad_recipe_is_one_line_exit_2(tmp_path: Path) -> None:
