@@ -7,10 +7,11 @@ What the rows are, what each needs, how entries are read, composed, summarised a
 rows asked for and merges what it measured into the JSON. Test split = test sounds only,
 nothing tuned on it; Wilson 95 % intervals.
 
-Evaluation recipes: `recipes/paper_table_<setting>.yaml` keep the training episodes of
-`recipes/paper_table.yaml` and put all test episodes in one setting, so `-n N` scores N episodes
-of that setting (`echo-data evaluate` samples them; the test split is never built). A row whose
-recipe is not in recipes/ yet (the paper-comparable ones: `_magic`) waits, said on stderr.
+Evaluation recipes: `recipes/cameras_test_<setting>.yaml` put all test episodes of
+`recipes/sanity.yaml`'s seed and sound split in one setting (or one event, or after a hand-over),
+so `-n N` scores N episodes of it (`echo-data evaluate` samples them; the test split is never
+built). A row whose recipe is not in recipes/ yet (the paper-comparable ones: `_magic`) waits,
+said on stderr; so does a learner whose dataset's recipe is not there.
 
 Resumable: the data build resumes, finished run folders (a `summary.json` written here) are not
 trained again, and an evaluation already in the JSON is not run again (they are the long part).
@@ -21,8 +22,9 @@ Usage:
   python benchmarks/paper_table.py                      # the whole table (hours on 2 cores)
   python benchmarks/paper_table.py --rows "Pick alone"  # one row
   python benchmarks/paper_table.py --learners Pick      # only build the data of and train a learner
+  python benchmarks/paper_table.py --adopt EVAL.json ...  # take in evaluations run before (same recipe and weights)
   python benchmarks/paper_table.py --render             # only re-render the markdown and the README's copy from the JSON
-  python benchmarks/paper_table.py --tiny --data D --out J   # the test: quickstart, a few steps, 1 episode
+  python benchmarks/paper_table.py --tiny --data D --out J   # the test: a quickstart build D, a few steps, 1 episode of D's recipe
 """
 
 from __future__ import annotations
@@ -137,6 +139,56 @@ def evaluate(recipe: Path, row: EvaluatedRow, planner: str, runs: Path, n: int, 
     return {"command": command(args), "wall_seconds": round(seconds, 1), "commit": _commit(), **table.measured(json.loads(out.read_text()))}
 
 
+def adopt(path: Path, runs: Path, n: int, workers: int) -> tuple[str, str, dict[str, Any]]:
+    """Take an evaluation measured before (an `echo-data evaluate --json` document, e.g. a study's
+    run of a skill alone) into the table as the entry of the row and setting it is: the same
+    recipe file and content, the test split, `n` episodes, the oracle planner, and for every
+    learned skill the same weights as the table's learner (`folder_sha256` of RUNS/<learner>).
+    Anything else is refused (exit 2, one line): an adopted entry is exactly what `evaluate`
+    would have measured, so its command is the one that repeats it. Returns (row, setting, entry)."""
+    from echo_data.agents.loading import folder_sha256
+    from echo_data.recipe import load_recipe
+
+    doc = json.loads(path.read_text())
+    recipe = Path(doc["recipe"]["path"]).name
+    learned = {s: v.get("checkpoint_sha256") for s, v in doc["policy"].get("skills", {}).items() if s != "*"}
+    why = []
+    for name, row in ROWS.items():
+        if not isinstance(row, EvaluatedRow) or row.planner != "oracle" or set(row.policy) != set(learned):
+            continue
+        for setting in row.settings:
+            if row.recipe(setting) != recipe:
+                continue
+            if (h := load_recipe(ROOT / "recipes" / recipe).content_hash()) != doc["recipe"]["content_hash"]:
+                why.append(f"recipes/{recipe} changed since (content hash {h[:12]}, the evaluation's {doc['recipe']['content_hash'][:12]})")
+            elif doc["split"] != "test" or doc["n"] != n:
+                why.append(f"it scored {doc['n']} episodes of {doc['split']}, the table {n} of test")
+            elif any(not (runs / row.policy[s]).is_dir() or folder_sha256(runs / row.policy[s]) != h for s, h in learned.items()):
+                why.append(f"row {name!r}: its learners in {rel(runs)} are not the evaluated weights")
+            else:
+                out = eval_json(runs, name, setting)
+                atomic_write_json(out, doc)  # where the driver keeps the row's document (a computed row may read it)
+                args = ["evaluate", str(ROOT / "recipes" / recipe), "--split", "test", "-n", str(n), *(f"--policy={s}={runs / r}" for s, r in row.policy.items()),
+                        "--policy", "oracle", "--planner", "oracle", "--workers", str(workers), "--json", str(out)]
+                return name, setting, {"command": command(args), "wall_seconds": round(float(doc["wall_seconds"]), 1), "commit": _commit(),
+                                       "adopted": f"measured before this run of the table by the same command on the same recipe and weights "
+                                                  f"(checkpoint sha256 {', '.join(f'{s} {h[:12]}' for s, h in learned.items())}); taken from its --json document",
+                                       **table.measured(doc)}
+    print(f"error: --adopt {path}: " + ("; ".join(why) if why else f"no oracle-planner row evaluates {', '.join(learned) or 'the experts'} on recipes/{recipe}"),
+          file=sys.stderr)
+    sys.exit(2)
+
+
+def tiny_recipe(data: Path, runs: Path) -> Path:
+    """--tiny's evaluation recipe: the one `data` was built from (its manifest's copy, written to
+    RUNS/tiny_recipe.yaml), so the learners act in the action space they cloned."""
+    import yaml
+
+    out = runs / "tiny_recipe.yaml"
+    atomic_write_bytes(out, yaml.safe_dump(json.loads((data / "manifest.json").read_text())["recipe"], sort_keys=False).encode())
+    return out
+
+
 def computed(row: ComposedRow | DerivedRow, setting: str, runs: Path) -> dict[str, Any] | None:
     """The entry of a row computed from measured rows' evaluation documents; None (said on stderr)
     while one is missing."""
@@ -191,7 +243,9 @@ def main() -> None:
     ap.add_argument("--rows", nargs="*", default=None, help="only these rows (names as in the JSON)")
     ap.add_argument("--learners", nargs="*", default=None, help="only build the data of and train these learners (names as in LEARNERS, or planner); no evaluation")
     ap.add_argument("--render", action="store_true", help="run nothing: rewrite the JSON's summary and the markdown from its entries (and the README's table, for the default --out)")
-    ap.add_argument("--tiny", action="store_true", help="the test's version: quickstart recipe, 2 training steps, 1 episode")
+    ap.add_argument("--adopt", nargs="*", type=Path, default=None, metavar="EVAL_JSON",
+                    help="take these `echo-data evaluate --json` documents (same recipe, test split, -n, weights as RUNS/<learner>) in as their rows' entries; nothing else runs")
+    ap.add_argument("--tiny", action="store_true", help="the test's version: --data's build (a quickstart), 2 training steps, 1 episode of its recipe")
     a = ap.parse_args()
     if a.render:
         if not a.out.is_file():
@@ -199,6 +253,12 @@ def main() -> None:
         print(render(save(a.out, {}), a.out, readme=a.out.resolve() == DEFAULT_OUT.resolve()))
         return
     n = 1 if a.tiny else a.episodes
+    if a.adopt is not None:
+        for path in a.adopt:
+            name, setting, entry = adopt(path, a.runs, n, a.workers)
+            save(a.out, {"commit": _commit(), "rows": {name: {setting: entry}}})
+            print(f"{name} / {setting}: {table.cell(table.skill_success(json.loads(path.read_text())['episodes'], ROWS[name].skill_alone) if ROWS[name].skill_alone else entry['metrics'].get('skill_completion'))} (adopted)", file=sys.stderr)
+        return
     if a.tiny and a.data is None:
         ap.error("--tiny needs --data (a quickstart dataset)")
     unknown = sorted(set(a.rows or ()) - set(ROWS)) + sorted(set(a.learners or ()) - {*LEARNERS, "planner"})
@@ -217,7 +277,7 @@ def main() -> None:
     wants_planner = a.planner_run is None and not a.no_planner and (any(r.planner == "learned" for r in evaluated) or "planner" in (a.learners or ()))
     data: dict[str, Path] = {}
     for key in dict.fromkeys([*(LEARNERS[name].dataset for name in needed), *([PLANNER.dataset] if wants_planner else [])]):
-        recipe = ROOT / "recipes" / table.DATASETS[key].recipe
+        recipe = ROOT / table.DATASETS[key].recipe
         if a.tiny:
             data[key] = a.data
         elif recipe.is_file():
@@ -243,7 +303,7 @@ def main() -> None:
                     mine["rows"] = {name: {setting: entry}}
                     save(a.out, mine)
                 continue
-            rec = ROOT / "recipes" / ("quickstart.yaml" if a.tiny else row.recipe(setting))
+            rec = tiny_recipe(a.data, a.runs) if a.tiny else ROOT / "recipes" / row.recipe(setting)
             if not rec.is_file() or (a.tiny and row.grasp != "physical"):
                 print(f"{name} / {setting}: waits for {rel(ROOT / 'recipes' / row.recipe(setting))}", file=sys.stderr)
                 continue

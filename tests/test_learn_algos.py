@@ -318,3 +318,75 @@ def test_a_binary_entry_switches_when_the_chunk_switches_it_within_switch_ahead(
     feed = iter([chunks[0]])
     policy._rest = None
     assert policy.act(obs[0])[-1] == 1.0  # commanded open, a close predicted within 3 steps: close now
+
+
+def test_a_stop_run_learns_each_segments_last_row_and_ends_its_skill_there(ds: Path, tmp_path: Path) -> None:
+    """`--stop`: the target carries the dataset's `skill_stop` (1 exactly on a segment's last row)
+    as one more binary entry, weighted to balance its one last row against the others; the policy
+    says STOP (None) when it predicts it and gives the environment the action alone otherwise."""
+    from echo_data.dataset.schema import SKILL_STOP
+    from echo_data.learn.data import load_skill_rows
+    from echo_data.learn.features import FeatureSpec
+    from echo_data.learn.fit import train_skill
+
+    with pytest.raises(Exception, match="--stop"):
+        algorithm("bc").config(skill="Navigate", stop=True, action_form="delta").check()
+    cfg = algorithm("bc_rnn").config(dataset=str(ds), skill="Navigate", inputs=("state",), action_column="action.ee", max_steps=2, stop=True)
+    train_skill(cfg, tmp_path / "stop", progress=False)
+    policy = SkillPolicy.from_run(tmp_path / "stop")
+    reader = StepReader(ds, "train")
+    nav = np.flatnonzero(reader.index.skill == "Navigate")
+    _, last = reader.index.bounds("segment")
+    is_last = nav == last[nav]
+    assert np.array_equal(reader.read([SKILL_STOP], nav)[SKILL_STOP].astype(bool), is_last)
+    rows = load_skill_rows(ds, "train", "Navigate", FeatureSpec.from_dict(policy.config.features), action_column="action.ee", stop=True)
+    assert rows.actions.shape[-1] == len(EE_ACTION_NAMES) + 1 and np.array_equal(rows.actions[:, 0, -1], is_last.astype(np.float32))
+    kept = ~np.isin(rows.episodes, policy.config.val_episodes)
+    assert policy.config.stop_weight == pytest.approx((kept.sum() - is_last[kept].sum()) / is_last[kept].sum())  # (the synthetic segments are short)
+    assert policy.ends_itself and policy.config.binary == (len(EE_ACTION_NAMES) - 1, len(EE_ACTION_NAMES))
+    assert algorithm("bc_rnn").config(action_column="action.ee").binary_weights() == (1.0,) and policy.config.binary_weights() == (1.0, policy.config.stop_weight)
+    head = policy.model.head[-1] if isinstance(policy.model.head, torch.nn.Sequential) else policy.model.head
+    obs = _observations(ds)
+    assert policy.config.stop_threshold == 0.5  # chosen on validation only with --select-every
+    for bias, threshold, stops in ((-50.0, 0.5, False), (50.0, 0.5, True), (2.0, 0.5, True), (2.0, 0.95, False)):  # logit 2: p 0.88
+        with torch.no_grad():
+            head.weight[-1] = 0.0
+            head.bias[-1] = bias
+        policy.config.stop_threshold = threshold
+        policy.reset({})
+        a = policy.act(obs[0])
+        assert (a is None) == stops, (bias, threshold)
+        if a is not None:
+            assert a.shape == (len(EE_ACTION_NAMES),) and np.isfinite(a).all()
+
+
+def test_a_stop_runs_threshold_is_the_best_on_validation_the_latest_of_ties(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`select.closed_loop_scores`: every threshold of STOP_THRESHOLDS scored closed loop; the best
+    success wins, a tie goes to the higher threshold (the later stop); a run without --stop is
+    scored once."""
+    from echo_data.learn import select
+
+    scored: list[float] = []
+    for table, want in (({0.5: 0.2, 0.95: 0.6, 0.995: 0.4}, (0.6, 0.95)), ({0.5: 0.3, 0.95: 0.3, 0.995: 0.1}, (0.3, 0.95)),
+                        ({0.5: float("nan"), 0.95: 0.0, 0.995: 0.0}, (0.0, 0.995))):
+        def fake(cfg, model, out, table=table):  # the closed-loop score at the threshold the policy would act with
+            scored.append(cfg.stop_threshold)
+            return table[cfg.stop_threshold]
+        monkeypatch.setattr(select, "closed_loop_success", fake)
+        cfg = algorithm("bc_rnn").config(skill="Navigate", action_column="action.ee", stop=True)
+        got = select.closed_loop_scores(cfg, None, Path("."))
+        assert (got["val_success"], got["stop_threshold"]) == want and cfg.stop_threshold == want[1]
+    assert scored == list(select.STOP_THRESHOLDS) * 3
+    monkeypatch.setattr(select, "closed_loop_success", lambda cfg, model, out: 0.7)
+    assert select.closed_loop_scores(algorithm("bc").config(skill="Pick"), None, Path(".")) == {"val_success": 0.7}
+
+
+def test_losses_csv_keeps_a_column_only_some_epochs_carry(tmp_path: Path) -> None:
+    """A --stop run's selection epochs add `stop_threshold` to their row; losses.csv keeps it (a
+    run once died writing it)."""
+    import csv
+
+    runs.write_losses(tmp_path, [{"epoch": 1, "step": 8, "train_loss": 0.6, "val_loss": 0.5, "val_success": float("nan")},
+                                 {"epoch": 2, "step": 16, "train_loss": 0.5, "val_loss": 0.4, "val_success": 0.3, "stop_threshold": 0.95}])
+    rows = list(csv.DictReader((tmp_path / runs.LOSSES).open()))
+    assert rows[0]["stop_threshold"] == "" and rows[1]["stop_threshold"] == "0.95" and rows[1]["val_success"] == "0.3"

@@ -139,7 +139,8 @@ def test_an_unmeasured_row_renders_as_not_measured_and_a_measured_one_with_its_c
     assert line.count(table.NOT_MEASURED) == 6
     ours = next(x for x in md.splitlines() if x.startswith("| oracle planner + learned skills |"))
     assert ours.count("0.98 [0.90, 1.00] (49/50)") == 3 and ours.count("0.04 [0.01, 0.13] (2/50)") == 3  # Wilson: [0.011, 0.135]
-    assert "| Pick | object relocation | not measured |" in md and "| Pick (paper-comparable) | object relocation | not measured |" in md
+    assert "| Pick | pick place | not measured |" in md and "| Pick (paper-comparable) | pick place | not measured |" in md
+    assert "| Pick after a hand-over | pick place handover | not measured |" in md
     assert "49/50 = 0.98 [0.90, 1.00] | 50/50 = 1.00 [0.93, 1.00] |" in md  # exact and receptacle-free planning where they differ
 
 
@@ -185,9 +186,12 @@ def test_the_results_lock_waits_for_its_holder(tmp_path: Path) -> None:
 
 @pytest.fixture(scope="module")
 def quickstart(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A real quickstart build of one train episode (object relocation: Navigate, Pick, Place)."""
-    out = tmp_path_factory.mktemp("table") / "qs"
-    res = CliRunner().invoke(app, ["build", str(ROOT / "recipes" / "quickstart.yaml"), "--out", str(out), "--split", "train", "--limit", "1", "--no-progress"])
+    """A real quickstart build of one train episode (object relocation: Navigate, Pick, Place),
+    acting in the end-effector form the table's learners clone (`action.ee`)."""
+    tmp = tmp_path_factory.mktemp("table")
+    out, recipe = tmp / "qs", tmp / "quickstart_ee.yaml"
+    recipe.write_text(f"extends: {ROOT / 'recipes' / 'quickstart.yaml'}\nname: quickstart_ee\nrobot: {{action_space: ee_delta}}\n")
+    res = CliRunner().invoke(app, ["build", str(recipe), "--out", str(out), "--split", "train", "--limit", "1", "--no-progress"])
     assert res.exit_code == 0, res.output
     return out
 
@@ -214,3 +218,46 @@ def test_paper_table_tiny_evaluates_a_learner_in_evaluate_and_resumes(quickstart
     assert "| Pick |" in out.with_suffix(".md").read_text()
     r = subprocess.run([*cmd[:2], "--rows", "no such row", "--out", str(out)], cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 2 and "no such row" in r.stderr
+
+
+def _study_eval(runs_dir: Path, recipe: str, **change: Any) -> dict[str, Any]:
+    """An `echo-data evaluate --json` document as a study writes it: Pick learned (weights RUNS/Pick), one test episode."""
+    from echo_data.agents.loading import folder_sha256
+    from echo_data.evaluation.metrics import summarise
+    from echo_data.recipe import load_recipe
+
+    eps = [_record(0, True, 2)]
+    doc = {"recipe": {"path": f"recipes/{recipe}", "name": recipe[:-5], "content_hash": load_recipe(ROOT / "recipes" / recipe).content_hash()},
+           "split": "test", "n": 1, "planner": {"name": "oracle"}, "wall_seconds": 12.5, "episodes": eps, "metrics": {"all": summarise(eps)},
+           "policy": {"name": "Pick=elsewhere,oracle", "skills": {"*": {"name": "oracle"}, "Pick": {"checkpoint_sha256": folder_sha256(runs_dir / "Pick")}}}}
+    doc.update(change)
+    return doc
+
+
+def test_an_evaluation_is_adopted_only_with_the_same_recipe_split_size_and_weights(tmp_path: Path) -> None:
+    runs_dir, out = tmp_path / "runs", tmp_path / "table.json"
+    (runs_dir / "Pick").mkdir(parents=True)
+    (runs_dir / "Pick" / "best.pt").write_bytes(b"weights")
+    cmd = [sys.executable, str(ROOT / "benchmarks" / "paper_table.py"), "--runs", str(runs_dir), "--out", str(out), "-n", "1", "--workers", "1", "--adopt"]
+    ev = tmp_path / "study.json"
+
+    def adopt(doc: dict[str, Any]) -> subprocess.CompletedProcess[str]:
+        ev.write_text(json.dumps(doc))
+        return subprocess.run([*cmd, str(ev)], cwd=ROOT, capture_output=True, text=True)
+
+    r = adopt(_study_eval(runs_dir, "cameras_test_pick_place_handover.yaml"))
+    assert r.returncode == 0, r.stderr[-2000:]
+    entry = json.loads(out.read_text())["rows"]["Pick after a hand-over"]["pick_place_handover"]
+    assert entry["skills"]["Pick"]["k"] == 1 and "adopted" in entry and entry["wall_seconds"] == 12.5
+    assert entry["command"].startswith("echo-data evaluate recipes/cameras_test_pick_place_handover.yaml --split test -n 1 --policy=Pick=")
+    assert (runs_dir / "eval-Pick_after_a_hand-over-pick_place_handover.json").is_file()
+    refused = [_study_eval(runs_dir, "cameras_test_pick_place.yaml", n=50),  # another size
+               {**_study_eval(runs_dir, "cameras_test_pick_place.yaml"), "recipe": {"path": "recipes/cameras_test_pick_place.yaml", "content_hash": "0" * 64}},
+               _study_eval(runs_dir, "cameras_test_door.yaml")]  # no row evaluates Pick there
+    for doc in refused:
+        r = adopt(doc)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--adopt" in r.stderr, r.stderr
+    (runs_dir / "Pick" / "best.pt").write_bytes(b"other weights")
+    r = adopt(_study_eval(runs_dir, "cameras_test_pick_place.yaml", policy={"skills": {"Pick": {"checkpoint_sha256": "f" * 64}}}))
+    assert r.returncode == 2 and "not the evaluated weights" in r.stderr
+    assert "Pick alone" not in json.loads(out.read_text())["rows"]  # nothing refused was written

@@ -131,12 +131,19 @@ def identity(agent: Any, target: str | Sequence[str]) -> dict[str, Any]:
         if v is not None:
             out[attr] = str(v)
     if Path(target).is_dir():
-        import hashlib
-
-        h = hashlib.sha256()
-        for p in sorted(Path(target).rglob("*")):
-            if p.is_file():
-                h.update(p.relative_to(target).as_posix().encode())
-                h.update(p.read_bytes())
-        out["checkpoint_sha256"] = h.hexdigest()
+        out["checkpoint_sha256"] = folder_sha256(Path(target))
     return out
+
+
+def folder_sha256(folder: Path) -> str:
+    """SHA-256 over a run folder's file names and bytes: the same value means the same weights,
+    wherever the folder lies (what `identity` records and the paper table checks on adopting an
+    evaluation)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for p in sorted(folder.rglob("*")):
+        if p.is_file():
+            h.update(p.relative_to(folder).as_posix().encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()

@@ -97,8 +97,9 @@ class EvaluatedRow(RowSpec):
 
     def recipe(self, setting: str) -> str:
         """The evaluation recipe of `setting` (a file in recipes/): every test episode in one
-        setting, so `-n N` scores N episodes of it; `_magic` the same with `robot.grasp: magic`."""
-        return f"paper_table_{setting}{'_magic' if self.grasp == 'magic' else ''}.yaml"
+        setting (or one event, or after a hand-over), so `-n N` scores N episodes of it; `_magic`
+        the same with `robot.grasp: magic`."""
+        return f"cameras_test_{setting}{'_magic' if self.grasp == 'magic' else ''}.yaml"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -125,52 +126,59 @@ class DerivedRow(RowSpec):
 
 Row = EvaluatedRow | ComposedRow | DerivedRow
 
-# Training data: dataset (its folder under --data-root) -> recipe. Pick and Place learn from their
-# own object-relocation build (recipes/paper_table_pick_place.yaml: 100 episodes under DART noise,
-# five times the Pick segments of paper_table.yaml), OpenDoor and CloseSink from a
-# state-transition build (recipes/paper_table_door_sink.yaml: 60 episodes, same noise), Navigate
-# from recipes/paper_table.yaml (all three settings: it serves every chain). The planner learns
-# from recipes/planner_fresh.yaml (episodes cut after 10 frames, a fresh synthesised voice per
-# training event; built whole: once trained (choosing on validation), the planner is scored on
-# that build's own test split by `echo-data evaluate-planner RUN`). The magic-grasp build
-# is the paper-comparable rows' Pick and Place data (its recipe comes with `robot.grasp`).
+# Training data: dataset (its folder under --data-root) -> recipe (a path from the repository
+# root). The learners clone the closed-loop experts' end-effector actions (`action.ee`) from
+# demonstrations under the shipped perturbation whose manipulation starts anywhere in Navigate's
+# success region (recipes/sanity.yaml says what they share): Pick and Place from
+# recipes/cameras_pick_place.yaml (150 object-relocation episodes), OpenDoor and CloseSink from
+# recipes/cameras_door_sink.yaml (300 state-transition episodes), both with head and wrist depth;
+# Navigate from benchmarks/recipes/nav_audio.yaml (600 episodes, no camera: it hears its way).
+# The planner learns from recipes/planner_fresh.yaml (episodes cut after 10 frames, a fresh
+# synthesised voice per training event; built whole: once trained (choosing on validation), the
+# planner is scored on that build's own test split by `echo-data evaluate-planner RUN`). The
+# magic-grasp build is the paper-comparable rows' Pick and Place data (no recipe yet: they wait).
 DATASETS: dict[str, DatasetSpec] = {
-    "paper_table": DatasetSpec("paper_table.yaml"),
-    "paper_table_pick_place": DatasetSpec("paper_table_pick_place.yaml"),
-    "paper_table_door_sink": DatasetSpec("paper_table_door_sink.yaml"),
-    "planner_fresh": DatasetSpec("planner_fresh.yaml", None),
-    "paper_table_door_sink_300": DatasetSpec("paper_table_door_sink_300.yaml"),
-    "paper_table_pick_place_magic": DatasetSpec("paper_table_pick_place_magic.yaml"),
+    "cameras_pick_place": DatasetSpec("recipes/cameras_pick_place.yaml"),
+    "cameras_door_sink": DatasetSpec("recipes/cameras_door_sink.yaml"),
+    "nav_audio": DatasetSpec("benchmarks/recipes/nav_audio.yaml"),
+    "planner_fresh": DatasetSpec("recipes/planner_fresh.yaml", None),
+    "cameras_pick_place_magic": DatasetSpec("recipes/cameras_pick_place_magic.yaml"),
 }
 # The planner run: audio only, the checkpoint of the best balanced validation accuracy of 20
 # epochs (chosen on validation among the planner_fresh runs: benchmarks/results/planner_fresh.json).
 PLANNER = PlannerSpec("planner_fresh", ("--inputs", "audio", "--select", "accuracy", "--epochs", "20"))
-# Skill learners. Manipulation sees head and wrist depth (the paper's Table 3c: both cameras
-# decisive) and proprioception, and predicts its torso and arm targets as changes from the
-# measured joints (`--action-form delta`: absolute targets stalled short of the object,
-# docs/learners.md); every learner gets the target kind its chain entry names. Navigate: a GRU
-# over the skill's steps (the sound is a cue to integrate over time), reset at each skill's start.
-MANIPULATION = ("--action-form", "delta", "--shift", "4", "--epochs", "15")
+# Skill learners, each chosen on validation by its study. Manipulation: ACT (chunk 20, temporal
+# ensembling) over head and wrist depth, proprioception and the target kind, random shift 4, the
+# checkpoint of the best closed-loop validation success at epochs 10 and 20
+# (benchmarks/camera_learners.py; its ablations: benchmarks/results/camera_ablations.json).
+# Navigate: a GRU over the skill's steps reading the binaural level and ILD (no camera), chosen
+# every 5 epochs on validation (benchmarks/navigate_from_sound.py); the chain hands over at the
+# first step Navigate's success test holds. Every learner gets the target
+# kind its chain entry names; the starred ones also the target position (the paper's Oracle*).
+MANIPULATION = ("--action-column", "action.ee", "--device", "auto", "--epochs", "20", "--select-every", "10", "--shift", "4",
+                "--select-episodes", "10", "--seed", "0")
 MANIPULATION_INPUTS = "depth,wrist_depth,state,kind"
+NAVIGATE = ("--audio-form", "level_ild", "--action-column", "action.ee", "--epochs", "20", "--select-every", "5", "--select-episodes", "10",
+            "--device", "auto", "--seed", "0")
 LEARNERS: dict[str, LearnerSpec] = {
-    "Navigate": LearnerSpec("paper_table", "Navigate", "audio,depth,rgb,state,kind", "bc-rnn", ("--epochs", "30")),
-    "Navigate-target": LearnerSpec("paper_table", "Navigate", "audio,depth,rgb,state,kind,target", "bc-rnn", ("--epochs", "30")),
-    **{s: LearnerSpec("paper_table_pick_place", s, MANIPULATION_INPUTS, options=MANIPULATION) for s in ("Pick", "Place")},
-    "Place-target": LearnerSpec("paper_table_pick_place", "Place", MANIPULATION_INPUTS + ",target", options=MANIPULATION),
-    **{s: LearnerSpec("paper_table_door_sink", s, MANIPULATION_INPUTS, options=MANIPULATION) for s in ("OpenDoor", "CloseSink")},
-    # Five times the demonstrations (recipes/paper_table_door_sink_300.yaml): what more data does.
-    **{f"{s}-300": LearnerSpec("paper_table_door_sink_300", s, MANIPULATION_INPUTS, options=MANIPULATION) for s in ("OpenDoor", "CloseSink")},
+    "Navigate": LearnerSpec("nav_audio", "Navigate", "audio,state,kind", "bc-rnn", NAVIGATE),
+    "Navigate-target": LearnerSpec("nav_audio", "Navigate", "audio,state,kind,target", "bc-rnn", NAVIGATE),
+    **{s: LearnerSpec("cameras_pick_place", s, MANIPULATION_INPUTS, "act", MANIPULATION) for s in ("Pick", "Place")},
+    "Place-target": LearnerSpec("cameras_pick_place", "Place", MANIPULATION_INPUTS + ",target", "act", MANIPULATION),
+    **{s: LearnerSpec("cameras_door_sink", s, MANIPULATION_INPUTS, "act", MANIPULATION) for s in ("OpenDoor", "CloseSink")},
     # Paper-comparable: Pick and Place cloned from demonstrations with the magic grasp (the grasp
     # changes what Pick and Place do; the drives and the door and sink skills are the same).
-    "Pick-magic": LearnerSpec("paper_table_pick_place_magic", "Pick", MANIPULATION_INPUTS, options=MANIPULATION),
-    "Place-magic": LearnerSpec("paper_table_pick_place_magic", "Place", MANIPULATION_INPUTS, options=MANIPULATION),
-    "Place-target-magic": LearnerSpec("paper_table_pick_place_magic", "Place", MANIPULATION_INPUTS + ",target", options=MANIPULATION),
+    "Pick-magic": LearnerSpec("cameras_pick_place_magic", "Pick", MANIPULATION_INPUTS, "act", MANIPULATION),
+    "Place-magic": LearnerSpec("cameras_pick_place_magic", "Place", MANIPULATION_INPUTS, "act", MANIPULATION),
+    "Place-target-magic": LearnerSpec("cameras_pick_place_magic", "Place", MANIPULATION_INPUTS + ",target", "act", MANIPULATION),
 }
-# Where each skill alone is scored: the single-event settings in which it occurs. OpenDoor and
-# CloseSink: recipes/paper_table_door.yaml and _sink.yaml, 50 test episodes of their own event
-# each (the mixed state-transition split has 35 doors and 15 sinks).
-ALONE_SETTINGS = {"Navigate": ("object_relocation", "state_transition"), "Pick": ("object_relocation",),
-                  "Place": ("object_relocation",), "OpenDoor": ("door",), "CloseSink": ("sink",)}
+# Where each manipulation skill is scored alone: recipes/cameras_test_<setting>.yaml, 50 test
+# episodes of its own event, the skills before it done by the experts with Navigate stopping at
+# the exact interaction pose; "after a hand-over", the same episodes with the oracle Navigate
+# stopping anywhere in its success region (`experts.handover_noise` 1.0), as a learned Navigate
+# hands over. Navigate alone is read from the chain rows (`_rows`).
+ALONE_SETTINGS = {"Navigate": ("object_relocation", "state_transition"), "Pick": ("pick_place",), "Place": ("pick_place",),
+                  "OpenDoor": ("door",), "CloseSink": ("sink",)}
 
 
 def _rows() -> dict[str, Row]:
@@ -197,10 +205,10 @@ def _rows() -> dict[str, Row]:
     alone: list[Row] = []
     for s in SKILLS:
         alone.append(EvaluatedRow(name=f"{s} alone", planner="oracle", policy={s: s}, settings=ALONE_SETTINGS[s], skill=s))
-    for s in ("Navigate", "Place"):  # the starred learners alone
-        alone.append(EvaluatedRow(name=f"{s}* alone", planner="oracle", policy={s: starred[s]}, settings=ALONE_SETTINGS[s], skill=s))
-    for s in ("OpenDoor", "CloseSink"):  # from five times the demonstrations
-        alone.append(EvaluatedRow(name=f"{s}-300 alone", planner="oracle", policy={s: f"{s}-300"}, settings=ALONE_SETTINGS[s], skill=s))
+    for s in ("Pick", "Place", "OpenDoor", "CloseSink"):  # where the chain hands them over
+        alone.append(EvaluatedRow(name=f"{s} after a hand-over", planner="oracle", policy={s: s}, settings=tuple(f"{x}_handover" for x in ALONE_SETTINGS[s]),
+                                  skill=s))
+    alone.append(EvaluatedRow(name="Place* alone", planner="oracle", policy={"Place": "Place-target"}, settings=ALONE_SETTINGS["Place"], skill="Place"))
     for s, learner in (("Pick", "Pick-magic"), ("Place", "Place-magic")):
         alone.append(EvaluatedRow(name=f"{s} alone{pc}", planner="oracle", policy={s: learner}, settings=ALONE_SETTINGS[s], skill=s, grasp="magic"))
     alone.append(EvaluatedRow(name=f"Place* alone{pc}", planner="oracle", policy={"Place": "Place-target-magic"}, settings=ALONE_SETTINGS["Place"],

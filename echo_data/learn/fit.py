@@ -32,7 +32,7 @@ from echo_data.learn.loop import LoopConfig, fit, setup_torch
 POLICY_CLASS = "echo_data.learn.policy:SkillPolicy"
 IMAGE_INPUTS = ("depth", "wrist_depth", "rgb", "image")
 # What a resumed run must share with the run it continues.
-SAME_RUN = ("dataset", "skill", "inputs", "seed", "audio_form", "action_form", "action_column", "algo")
+SAME_RUN = ("dataset", "skill", "inputs", "seed", "audio_form", "action_form", "action_column", "algo", "stop")
 
 
 def resolve_device(name: str) -> str:
@@ -176,7 +176,7 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
     root = Path(cfg.dataset)
     total_rows = count_rows(root, "train", cfg.skill)
     with tqdm(total=total_rows, desc=f"decode {cfg.skill}", unit="row", disable=not progress, leave=False) as bar:
-        rows = load_skill_rows(root, "train", cfg.skill, spec, chunk=cfg.window(), tick=bar.update, action_column=cfg.action_column)
+        rows = load_skill_rows(root, "train", cfg.skill, spec, chunk=cfg.window(), tick=bar.update, action_column=cfg.action_column, stop=cfg.stop)
     val_eps = split_episodes(rows.episodes, cfg.val_fraction, cfg.seed)
     cfg.val_episodes = [int(e) for e in val_eps]
     binary = list(cfg.binary)
@@ -190,11 +190,20 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
         fit_rows = rows.actions[kept][~rows.action_pad[kept]]
         cfg.action_mean = [float(v) for v in fit_rows.mean(axis=0)]
         cfg.action_std = [float(v) if v > 1e-3 else 1.0 for v in fit_rows.std(axis=0)]
+    if len(cfg.action_mean) < len(cfg.target_names):  # the dataset's statistics cover the action, not the STOP
+        cfg.action_mean = [*cfg.action_mean, 0.0]
+        cfg.action_std = [*cfg.action_std, 1.0]
+    if cfg.stop and not resume:  # the STOP's class balance over the training rows (`SkillConfig.binary_weights`)
+        kept = ~np.isin(rows.episodes, val_eps) & ~rows.action_pad[:, 0]
+        last = float(rows.actions[kept, 0, -1].sum())
+        cfg.stop_weight = float((kept.sum() - last) / last) if last else 1.0
     if binary:  # binary entries are classified, not regressed: kept as 0/1
         cfg.action_mean = [0.0 if i in binary else v for i, v in enumerate(cfg.action_mean)]
         cfg.action_std = [1.0 if i in binary else v for i, v in enumerate(cfg.action_std)]
         rows.actions[..., binary] = (rows.actions[..., binary] > 0.5).astype(np.float32)
     if extra is not None and len(extra):
+        if cfg.stop:
+            raise runs.RunError("--stop does not take DAgger rows (their labels carry no stop)")
         rows = append_rows(rows, extra.inputs, extra.actions)
     is_val = np.isin(rows.episodes, val_eps)
     mean, std = np.asarray(cfg.action_mean, np.float32), np.asarray(cfg.action_std, np.float32)
@@ -246,20 +255,25 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
         counter["epoch"] += 1
         val = validate()
         if cfg.select_every:
-            from echo_data.learn.select import closed_loop_success
+            from echo_data.learn.select import closed_loop_scores
 
             e = counter["epoch"]
-            val["val_success"] = closed_loop_success(cfg, model, out) if e % cfg.select_every == 0 or e == cfg.epochs else math.nan
+            val.update(closed_loop_scores(cfg, model, out) if e % cfg.select_every == 0 or e == cfg.epochs else {"val_success": math.nan})
         return val
 
     loop = LoopConfig(cfg.epochs, cfg.batch_size, cfg.seed % 2**63, cfg.max_steps, select="val_success" if cfg.select_every else "val_loss")
     state = fit(model, opt, tr_units, loss_fn, validate_epoch, loop, out, resume, progress, desc=f"train {cfg.ALGO} {cfg.skill}")
+    if cfg.stop:  # the STOP threshold chosen with best.pt's weights on validation (select.closed_loop_scores) acts with them
+        chosen = runs.load_torch(out / runs.BEST).get("stop_threshold")
+        cfg.stop_threshold = float(chosen) if chosen is not None and math.isfinite(chosen) else 0.5
+        runs.write_run_files(out, "policy", POLICY_CLASS, cfg.to_dict(), {"algo": cfg.ALGO, "skill": cfg.skill, "inputs": list(cfg.inputs)})
     return {
         "run": str(out),
         "algo": cfg.ALGO,
         "skill": cfg.skill,
         "inputs": list(cfg.inputs),
         "action_column": cfg.action_column,
+        **({"stop_threshold": cfg.stop_threshold} if cfg.stop else {}),
         "state_fed": list(spec.state_names),
         "device": device,
         "rows": {"train": int(len(tr)), "val": int(len(va)), "dagger": int(len(extra)) if extra is not None else 0},

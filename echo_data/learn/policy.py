@@ -76,6 +76,9 @@ class SkillPolicy:
         self.recurrent = cfg.SEQUENCE
         self.action_form = cfg.action_form
         self.action_dim = len(cfg.action_names)
+        # a run trained with --stop ends its skill itself: `act` returns None (STOP) when the
+        # predicted skill_stop passes the run's `stop_threshold`, and the runtime judges the skill where it stopped
+        self.ends_itself = bool(cfg.stop)
         # what evaluate must render for it, and the goal observation when the model reads the target
         self.observations = tuple(self.spec.columns) + ((GOAL_POSE,) if "target" in self.spec.inputs else ())
         self._queue: deque[np.ndarray] = deque()
@@ -132,8 +135,8 @@ class SkillPolicy:
             pred, self.hidden = self.model.predict(x, self.hidden, self._gen)
         return pred[0].cpu().numpy() * self.std + self.mean
 
-    def act(self, obs: Mapping[str, Any]) -> np.ndarray:
-        """One observation (dataset keys) -> the next action, float32 (A,)."""
+    def act(self, obs: Mapping[str, Any]) -> np.ndarray | None:
+        """One observation (dataset keys) -> the next action, float32 (A,); None: STOP (`ends_itself`)."""
         if self._gen is None:  # acting without a reset: a segment's start
             self.reset({})
         if self._history.maxlen and self._history.maxlen > 1:  # every step is remembered, predicted on or not
@@ -156,9 +159,11 @@ class SkillPolicy:
                 self._queue.append(a)
         return self._finish(self._queue.popleft(), obs)
 
-    def _finish(self, pred: np.ndarray, obs: Mapping[str, Any]) -> np.ndarray:
-        """Binary entries (see `switched`); turn the run's action form back into the env's action."""
+    def _finish(self, pred: np.ndarray, obs: Mapping[str, Any]) -> np.ndarray | None:
+        """Binary entries (see `switched`); turn the run's action form back into the env's action;
+        None when the run learned the STOP and predicts it."""
         out = np.array(pred, dtype=np.float32)
+        stop = bool(out[self.action_dim] > self.config.stop_threshold) if self.ends_itself else False  # before the 0.5 of the other binaries
         if self.binary:
             if self.switch_ahead > 1 and self._rest is not None:
                 out[self.binary] = switched(self._rest[: self.switch_ahead][:, self.binary], self._last_binary)
@@ -167,8 +172,10 @@ class SkillPolicy:
             self._last_binary = out[self.binary].copy()
         if self._rest is not None:
             self._rest = self._rest[1:]  # the next step's look-ahead (a queue's chunk moves on with the queue)
+        if stop:
+            return None
         state = np.asarray(obs[STATE], dtype=np.float32) if self.action_form != "absolute" else None
-        action = from_action_form(out, state, self.action_form).astype(np.float32)
+        action = from_action_form(out[: self.action_dim], state, self.action_form).astype(np.float32)
         assert action.shape == (self.action_dim,)
         return action
 

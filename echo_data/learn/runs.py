@@ -119,7 +119,8 @@ def write_losses(folder: Path, rows: list[dict[str, Any]]) -> None:
     if not rows:
         return
     buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+    names = list(dict.fromkeys(k for r in rows for k in r))  # a column only some epochs carry (a STOP run's chosen threshold) too
+    w = csv.DictWriter(buf, fieldnames=names, lineterminator="\n")
     w.writeheader()
     w.writerows(rows)
     write_file(folder, LOSSES, buf.getvalue().encode())

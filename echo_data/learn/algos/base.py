@@ -14,6 +14,7 @@ import math
 from dataclasses import MISSING, asdict, dataclass, field, fields
 from typing import Any, ClassVar
 
+from echo_data.dataset.schema import SKILL_STOP
 from echo_data.records import ACTION_NAMES, EE_ACTION_NAMES, PRIVILEGED_PREFIX
 
 SEED_LIMIT = 2**64  # numpy's SeedSequence takes any non-negative int; torch.manual_seed 64 bits at most
@@ -76,6 +77,8 @@ class SkillConfig:
     action_column: str = opt("action", f"Action column cloned: {', '.join(ACTION_COLUMNS)}.")
     select_every: int = opt(0, "Every N epochs run the policy closed loop on validation-split episodes; best.pt = the best success (0 = lowest validation loss).")
     select_episodes: int = opt(3, "Validation-split episodes per closed-loop selection.")
+    stop: bool = opt(False, "Also learn each segment's last row (the dataset's skill_stop) as a binary output and end the skill when "
+                            "it is predicted (SoundSpaces' STOP; the skill is then judged once, where the policy stopped).")
     switch_ahead: int = opt(1, "A binary entry (the gripper) switches as soon as the newest predicted chunk switches it within "
                                "this many steps (1: the current step's prediction alone; at most the chunk).")
     # Filled in when the run starts:
@@ -85,6 +88,8 @@ class SkillConfig:
     action_mean: list[float] = resolved([])
     action_std: list[float] = resolved([])
     val_episodes: list[int] = resolved([])
+    stop_weight: float = resolved(1.0)  # with `stop`: the STOP's positive-class weight, set from the training rows (`binary_weights`)
+    stop_threshold: float = resolved(0.5)  # with `stop`: STOP when its probability passes this (chosen on validation: learn.select)
 
     # How the algorithm trains and acts; each algorithm overrides what differs.
     def window(self) -> int:
@@ -130,16 +135,33 @@ class SkillConfig:
             raise ConfigError(f"--action-column {self.action_column!r}: choose from {', '.join(ACTION_COLUMNS)}")
         if self.action_form == "delta" and self.action_column != "action":
             raise ConfigError("--action-form delta is the joint form's change from the measured joints: it needs --action-column action")
+        if self.stop and self.action_form != "absolute":
+            raise ConfigError("--stop: learns the stop beside the action as stored; it needs --action-form absolute")
 
     @property
     def action_names(self) -> tuple[str, ...]:
+        """The cloned action's entries (what the policy gives the environment)."""
         return ACTION_COLUMNS[self.action_column][0]
 
     @property
+    def target_names(self) -> tuple[str, ...]:
+        """What the network predicts per step: the action, then with `stop` the skill's STOP."""
+        return self.action_names + ((SKILL_STOP,) if self.stop else ())
+
+    @property
     def binary(self) -> tuple[int, ...]:
-        """Indices of the binary entries of the cloned action."""
+        """Indices (in `target_names`) of the binary entries: the gripper's, and the STOP."""
         names, binary = ACTION_COLUMNS[self.action_column]
-        return tuple(names.index(n) for n in binary)
+        return tuple(names.index(n) for n in binary) + ((len(names),) if self.stop else ())
+
+    def binary_weights(self) -> tuple[float, ...]:
+        """Positive-class weight of each binary entry's cross-entropy: 1 for the gripper; for the
+        STOP `stop_weight`, the training rows' non-last rows per last row. Why: a segment has one
+        last row against ~100 others and the expert is nearly at rest over its last few, so
+        unweighted the probability at the goal stays near 1/(rows at rest) and never passes 0.5:
+        the policy would never stop. Balanced, it stops where the expert's states end."""
+        _, binary = ACTION_COLUMNS[self.action_column]
+        return (1.0,) * len(binary) + ((float(self.stop_weight),) if self.stop else ())
 
     def to_dict(self) -> dict[str, Any]:
         return {**asdict(self), "algo": self.ALGO}
@@ -163,9 +185,10 @@ class SkillConfig:
         return f.default_factory() if f.default is MISSING else f.default
 
 
-def action_loss(pred: Any, target: Any, valid: Any, binary: tuple[int, ...], l1: bool = False) -> Any:
+def action_loss(pred: Any, target: Any, valid: Any, binary: tuple[int, ...], l1: bool = False, pos_weight: tuple[float, ...] = ()) -> Any:
     """Mean over valid (row, step) pairs of the regression error of continuous entries (squared,
-    or absolute for `l1`) plus the binary cross-entropy of binary ones (`pred` holds logits there).
+    or absolute for `l1`) plus the binary cross-entropy of binary ones (`pred` holds logits there;
+    `pos_weight`, one per binary entry, weights their positive class: `SkillConfig.binary_weights`).
 
     pred, target: (N, W, A); valid: (N, W) float (0 where the window ran past the segment)."""
     import torch
@@ -176,7 +199,8 @@ def action_loss(pred: Any, target: Any, valid: Any, binary: tuple[int, ...], l1:
     err = (diff.abs() if l1 else diff**2).sum(dim=-1)
     if binary:
         b = list(binary)
-        err = err + F.binary_cross_entropy_with_logits(pred[..., b], target[..., b], reduction="none").sum(dim=-1)
+        w = torch.tensor(pos_weight, dtype=pred.dtype, device=pred.device) if any(v != 1.0 for v in pos_weight) else None  # all 1: the plain loss
+        err = err + F.binary_cross_entropy_with_logits(pred[..., b], target[..., b], pos_weight=w, reduction="none").sum(dim=-1)
     err = err / pred.shape[-1]
     return (err * valid).sum() / torch.clamp(valid.sum(), min=1)
 

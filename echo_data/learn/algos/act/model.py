@@ -27,7 +27,8 @@ from echo_data.learn.models import Encoders
 class ACTModel(nn.Module):
     def __init__(self, cfg: ACTConfig, spec: FeatureSpec, audio_shape: tuple[int, int] | None) -> None:
         super().__init__()
-        self.chunk, self.dim, self.binary = cfg.chunk, len(cfg.action_names), cfg.binary
+        self.chunk, self.dim, self.binary = cfg.chunk, len(cfg.target_names), cfg.binary
+        self.pos_weight = cfg.binary_weights()
         self.enc = Encoders(spec, audio_shape, encoder=cfg.encoder)
         d = cfg.d_model
         self.proj = nn.ModuleDict({name: nn.Linear(dim, d) for name, dim in self.enc.dims.items()})
@@ -43,7 +44,7 @@ class ACTModel(nn.Module):
         return self.head(out)  # (B, chunk, A)
 
     def loss(self, x: dict[str, torch.Tensor], target: torch.Tensor, valid: torch.Tensor, gen: torch.Generator | None = None) -> torch.Tensor:
-        return action_loss(self(x), target, valid, self.binary, l1=True)
+        return action_loss(self(x), target, valid, self.binary, l1=True, pos_weight=self.pos_weight)
 
     def predict(self, x: dict[str, torch.Tensor], state: Any = None, gen: torch.Generator | None = None) -> tuple[torch.Tensor, Any]:
         return to_probabilities(self(x), self.binary), None

@@ -16,7 +16,8 @@ from echo_data.learn.models import Encoders, mlp
 class BCModel(nn.Module):
     def __init__(self, cfg: BCConfig, spec: FeatureSpec, audio_shape: tuple[int, int] | None) -> None:
         super().__init__()
-        self.chunk, self.dim, self.binary = cfg.chunk, len(cfg.action_names), cfg.binary
+        self.chunk, self.dim, self.binary = cfg.chunk, len(cfg.target_names), cfg.binary
+        self.pos_weight = cfg.binary_weights()
         self.enc = Encoders(spec, audio_shape, encoder=cfg.encoder)
         self.head = mlp(self.enc.out_dim, cfg.hidden, cfg.chunk * self.dim)
 
@@ -24,7 +25,7 @@ class BCModel(nn.Module):
         return self.head(self.enc(x)).view(-1, self.chunk, self.dim)
 
     def loss(self, x: dict[str, torch.Tensor], target: torch.Tensor, valid: torch.Tensor, gen: torch.Generator | None = None) -> torch.Tensor:
-        return action_loss(self(x), target, valid, self.binary)
+        return action_loss(self(x), target, valid, self.binary, pos_weight=self.pos_weight)
 
     def predict(self, x: dict[str, torch.Tensor], state: Any = None, gen: torch.Generator | None = None) -> tuple[torch.Tensor, Any]:
         return to_probabilities(self(x), self.binary), None

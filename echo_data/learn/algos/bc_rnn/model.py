@@ -17,7 +17,8 @@ from echo_data.learn.models import Encoders, mlp
 class BCRNNModel(nn.Module):
     def __init__(self, cfg: BCRNNConfig, spec: FeatureSpec, audio_shape: tuple[int, int] | None) -> None:
         super().__init__()
-        self.chunk, self.dim, self.binary = 1, len(cfg.action_names), cfg.binary
+        self.chunk, self.dim, self.binary = 1, len(cfg.target_names), cfg.binary
+        self.pos_weight = cfg.binary_weights()
         self.enc = Encoders(spec, audio_shape, encoder=cfg.encoder)
         self.gru = nn.GRU(self.enc.out_dim, cfg.hidden, batch_first=True)
         self.head = mlp(cfg.hidden, cfg.hidden, self.dim, layers=1)
@@ -31,7 +32,7 @@ class BCRNNModel(nn.Module):
     def loss(self, x: dict[str, torch.Tensor], target: torch.Tensor, valid: torch.Tensor, gen: torch.Generator | None = None) -> torch.Tensor:
         """x: (B, T, ...) segments; target (B*T, 1, A), valid (B*T, 1) row by row."""
         pred, _ = self(x)
-        return action_loss(pred.reshape(-1, 1, self.dim), target, valid, self.binary)
+        return action_loss(pred.reshape(-1, 1, self.dim), target, valid, self.binary, pos_weight=self.pos_weight)
 
     def predict(self, x: dict[str, torch.Tensor], state: Any = None, gen: torch.Generator | None = None) -> tuple[torch.Tensor, Any]:
         """One step (B, ...) from hidden state `state` (None = zero, a segment's start)."""

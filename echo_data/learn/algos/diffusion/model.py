@@ -85,7 +85,8 @@ class UNet1D(nn.Module):
 class DiffusionModel(nn.Module):
     def __init__(self, cfg: DiffusionConfig, spec: FeatureSpec, audio_shape: tuple[int, int] | None) -> None:
         super().__init__()
-        self.horizon, self.dim, self.binary = cfg.horizon, len(cfg.action_names), cfg.binary
+        self.horizon, self.dim, self.binary = cfg.horizon, len(cfg.target_names), cfg.binary
+        self.pos_weight = cfg.binary_weights()
         self.cont = [i for i in range(self.dim) if i not in self.binary]
         self.sample_steps = cfg.sample_steps
         self.history = cfg.history()
@@ -118,7 +119,8 @@ class DiffusionModel(nn.Module):
         err = ((eps - noise) ** 2).mean(dim=-1)
         if self.gripper is not None:
             logits = self.gripper(code).view(b, self.horizon, len(self.binary))
-            err = err + F.binary_cross_entropy_with_logits(logits, target[..., list(self.binary)], reduction="none").mean(dim=-1)
+            w = torch.tensor(self.pos_weight, dtype=logits.dtype, device=logits.device) if any(v != 1.0 for v in self.pos_weight) else None
+            err = err + F.binary_cross_entropy_with_logits(logits, target[..., list(self.binary)], pos_weight=w, reduction="none").mean(dim=-1)
         return (err * valid).sum() / torch.clamp(valid.sum(), min=1)
 
     def predict(self, x: dict[str, torch.Tensor], state: Any = None, gen: torch.Generator | None = None) -> tuple[torch.Tensor, Any]:
