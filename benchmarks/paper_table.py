@@ -57,8 +57,16 @@ def rel(p: Path) -> str:
 
 
 def command(args: list[str]) -> str:
-    """The `echo-data` command as the JSON records it (paths relative to the repository)."""
-    return "echo-data " + " ".join(rel(Path(x)) if Path(x).exists() else x for x in args)
+    """The `echo-data` command as the JSON records it (paths relative to the repository, also the
+    run folder of a `--policy=SKILL=RUN`)."""
+
+    def shown(x: str) -> str:
+        if x.startswith("--policy=") and x.count("=") == 2:
+            skill, run = x.removeprefix("--policy=").split("=")
+            return f"--policy={skill}={rel(Path(run))}"
+        return rel(Path(x)) if Path(x).exists() else x
+
+    return "echo-data " + " ".join(shown(x) for x in args)
 
 
 def eval_json(runs: Path, name: str, setting: str) -> Path:

@@ -151,6 +151,9 @@ def test_the_committed_json_markdown_and_readme_are_one_rendering() -> None:
     md = table.markdown(doc)
     assert RESULTS.with_suffix(".md").read_text() == md
     assert table.readme_block((ROOT / "README.md").read_text()) == md, "README's table: python benchmarks/paper_table.py --render"
+    commands = [e.get("command", "") for per in doc["rows"].values() for e in per.values()]
+    commands += [t.get("command", "") for t in doc["training"].values()] + [d["command"] for d in doc["datasets"].values()]
+    assert all(c and " /" not in c and "=/" not in c for c in commands), "a command names a path of the machine it ran on"
 
 
 def test_every_row_names_known_learners_rows_and_settings() -> None:
