@@ -136,7 +136,8 @@ Row = EvaluatedRow | ComposedRow | DerivedRow
 # The planner learns from recipes/planner_fresh.yaml (episodes cut after 10 frames, a fresh
 # synthesised voice per training event; built whole: once trained (choosing on validation), the
 # planner is scored on that build's own test split by `echo-data evaluate-planner RUN`). The
-# magic-grasp build is the paper-comparable rows' Pick and Place data (no recipe yet: they wait).
+# magic-grasp build (recipes/cameras_pick_place_magic.yaml: the same 150 episodes with
+# `robot.grasp: magic`) is the paper-comparable rows' Pick and Place data.
 DATASETS: dict[str, DatasetSpec] = {
     "cameras_pick_place": DatasetSpec("recipes/cameras_pick_place.yaml"),
     "cameras_door_sink": DatasetSpec("recipes/cameras_door_sink.yaml"),
