@@ -1,6 +1,6 @@
 """OpenDoor in SAPIEN physics (World, no rendering) on a hand-made two-room plan: it opens the
 door, fails with a reason when the door is blocked, lets go when stopped, corrects a perturbed
-arm, starts from where a learned Navigate hands over, and takes one path out of the tuck."""
+arm, starts from where a learned Navigate hands over, takes one path out of the tuck and ends in it."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from support.experts import as_joint, handover_gap, make_spec, offset_start, rollout, rollout_ee, two_room_plan
+from support.experts import as_joint, assert_folded, handover_gap, make_spec, offset_start, rollout, rollout_ee, two_room_plan
 
 from echo_data.recipe import Recipe
 
@@ -51,6 +51,9 @@ def test_open_door_expert_opens_and_leaves_door_at_rest(door_world_factory, hing
     assert all(b >= a - 0.005 for a, b in zip(angles, angles[1:]))
     assert angles[0] < 0.01 < door.open_threshold <= max(angles)
     assert not hits, f"robot pushed on {hits}"
+    # it ends with the arm folded (as Place does): the tuck's TCP, every arm link inside the disc
+    # the navigation grid is inflated for, so a drive after it clears what the base clears
+    assert_folded(world)
     # let go: no attachment left, and the door stays where it was left
     assert art.links[1].entity.find_component_by_type(sapien.physx.PhysxDriveComponent) is None
     assert world.robot.gripper_opening() > 0.05

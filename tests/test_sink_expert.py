@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from support.experts import handover_gap, make_spec, offset_start, rollout, rollout_ee, two_room_plan
+from support.experts import assert_folded, handover_gap, make_spec, offset_start, rollout, rollout_ee, two_room_plan
 
 from echo_data.recipe import Recipe
 from echo_data.scene.floorplan import Faucet, FloorPlan, Furniture
@@ -66,6 +66,9 @@ def test_close_sink_expert_closes_lever_and_stops_water(sink_world_factory, layo
     assert all(b <= a for a, b in zip(radii, radii[1:]))
     assert angles[0] == pytest.approx(start_angle, abs=0.01)
     assert not hits, f"robot pushed on {hits}"
+    # it ends with the arm folded (as Place does): the tuck's TCP, every arm link inside the disc
+    # the navigation grid is inflated for, so a drive after it clears what the base clears
+    assert_folded(world)
     # the lever stays closed once the robot has left
     for _ in range(10):
         world.step(world.robot.rest_action())

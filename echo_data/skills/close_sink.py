@@ -22,8 +22,8 @@ The lever turns about the vertical axis through `Faucet.pivot` and opens counter
 5. **push**: each step the finger's goal on the arc is one step (`SWEEP_RATE`) clockwise of the
    nearer of where it is commanded and where the lever now is plus the lead, down to
    `SWEEP_PAST` beyond closed (the joint limit stops the lever at 0, the water stops);
-6. **lift** `HOVER`, **back off** to the untuck pose, **stow** at READY (as OpenDoor: a Cartesian
-   move cannot refold the redundant arm into the tuck).
+6. **lift** `HOVER`, **back off** to the untuck pose, **stow** at READY, **tuck** (as OpenDoor
+   and Place end: `echo_data.skills.servo.tuck`).
 
 No random choices and no motion planner: two episodes of the same sink take the same path.
 """
@@ -41,8 +41,8 @@ from echo_data.robot.ee_control import base_frame
 from echo_data.robot.robot import READY_GROUP
 from echo_data.scene.articulated import LEVER_SECTION
 from echo_data.scene.floorplan import Faucet, Furniture
-from echo_data.skills.reach_servo import CONTACT, TRANSIT, Pose2, Steps, approach, arm_reaches, drive, retreat, to_ready
-from echo_data.skills.servo import ee_command, in_base, servo, step_towards
+from echo_data.skills.reach_servo import CONTACT, TRANSIT, TUCK_TURN, Pose2, Steps, approach, arm_reaches, drive, retreat, to_ready
+from echo_data.skills.servo import ee_command, in_base, servo, step_towards, tuck
 from echo_data.skills.success import sink_closed_success
 from echo_data.target import Target
 
@@ -228,11 +228,13 @@ def close_sink(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np
     if not pushed:
         return fail("push_timeout")
 
-    # 6. lift clear, back away from the counter, stow at READY
+    # 6. lift clear, back away from the counter, stow at READY, tuck
     phi_end = _commanded_phi(world, faucet)
     yield from st.run(servo(world, lambda: push_pose(faucet, phi_end, robot.base_pose()[2], HOVER), torso=SINK_TORSO, max_steps=LIFT_STEPS, close=True,
                            **TRANSIT))
     if not (yield from st.run(retreat(world, _step_back(world, robot.base_pose()), close=True))):
         return fail("stow_failed")
+    if not (yield from st.run(tuck(world, close=True, turn=TUCK_TURN))):
+        return fail("tuck_failed")
     ok = sink_closed_success(world, i)
     return SkillOutcome(skill, target, ok, "" if ok else "still_running", st.n)

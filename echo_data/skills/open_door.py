@@ -24,12 +24,10 @@ Every command is computed from the state the step starts in (docs/SIMULATION_NOT
    in the base frame (a perturbation of the arm is undone). Until the hinge is `OPEN_MARGIN`
    beyond `Door.open_threshold` and at rest. A leaf that stops following (a blocked door, a lost
    grip) ends the skill with "lost_handle".
-6. **release, retreat, stow**: the gripper opens (the world lets the leaf go), the base backs
-   `BACK_OFF` straight away from the bar, the TCP returns to READY.
-
-Why READY at the end and not the folded tuck: a Cartesian move cannot return the seven-joint arm
-into the folded tuck (measured: the TCP arrives at the tuck's pose with the joints up to 1.6 rad
-away from it, the arm's redundancy), and Navigate and Place carry the arm at READY anyway.
+6. **release, retreat, tuck**: the gripper opens (the world lets the leaf go), the base backs
+   `BACK_OFF` straight away from the bar, the TCP returns to READY, then folds into the tuck
+   (`echo_data.skills.servo.tuck`, as Place ends: a drive after the skill carries the arm
+   inside the base's footprint, the one the navigation grid is inflated for).
 
 No random choices and no motion planner: two episodes of the same door take the same path.
 """
@@ -45,8 +43,8 @@ import numpy as np
 from echo_data.records import SkillOutcome
 from echo_data.scene.door_handle import door_handle_world
 from echo_data.scene.floorplan import Door
-from echo_data.skills.reach_servo import CONTACT, TRANSIT, Pose2, Steps, approach, arm_reaches, retreat, to_ready, wrap
-from echo_data.skills.servo import SLOW_SPEED, ee_command, grip, measured_tcp, servo, step_towards
+from echo_data.skills.reach_servo import CONTACT, TRANSIT, TUCK_TURN, Pose2, Steps, approach, arm_reaches, retreat, to_ready, wrap
+from echo_data.skills.servo import SLOW_SPEED, ee_command, grip, measured_tcp, servo, step_towards, tuck
 from echo_data.skills.success import DOOR_REST_QVEL, door_open_success
 from echo_data.target import Target
 
@@ -236,11 +234,13 @@ def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.
     if reason is not None:
         return fail(reason)
 
-    # 6. let go, back off, stow at READY
+    # 6. let go, back off, stow at READY, tuck
     yield from st.run(grip(world, close=False, steps=RELEASE_STEPS))
     x, y, yaw = robot.base_pose()
     back = (x - BACK_OFF * math.cos(yaw), y - BACK_OFF * math.sin(yaw), yaw)
     if not (yield from st.run(retreat(world, back, close=False))):
         return fail("stow_failed")
+    if not (yield from st.run(tuck(world, close=False, turn=TUCK_TURN))):
+        return fail("tuck_failed")
     ok = door_open_success(world, i)
     return SkillOutcome(skill, target, ok, "" if ok else "not_open", st.n)

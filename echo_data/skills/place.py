@@ -21,13 +21,12 @@ Step limits: the fold and drive may use max_steps["Navigate"], the arm work max_
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Generator
+from collections.abc import Generator
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from echo_data.records import SkillOutcome
-from echo_data.robot.robot import READY_GROUP, TUCK_QPOS
 from echo_data.scene.objects import object_size
 from echo_data.skills import servo as S
 from echo_data.skills.budget import Budget, SkillFailed
@@ -35,7 +34,6 @@ from echo_data.skills.pick import (
     APPROACH_JAW,
     APPROACH_TCP,
     CARRY_ACCEL,
-    anchored,
     commanded_pose,
     drive_path,
     fixed_in_base,
@@ -75,8 +73,6 @@ STEADY_STEPS = 20  # at most this long held above the spot and before opening: a
 UPRIGHT_TOL = math.radians(8.0)  # rad: the held object's axis from the vertical, above which it is not let go
 SET_DOWN_TRIES = 3  # lowerings onto the top, each followed by a lift to RETRY_ABOVE if the object leans
 RETRY_ABOVE = 0.04  # m: object bottom over the top after a lowering that left it leaning
-TUCK_RAISE = -0.5  # shoulder_lift of the tuck path's middle pose (upper arm raised)
-TUCK_SAMPLES = 4  # TCP poses per joint segment of the tuck path
 # The arm configuration whose TCP is the carry pose (pick.APPROACH_TCP, APPROACH_JAW): found once
 # (benchmarks/carry_search.py) with hand and object covering 0-7 % of the head view against READY's
 # 74 % (tests/test_carry_pose.py measures both), every arm link origin within 0.36 m of the base axis.
@@ -215,19 +211,6 @@ def choose_spot(world: World, name: str, goal: int) -> Spot:
     raise SkillFailed("no IK solution")
 
 
-def tuck_path(world: World) -> list[Callable[[], np.ndarray]]:
-    """Goal callables: TCP poses along the joint path READY -> upper arm raised -> tuck (torso up)."""
-    ee = world.robot.ee
-    torso = float(READY_GROUP[0])
-    raised = TUCK_QPOS.copy()
-    raised[1] = TUCK_RAISE
-    poses = []
-    for a, b in ((READY_GROUP[1:], raised), (raised, TUCK_QPOS)):
-        for t in np.linspace(0.0, 1.0, TUCK_SAMPLES + 1)[1:]:
-            poses.append(ee.tcp_in_base(torso, a + (b - a) * t))
-    return [anchored(world, p) for p in poses]
-
-
 def _lower(world: World, name: str, spot: Spot) -> Generator[np.ndarray, None, None]:
     """Lower the held object towards RELEASE_GAP over the spot; over once the object has stopped
     near the top for STALL_STEPS steps (it rests on it, flat or caught leaning: going on only
@@ -271,11 +254,7 @@ def _place(world: World, name: str, goal: int) -> Generator[np.ndarray, None, No
     up = S.measured_tcp(world)
     up[2, 3] += RETREAT
     yield from S.servo(world, in_world_fixed(world, up), speed=S.SLOW_SPEED * 2, max_steps=40, close=False)
-    path = tuck_path(world)
-    for i, pose in enumerate(path):
-        last = i == len(path) - 1
-        yield from S.servo(world, pose, max_steps=30, close=False, pos_tol=S.POS_TOL if last else 0.02, settle_tol=S.SETTLE_TOL if last else 0.05)
-    yield from S.hold_at(world, path[-1], 3, close=False)
+    yield from S.tuck(world, close=False)
 
 
 __all__ = ["place", "place_spots", "held_object", "CARRY_DRIVE_GROUP"]

@@ -28,7 +28,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from echo_data.records import EE_ACTION_DIM
-from echo_data.robot.ee_control import world_to_base
+from echo_data.robot.ee_control import base_frame, world_to_base
+from echo_data.robot.robot import READY_GROUP, TUCK_QPOS
 
 if TYPE_CHECKING:
     from echo_data.world import World
@@ -199,6 +200,46 @@ def grip(world: World, close: bool, steps: int = 8) -> EeActions:
     for _ in range(steps):
         yield ee_command(world, close=close)
     return steps
+
+
+TUCK_RAISE = -0.5  # shoulder_lift of the tuck path's middle pose (upper arm raised)
+TUCK_SAMPLES = 4  # TCP poses per joint segment of the tuck path
+TUCK_HOLD = 3  # control steps held in the tuck at the end
+
+
+def tuck_path(world: World) -> list[Callable[[], np.ndarray]]:
+    """Goal callables: TCP poses along the joint path READY -> upper arm raised -> tuck (READY's
+    torso), each fixed in the base frame. Why poses along a joint path: a straight Cartesian
+    move cannot refold the seven-joint arm into the tuck (its redundancy), while poses close
+    together on the joint path lead the ee map's posture-seeded solution along it."""
+    ee = world.robot.ee
+    torso = float(READY_GROUP[0])
+    raised = TUCK_QPOS.copy()
+    raised[1] = TUCK_RAISE
+    poses = []
+    for a, b in ((READY_GROUP[1:], raised), (raised, TUCK_QPOS)):
+        for t in np.linspace(0.0, 1.0, TUCK_SAMPLES + 1)[1:]:
+            poses.append(ee.tcp_in_base(torso, a + (b - a) * t))
+    def fixed_in_base(pose: np.ndarray) -> Callable[[], np.ndarray]:
+        return lambda: base_frame(*world.robot.base_pose()) @ pose
+
+    return [fixed_in_base(p) for p in poses]
+
+
+def tuck(world: World, close: bool, turn: float = TURN) -> Generator[np.ndarray, None, bool]:
+    """Fold the arm from READY into the tuck the episode starts in (base still, gripper as
+    `close` says), and hold it there TUCK_HOLD steps; True once the tuck is reached. Every skill
+    that leaves the hand empty ends so: a drive after it then carries the arm inside the base's
+    footprint, the one the navigation grid is inflated for (with the arm at READY the elbow
+    reached a wall that the base cleared, test episodes 1 and 20 of the multi-event setting)."""
+    path = tuck_path(world)
+    ok = False
+    for i, pose in enumerate(path):
+        last = i == len(path) - 1
+        ok = yield from servo(world, pose, max_steps=30, close=close, turn=turn, pos_tol=POS_TOL if last else 0.02,
+                              settle_tol=SETTLE_TOL if last else 0.05)
+    yield from hold_at(world, path[-1], TUCK_HOLD, close=close)
+    return bool(ok)
 
 
 def hold(world: World, steps: int) -> EeActions:
