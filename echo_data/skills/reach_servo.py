@@ -43,8 +43,8 @@ UNTUCK_TURN = 1.0  # rad/s (the tuck -> READY turn dominates: 35 steps, joints <
 STOW_STEPS = 60  # control steps a move to READY may take
 # rad/s of the TCP while folding from READY into the tuck at a skill's end (`servo.tuck`): the
 # fold is a rotation of the hand more than a move (~1 rad per waypoint); at Place's 0.8 it took
-# 75 control steps after OpenDoor, at 1.6 it takes 50 (joints stay below 2.1 rad/s) and leaves
-# CloseSink's longest demonstration (118 steps) inside its 200-step limit with the fold added.
+# 75 control steps after OpenDoor, at 1.6 it takes 50 (joints stay below 2.1 rad/s). Followed by
+# another skill, CloseSink then takes 176-177 of its 200 steps (75 multi-event test episodes).
 TUCK_TURN = 1.6
 # Arrival tolerances of the servo moves (commanded TCP position m, rotation rad; measured TCP m).
 # Transit moves (to READY, to a pre-grasp or above a lever) end loosely: the next move starts

@@ -220,6 +220,7 @@ def tuck_path(world: World) -> list[Callable[[], np.ndarray]]:
     for a, b in ((READY_GROUP[1:], raised), (raised, TUCK_QPOS)):
         for t in np.linspace(0.0, 1.0, TUCK_SAMPLES + 1)[1:]:
             poses.append(ee.tcp_in_base(torso, a + (b - a) * t))
+
     def fixed_in_base(pose: np.ndarray) -> Callable[[], np.ndarray]:
         return lambda: base_frame(*world.robot.base_pose()) @ pose
 

@@ -168,12 +168,13 @@ def assert_folded(world) -> None:
     the navigation grid is inflated for (`echo_data.scene.nav.NavGrid`). At READY the elbow sits
     0.47 m out. The joints themselves may differ from TUCK_QPOS: the TCP is servoed, and the arm
     is redundant."""
+    from echo_data.robot.ee_control import base_frame
     from echo_data.robot.robot import READY_GROUP, TUCK_QPOS
     from echo_data.skills.servo import measured_tcp
 
     robot = world.robot
     ee = robot.ee
-    here = np.linalg.inv(_base_frame(robot)) @ measured_tcp(world)
+    here = np.linalg.inv(base_frame(*robot.base_pose())) @ measured_tcp(world)
     want = ee.tcp_in_base(float(READY_GROUP[0]), TUCK_QPOS)
     assert np.linalg.norm(here[:3, 3] - want[:3, 3]) < 0.03, (here[:3, 3], want[:3, 3])
     q = ee._full(robot.arm_qpos())
@@ -183,8 +184,3 @@ def assert_folded(world) -> None:
             p = ee.model.get_link_pose(i).p
             assert math.hypot(p[0], p[1]) < 0.28, f"{link.name} {math.hypot(p[0], p[1]):.3f} m from the base centre"
 
-
-def _base_frame(robot) -> np.ndarray:
-    from echo_data.robot.ee_control import base_frame
-
-    return base_frame(*robot.base_pose())
