@@ -109,3 +109,17 @@ def test_a_camera_recipe_is_its_sanity_recipe_with_both_depth_cameras_on(name: s
             doc["robot"][cam].pop("depth")
         doc["outputs"].pop("observations")
     assert cams == sanity
+
+
+def test_the_stop_navigate_data_is_nav_audio_ending_at_the_interaction_pose() -> None:
+    """Navigate-stop's episodes are Navigate's (same seed, counts, sounds, experts): only where the
+    expert's Navigate ends differs, so the STOP row compares the hand-over alone."""
+    from echo_data.recipe import load_recipe
+
+    stop = load_recipe(ROOT / "benchmarks" / "recipes" / "nav_audio_stop.yaml").model_dump(mode="json")
+    nav = load_recipe(ROOT / "benchmarks" / "recipes" / "nav_audio.yaml").model_dump(mode="json")
+    assert (stop["experts"]["handover_noise"], nav["experts"]["handover_noise"]) == (0.0, 1.0)
+    for doc in (stop, nav):
+        del doc["name"]
+        del doc["experts"]["handover_noise"]
+    assert stop == nav

@@ -32,6 +32,7 @@ SETTINGS = ("object_relocation", "state_transition", "multi_event")
 PAPER_ORDER = ("state_transition", "object_relocation", "multi_event")  # the paper's column order
 PAPER_COMPARABLE = " (paper-comparable)"
 NOT_MEASURED = "not measured"
+STOP_CHAIN = "oracle planner + learned skills, Navigate says STOP"
 Grasp = Literal["physical", "magic"]
 
 
@@ -144,6 +145,7 @@ DATASETS: dict[str, DatasetSpec] = {
     "nav_audio": DatasetSpec("benchmarks/recipes/nav_audio.yaml"),
     "planner_fresh": DatasetSpec("recipes/planner_fresh.yaml", None),
     "cameras_pick_place_magic": DatasetSpec("recipes/cameras_pick_place_magic.yaml"),
+    "nav_audio_stop": DatasetSpec("benchmarks/recipes/nav_audio_stop.yaml"),
 }
 # The planner run: audio only, the checkpoint of the best balanced validation accuracy of 20
 # epochs (chosen on validation among the planner_fresh runs: benchmarks/results/planner_fresh.json).
@@ -172,6 +174,10 @@ LEARNERS: dict[str, LearnerSpec] = {
     "Pick-magic": LearnerSpec("cameras_pick_place_magic", "Pick", MANIPULATION_INPUTS, "act", MANIPULATION),
     "Place-magic": LearnerSpec("cameras_pick_place_magic", "Place", MANIPULATION_INPUTS, "act", MANIPULATION),
     "Place-target-magic": LearnerSpec("cameras_pick_place_magic", "Place", MANIPULATION_INPUTS + ",target", "act", MANIPULATION),
+    # The hand-over study: Navigate's options plus a STOP output (`--stop`), cloned from the same
+    # episodes with the expert's Navigate ending at the interaction pose (nav_audio_stop.yaml), so
+    # the learner ends its own skill there instead of being cut at the rim of its success region.
+    "Navigate-stop": LearnerSpec("nav_audio_stop", "Navigate", "audio,state,kind", "bc-rnn", (*NAVIGATE, "--stop")),
 }
 # Where each manipulation skill is scored alone: recipes/cameras_test_<setting>.yaml, 50 test
 # episodes of its own event, the skills before it done by the experts with Navigate stopping at
@@ -214,6 +220,13 @@ def _rows() -> dict[str, Row]:
         alone.append(EvaluatedRow(name=f"{s} alone{pc}", planner="oracle", policy={s: learner}, settings=ALONE_SETTINGS[s], skill=s, grasp="magic"))
     alone.append(EvaluatedRow(name=f"Place* alone{pc}", planner="oracle", policy={"Place": "Place-target-magic"}, settings=ALONE_SETTINGS["Place"],
                               skill="Place", grasp="magic"))
+    # The hand-over study (docs/learners.md, "A Navigate that says STOP"): Navigate-stop alone (the
+    # experts after it), and the state-transition chain after it; object relocation and multi-event
+    # would add Pick and Place to the row's policy.
+    stop = {"Navigate": "Navigate-stop"}
+    chain.append(EvaluatedRow(name=STOP_CHAIN, planner="oracle", policy={**stop, "OpenDoor": "OpenDoor", "CloseSink": "CloseSink"},
+                              settings=("state_transition",)))
+    alone.append(EvaluatedRow(name="Navigate (STOP) alone", planner="oracle", policy=stop, settings=ALONE_SETTINGS["Navigate"], skill="Navigate"))
     out = {r.name: r for r in [*chain, *alone]}
     # Navigate is the first skill of every single-event chain, so its outcome alone (experts after
     # it) is its outcome in the oracle-planner chain row, step for step (an episode is a pure
