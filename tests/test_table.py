@@ -9,6 +9,7 @@ module's rendering of the committed JSON), and the driver end to end on a real q
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 import threading
@@ -75,6 +76,11 @@ def test_the_handover_is_the_experts_path_minus_the_driven_one_over_successful_f
         e["navigate"][0]["path_length"] = driven
     h = table.handover(eps)
     assert h is not None and h["n"] == 3 and h["quartiles_m"][1] == 0.2  # 1.0 - 0.8
+    assert "goal_distance_m" not in h  # evaluations from before the hand-over pose was recorded
+    for e, (d, turn, arm) in zip(eps, ((0.1, 0.0, 0.0), (0.3, math.pi / 18, 0.2), (0.5, math.pi / 9, 0.4), (2.0, 1.0, 1.0)), strict=True):
+        e["navigate"][0].update(goal_distance=d, heading_error=turn, arm_moved=arm)
+    h = table.handover(eps)
+    assert h is not None and h["goal_distance_m"][1] == 0.3 and h["heading_error_deg"][1] == 10.0 and h["arm_moved_rad"][1] == 0.2
 
 
 # --- one definition of "plan right without the receptacle" ------------------------------------

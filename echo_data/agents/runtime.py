@@ -71,6 +71,13 @@ class NavigateRecord:
     success: bool
     path_length: float  # metres the base travelled during the skill
     expert_length: float  # metres of the navigation expert's planned path from the skill's start
+    # Where it handed over, against the goal the expert stops at (its interaction pose, fixed at
+    # the skill's start; nan: no goal): the base's distance (m) and heading error (rad, wrapped),
+    # and how far the arm moved during the drive (largest change of a torso or arm joint, rad;
+    # the experts hold it). The next skill's demonstrations start at that pose with that arm.
+    goal_distance: float = math.nan
+    heading_error: float = math.nan
+    arm_moved: float = math.nan
 
     @property
     def spl(self) -> float:
@@ -144,8 +151,9 @@ def normalise_plan(plan: Any) -> list[dict[str, str]]:
     return out
 
 
-def _expert_path_length(env: EchoDataEnv, call: SkillCall) -> float:
-    """Length of the navigation expert's planned path from where the base stands to the skill's goal."""
+def _expert_path(env: EchoDataEnv, call: SkillCall) -> tuple[float, tuple[float, float, float] | None]:
+    """Length of the navigation expert's planned path from where the base stands to the skill's
+    goal (nan: no goal or path), and that goal (its interaction pose; None when it has none)."""
     from echo_data.skills.navigate import goal_pose, path_length
 
     grid = env.nav_grid()
@@ -153,8 +161,23 @@ def _expert_path_length(env: EchoDataEnv, call: SkillCall) -> float:
     try:
         goal = goal_pose(world, call.target, grid)
     except ValueError:
-        return math.nan
-    return path_length(grid, world.robot.base_pose(), goal)
+        return math.nan, None
+    return path_length(grid, world.robot.base_pose(), goal), goal
+
+
+def _arm_joints(env: EchoDataEnv) -> np.ndarray:
+    robot = env.world.robot
+    return np.concatenate([[robot.torso()], robot.arm_qpos()])
+
+
+def _handover(env: EchoDataEnv, goal: tuple[float, float, float] | None, arm_start: np.ndarray) -> dict[str, float]:
+    """`NavigateRecord`'s hand-over fields for the base and arm now."""
+    x, y, yaw = env.world.robot.base_pose()
+    moved = float(np.max(np.abs(_arm_joints(env) - arm_start)))
+    if goal is None:
+        return {"arm_moved": moved}
+    turn = (yaw - goal[2] + math.pi) % (2 * math.pi) - math.pi
+    return {"goal_distance": math.hypot(x - goal[0], y - goal[1]), "heading_error": abs(turn), "arm_moved": moved}
 
 
 # Observation keys the runtime adds for a policy that lists them (no env observation holds them).
@@ -245,7 +268,8 @@ def run_episode(
         goal = _goal_observation(env, call) if GOAL_POSE in wanted else None
         probe = PrivilegedProbe() if any(c in wanted for c in PRIVILEGED_COLUMNS) else None
         approach = SKILLS[call.skill].role == "approach"  # Navigate: scored by SPL too
-        expert_len = _expert_path_length(env, call) if approach else math.nan
+        expert_len, nav_goal = _expert_path(env, call) if approach else (math.nan, None)
+        arm_start = _arm_joints(env) if approach else None
         path = 0.0
         n = 0
         reason = ""
@@ -303,7 +327,8 @@ def run_episode(
             reason = getattr(expert, "reason", "") or "success test false"
         run.outcomes.append(SkillOutcome(call.skill, call.target, ok, "" if ok else reason, n))
         if approach:
-            run.navigate.append(NavigateRecord(k, ok, path, expert_len))
+            assert arm_start is not None
+            run.navigate.append(NavigateRecord(k, ok, path, expert_len, **_handover(env, nav_goal, arm_start)))
         if not ok:
             run.failure = f"{call.skill}({call.target}): {reason}"
             break

@@ -105,7 +105,9 @@ def episode_record(run: Any, index: int) -> dict[str, Any]:
         "navigate": [
             {"skill_index": r.skill_index, "success": r.success, "path_length": round(r.path_length, 6),
              "expert_length": None if r.expert_length != r.expert_length else round(r.expert_length, 6),
-             "spl": None if r.expert_length != r.expert_length else round(r.spl, 6)}
+             "spl": None if r.expert_length != r.expert_length else round(r.spl, 6),
+             **{k: None if v != v else round(v, 6) for k, v in (("goal_distance", r.goal_distance), ("heading_error", r.heading_error),
+                                                                 ("arm_moved", r.arm_moved))}}
             for r in run.navigate
         ],
         "failure": run.failure,

@@ -21,6 +21,7 @@ module only describes and reads. Rows:
 
 from __future__ import annotations
 
+import math
 import statistics
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -266,12 +267,23 @@ def handover(episodes: list[dict[str, Any]]) -> dict[str, Any] | None:
     path from the skill's start minus the path the base drove (m; > 0: stopped short of where the
     expert stops, the pose every manipulation demonstration starts from), as quartiles and N.
     docs/learners.md, "In the chain", says why this decides the chain."""
-    short = [nv["expert_length"] - nv["path_length"] for e in episodes if "skipped" not in e
-             for nv in e["navigate"][:1] if nv["skill_index"] == 0 and nv["success"] and nv["expert_length"] is not None]
-    if len(short) < 2:
+    first = [nv for e in episodes if "skipped" not in e for nv in e["navigate"][:1]
+             if nv["skill_index"] == 0 and nv["success"] and nv["expert_length"] is not None]
+    if len(first) < 2:
         return None
-    q1, median, q3 = statistics.quantiles(short, n=4)
-    return {"n": len(short), "quartiles_m": [round(q1, 3), round(median, 3), round(q3, 3)]}
+
+    def quartiles(xs: list[float], scale: float = 1.0) -> list[float]:
+        return [round(q * scale, 3) for q in statistics.quantiles(xs, n=4)]
+
+    out: dict[str, Any] = {"n": len(first), "quartiles_m": quartiles([nv["expert_length"] - nv["path_length"] for nv in first])}
+    # The hand-over pose against the expert's stop, where recorded (evaluations since the fields
+    # were added): base distance from the interaction pose, heading error, how far the arm moved.
+    for key, name, scale in (("goal_distance", "goal_distance_m", 1.0), ("heading_error", "heading_error_deg", 180 / math.pi),
+                             ("arm_moved", "arm_moved_rad", 1.0)):
+        xs = [nv[key] for nv in first if nv.get(key) is not None]
+        if len(xs) == len(first):
+            out[name] = quartiles(xs, scale)
+    return out
 
 
 def measured(doc: dict[str, Any]) -> dict[str, Any]:
