@@ -390,3 +390,34 @@ def test_losses_csv_keeps_a_column_only_some_epochs_carry(tmp_path: Path) -> Non
                                  {"epoch": 2, "step": 16, "train_loss": 0.5, "val_loss": 0.4, "val_success": 0.3, "stop_threshold": 0.95}])
     rows = list(csv.DictReader((tmp_path / runs.LOSSES).open()))
     assert rows[0]["stop_threshold"] == "" and rows[1]["stop_threshold"] == "0.95" and rows[1]["val_success"] == "0.3"
+
+
+def test_entries_the_demonstrations_never_vary_are_acted_exactly(ds: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`held_entries`: an entry constant over the skill's training rows (Navigate's TCP change:
+    the experts hold the arm while driving) is emitted exactly, not as the network's
+    approximation of a normalised constant; a non-zero TCP change would re-solve the arm's IK and
+    its null-space pull would refold the arm (docs/learners.md)."""
+    from echo_data.learn.algos.base import held_entries
+
+    rows = np.array([[0.3, 0.0, 1.0, 0.5], [0.1, 0.0, 1.0, 0.5], [0.2, 0.0, 0.0, 0.5]], dtype=np.float32)
+    assert held_entries(rows) == [[1, 0.0], [3, 0.5]] and held_entries(rows[:0]) == []
+
+    import echo_data.learn.fit as fit
+
+    seen: list[np.ndarray] = []
+    monkeypatch.setattr(fit, "held_entries", lambda a: (seen.append(np.asarray(a)), [[0, 7.0]])[1])
+    summary = _train(ds, tmp_path / "run", "bc", "--max-steps", "2", "--action-column", "action.ee")
+    cfg = config_from_run(runs.read_json(Path(summary["run"]) / runs.CONFIG))
+    reader = StepReader(ds, "train")
+    own = np.flatnonzero((reader.index.skill == "Navigate") & ~np.isin(reader.index.episode, cfg.val_episodes))
+    assert cfg.held_entries == [[0, 7.0]]  # written to config.json
+    np.testing.assert_array_equal(seen[0], reader.read(["action.ee"], own)["action.ee"])  # from the skill's training rows, in order
+
+    conf = json.loads((Path(summary["run"]) / runs.CONFIG).read_text())
+    conf["held_entries"] = [[4, 0.0], [9, 0.0], [10, 1.0]]  # ee_dx, ee_drz, gripper_close
+    (Path(summary["run"]) / runs.CONFIG).write_text(json.dumps(conf))
+    policy = SkillPolicy.from_run(Path(summary["run"]))
+    policy.reset({})
+    obs = {STATE: np.full(len(STATE_NAMES), 0.3, np.float32), "observation.kind": np.zeros(1, np.float32)}
+    a = policy.act(obs)
+    assert a is not None and a[4] == 0.0 and a[9] == 0.0 and a[10] == 1.0 and a.shape == (len(EE_ACTION_NAMES),)

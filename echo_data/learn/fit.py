@@ -24,7 +24,7 @@ import numpy as np
 
 from echo_data.learn import runs
 from echo_data.learn.algos import build_model, config_from_run
-from echo_data.learn.algos.base import SkillConfig
+from echo_data.learn.algos.base import SkillConfig, held_entries
 from echo_data.learn.data import SkillRows, append_rows, count_rows, load_skill_rows, skill_kinds, skills_in, split_episodes
 from echo_data.learn.features import ACTION_FORMS, FeatureSpec, feature_spec, to_action_form
 from echo_data.learn.loop import LoopConfig, fit, setup_torch
@@ -185,6 +185,9 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
             raise runs.RunError(f"--action-form {cfg.action_form} does not take DAgger rows (their states are not kept)")
         assert rows.states is not None
         rows.actions = to_action_form(rows.actions, rows.states, cfg.action_form)
+    if not resume:  # entries the demonstrations never vary are acted exactly (`held_entries`)
+        own = rows.actions[~np.isin(rows.episodes, val_eps), 0, : len(cfg.action_names)]  # each row's own action (position 0: never padded)
+        cfg.held_entries = held_entries(own)
     if not cfg.action_mean:  # the skill's own training rows set the scale (validation rows left out)
         kept = ~np.isin(rows.episodes, val_eps)
         fit_rows = rows.actions[kept][~rows.action_pad[kept]]

@@ -172,6 +172,8 @@ class SkillPolicy:
             self._last_binary = out[self.binary].copy()
         if self._rest is not None:
             self._rest = self._rest[1:]  # the next step's look-ahead (a queue's chunk moves on with the queue)
+        for i, v in self.config.held_entries:  # what the demonstrations never varied, exactly (`held_entries`)
+            out[int(i)] = v
         if stop:
             return None
         state = np.asarray(obs[STATE], dtype=np.float32) if self.action_form != "absolute" else None

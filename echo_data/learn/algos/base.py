@@ -90,6 +90,7 @@ class SkillConfig:
     val_episodes: list[int] = resolved([])
     stop_weight: float = resolved(1.0)  # with `stop`: the STOP's positive-class weight, set from the training rows (`binary_weights`)
     stop_threshold: float = resolved(0.5)  # with `stop`: STOP when its probability passes this (chosen on validation: learn.select)
+    held_entries: list[list[float]] = resolved([])  # [[index, value], ...]: entries the same on every training row; acted exactly (`held_entries`)
 
     # How the algorithm trains and acts; each algorithm overrides what differs.
     def window(self) -> int:
@@ -183,6 +184,26 @@ class SkillConfig:
     @classmethod
     def default_of(cls, f: Any) -> Any:
         return f.default_factory() if f.default is MISSING else f.default
+
+
+def held_entries(actions: Any) -> list[list[float]]:
+    """[[index, value], ...] of the action entries that hold one value on every training row
+    (`actions` (N, A), in the run's action form), which the policy then emits exactly.
+
+    Why: the targets are normalised by the dataset's statistics over every skill, so an entry
+    that one skill never moves (Navigate's TCP change: the experts hold the arm while driving)
+    is a non-zero constant the network only approximates. Acted in the end-effector form, a TCP
+    change that is not exactly zero re-solves the arm's inverse kinematics, whose null-space pull
+    towards READY refolds the redundant arm drive after drive (measured: the learned Navigate
+    moved an arm joint by 1.3 rad per drive, docs/learners.md); a zero change holds the joint
+    targets bit for bit (docs/action_spaces.md)."""
+    import numpy as np
+
+    a = np.asarray(actions)
+    if not len(a):
+        return []
+    lo, hi = a.min(axis=0), a.max(axis=0)
+    return [[int(i), float(lo[i])] for i in np.flatnonzero(lo == hi)]
 
 
 def action_loss(pred: Any, target: Any, valid: Any, binary: tuple[int, ...], l1: bool = False, pos_weight: tuple[float, ...] = ()) -> Any:
