@@ -172,12 +172,13 @@ def _arm_joints(env: EchoDataEnv) -> np.ndarray:
 
 def _handover(env: EchoDataEnv, goal: tuple[float, float, float] | None, arm_start: np.ndarray) -> dict[str, float]:
     """`NavigateRecord`'s hand-over fields for the base and arm now."""
+    from echo_data.skills.navigate import wrap
+
     x, y, yaw = env.world.robot.base_pose()
     moved = float(np.max(np.abs(_arm_joints(env) - arm_start)))
     if goal is None:
         return {"arm_moved": moved}
-    turn = (yaw - goal[2] + math.pi) % (2 * math.pi) - math.pi
-    return {"goal_distance": math.hypot(x - goal[0], y - goal[1]), "heading_error": abs(turn), "arm_moved": moved}
+    return {"goal_distance": math.hypot(x - goal[0], y - goal[1]), "heading_error": abs(wrap(yaw - goal[2])), "arm_moved": moved}
 
 
 # Observation keys the runtime adds for a policy that lists them (no env observation holds them).
@@ -269,7 +270,7 @@ def run_episode(
         probe = PrivilegedProbe() if any(c in wanted for c in PRIVILEGED_COLUMNS) else None
         approach = SKILLS[call.skill].role == "approach"  # Navigate: scored by SPL too
         expert_len, nav_goal = _expert_path(env, call) if approach else (math.nan, None)
-        arm_start = _arm_joints(env) if approach else None
+        arm_start = _arm_joints(env)  # where the arm was when the skill began (a Navigate's hand-over record)
         path = 0.0
         n = 0
         reason = ""
@@ -327,7 +328,6 @@ def run_episode(
             reason = getattr(expert, "reason", "") or "success test false"
         run.outcomes.append(SkillOutcome(call.skill, call.target, ok, "" if ok else reason, n))
         if approach:
-            assert arm_start is not None
             run.navigate.append(NavigateRecord(k, ok, path, expert_len, **_handover(env, nav_goal, arm_start)))
         if not ok:
             run.failure = f"{call.skill}({call.target}): {reason}"

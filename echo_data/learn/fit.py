@@ -185,11 +185,10 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
             raise runs.RunError(f"--action-form {cfg.action_form} does not take DAgger rows (their states are not kept)")
         assert rows.states is not None
         rows.actions = to_action_form(rows.actions, rows.states, cfg.action_form)
+    kept = ~np.isin(rows.episodes, val_eps)  # the training rows (validation episodes left out)
     if not resume:  # entries the demonstrations never vary are acted exactly (`held_entries`)
-        own = rows.actions[~np.isin(rows.episodes, val_eps), 0, : len(cfg.action_names)]  # each row's own action (position 0: never padded)
-        cfg.held_entries = held_entries(own)
-    if not cfg.action_mean:  # the skill's own training rows set the scale (validation rows left out)
-        kept = ~np.isin(rows.episodes, val_eps)
+        cfg.held_entries = held_entries(rows.actions[kept, 0, : len(cfg.action_names)])  # each row's own action (position 0: never padded)
+    if not cfg.action_mean:  # the skill's own training rows set the scale
         fit_rows = rows.actions[kept][~rows.action_pad[kept]]
         cfg.action_mean = [float(v) for v in fit_rows.mean(axis=0)]
         cfg.action_std = [float(v) if v > 1e-3 else 1.0 for v in fit_rows.std(axis=0)]
@@ -197,8 +196,7 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
         cfg.action_mean = [*cfg.action_mean, 0.0]
         cfg.action_std = [*cfg.action_std, 1.0]
     if cfg.stop and not resume:  # the STOP's class balance over the training rows (`SkillConfig.binary_weights`)
-        kept = ~np.isin(rows.episodes, val_eps) & ~rows.action_pad[:, 0]
-        last = float(rows.actions[kept, 0, -1].sum())
+        last = float(rows.actions[kept, 0, -1].sum())  # position 0 of a window is never padded
         cfg.stop_weight = float((kept.sum() - last) / last) if last else 1.0
     if binary:  # binary entries are classified, not regressed: kept as 0/1
         cfg.action_mean = [0.0 if i in binary else v for i, v in enumerate(cfg.action_mean)]

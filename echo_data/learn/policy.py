@@ -79,6 +79,9 @@ class SkillPolicy:
         # a run trained with --stop ends its skill itself: `act` returns None (STOP) when the
         # predicted skill_stop passes the run's `stop_threshold`, and the runtime judges the skill where it stopped
         self.ends_itself = bool(cfg.stop)
+        # entries the demonstrations never varied, acted exactly (`algos.base.held_entries`)
+        self.held_at = np.array([int(i) for i, _ in cfg.held_entries], dtype=np.int64)
+        self.held_to = np.array([v for _, v in cfg.held_entries], dtype=np.float32)
         # what evaluate must render for it, and the goal observation when the model reads the target
         self.observations = tuple(self.spec.columns) + ((GOAL_POSE,) if "target" in self.spec.inputs else ())
         self._queue: deque[np.ndarray] = deque()
@@ -172,8 +175,7 @@ class SkillPolicy:
             self._last_binary = out[self.binary].copy()
         if self._rest is not None:
             self._rest = self._rest[1:]  # the next step's look-ahead (a queue's chunk moves on with the queue)
-        for i, v in self.config.held_entries:  # what the demonstrations never varied, exactly (`held_entries`)
-            out[int(i)] = v
+        out[self.held_at] = self.held_to
         if stop:
             return None
         state = np.asarray(obs[STATE], dtype=np.float32) if self.action_form != "absolute" else None
