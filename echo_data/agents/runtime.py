@@ -270,7 +270,7 @@ def run_episode(
         probe = PrivilegedProbe() if any(c in wanted for c in PRIVILEGED_COLUMNS) else None
         approach = SKILLS[call.skill].role == "approach"  # Navigate: scored by SPL too
         expert_len, nav_goal = _expert_path(env, call) if approach else (math.nan, None)
-        arm_start = _arm_joints(env)  # where the arm was when the skill began (a Navigate's hand-over record)
+        arm_start = _arm_joints(env) if approach else np.zeros(0)  # where the arm was when a Navigate began (its hand-over record)
         path = 0.0
         n = 0
         reason = ""
