@@ -143,13 +143,47 @@ def test_open_door_expert_corrects_an_arm_perturbation_on_the_approach(door_worl
     assert world.plan.doors[0].open_threshold <= float(world.handles.doors[0].get_qpos()[0])
 
 
-def test_open_door_expert_from_a_short_off_axis_handover_takes_the_same_path(door_world_factory) -> None:
-    """A start 0.4 m short of the interaction pose and 0.25 m to the side (inside Navigate's success
-    region) succeeds, and its arm path out of the tuck is the one from the interaction pose:
-    no random via points (the planner-based expert differed by > 1 rad between episodes)."""
+def test_open_door_expert_from_two_far_handovers_takes_the_same_path(door_world_factory) -> None:
+    """Two starts short of the interaction pose and off to either side (inside Navigate's success
+    region, too far to grasp from) both drive to the same grasp stance and succeed, and their arm
+    paths out of the tuck are one: no random via points (the planner-based expert differed by
+    > 1 rad between episodes)."""
     from echo_data.skills.open_door import open_door
     from echo_data.skills.success import door_open_success
 
-    starts = (None, offset_start(two_room_plan(True), "door:0", back=0.4, side=0.25))
+    plan = two_room_plan(True)
+    starts = (offset_start(plan, "door:0", back=0.5, side=0.25), offset_start(plan, "door:0", back=0.6, side=-0.2))
     gap = handover_gap(lambda start: door_world_factory(True, start=start), open_door, "door:0", lambda w: door_open_success(w, 0), starts)
     assert gap < 0.05, f"the two paths out of the tuck lie {gap:.3f} rad apart"
+
+
+@pytest.mark.parametrize("hinge_low", [True, False], ids=["opens_ccw", "opens_cw"])
+def test_open_door_expert_grasps_from_where_navigate_stops(door_world_factory, hinge_low: bool) -> None:
+    """From the interaction pose (where the scripted Navigate stops) the expert does not drive to
+    a stance of its own: the base stays within 2 cm and 2 degrees until the fingers close, and the
+    door opens. From 0.5 m further back the same check says no (the arm cannot reach the bar),
+    so the expert drives there first."""
+    from echo_data.skills import open_door as od
+    from echo_data.skills.success import door_open_success
+
+    world, spec = door_world_factory(hinge_low)
+    door, art = world.plan.doors[0], world.handles.doors[0]
+    q_goal = min(door.open_threshold + od.OPEN_MARGIN, door.max_angle - 0.02)
+    start = np.asarray(world.robot.base_pose())
+    assert od.stance_here(world, door, tuple(start), 0.0, q_goal)
+    assert not od.stance_here(world, door, offset_start(world.plan, "door:0", back=0.5, side=0.0), 0.0, q_goal)
+    gen = od.open_door(world, spec.chain[0], spec)
+    moved = 0.0
+    while True:
+        try:
+            a = next(gen)
+        except StopIteration as stop:
+            outcome = stop.value
+            break
+        world.step(as_joint(world, a))
+        if not world.holding_door and float(art.get_qpos()[0]) < 0.01:
+            pose = np.asarray(world.robot.base_pose())
+            moved = max(moved, float(np.hypot(*(pose[:2] - start[:2]))), abs(math.remainder(pose[2] - start[2], math.tau)) / math.radians(1.0) * 0.01)
+    assert outcome.success, outcome.reason
+    assert door_open_success(world, 0)
+    assert moved < 0.02, f"the base moved {moved:.3f} (m, or 1 cm per degree) before the grasp"

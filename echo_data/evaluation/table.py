@@ -147,6 +147,7 @@ DATASETS: dict[str, DatasetSpec] = {
     "planner_fresh": DatasetSpec("recipes/planner_fresh.yaml", None),
     "cameras_pick_place_magic": DatasetSpec("recipes/cameras_pick_place_magic.yaml"),
     "nav_audio_stop": DatasetSpec("benchmarks/recipes/nav_audio_stop.yaml"),
+    "cameras_door_near": DatasetSpec("recipes/cameras_door_near.yaml"),
 }
 # The planner run: audio only, the checkpoint of the best balanced validation accuracy of 20
 # epochs (chosen on validation among the planner_fresh runs: benchmarks/results/planner_fresh.json).
@@ -179,6 +180,10 @@ LEARNERS: dict[str, LearnerSpec] = {
     # episodes with the expert's Navigate ending at the interaction pose (nav_audio_stop.yaml), so
     # the learner ends its own skill there instead of being cut at the rim of its success region.
     "Navigate-stop": LearnerSpec("nav_audio_stop", "Navigate", "audio,state,kind", "bc-rnn", (*NAVIGATE, "--stop")),
+    # The stance study (docs/learners.md, "OpenDoor stands where it is"): the table's OpenDoor
+    # options, cloned from door episodes whose expert grasps from where Navigate stopped when it
+    # can, hand-overs within 0.3 of the success region (cameras_door_near.yaml).
+    "OpenDoor-near": LearnerSpec("cameras_door_near", "OpenDoor", MANIPULATION_INPUTS, "act", MANIPULATION),
 }
 # Where each manipulation skill is scored alone: recipes/cameras_test_<setting>.yaml, 50 test
 # episodes of its own event, the skills before it done by the experts with Navigate stopping at
@@ -228,6 +233,8 @@ def _rows() -> dict[str, Row]:
     chain.append(EvaluatedRow(name=STOP_CHAIN, planner="oracle", policy={**stop, "OpenDoor": "OpenDoor", "CloseSink": "CloseSink"},
                               settings=("state_transition",)))
     alone.append(EvaluatedRow(name="Navigate (STOP) alone", planner="oracle", policy=stop, settings=ALONE_SETTINGS["Navigate"], skill="Navigate"))
+    for name, settings in (("OpenDoor (near starts) alone", ALONE_SETTINGS["OpenDoor"]), ("OpenDoor (near starts) after a hand-over", ("door_handover",))):
+        alone.append(EvaluatedRow(name=name, planner="oracle", policy={"OpenDoor": "OpenDoor-near"}, settings=settings, skill="OpenDoor"))
     out = {r.name: r for r in [*chain, *alone]}
     # Navigate is the first skill of every single-event chain, so its outcome alone (experts after
     # it) is its outcome in the oracle-planner chain row, step for step (an episode is a pure

@@ -70,6 +70,8 @@ STALL_STEPS = 15  # the leaf must gain STALL_GAIN within this many swing steps .
 STALL_GAIN = 0.02  # rad ... or the grip is lost / the door blocked
 RELEASE_STEPS = 4  # control steps for the fingers to open
 BACK_OFF = 0.15  # m the base backs away after letting go
+HERE_MIN_DEPTH = 0.75  # m, the leaf ahead of the base centre for a stance taken where the base stands (STANCES: >= 0.8)
+HERE_MAX_YAW = math.radians(30.0)  # off facing the leaf, for a stance where the base stands
 # Step limits per phase (the skill's own limit, recipe robot.max_steps.OpenDoor, bounds the sum).
 DRIVE_STEPS, PREGRASP_STEPS, APPROACH_STEPS = 160, 60, 50
 
@@ -108,6 +110,23 @@ def _swing_is_free(world: World, door: Door, stance: Pose2, q0: float, q1: float
         if not grid.is_free(float(p[0]), float(p[1])):
             return False
     return True
+
+
+def stance_here(world: World, door: Door, pose: Pose2, q0: float, q1: float) -> bool:
+    """True when the base may grasp and swing from `pose` as it stands: the leaf at least
+    `HERE_MIN_DEPTH` ahead of the base centre (room for the unfolding arm), at most
+    `HERE_MAX_YAW` off facing the leaf, the swing on free floor and the grasp within the arm's
+    reach. Why: a demonstration whose base drives to one fixed stance teaches a learner one
+    base-frame reach, and a learner that stops its base elsewhere then grasps the air beside
+    the bar (docs/learners.md, "OpenDoor stands where it is"); from where it stands the arm aims
+    at the bar it sees."""
+    _, n = _swing_frame(door)
+    n = _rotate_about(n, np.zeros(2), door.open_sign * q0)  # the leaf's normal at its angle now
+    rel = np.array(pose[:2]) - door_handle_world(door, q0, door.open_sign)[:2]
+    facing = math.atan2(-n[1], -n[0])
+    if float(rel @ n) < HERE_MIN_DEPTH or abs(wrap(pose[2] - facing)) > HERE_MAX_YAW:
+        return False
+    return _swing_is_free(world, door, pose, q0, q1) and arm_reaches(world, pose, grasp_pose(door, q0), GRASP_TORSO)
 
 
 def grasp_pose(door: Door, q: float, back: float = 0.0) -> np.ndarray:
@@ -203,16 +222,18 @@ def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.
         ok = door_open_success(world, i)
         return SkillOutcome(skill, target, ok, "" if ok else "door_moving", 0)
 
-    # 1. the stance: the first whose swing is free and whose grasp the arm reaches
-    choice = None
-    for k, stance in enumerate(door_stances(door, q_start)):
-        if _swing_is_free(world, door, stance, q_start, q_goal) and arm_reaches(world, stance, grasp_pose(door, q_start), GRASP_TORSO):
-            choice = k
-            break
-    if choice is None:
-        return fail("no_grasp_stance")
-    if not (yield from st.run(approach(world, target, lambda: door_stances(door, _hinge(art))[choice], max_steps=DRIVE_STEPS, close=False))):
-        return fail("stance_not_reached")
+    # 1. the stance: where the base stands when it serves, else the first of STANCES whose swing
+    # is free and whose grasp the arm reaches
+    if not stance_here(world, door, robot.base_pose(), q_start, q_goal):
+        choice = None
+        for k, stance in enumerate(door_stances(door, q_start)):
+            if _swing_is_free(world, door, stance, q_start, q_goal) and arm_reaches(world, stance, grasp_pose(door, q_start), GRASP_TORSO):
+                choice = k
+                break
+        if choice is None:
+            return fail("no_grasp_stance")
+        if not (yield from st.run(approach(world, target, lambda: door_stances(door, _hinge(art))[choice], max_steps=DRIVE_STEPS, close=False))):
+            return fail("stance_not_reached")
 
     # 2.-4. untuck, pre-grasp, straight in, close on the bar
     if not (yield from st.run(to_ready(world, close=False))):
