@@ -123,3 +123,23 @@ def test_the_stop_navigate_data_is_nav_audio_ending_at_the_interaction_pose() ->
         del doc["name"]
         del doc["experts"]["handover_noise"]
     assert stop == nav
+
+
+def test_door_near_recipe_is_the_door_sink_recipe_with_doors_only_and_near_handovers() -> None:
+    """The OpenDoor-near learner's data (recipes/cameras_door_near.yaml) differs from the table's
+    OpenDoor data only in what the stance study changes: every state event a door, 160 training
+    episodes (about the door segments of cameras_door_sink's 300) and hand-overs within 0.3 of the
+    success region's radius; cameras, perturbation and experts are the same."""
+    from echo_data.recipe import load_recipe
+
+    near = load_recipe(ROOT / "recipes" / "cameras_door_near.yaml").model_dump(mode="json")
+    door_sink = load_recipe(ROOT / "recipes" / "cameras_door_sink.yaml").model_dump(mode="json")
+    assert (near["experts"]["handover_noise"], door_sink["experts"]["handover_noise"]) == (0.3, 1.0)
+    assert near["events"]["categories"]["sink"] == 0.0 < door_sink["events"]["categories"]["sink"]
+    assert near["composition"]["state_transition"]["train"] == 160
+    for doc in (near, door_sink):
+        for key in ("name", "composition", "splits"):
+            del doc[key]
+        del doc["experts"]["handover_noise"]
+        del doc["events"]["categories"]
+    assert near == door_sink

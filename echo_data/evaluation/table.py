@@ -34,6 +34,7 @@ PAPER_ORDER = ("state_transition", "object_relocation", "multi_event")  # the pa
 PAPER_COMPARABLE = " (paper-comparable)"
 NOT_MEASURED = "not measured"
 STOP_CHAIN = "oracle planner + learned skills, Navigate says STOP"
+STOP_NEAR_CHAIN = STOP_CHAIN + ", OpenDoor from near starts"
 Grasp = Literal["physical", "magic"]
 
 
@@ -231,6 +232,10 @@ def _rows() -> dict[str, Row]:
     # would add Pick and Place to the row's policy.
     stop = {"Navigate": "Navigate-stop"}
     chain.append(EvaluatedRow(name=STOP_CHAIN, planner="oracle", policy={**stop, "OpenDoor": "OpenDoor", "CloseSink": "CloseSink"},
+                              settings=("state_transition",)))
+    # ... and with the OpenDoor cloned from near hand-overs (the stance study): a STOP that hands
+    # over near the interaction pose is what that learner was trained for.
+    chain.append(EvaluatedRow(name=STOP_NEAR_CHAIN, planner="oracle", policy={**stop, "OpenDoor": "OpenDoor-near", "CloseSink": "CloseSink"},
                               settings=("state_transition",)))
     alone.append(EvaluatedRow(name="Navigate (STOP) alone", planner="oracle", policy=stop, settings=ALONE_SETTINGS["Navigate"], skill="Navigate"))
     for name, settings in (("OpenDoor (near starts) alone", ALONE_SETTINGS["OpenDoor"]), ("OpenDoor (near starts) after a hand-over", ("door_handover",))):
