@@ -5,14 +5,16 @@ facing the handle; `echo_data.skills.success.navigate_success`), arm tucked or a
 
 Every command is computed from the state the step starts in (docs/SIMULATION_NOTES.md#door-opening):
 
-1. **stance**: the base drives (`echo_data.skills.reach_servo.approach`: straight, or first
+1. **stance**: where the base stands when it serves (`stance_here`: the leaf far enough ahead for
+   the unfolding arm, the base roughly facing it, the swing on free floor, the grasp within the
+   arm's reach; true at Navigate's interaction pose); otherwise the base drives (`echo_data.skills.reach_servo.approach`: straight, or first
    along Navigate's grid path, arm held, when a wall corner is in the way) to the grasp stance
    for the door's *current* hinge angle: 0.88 m from the swing-side handle bar along the leaf
    normal, 0.3 m towards the hinge, facing the leaf — the first of `STANCES` whose swing stays on free floor and whose grasp the
    arm reaches (the robot's own IK). A fixed order, so every episode of a door takes the same one.
 2. **untuck** on the straight part of that drive and at the stance: a straight Cartesian move
    of the TCP to READY (the carry pose, 0.27 m ahead of the base at 1.15 m; on the way the arm
-   reaches ≤ 0.53 m ahead): at the stance the leaf is ≥ 0.8 m from the base centre, so there is room.
+   reaches ≤ 0.53 m ahead): at a stance the leaf is ≥ 0.75 m from the base centre, so there is room.
 3. **pre-grasp**: the TCP goes to `PREGRASP_BACK` in front of the bar (the bar's pose read from
    the hinge angle each step), approach axis into the leaf, fingers along it;
 4. **approach**: straight in at `SLOW_SPEED` (a hand stopped short by a jaw on the bar, within
@@ -29,7 +31,7 @@ Every command is computed from the state the step starts in (docs/SIMULATION_NOT
    (`echo_data.skills.servo.tuck`, as Place ends: a drive after the skill carries the arm
    inside the base's footprint, the one the navigation grid is inflated for).
 
-No random choices and no motion planner: two episodes of the same door take the same path.
+No random choices and no motion planner: two episodes of the same door from the same start take the same path.
 """
 
 from __future__ import annotations
