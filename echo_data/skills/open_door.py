@@ -114,6 +114,11 @@ def _swing_is_free(world: World, door: Door, stance: Pose2, q0: float, q1: float
     return True
 
 
+def swing_goal(door: Door) -> float:
+    """The hinge angle the swing ends at: `OPEN_MARGIN` past the open threshold, short of the stop."""
+    return min(door.open_threshold + OPEN_MARGIN, door.max_angle - 0.02)
+
+
 def stance_here(world: World, door: Door, pose: Pose2, q0: float, q1: float) -> bool:
     """True when the base may grasp and swing from `pose` as it stands: the leaf at least
     `HERE_MIN_DEPTH` ahead of the base centre (room for the unfolding arm), at most
@@ -219,7 +224,7 @@ def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.
         return SkillOutcome(skill, target, False, reason, st.n)
 
     q_start = _hinge(art)
-    q_goal = min(door.open_threshold + OPEN_MARGIN, door.max_angle - 0.02)
+    q_goal = swing_goal(door)
     if q_start >= door.open_threshold:
         ok = door_open_success(world, i)
         return SkillOutcome(skill, target, ok, "" if ok else "door_moving", 0)
