@@ -91,15 +91,20 @@ def _rotate_about(p: np.ndarray, centre: np.ndarray, ang: float) -> np.ndarray:
     return centre + np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]])
 
 
+def _facing(door: Door, q: float) -> float:
+    """The yaw that faces the leaf (against its swing-side normal) at hinge angle q."""
+    _, n = _swing_frame(door)
+    return wrap(math.atan2(-n[1], -n[0]) + door.open_sign * q)
+
+
 def door_stances(door: Door, q: float = 0.0) -> list[Pose2]:
     """Candidate grasp stances (x, y, yaw) for the door at hinge angle q, preferred first."""
     u, n = _swing_frame(door)
     handle = door_handle_world(door, 0.0, door.open_sign)[:2]
-    yaw = math.atan2(-n[1], -n[0])
     out = []
     for dist, shift in STANCES:
         p = _rotate_about(handle + dist * n + shift * u, np.asarray(door.hinge), door.open_sign * q)
-        out.append((float(p[0]), float(p[1]), wrap(yaw + door.open_sign * q)))
+        out.append((float(p[0]), float(p[1]), _facing(door, q)))
     return out
 
 
@@ -127,13 +132,16 @@ def stance_here(world: World, door: Door, pose: Pose2, q0: float, q1: float) -> 
     base-frame reach, and a learner that stops its base elsewhere then grasps the air beside
     the bar (docs/learners.md, "OpenDoor stands where it is"); from where it stands the arm aims
     at the bar it sees."""
-    _, n = _swing_frame(door)
-    n = _rotate_about(n, np.zeros(2), door.open_sign * q0)  # the leaf's normal at its angle now
-    rel = np.array(pose[:2]) - door_handle_world(door, q0, door.open_sign)[:2]
-    facing = math.atan2(-n[1], -n[0])
-    if float(rel @ n) < HERE_MIN_DEPTH or abs(wrap(pose[2] - facing)) > HERE_MAX_YAW:
+    facing = _facing(door, q0)
+    ahead = np.array(pose[:2]) - door_handle_world(door, q0, door.open_sign)[:2]  # from the bar to the base
+    if float(ahead @ [-math.cos(facing), -math.sin(facing)]) < HERE_MIN_DEPTH or abs(wrap(pose[2] - facing)) > HERE_MAX_YAW:
         return False
-    return _swing_is_free(world, door, pose, q0, q1) and arm_reaches(world, pose, grasp_pose(door, q0), GRASP_TORSO)
+    return _serves(world, door, pose, q0, q1)
+
+
+def _serves(world: World, door: Door, stance: Pose2, q0: float, q1: float) -> bool:
+    """True when from `stance` the swing (q0 to q1) stays on free floor and the arm reaches the grasp."""
+    return _swing_is_free(world, door, stance, q0, q1) and arm_reaches(world, stance, grasp_pose(door, q0), GRASP_TORSO)
 
 
 def grasp_pose(door: Door, q: float, back: float = 0.0) -> np.ndarray:
@@ -232,11 +240,7 @@ def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.
     # 1. the stance: where the base stands when it serves, else the first of STANCES whose swing
     # is free and whose grasp the arm reaches
     if not stance_here(world, door, robot.base_pose(), q_start, q_goal):
-        choice = None
-        for k, stance in enumerate(door_stances(door, q_start)):
-            if _swing_is_free(world, door, stance, q_start, q_goal) and arm_reaches(world, stance, grasp_pose(door, q_start), GRASP_TORSO):
-                choice = k
-                break
+        choice = next((k for k, stance in enumerate(door_stances(door, q_start)) if _serves(world, door, stance, q_start, q_goal)), None)
         if choice is None:
             return fail("no_grasp_stance")
         if not (yield from st.run(approach(world, target, lambda: door_stances(door, _hinge(art))[choice], max_steps=DRIVE_STEPS, close=False))):
