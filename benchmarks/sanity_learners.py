@@ -157,6 +157,20 @@ def parse_inputs(overrides: list[str], study: Study = PRIVILEGED) -> dict[str, t
     return inputs
 
 
+def parse_data(overrides: list[str], study: Study) -> dict[str, str]:
+    """The study's training recipe per skill with `SKILL=RECIPE` overrides; each recipe must exist."""
+    data = dict(study.data)
+    for item in overrides:
+        skill, sep, name = item.partition("=")
+        name = name.strip().removesuffix(".yaml").rsplit("/", 1)[-1]
+        if not sep or skill not in study.data or not name:
+            usage_error(f"--data {item!r}: expected SKILL=RECIPE with SKILL one of {', '.join(SKILLS)}")
+        if not (ROOT / "recipes" / f"{name}.yaml").is_file():
+            usage_error(f"--data {skill}: no recipe recipes/{name}.yaml")
+        data[skill] = name
+    return data
+
+
 def commit() -> str:
     """The checkout's commit (+dirty with local changes to tracked files); on a copy without git
     (a GPU machine), the environment's SANITY_COMMIT (the caller names the commit it copied)."""
@@ -263,7 +277,9 @@ def check_columns(data: Path, inputs: tuple[str, ...]) -> None:
 
 def train(skill: str, data: Path, inputs: tuple[str, ...], column: str, learner: str, a: argparse.Namespace, log: Path) -> dict[str, Any]:
     """`echo-data train` of one skill, action column and learner (`LEARNERS`) unless its run folder holds a summary."""
-    folder = a.work / "runs" / f"{skill}-{column}-{learner}"
+    # A run on another recipe than the study's (--data) is named after it too.
+    tag = "" if a.data[skill] == a.study.data[skill] else f"-{a.data[skill]}"
+    folder = a.work / "runs" / f"{skill}-{column}-{learner}{tag}"
     done = folder / "summary.json"
     if done.is_file():
         return {**json.loads(done.read_text()), "reused": True}
@@ -337,7 +353,7 @@ def run_skill(skill: str, inputs: tuple[str, ...], a: argparse.Namespace, doc: d
     """Build, train, choose, evaluate one skill; its entries go into `doc`."""
     timing: dict[str, float] = {}
     t0 = time.perf_counter()
-    name = a.study.data[skill]
+    name = a.data[skill]
     if name not in doc["datasets"] or doc["datasets"][name].get("failed"):
         doc["datasets"][name] = build(name, a.work, a.workers, a.tiny, log)
         timing["build_s"] = 0.0 if doc["datasets"][name].get("reused") else doc["datasets"][name]["seconds"]
@@ -356,7 +372,7 @@ def run_skill(skill: str, inputs: tuple[str, ...], a: argparse.Namespace, doc: d
     doc["skills_handover"][skill] = handover
     timing["eval_s"] = round(cmd_alone["seconds"] + cmd_handover["seconds"], 1)
     timing["total_s"] = round(time.perf_counter() - t0, 1)
-    doc["details"][skill] = {"driver": doc["command"], "inputs": list(inputs), "action_column": column, "learner": trained[chosen]["learner"], "training": trained,
+    doc["details"][skill] = {"driver": doc["command"], "data": name, "inputs": list(inputs), "action_column": column, "learner": trained[chosen]["learner"], "training": trained,
                              "evaluation": {"skills": cmd_alone["command"], "skills_handover": cmd_handover["command"]}}
     doc["timings"][skill] = timing
 
@@ -378,6 +394,9 @@ def main(study: Study = PRIVILEGED, description: str | None = None) -> None:
                     help="comma list of action columns to train; with two, the one with the better closed-loop validation is tested "
                          "(action needs recipes with robot.action_space: joint, see recipes/sanity.yaml)")
     ap.add_argument("--inputs", action="append", default=[], metavar="SKILL=COLUMNS", help="another input list for SKILL (repeatable)")
+    ap.add_argument("--data", action="append", default=[], metavar="SKILL=RECIPE",
+                    help="another training recipe for SKILL (recipes/RECIPE.yaml, e.g. a perturbation level: recipes/cameras_door_sink_p0.yaml); "
+                         "its run folders and evaluations carry its name (repeatable)")
     ap.add_argument("--device", default="auto")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--tiny", action="store_true", help=f"{TINY_EPISODES} train episodes, 1 epoch (a few steps) chosen on 1 val episode, 2 test episodes per row: the whole path in minutes")
@@ -394,6 +413,7 @@ def main(study: Study = PRIVILEGED, description: str | None = None) -> None:
     if a.workers < 1 or a.episodes < 1:
         usage_error("--workers and --episodes must be >= 1")
     inputs = parse_inputs(a.inputs, study)
+    a.data = parse_data(a.data, study)
     a.study = study
     if a.tiny:
         a.episodes, a.epochs, a.select_every, a.select_episodes = 2, 1, 1, 1

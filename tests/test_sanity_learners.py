@@ -143,3 +143,50 @@ def test_door_near_recipe_is_the_door_sink_recipe_with_doors_only_and_near_hando
         del doc["experts"]["handover_noise"]
         del doc["events"]["categories"]
     assert near == door_sink
+
+
+@pytest.mark.parametrize(("name", "level"), [("cameras_door_sink_p0", (0.0, 0.0)), ("cameras_door_sink_p2", (1.0, 2.0))])
+def test_a_perturbation_recipe_is_the_door_sink_recipe_at_another_level(name: str, level: tuple[float, float]) -> None:
+    """The perturbation-level ablation's data differs from the camera learners' OpenDoor/CloseSink
+    data only in the experts' per-step end-effector perturbation (none, and twice the shipped
+    0.5 cm / 1 degree), so its rows compare the level alone."""
+    from echo_data.recipe import load_recipe
+
+    other = load_recipe(ROOT / "recipes" / f"{name}.yaml").model_dump(mode="json")
+    shipped = load_recipe(ROOT / "recipes" / "cameras_door_sink.yaml").model_dump(mode="json")
+    assert (shipped["experts"]["perturbation"]["position_cm"], shipped["experts"]["perturbation"]["rotation_deg"]) == (0.5, 1.0)
+    assert (other["experts"]["perturbation"]["position_cm"], other["experts"]["perturbation"]["rotation_deg"]) == level
+    for doc in (other, shipped):
+        del doc["name"]
+        del doc["experts"]["perturbation"]
+    assert other == shipped
+
+
+def test_the_driver_names_an_unknown_training_recipe(tmp_path: Path) -> None:
+    out = tmp_path / "cameras.json"
+    r = subprocess.run([sys.executable, str(CAMERA_DRIVER), "--data", "CloseSink=cameras_door_sink_p9",
+                        "--work", str(tmp_path / "work"), "--out", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "--data CloseSink: no recipe recipes/cameras_door_sink_p9.yaml" in r.stderr
+    assert not out.exists() and not (tmp_path / "work").exists()
+
+
+def test_another_training_recipe_is_read_and_names_its_run(tmp_path: Path) -> None:
+    """--data CloseSink=RECIPE trains on WORK/data/RECIPE and names the run folder after it, so a
+    perturbation level never reuses (or overwrites) the shipped level's run. A stand-in dataset
+    makes the training fail at once; the driver records the failure and says which command ran."""
+    work = tmp_path / "work"
+    data = work / "data" / "cameras_door_sink_p0"
+    (data / "meta").mkdir(parents=True)
+    (data / "manifest.json").write_text(json.dumps({"complete": True, "episodes": {"train": 1}}))
+    (work / "data" / "cameras_door_sink_p0.build.json").write_text(json.dumps({"command": "x", "seconds": 1.0}))
+    out = tmp_path / "cameras.json"
+    r = subprocess.run([sys.executable, str(CAMERA_DRIVER), "--skills", "CloseSink", "--data", "CloseSink=cameras_door_sink_p0",
+                        "--work", str(work), "--out", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 1, r.stderr[-2000:]
+    doc = json.loads(out.read_text())
+    assert set(doc["failed"]) == {"CloseSink"} and "cameras_door_sink_p0" in doc["datasets"]
+    log = (work / "camera_learners.log").read_text()
+    assert f"echo-data train act {data} --skill CloseSink" in log
+    assert f"--out {work / 'runs' / 'CloseSink-action.ee-act-cameras_door_sink_p0'}" in log
+    assert not (work / "data" / "cameras_door_sink").exists()  # the study's own recipe was never built
