@@ -277,8 +277,8 @@ def check_columns(data: Path, inputs: tuple[str, ...]) -> None:
 
 def train(skill: str, data: Path, inputs: tuple[str, ...], column: str, learner: str, a: argparse.Namespace, log: Path) -> dict[str, Any]:
     """`echo-data train` of one skill, action column and learner (`LEARNERS`) unless its run folder holds a summary."""
-    # A run on another recipe than the study's (--data) is named after it too.
-    tag = "" if a.data[skill] == a.study.data[skill] else f"-{a.data[skill]}"
+    # A run on another recipe than the study's (--data), or from another seed, is named after it too.
+    tag = ("" if a.data[skill] == a.study.data[skill] else f"-{a.data[skill]}") + ("" if a.seed == 0 else f"-seed{a.seed}")
     folder = a.work / "runs" / f"{skill}-{column}-{learner}{tag}"
     done = folder / "summary.json"
     if done.is_file():

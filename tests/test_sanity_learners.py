@@ -172,8 +172,9 @@ def test_the_driver_names_an_unknown_training_recipe(tmp_path: Path) -> None:
 
 
 def test_another_training_recipe_is_read_and_names_its_run(tmp_path: Path) -> None:
-    """--data CloseSink=RECIPE trains on WORK/data/RECIPE and names the run folder after it, so a
-    perturbation level never reuses (or overwrites) the shipped level's run. A stand-in dataset
+    """--data CloseSink=RECIPE trains on WORK/data/RECIPE and names the run folder after it (and
+    after a seed other than 0), so a perturbation level or a second seed never reuses (or
+    overwrites) another run. A stand-in dataset
     makes the training fail at once; the driver records the failure and says which command ran."""
     work = tmp_path / "work"
     data = work / "data" / "cameras_door_sink_p0"
@@ -181,12 +182,12 @@ def test_another_training_recipe_is_read_and_names_its_run(tmp_path: Path) -> No
     (data / "manifest.json").write_text(json.dumps({"complete": True, "episodes": {"train": 1}}))
     (work / "data" / "cameras_door_sink_p0.build.json").write_text(json.dumps({"command": "x", "seconds": 1.0}))
     out = tmp_path / "cameras.json"
-    r = subprocess.run([sys.executable, str(CAMERA_DRIVER), "--skills", "CloseSink", "--data", "CloseSink=cameras_door_sink_p0",
+    r = subprocess.run([sys.executable, str(CAMERA_DRIVER), "--skills", "CloseSink", "--data", "CloseSink=cameras_door_sink_p0", "--seed", "1",
                         "--work", str(work), "--out", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert r.returncode == 1, r.stderr[-2000:]
     doc = json.loads(out.read_text())
     assert set(doc["failed"]) == {"CloseSink"} and "cameras_door_sink_p0" in doc["datasets"]
     log = (work / "camera_learners.log").read_text()
     assert f"echo-data train act {data} --skill CloseSink" in log
-    assert f"--out {work / 'runs' / 'CloseSink-action.ee-act-cameras_door_sink_p0'}" in log
+    assert f"--seed 1 --out {work / 'runs' / 'CloseSink-action.ee-act-cameras_door_sink_p0-seed1'}" in log
     assert not (work / "data" / "cameras_door_sink").exists()  # the study's own recipe was never built
