@@ -140,15 +140,21 @@ def usage_error(message: str) -> None:
     sys.exit(2)
 
 
+def skill_override(flag: str, item: str, what: str) -> tuple[str, str]:
+    """(skill, value) of one `SKILL=VALUE` option; anything else is a one-line usage error."""
+    skill, sep, value = item.partition("=")
+    if not sep or skill not in SKILLS:
+        usage_error(f"{flag} {item!r}: expected SKILL={what} with SKILL one of {', '.join(SKILLS)}")
+    return skill, value
+
+
 def parse_inputs(overrides: list[str], study: Study = PRIVILEGED) -> dict[str, tuple[str, ...]]:
     """The study's inputs with `SKILL=a,b,...` overrides; every name checked before any work."""
     inputs = dict(study.inputs)
     known = study.plain_inputs + (tuple(PRIVILEGED_COLUMNS) if study.privileged else ())
     why = "no images: this learner renders nothing" if study.privileged else "no privileged column: this learner sees what a robot sees"
     for item in overrides:
-        skill, sep, cols = item.partition("=")
-        if not sep or skill not in study.inputs:
-            usage_error(f"--inputs {item!r}: expected SKILL=COLUMN,... with SKILL one of {', '.join(SKILLS)}")
+        skill, cols = skill_override("--inputs", item, "COLUMN,...")
         names = tuple(c.strip() for c in cols.split(",") if c.strip())
         bad = [c for c in names if c not in known]
         if bad or not names:
@@ -161,9 +167,9 @@ def parse_data(overrides: list[str], study: Study) -> dict[str, str]:
     """The study's training recipe per skill with `SKILL=RECIPE` overrides; each recipe must exist."""
     data = dict(study.data)
     for item in overrides:
-        skill, sep, name = item.partition("=")
-        name = name.strip().removesuffix(".yaml").rsplit("/", 1)[-1]
-        if not sep or skill not in study.data or not name:
+        skill, value = skill_override("--data", item, "RECIPE")
+        name = value.strip().removesuffix(".yaml").rsplit("/", 1)[-1]
+        if not name:
             usage_error(f"--data {item!r}: expected SKILL=RECIPE with SKILL one of {', '.join(SKILLS)}")
         if not (ROOT / "recipes" / f"{name}.yaml").is_file():
             usage_error(f"--data {skill}: no recipe recipes/{name}.yaml")

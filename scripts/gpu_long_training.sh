@@ -81,7 +81,7 @@ for name in "${NAMES[@]}"; do weights "$WORK/runs/$name/checkpoint.pt" "$OUT/${n
 wait "${PIDS[@]}"  # (a bare wait would also wait for the tee above)
 echo "=== training ended after $(since) s"
 
-# --- what comes back: per run best.pt, the last checkpoint, and the small files (8 files at most) ---
+# --- what comes back: per run the last weights and a tarball of the small files and best.pt (8 files at most) ---
 for name in "${NAMES[@]}"; do
   R=$WORK/runs/$name
   echo "--- $name"; tail -n 3 "$WORK/$name.txt"; tail -n 3 "$R/losses.csv" 2>/dev/null
