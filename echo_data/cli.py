@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from enum import Enum
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -18,6 +19,7 @@ from echo_data.sounds.cli import sounds_app  # noqa: E402
 
 app.add_typer(sounds_app, name="sounds")
 
+from echo_data.agents.runtime import DRIVE_ENDS  # noqa: E402
 from echo_data.learn.cli import evaluate_planner_cmd, train_app  # noqa: E402
 
 app.add_typer(train_app, name="train")
@@ -153,6 +155,10 @@ def preview(
     typer.echo(f"wrote {', '.join(sorted(p.name for p in out.iterdir() if not p.name.startswith('.')))} to {out}")
 
 
+# `--drive-end`'s choices, from their one owner (typer takes choices as an Enum).
+DriveEnd = Enum("DriveEnd", {v: v for v in DRIVE_ENDS}, type=str)  # type: ignore[misc]
+
+
 @app.command()
 def evaluate(
     recipe_path: Path = typer.Argument(..., metavar="RECIPE", help="Recipe YAML (its episodes, split sizes and budgets)."),
@@ -168,11 +174,15 @@ def evaluate(
     json_out: Path | None = typer.Option(None, "--json", help="Write the results (metrics, per-episode outcomes) here."),
     video: Path | None = typer.Option(None, "--video", help="Write one MP4 per episode (picture + binaural sound) into this folder."),
     resume: bool = typer.Option(False, "--resume", help="Continue an interrupted evaluation from the episodes recorded next to --json (OUT.episodes.jsonl)."),
+    drive_end: DriveEnd = typer.Option(
+        "handover", "--drive-end",
+        help="How a learned Navigate that does not STOP ends: handover (inside the next skill's stance, docs/handover.md) | "
+        "success (the first step inside the paper's 1.5 m success region)."),
 ) -> None:
     """Run a policy closed-loop on a split and report the paper's metrics with 95 % intervals."""
     from echo_data.evaluation.cli import run_evaluate
 
-    code = run_evaluate(_load(recipe_path), recipe_path, split, n, tuple(policy), planner, workers, json_out, video, resume)
+    code = run_evaluate(_load(recipe_path), recipe_path, split, n, tuple(policy), planner, workers, json_out, video, resume, drive_end.value)
     raise typer.Exit(code)
 
 

@@ -352,11 +352,13 @@ class ExpertsConfig(_Strict):
     # command from the perturbed state. Off when both are 0. Applies to commands born in ee form;
     # `action_noise` perturbs only joint-born commands (no built-in expert yields them any more).
     perturbation: Perturbation = Field(default_factory=lambda: Perturbation())
-    # Hand-over starts (M3-style): the build's Navigate stops at a random point of its own success
-    # region instead of the exact interaction pose, so the next skill's demonstration starts where
-    # a learned Navigate hands over. A fraction f of the region: the stop is uniform in the disc of
-    # radius f x 1.3 m around the interaction point (free, in straight sight of it), heading at the
-    # target within f x 9 degrees (`echo_data.skills.navigate.handover_goal`). 0 = the exact pose.
+    # Hand-over starts (M3-style): the build's Navigate stops at a random point of the next
+    # skill's stance (`skills.registry.HandOver`, docs/handover.md) instead of the exact
+    # interaction pose, so the next skill's demonstration starts anywhere a learned Navigate may
+    # hand over. A fraction f of the stance: the stop is uniform in a disc of f times the stance's
+    # radius (less the path follower's stopping tolerance) around the interaction point, free and
+    # in straight sight of it, its heading within f times the stance's heading tolerance of the
+    # pose's (`echo_data.skills.navigate.handover_goal`). 0 = the exact pose.
     handover_noise: float = Field(0.0, ge=0.0, le=1.0)
 
 

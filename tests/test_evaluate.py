@@ -293,7 +293,12 @@ def test_a_learned_policy_that_ends_itself_is_judged_where_it_stops(nav_episode)
         env.stop_skill()
 
     obs, info = env.reset(options={"spec": spec})
-    run = run_episode(env, obs, info, OraclePlanner(), _Spy(actions), skills=1)  # no STOP: cut at the first success
+    run = run_episode(env, obs, info, OraclePlanner(), _Spy(actions), skills=1, drive_end="success")  # no STOP: cut at the first success
     first = next(i for i, (ok, _) in enumerate(flags) if ok)  # flags[i]: after i steps
     assert run.outcomes[0].success and run.outcomes[0].steps == first < len(actions)
     assert run.navigate[0].goal_distance > at_stop.goal_distance + 0.1  # cut at the region's rim, short of the expert's stop
+    assert not run.navigate[0].handed_over
+
+    obs, info = env.reset(options={"spec": spec})
+    run = run_episode(env, obs, info, OraclePlanner(), _Spy(actions), skills=1)  # no STOP, the default: cut at the hand-over
+    assert run.outcomes[0].success and first < run.outcomes[0].steps <= len(actions) and run.navigate[0].handed_over

@@ -30,6 +30,7 @@ def format_tables(doc: dict[str, Any]) -> str:
         for p in m["progressive"]:
             lines.append(f"    through skill {p['through']}    {cell(p)}")
         lines.append(f"    Navigate success   {cell(m['navigate_success'])}")
+        lines.append(f"    Navigate hand-over {cell(m['navigate_handover'])}")
         lines.append(f"    Navigate SPL       {cell(m['navigate_spl'])}")
     if doc["skipped"]:
         lines.append(f"  skipped (no solvable layout): {doc['skipped']}")
@@ -69,7 +70,7 @@ def _check_targets(json_out: Path | None, video: Path | None, resume: bool, spli
 
 def run_evaluate(
     recipe: Recipe, recipe_path: Path, split: str, n: int, policy: str | tuple[str, ...], planner: str, workers: int, json_out: Path | None, video: Path | None,
-    resume: bool = False,
+    resume: bool = False, drive_end: str = "handover",
 ) -> int:
     """`echo-data evaluate`: 0 when the results are written, 2 for bad input (one line on stderr).
 
@@ -105,7 +106,8 @@ def run_evaluate(
         known = (*observation_space(recipe).spaces, *RUNTIME_OBSERVATIONS)  # GOAL_POSE, privileged: the runtime adds them
         check_observations(pol, f"policy {spec_name(policy)!r}", known)
         check_observations(plan, f"planner {planner!r}", known)
-        key = {"recipe": recipe.content_hash(), "split": split, "policy": identity(pol, policy), "planner": identity(plan, planner), "video": video is not None}
+        key = {"recipe": recipe.content_hash(), "split": split, "policy": identity(pol, policy), "planner": identity(plan, planner), "video": video is not None,
+               "drive_end": drive_end}
     except AgentLoadError as e:
         return _fail(str(e))
     journal = None
@@ -130,7 +132,7 @@ def run_evaluate(
 
     finished = False
     try:
-        doc = evaluate(recipe, recipe_path.resolve(), split, n, policy, planner, workers, video, progress=tick, done=done)
+        doc = evaluate(recipe, recipe_path.resolve(), split, n, policy, planner, workers, video, progress=tick, done=done, drive_end=drive_end)
         finished = True
     except (AgentActionError, AgentLoadError) as e:
         bar.close()  # before the error line, so it stands alone

@@ -8,6 +8,8 @@
   episodes whose chain has at least p skills (Habitat-style latched stages);
 - Navigate success: the Navigate skill's success test, over every Navigate skill attempted (a
   skill is attempted when the plan is right and the skills before it succeeded);
+- Navigate hand-over: the share of attempted Navigate skills that ended inside the next skill's
+  stance (docs/handover.md), the paper's success region being the wider one;
 - Navigate SPL: S * l / max(l, p) per attempted Navigate skill (Anderson et al. 2018, "On
   Evaluation of Embodied Navigation Agents"), l = the navigation expert's planned path from where
   the skill started, p = the path the base drove.
@@ -85,6 +87,7 @@ def summarise(episodes: list[dict[str, Any]]) -> dict[str, Any]:
         "skill_completion": proportion(done, n),
         "progressive": progressive,
         "navigate_success": proportion(sum(nav), len(nav)),
+        "navigate_handover": proportion(sum(bool(nv.get("handed_over")) for e in episodes for nv in e["navigate"]), len(nav)),
         "navigate_spl": mean_interval(spl),
         "mean_steps": sum(e["steps"] for e in episodes) / n if n else None,
         "seconds": sum(e.get("seconds", 0.0) for e in episodes),

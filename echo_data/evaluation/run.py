@@ -36,6 +36,7 @@ class EvalJob:
     policy: str | tuple[str, ...]  # a tuple: one policy per skill (`echo_data.agents.compose`)
     planner: str
     video_dir: str | None = None
+    drive_end: str = "handover"  # how a learned drive that does not STOP ends (`agents.runtime.DRIVE_ENDS`)
 
 
 RESULT_KEYS = ("recipe", "split", "n", "policy", "planner", "versions", "metrics", "episodes")  # evaluate's document
@@ -107,7 +108,8 @@ def episode_record(run: Any, index: int) -> dict[str, Any]:
              "expert_length": None if r.expert_length != r.expert_length else round(r.expert_length, 6),
              "spl": None if r.expert_length != r.expert_length else round(r.spl, 6),
              **{k: None if v != v else round(v, 6) for k, v in (("goal_distance", r.goal_distance), ("heading_error", r.heading_error),
-                                                                 ("arm_moved", r.arm_moved))}}
+                                                                 ("arm_moved", r.arm_moved))},
+             "handed_over": r.handed_over}
             for r in run.navigate
         ],
         "failure": run.failure,
@@ -133,7 +135,7 @@ def evaluate_episode(job: EvalJob, index: int) -> dict[str, Any]:
     obs, info = env.reset(options={"spec": spec})
     video = _VideoRecorder(env) if job.video_dir else None
     try:
-        run = run_episode(env, obs, info, planner, policy, on_step=video)
+        run = run_episode(env, obs, info, planner, policy, on_step=video, drive_end=job.drive_end)
     except AgentActionError:
         raise
     except Exception as e:  # the agent's own code failed mid-episode: that episode fails, the evaluation goes on
@@ -249,10 +251,12 @@ def evaluate(
     video_dir: Path | None = None,
     progress: Callable[[dict[str, Any]], None] | None = None,
     done: dict[int, dict[str, Any]] | None = None,
+    drive_end: str = "handover",
 ) -> dict[str, Any]:
     """The results document: metrics per setting, per-episode outcomes, what was evaluated.
 
-    `done`: records of episodes already finished (`evaluation.journal`), not run again."""
+    `done`: records of episodes already finished (`evaluation.journal`), not run again;
+    `drive_end`: how a learned drive that does not STOP ends (`agents.runtime.DRIVE_ENDS`)."""
     from echo_data.agents.loading import identity, load_planner, load_policy
     from echo_data.dataset.manifest import versions
     from echo_data.evaluation.metrics import by_setting
@@ -260,7 +264,7 @@ def evaluate(
     pol, plan = load_policy(policy), load_planner(planner)  # fail fast, in this process
     if not isinstance(policy, str):
         policy = tuple(policy)
-    job = EvalJob(recipe, str(recipe_path.parent) if recipe_path else None, split, policy, planner, str(video_dir) if video_dir else None)
+    job = EvalJob(recipe, str(recipe_path.parent) if recipe_path else None, split, policy, planner, str(video_dir) if video_dir else None, drive_end)
     t0 = time.perf_counter()
     episodes = run_episodes(job, n, workers, progress, done)
     scored = [e for e in episodes if "skipped" not in e]
@@ -270,6 +274,7 @@ def evaluate(
         "n": n,
         "policy": identity(pol, policy),
         "planner": identity(plan, planner),
+        "drive_end": drive_end,
         "versions": versions(),
         "metrics": by_setting(scored),
         "skipped": [e["index"] for e in episodes if "skipped" in e],

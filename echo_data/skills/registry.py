@@ -16,7 +16,8 @@ sampler can read the table without loading physics or mplib.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -41,6 +42,28 @@ Effect = Literal["", "places_object", "opens_door"]
 
 # Extra steps granted beyond a skill's own limit before it is called stuck.
 GUARD_STEPS = 20
+
+
+@dataclass(frozen=True)
+class HandOver:
+    """Where a skill's manipulation is taught to begin (its stance): the base within `distance` m
+    of its target's interaction pose (`scene.nav.interaction_pose`) and its heading within
+    `heading` rad of that pose's heading. The drive before it ends there: a Navigate before the
+    skill, or the skill's own drive (Place's carry). One region per skill, read by the experts
+    (`experts.handover_noise` draws the demonstrations' starts from it), the environment
+    (`info["skills"][k]["handed_over"]`), the runtime (a learned drive ends when it holds) and
+    `evaluate` (docs/handover.md)."""
+
+    distance: float  # m
+    heading: float  # rad
+
+
+# The stance of every manipulation skill (why this size: docs/handover.md). Manipulation learners
+# succeed from the exact pose and fall from starts spread over Navigate's 1.5 m success region
+# (the paper table's rows "alone" against "after a hand-over"); the region is wide enough for a
+# drive learner to end in and at least twice the Navigate expert's own stopping tolerances
+# (skills.navigate.GOAL_TOL, YAW_TOL), so its drawn stops stay inside.
+STANCE = HandOver(distance=0.25, heading=math.radians(10.0))
 
 
 @dataclass(frozen=True)
@@ -70,6 +93,7 @@ class Skill:
     role: ChainRole
     effect: Effect = ""
     follows: str = ""  # "deliver" skills: the resolve skill they carry on from
+    stance: HandOver | None = None  # where its manipulation begins (None: it only drives)
 
     def expert_fn(self) -> Callable[..., Any]:
         return _import(self.expert)
@@ -141,11 +165,11 @@ SKILLS: dict[str, Skill] = {
     s.name: s
     for s in (
         Skill("Navigate", "echo_data.skills.navigate:navigate", _navigated, False, ("Navigate",), ("object", "door", "faucet", "furniture"), 600, "approach"),
-        Skill("Pick", "echo_data.skills.pick:pick", _picked, True, ("Pick",), ("object",), 250, "resolve"),
+        Skill("Pick", "echo_data.skills.pick:pick", _picked, True, ("Pick",), ("object",), 250, "resolve", stance=STANCE),
         # Place also drives the object across the apartment: Navigate's limit is added to its own.
-        Skill("Place", "echo_data.skills.place:place", _placed, False, ("Place", "Navigate"), ("furniture",), 250, "deliver", "places_object", follows="Pick"),
-        Skill("OpenDoor", "echo_data.skills.open_door:open_door", _door_opened, True, ("OpenDoor",), ("door",), 300, "resolve", "opens_door"),
-        Skill("CloseSink", "echo_data.skills.close_sink:close_sink", _sink_closed, True, ("CloseSink",), ("faucet",), 200, "resolve"),
+        Skill("Place", "echo_data.skills.place:place", _placed, False, ("Place", "Navigate"), ("furniture",), 250, "deliver", "places_object", follows="Pick", stance=STANCE),
+        Skill("OpenDoor", "echo_data.skills.open_door:open_door", _door_opened, True, ("OpenDoor",), ("door",), 300, "resolve", "opens_door", stance=STANCE),
+        Skill("CloseSink", "echo_data.skills.close_sink:close_sink", _sink_closed, True, ("CloseSink",), ("faucet",), 200, "resolve", stance=STANCE),
     )
 }
 SKILL_NAMES: tuple[str, ...] = tuple(SKILLS)
@@ -180,6 +204,26 @@ def apply_effect(world: World, call: SkillCall, spec: EpisodeSpec) -> None:
         name = carried_object(spec, call)
         if name is not None:
             world.receptacles[name] = Target.parse(call.target).index
+
+
+def handover_call(chain: Sequence[SkillCall], k: int) -> SkillCall | None:
+    """The chain entry whose stance (`Skill.stance`) the drive of entry `k` ends in: for an
+    approach skill the next entry when it acts on the same target from a stance; for a skill
+    that drives itself to a stance (Place's carry) the entry itself; else None (no hand-over)."""
+    s = skill(chain[k].skill)
+    if s.role == "approach":
+        nxt = chain[k + 1] if k + 1 < len(chain) else None
+        return nxt if nxt is not None and nxt.target == chain[k].target and skill(nxt.skill).stance is not None else None
+    return chain[k] if s.drives and s.stance is not None else None
+
+
+def in_stance(world: World, call: SkillCall, at: Situation) -> bool:
+    """The base inside the stance of `call` (its skill's `stance` about its target's interaction
+    pose, doors where they stand now); False for a skill without one."""
+    from echo_data.skills.success import handed_over
+
+    st = skill(call.skill).stance
+    return st is not None and handed_over(world, call.target, st.distance, st.heading, grid=at.nav_grid(), poses=at.poses)
 
 
 def skill(name: str) -> Skill:
