@@ -32,6 +32,10 @@ def format_tables(doc: dict[str, Any]) -> str:
         lines.append(f"    Navigate success   {cell(m['navigate_success'])}")
         lines.append(f"    Navigate hand-over {cell(m['navigate_handover'])}")
         lines.append(f"    Navigate SPL       {cell(m['navigate_spl'])}")
+    if "seeds" in doc:
+        seeds = doc["seeds"]
+        each = ", ".join(f"{m['k']}/{m['n']}" for m in seeds["per_seed"])
+        lines.append(f"  {seeds['members']} training seeds: skill completion pooled {cell(seeds['pooled'])}; per seed {each}")
     if doc["skipped"]:
         lines.append(f"  skipped (no solvable layout): {doc['skipped']}")
     lines.append(f"  wall time {doc['wall_seconds']:.1f} s on {doc['workers']} worker(s)")
@@ -84,6 +88,7 @@ def run_evaluate(
     from echo_data.envs.env import observation_space
     from echo_data.evaluation.journal import Journal, JournalError, journal_path
     from echo_data.evaluation.run import evaluate
+    from echo_data.evaluation.seeds import SeedSpecError, split_members
 
     size = recipe.splits.get(split)
     if size is None:
@@ -102,13 +107,16 @@ def run_evaluate(
     if not isinstance(policy, str) and not is_composite(policy):
         policy = policy[0]  # one plain policy: as before
     try:
-        pol, plan = load_policy(policy), load_planner(planner)
+        members = split_members(policy)  # one per training seed (`evaluation.seeds`)
+        pols, plan = [load_policy(m) for m in members], load_planner(planner)
         known = (*observation_space(recipe).spaces, *RUNTIME_OBSERVATIONS)  # GOAL_POSE, privileged: the runtime adds them
-        check_observations(pol, f"policy {spec_name(policy)!r}", known)
+        for pol, member in zip(pols, members, strict=True):
+            check_observations(pol, f"policy {spec_name(member)!r}", known)
         check_observations(plan, f"planner {planner!r}", known)
-        key = {"recipe": recipe.content_hash(), "split": split, "policy": identity(pol, policy), "planner": identity(plan, planner), "video": video is not None,
-               "drive_end": drive_end}
-    except AgentLoadError as e:
+        shown = [identity(p, m) for p, m in zip(pols, members, strict=True)]
+        key = {"recipe": recipe.content_hash(), "split": split, "policy": shown[0] if len(shown) == 1 else shown,
+               "planner": identity(plan, planner), "video": video is not None, "drive_end": drive_end}
+    except (AgentLoadError, SeedSpecError) as e:
         return _fail(str(e))
     journal = None
     if json_out is not None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,6 +37,7 @@ class EvalJob:
     planner: str
     video_dir: str | None = None
     drive_end: str = "handover"  # how a learned drive that does not STOP ends (`agents.runtime.DRIVE_ENDS`)
+    member: int | None = None  # which training seed's runs act (`evaluation.seeds`); None: a single training
 
 
 RESULT_KEYS = ("recipe", "split", "n", "policy", "planner", "versions", "metrics", "episodes")  # evaluate's document
@@ -148,6 +149,8 @@ def evaluate_episode(job: EvalJob, index: int) -> dict[str, Any]:
         if callable(close):
             close()
     rec = episode_record(run, index)
+    if job.member is not None:
+        rec["member"] = job.member
     if video is not None and video.frames:
         rec["video"] = video.write(video_path(Path(job.video_dir), spec.episode_id))  # type: ignore[arg-type]
     rec["seconds"] = time.perf_counter() - t0
@@ -211,15 +214,18 @@ def _evaluate_index(index: int) -> dict[str, Any]:
 
 def run_episodes(
     job: EvalJob, n: int, workers: int = 1, progress: Callable[[dict[str, Any]], None] | None = None, done: dict[int, dict[str, Any]] | None = None,
+    indices: Sequence[int] | None = None,
 ) -> list[dict[str, Any]]:
-    """Episodes 0..n-1 of the split, on `workers` processes (the build's pool); records ordered by index.
+    """Episodes 0..n-1 of the split (or those of `indices`), on `workers` processes (the build's
+    pool); records ordered by index.
 
     `done`: records already finished (a resumed evaluation): those episodes are not run again.
     `progress` is called with each newly finished record as it completes."""
     from echo_data.app.executors import make_executor
 
-    out = {i: r for i, r in (done or {}).items() if i < n}
-    todo = [i for i in range(n) if i not in out]
+    wanted = list(range(n)) if indices is None else list(indices)
+    out = {i: r for i, r in (done or {}).items() if i in set(wanted)}
+    todo = [i for i in wanted if i not in out]
     pool = make_executor("local", max(1, min(workers, len(todo))), _set_job, (job,)) if todo else None
     try:
         for rec in pool.imap_unordered(_evaluate_index, todo) if pool is not None else ():
@@ -229,7 +235,7 @@ def run_episodes(
     finally:
         if pool is not None:
             pool.close()
-    return [out[i] for i in range(n)]
+    return [out[i] for i in wanted]
 
 
 def _shown_path(path: Path) -> str:
@@ -257,22 +263,31 @@ def evaluate(
 
     `done`: records of episodes already finished (`evaluation.journal`), not run again;
     `drive_end`: how a learned drive that does not STOP ends (`agents.runtime.DRIVE_ENDS`)."""
+    from echo_data.agents.compose import spec_name
     from echo_data.agents.loading import identity, load_planner, load_policy
     from echo_data.dataset.manifest import versions
     from echo_data.evaluation.metrics import by_setting
+    from echo_data.evaluation.seeds import member_of, per_seed, split_members
 
-    pol, plan = load_policy(policy), load_planner(planner)  # fail fast, in this process
+    members = split_members(policy)  # one per training seed (`evaluation.seeds`)
+    pols, plan = [load_policy(m) for m in members], load_planner(planner)  # fail fast, in this process
     if not isinstance(policy, str):
         policy = tuple(policy)
-    job = EvalJob(recipe, str(recipe_path.parent) if recipe_path else None, split, policy, planner, str(video_dir) if video_dir else None, drive_end)
     t0 = time.perf_counter()
-    episodes = run_episodes(job, n, workers, progress, done)
+    episodes: list[dict[str, Any]] = []
+    for j, member in enumerate(members):
+        job = EvalJob(recipe, str(recipe_path.parent) if recipe_path else None, split, member, planner, str(video_dir) if video_dir else None,
+                      drive_end, j if len(members) > 1 else None)
+        episodes += run_episodes(job, n, workers, progress, done, indices=[i for i in range(n) if member_of(i, len(members)) == j])
+    episodes.sort(key=lambda e: e["index"])
     scored = [e for e in episodes if "skipped" not in e]
-    return {
+    shown = identity(pols[0], members[0]) if len(members) == 1 else {
+        "name": spec_name(policy), "members": [identity(p, m) for p, m in zip(pols, members, strict=True)]}
+    doc = {
         "recipe": {"name": recipe.name, "path": _shown_path(recipe_path) if recipe_path else None, "content_hash": recipe.content_hash()},
         "split": split,
         "n": n,
-        "policy": identity(pol, policy),
+        "policy": shown,
         "planner": identity(plan, planner),
         "drive_end": drive_end,
         "versions": versions(),
@@ -282,3 +297,6 @@ def evaluate(
         "wall_seconds": time.perf_counter() - t0,
         "workers": workers,
     }
+    if len(members) > 1:
+        doc["seeds"] = per_seed(episodes, len(members))
+    return doc
