@@ -1,6 +1,6 @@
 """The manipulation experts asked from states a learner reached (`echo_data.skills.labeller`):
-a missed grasp is re-aimed and regrasped, a door swing taken over half-open is finished, and
-asking never changes the world."""
+a missed grasp is re-aimed and regrasped, a door swing taken over half-open is finished, a lever
+half-turned is closed, a carry taken over mid-drive is placed, and asking never changes the world."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 RECIPE = Path(__file__).resolve().parent.parent / "recipes" / "quickstart.yaml"
-# train episodes of recipes/quickstart.yaml: 0 is Navigate, Pick, Place; 4 is Navigate, OpenDoor
-PICK_EPISODE, DOOR_EPISODE = 0, 4
+# train episodes of recipes/quickstart.yaml: 0 is Navigate, Pick, Place; 1 Navigate, CloseSink; 4 Navigate, OpenDoor
+PICK_EPISODE, SINK_EPISODE, DOOR_EPISODE = 0, 1, 4
 
 
 @pytest.fixture()
@@ -123,6 +123,36 @@ def test_door_taken_over_half_open_is_opened(env: Any) -> None:
     _expert_until(env, call, lambda a: world.holding_door and world.door_angles()[i] >= door.open_threshold / 2)
     assert not door_open_success(world, i)
     _label_until(env, call, lambda: door_open_success(world, i), limit=250)
+
+
+def test_lever_taken_over_half_turned_is_closed(env: Any) -> None:
+    """The expert's push turned the lever half-way closed; a fresh labeller takes over there and
+    closes it (CloseSink's success test)."""
+    from echo_data.skills.success import sink_closed_success
+    from echo_data.target import Target
+
+    call = _handed_over(env, SINK_EPISODE, "CloseSink")
+    i = Target.parse(call.target).index
+    lever = env.world.handles.faucets[i]
+    start = float(lever.get_qpos()[0])
+    _expert_until(env, call, lambda a: float(lever.get_qpos()[0]) < start / 2)
+    assert not sink_closed_success(env.world, i)
+    _label_until(env, call, lambda: sink_closed_success(env.world, i), limit=200)
+
+
+def test_carry_taken_over_mid_drive_is_placed(env: Any) -> None:
+    """Place's expert drove the held object part of the way; a fresh labeller takes over there,
+    drives on, sets it down and lets go (Place's success test)."""
+    from echo_data.skills.success import place_success
+    from echo_data.target import Target
+
+    call = _handed_over(env, PICK_EPISODE, "Place")
+    world = env.world
+    name, goal = world.robot.holding, Target.parse(call.target).index
+    assert name is not None
+    steps = iter(range(60))
+    _expert_until(env, call, lambda a: next(steps, None) is None)  # 60 expert steps: folded, on its way
+    _label_until(env, call, lambda: world.robot.holding is None and place_success(world, name, goal), limit=400)
 
 
 def test_asking_leaves_the_world_unchanged(env: Any) -> None:
