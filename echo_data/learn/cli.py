@@ -124,11 +124,11 @@ def _make_train_command(name: str) -> Callable[..., None]:
     if name == "bc":
         params += [
             inspect.Parameter("dagger", inspect.Parameter.KEYWORD_ONLY, annotation=int, default=typer.Option(
-                0, "--dagger", min=0, help="DAgger rounds after BC (Navigate only): roll the learner on train episodes, label with the expert, retrain. With --resume: start from the BC run in --out.")),
+                0, "--dagger", min=0, help="DAgger rounds after BC: roll the learner on train episodes (from where the experts hand its skill over), label every state with the expert, retrain. With --resume: start from the BC run in --out.")),
             inspect.Parameter("dagger_episodes", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
                 None, "--dagger-episodes", min=1, help="Train episodes rolled per DAgger round (default 8).")),
             inspect.Parameter("dagger_steps", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
-                None, "--dagger-steps", min=1, help="Learner steps per rollout (default: the Navigate budget).")),
+                None, "--dagger-steps", min=1, help="Learner steps per rollout (default: the skill's budget).")),
         ]
 
     def command(**kw: Any) -> None:
