@@ -3,7 +3,7 @@
 # (issue 29: "Diffusion at this budget is far behind ... longer training is GPU work"). Builds the
 # train split of recipes/$RECIPE.yaml there (the experts need no mplib), then trains the camera
 # learners' Diffusion Policy for $SKILL (head and wrist depth, base-frame proprioception, the
-# target kind, end-effector actions, random shift 4 px: benchmarks/sanity_learners.py CAMERAS) in
+# target kind, end-effector actions, random shift 4 px: studies/learners/sanity_learners.py CAMERAS) in
 # each variant of $VARIANTS at once on the one GPU, until the deadline. Brings back what a run
 # folder needs to load as a policy (7 files, each under 16 MiB): per variant the weights halfway
 # through and at the end (optimiser state left out), and a tarball of its config, policy files,

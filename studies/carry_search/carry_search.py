@@ -1,7 +1,7 @@
 """Search a carry pose out of the head camera's view that READY reaches with the hand kept down.
 
-    python benchmarks/carry_search.py                  # 4000 expansions, seed 2 (found CARRY_DRIVE_GROUP)
-    python benchmarks/carry_search.py -n 1500 --seed 1
+    python studies/carry_search/carry_search.py                  # 4000 expansions, seed 2 (found CARRY_DRIVE_GROUP)
+    python studies/carry_search/carry_search.py -n 1500 --seed 1
 
 Why a search: READY's elbow is near its flex limit, so straight TCP lines from READY towards the
 side stop after a few cm, and a joint path to an IK solution elsewhere (another arm branch)

@@ -1,8 +1,8 @@
 """OpenDoor and CloseSink experts alone: success from the interaction pose and from hand-over
 starts anywhere in Navigate's success region, and how far their arm paths lie apart.
 
-    python benchmarks/door_sink_experts.py recipes/state_transition.yaml -n 40 --start interaction
-    python benchmarks/door_sink_experts.py recipes/state_transition.yaml -n 40 --start handover
+    python studies/experts/door_sink_experts.py recipes/state_transition.yaml -n 40 --start interaction
+    python studies/experts/door_sink_experts.py recipes/state_transition.yaml -n 40 --start handover
 
 For each train episode 0..n-1 of the recipe whose chain has an OpenDoor or CloseSink call (never
 the test split: this is a development measurement), the expert runs alone in a physics-only
@@ -42,7 +42,7 @@ import numpy as np
 
 os.environ.setdefault("LP_NUM_THREADS", "1")
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SKILLS = ("OpenDoor", "CloseSink")
 PHASE_STEPS = (0, 10, 20, 30, 40, 50, 60)
 
@@ -156,7 +156,7 @@ def main() -> None:
                 print(f"episode {i:4d} {call.skill:9s} {r.get('skipped') or ('ok' if r['success'] else 'FAILED ' + r['reason'])}"
                       f" steps {r.get('steps', 0)}", flush=True)
     extra = "".join(f" --expert {e}" for e in a.expert)
-    out: dict[str, Any] = {"command": f"python benchmarks/door_sink_experts.py {a.recipe} -n {a.n} --start {a.start}{extra}",
+    out: dict[str, Any] = {"command": f"python studies/experts/door_sink_experts.py {a.recipe} -n {a.n} --start {a.start}{extra}",
                            "commit": subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip(),
                            "seconds": round(time.perf_counter() - t0, 1), "skills": {}}
     for s, runs in per.items():

@@ -1,9 +1,9 @@
 """Expert success under DART action noise (`experts.action_noise`), as `echo-data trial` counts it.
 
-    python benchmarks/expert_noise.py --levels 0 0.5 1 2 -n 10 --workers 2
+    python studies/experts/expert_noise.py --levels 0 0.5 1 2 -n 10 --workers 2
 
 Runs episodes 0..n-1 of the train split of each recipe at each noise level (the recipe with only
-`experts.action_noise` changed) and writes `benchmarks/results/expert_noise.json`: per recipe
+`experts.action_noise` changed) and writes `studies/experts/results/expert_noise.json`: per recipe
 and level the episodes that succeeded, per skill, the failure reasons, with Wilson 95 %
 intervals. Cameras are off (`observe=False`): the experts read the world, not the images, and
 rendering changes no physics, so the outcomes are those `echo-data trial` reports.
@@ -20,7 +20,7 @@ from echo_data.app.trial import run_trial
 from echo_data.evaluation.metrics import wilson
 from echo_data.recipe import load_recipe
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def main() -> None:
@@ -29,10 +29,10 @@ def main() -> None:
     ap.add_argument("--levels", nargs="+", type=float, default=[0.0, 0.5, 1.0, 2.0])
     ap.add_argument("-n", type=int, default=10)
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "expert_noise.json"))
+    ap.add_argument("--out", default=str(Path(__file__).with_name("results") / "expert_noise.json"))
     a = ap.parse_args()
     commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
-    results: dict[str, object] = {"commit": commit, "n": a.n, "command": "python benchmarks/expert_noise.py " + " ".join(
+    results: dict[str, object] = {"commit": commit, "n": a.n, "command": "python studies/experts/expert_noise.py " + " ".join(
         ["--recipes", *a.recipes, "--levels", *map(str, a.levels), "-n", str(a.n)]), "runs": []}
     runs: list[dict[str, object]] = []
     results["runs"] = runs

@@ -1,10 +1,10 @@
 """Where the build's Navigate hands over under `experts.handover_noise`, and whether it still succeeds.
 
-    python benchmarks/handover_starts.py --recipes recipes/object_relocation.yaml recipes/state_transition.yaml --levels 0 0.5 1 -n 20
+    python studies/experts/handover_starts.py --recipes recipes/object_relocation.yaml recipes/state_transition.yaml --levels 0 0.5 1 -n 20
 
 Runs the scripted Navigate alone (the first skill of train episodes 0..n-1, physics only, through
 `run_episode` as the build does) with only `experts.handover_noise` changed, and writes
-`benchmarks/results/handover_starts.json`: per level the Navigate successes (Wilson 95 %) and, at
+`studies/experts/results/handover_starts.json`: per level the Navigate successes (Wilson 95 %) and, at
 the hand-over, the base's distance from the interaction point and its heading error to the target
 (median and quartiles). docs/learners.md measured where a learned Navigate hands over (0.99 m
 short, median) for comparison.
@@ -29,7 +29,7 @@ from echo_data.scene.nav import target_point
 from echo_data.scene.sampling import SamplingError
 from echo_data.skills.navigate import goal_pose
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def quartiles(xs: list[float]) -> list[float] | None:
@@ -41,10 +41,10 @@ def main() -> None:
     ap.add_argument("--recipes", nargs="+", default=["recipes/object_relocation.yaml", "recipes/state_transition.yaml"])
     ap.add_argument("--levels", nargs="+", type=float, default=[0.0, 1.0])
     ap.add_argument("-n", type=int, default=20)
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "handover_starts.json"))
+    ap.add_argument("--out", default=str(Path(__file__).with_name("results") / "handover_starts.json"))
     a = ap.parse_args()
     commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
-    doc: dict[str, object] = {"commit": commit, "command": "python benchmarks/handover_starts.py " + " ".join(
+    doc: dict[str, object] = {"commit": commit, "command": "python studies/experts/handover_starts.py " + " ".join(
         ["--recipes", *a.recipes, "--levels", *map(str, a.levels), "-n", str(a.n)]), "runs": []}
     for path in a.recipes:
         for level in a.levels:

@@ -7,7 +7,7 @@ heading at the object within 14 deg (the region: 1.5 m, 15 deg), drawn from a ge
 by the episode index, and Pick and Place run from there (physics only, no rendering: the experts
 read the world, as in tests/test_pick_place_experts.py).
 
-    python benchmarks/pick_handover.py recipes/object_relocation.yaml -n 20
+    python studies/experts/pick_handover.py recipes/object_relocation.yaml -n 20
 
 Development tool: the train split only. Prints one line per episode and a JSON summary.
 """

@@ -13,7 +13,7 @@ environment, the runtime, `OracleSkills`), cameras on, and for every Pick and Pl
 - the arm joints at the end of the untuck, at the hover and at the grasp, for the spread between
   episodes (largest joint range across episodes at each of these points).
 
-    python benchmarks/pick_place_figures.py recipes/object_relocation.yaml -n 10 [--json out.json]
+    python studies/experts/pick_place_figures.py recipes/object_relocation.yaml -n 10 [--json out.json]
 
 Development tool: the train split only. Prints one JSON object.
 """

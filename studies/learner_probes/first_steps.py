@@ -3,7 +3,7 @@ segment of its skill in a dataset's train split, the base forward speed and turn
 checkpoint (best.pt) predicts beside what the expert commanded. It shows whether a learner that
 stands still closed loop learnt the drive at all (docs/learners.md, "Camera learners").
 
-    python benchmarks/first_steps.py RUN DATASET [--steps 0,5,15,30] [--segments 12]
+    python studies/learner_probes/first_steps.py RUN DATASET [--steps 0,5,15,30] [--segments 12]
 
 Prints one JSON document: per step, the expert's and the learner's values per segment and the
 mean absolute turn of each (no paths of the machine)."""

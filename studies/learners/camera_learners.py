@@ -3,15 +3,15 @@ and proprioception"), closed loop: build the sanity episodes with the head and w
 on (recipes/cameras_*.yaml), train ACT on head depth, wrist depth, base-frame proprioception and
 the target kind (no privileged column, no target position), choose the checkpoint closed loop on
 the validation split, then score it on the test split (test sounds) alone and after a hand-over,
-into benchmarks/results/camera_learners.json.
+into studies/learners/results/camera_learners.json.
 
-The same path, episodes and learner as benchmarks/sanity_learners.py (whose `CAMERAS` study this
+The same path, episodes and learner as studies/learners/sanity_learners.py (whose `CAMERAS` study this
 runs): set beside its privileged rows, the two rows of a skill separate what the cameras cost from
 what the demonstrations cannot teach. Resumable the same way.
 
 Usage:
-  python benchmarks/camera_learners.py --skills CloseSink OpenDoor --workers 2
-  python benchmarks/camera_learners.py --tiny --skills CloseSink --work /tmp/c --out /tmp/c.json
+  python studies/learners/camera_learners.py --skills CloseSink OpenDoor --workers 2
+  python studies/learners/camera_learners.py --tiny --skills CloseSink --work /tmp/c --out /tmp/c.json
 """
 
 from __future__ import annotations

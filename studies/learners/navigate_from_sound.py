@@ -4,20 +4,20 @@ audio (each ear's level and their difference), base-frame proprioception and the
 (the skill's argument: which object the planner sent it to), choose the learner closed loop on
 the validation split, then score the chosen one on the test split (test sounds).
 
-Nothing is rendered in the build or in evaluation (benchmarks/recipes/nav_audio.yaml has both
+Nothing is rendered in the build or in evaluation (studies/paper_table/recipes/nav_audio.yaml has both
 cameras off): the learner reads no image, so its actions are what they would be with cameras.
-The test row is "Navigate alone" as benchmarks/paper_table.py scores it: the learner drives
+The test row is "Navigate alone" as studies/paper_table/paper_table.py scores it: the learner drives
 Navigate, the scripted experts every skill after it; success = Navigate's success test over its
 attempts (one per episode: object relocation and state transition, 50 test episodes each).
 
-Resumable like benchmarks/sanity_learners.py, whose helpers it uses: a complete dataset is not
+Resumable like studies/learners/sanity_learners.py, whose helpers it uses: a complete dataset is not
 built again, a run folder with a summary.json is not trained again, an evaluation with its JSON
 is not run again.
 
 Usage:
-  python benchmarks/navigate_from_sound.py --workers 2 --work WORK
-  python benchmarks/navigate_from_sound.py --learners bc-rnn --work WORK   # one candidate
-  python benchmarks/navigate_from_sound.py --tiny --work /tmp/n --out /tmp/n.json
+  python studies/learners/navigate_from_sound.py --workers 2 --work WORK
+  python studies/learners/navigate_from_sound.py --learners bc-rnn --work WORK   # one candidate
+  python studies/learners/navigate_from_sound.py --tiny --work /tmp/n --out /tmp/n.json
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from sanity_learners import (  # noqa: E402
@@ -45,10 +45,10 @@ from sanity_learners import (  # noqa: E402
     shown,
 )
 
-RECIPE = ROOT / "benchmarks" / "recipes" / "nav_audio.yaml"
+RECIPE = ROOT / "studies" / "paper_table" / "recipes" / "nav_audio.yaml"
 SKILL = "Navigate"
 INPUTS = ("--inputs", "audio,state,kind", "--audio-form", "level_ild")
-# The recipe acts in ee_delta (recipes/sanity.yaml), so the learners clone that form's column.
+# The recipe acts in ee_delta (studies/paper_table/recipes/sanity.yaml), so the learners clone that form's column.
 COLUMN = "action.ee"
 # Candidates, each with its own options: a GRU over the skill's steps (memory: where the sound
 # was), the memoryless MLP, ACT's chunks. The one with the best closed-loop validation is tested.
@@ -118,7 +118,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--workers", type=int, default=2, help="build and evaluation worker processes")
     ap.add_argument("--work", type=Path, default=ROOT / "out" / "navigate_from_sound", help="dataset, run folders, evaluation JSONs, log")
-    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "navigate_from_sound.json")
+    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("results") / "navigate_from_sound.json")
     ap.add_argument("-n", "--episodes", type=int, default=100, help="test episodes (half object relocation, half state transition)")
     ap.add_argument("--learners", default=",".join(LEARNERS), help=f"comma list of {', '.join(LEARNERS)}: each trained, the best on validation tested")
     ap.add_argument("--select-episodes", type=int, default=10, help="validation episodes per checkpoint choice")
@@ -142,7 +142,7 @@ def main() -> None:
     chosen = best_run(trained)
     test = evaluate(trained[chosen]["run"], a, log)
     argv = " ".join(public(x, a.work) for x in sys.argv[1:])
-    doc = {"command": f"python benchmarks/navigate_from_sound.py {argv}".strip(), "commit": commit(), "machine": machine(),
+    doc = {"command": f"python studies/learners/navigate_from_sound.py {argv}".strip(), "commit": commit(), "machine": machine(),
            "inputs": list(INPUTS), "action_column": COLUMN, "dataset": data, "training": trained, "chosen": chosen, "test": test,
            "seconds": round(time.perf_counter() - t0, 1)}
     a.out.parent.mkdir(parents=True, exist_ok=True)

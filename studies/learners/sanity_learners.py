@@ -2,12 +2,12 @@
 camera-free training data, train each learner of `LEARNERS` (ACT, a chunked MLP) on proprioception + the skill's
 `observation.privileged.*` columns (no images, so nothing is rendered, in the build or in
 evaluation), choose the checkpoint and the learner closed loop on the validation split, then evaluate on the test
-split (test sounds) and write benchmarks/results/sanity_learners.json.
+split (test sounds) and write studies/learners/results/sanity_learners.json.
 
 It separates "the demonstrations cannot teach this skill" from "the cameras are too weak": a
 learner that knows where the target is and still fails points at the data.
 
-Two test rows per skill, both "the skill alone" as benchmarks/paper_table.py scores it (the
+Two test rows per skill, both "the skill alone" as studies/paper_table/paper_table.py scores it (the
 learner drives its skill, the experts every other one, success = the skill's success test over
 its attempts):
 - `skills`: the experts before it hand over exactly (Navigate stops at the interaction pose,
@@ -16,22 +16,22 @@ its attempts):
   (`handover_noise` 1.0: recipes/sanity_test_<group>_handover.yaml), where a learned Navigate
   hands over. The same test episodes: the hand-over point has its own random stream.
 
-Data: recipes/sanity_pick_place.yaml and recipes/sanity_door_sink.yaml (episode counts in
-recipes/sanity.yaml), train split only; the val split is sampled by `--select-every`.
+Data: studies/paper_table/recipes/sanity_pick_place.yaml and studies/paper_table/recipes/sanity_door_sink.yaml (episode counts in
+studies/paper_table/recipes/sanity.yaml), train split only; the val split is sampled by `--select-every`.
 
 Resumable: a complete dataset is not built again (an incomplete one resumes), a run folder with
 a summary.json is not trained again, an evaluation with its JSON is not run again. A skill that
 fails is reported and the next one goes on.
 
-The same path serves the camera learners (benchmarks/camera_learners.py: `CAMERAS` below): the
+The same path serves the camera learners (studies/learners/camera_learners.py: `CAMERAS` below): the
 same episodes rendered with the head and wrist depth cameras on, learners that read depth and
 proprioception, no privileged column and no target position. Each is a `Study`: its data and
 test recipes, inputs, learners and default output.
 
 Usage:
-  python benchmarks/sanity_learners.py --workers 14                  # every skill
-  python benchmarks/sanity_learners.py --skills Pick --workers 14    # one skill
-  python benchmarks/sanity_learners.py --tiny --work /tmp/s --out /tmp/s.json   # the whole path in minutes
+  python studies/learners/sanity_learners.py --workers 14                  # every skill
+  python studies/learners/sanity_learners.py --skills Pick --workers 14    # one skill
+  python studies/learners/sanity_learners.py --tiny --work /tmp/s --out /tmp/s.json   # the whole path in minutes
 """
 
 from __future__ import annotations
@@ -48,8 +48,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "studies"))
+from runner import commit  # noqa: E402  (re-exported: navigate_from_sound imports it from here)
+
+# The recipes every learner here builds and is scored on: the paper table's family (paper_table.yaml, sanity*, cameras_*).
+RECIPES = ROOT / "studies" / "paper_table" / "recipes"
 
 from echo_data.records import PRIVILEGED_COLUMNS, PRIVILEGED_PREFIX  # noqa: E402
 
@@ -108,8 +113,8 @@ class Study:
     default_learners: tuple[str, ...] = ()  # the candidates without --learners (empty: every learner)
 
 
-PRIVILEGED = Study("benchmarks/sanity_learners.py", DATA, {s: f"sanity_test_{g}" for s, g in TEST.items()}, INPUTS, LEARNERS,
-                   NON_PRIVILEGED, True, "benchmarks/results/sanity_learners.json", "out/sanity")
+PRIVILEGED = Study("studies/learners/sanity_learners.py", DATA, {s: f"sanity_test_{g}" for s, g in TEST.items()}, INPUTS, LEARNERS,
+                   NON_PRIVILEGED, True, "studies/learners/results/sanity_learners.json", "out/sanity")
 
 # The camera learners (issue 29's goal rows "each skill alone, from cameras and proprioception"):
 # the sanity episodes rendered (recipes/cameras_*.yaml: the same recipes with head and wrist depth
@@ -118,13 +123,13 @@ PRIVILEGED = Study("benchmarks/sanity_learners.py", DATA, {s: f"sanity_test_{g}"
 # and no target position. The learner is the privileged study's ACT, so the two compare the
 # inputs alone.
 CAMERA_INPUTS = ("depth", "wrist_depth", "state", "kind")
-CAMERAS = Study("benchmarks/camera_learners.py",
+CAMERAS = Study("studies/learners/camera_learners.py",
                 {"Pick": "cameras_pick_place", "Place": "cameras_pick_place", "OpenDoor": "cameras_door_sink", "CloseSink": "cameras_door_sink"},
                 {s: f"cameras_test_{g}" for s, g in TEST.items()}, {s: CAMERA_INPUTS for s in SKILLS},
                 {"act": ("act", "--epochs 20 --select-every 10 --shift 4"),
                  "act_chunk1": ("act", "--epochs 20 --select-every 10 --shift 4 --chunk 1"),  # the chunking ablation (--learners act_chunk1)
                  "diffusion": ("diffusion", "--epochs 20 --select-every 10 --shift 4")},  # multimodal actions (--learners diffusion)
-                CAMERA_INPUTS, False, "benchmarks/results/camera_learners.json", "out/cameras", ("act",))  # what recipes/cameras_*.yaml store: no RGB
+                CAMERA_INPUTS, False, "studies/learners/results/camera_learners.json", "out/cameras", ("act",))  # what recipes/cameras_*.yaml store: no RGB
 
 
 SPENT: list[str] = []  # one line per echo-data command: seconds, what, on what (printed at the end)
@@ -171,23 +176,10 @@ def parse_data(overrides: list[str], study: Study) -> dict[str, str]:
         name = value.strip().removesuffix(".yaml").rsplit("/", 1)[-1]
         if not name:
             usage_error(f"--data {item!r}: expected SKILL=RECIPE with SKILL one of {', '.join(SKILLS)}")
-        if not (ROOT / "recipes" / f"{name}.yaml").is_file():
-            usage_error(f"--data {skill}: no recipe recipes/{name}.yaml")
+        if not (RECIPES / f"{name}.yaml").is_file():
+            usage_error(f"--data {skill}: no recipe {(RECIPES / f'{name}.yaml').relative_to(ROOT)}")
         data[skill] = name
     return data
-
-
-def commit() -> str:
-    """The checkout's commit (+dirty with local changes to tracked files); on a copy without git
-    (a GPU machine), the environment's SANITY_COMMIT (the caller names the commit it copied)."""
-    try:
-        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
-    except OSError:
-        head = ""
-    if not head:
-        return os.environ.get("SANITY_COMMIT", "") or "unknown"
-    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
-    return (head or "unknown") + ("+dirty" if dirty else "")
 
 
 def machine() -> str:
@@ -255,7 +247,7 @@ def build(name: str, work: Path, workers: int, tiny: bool, log: Path) -> dict[st
     if manifest.is_file() and json.loads(manifest.read_text()).get("complete") and done.is_file() \
             and json.loads(done.read_text()).get("recipe_hash") in (recipe_hash, None):
         return {**json.loads(done.read_text()), "reused": True}  # (a changed recipe: `build --resume` decides)
-    args = ["build", str(ROOT / "recipes" / f"{name}.yaml"), "--split", "train", "--workers", str(workers), "--out", str(out), "--no-progress"]
+    args = ["build", str(RECIPES / f"{name}.yaml"), "--split", "train", "--workers", str(workers), "--out", str(out), "--no-progress"]
     if tiny:
         args += ["--limit", str(TINY_EPISODES)]
     _, seconds = echo_data(args + (["--resume"] if manifest.is_file() else []), log)
@@ -269,7 +261,7 @@ def recipe_of(name: str) -> Any:
     """recipes/NAME.yaml, loaded."""
     from echo_data.recipe import load_recipe
 
-    return load_recipe(ROOT / "recipes" / f"{name}.yaml")
+    return load_recipe(RECIPES / f"{name}.yaml")
 
 
 def check_columns(data: Path, inputs: tuple[str, ...]) -> None:
@@ -312,7 +304,7 @@ def evaluate(skill: str, run: str, recipe: str, a: argparse.Namespace, log: Path
     `skill`, the experts every other skill; (the skill's k/n with Wilson 95 %, timing and command)."""
     out = a.work / "eval" / f"{run}-{recipe}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
-    args = ["evaluate", str(ROOT / "recipes" / f"{recipe}.yaml"), "--split", "test", "-n", str(a.episodes),
+    args = ["evaluate", str(RECIPES / f"{recipe}.yaml"), "--split", "test", "-n", str(a.episodes),
             f"--policy={skill}={a.work / 'runs' / run}", "--policy", "oracle", "--planner", "oracle",
             "--workers", str(a.workers), "--json", str(out)]
     seconds = 0.0
@@ -398,10 +390,10 @@ def main(study: Study = PRIVILEGED, description: str | None = None) -> None:
     ap.add_argument("--select-episodes", type=int, default=10, help="validation episodes per checkpoint choice")
     ap.add_argument("--action-columns", default="action.ee",
                     help="comma list of action columns to train; with two, the one with the better closed-loop validation is tested "
-                         "(action needs recipes with robot.action_space: joint, see recipes/sanity.yaml)")
+                         "(action needs recipes with robot.action_space: joint, see studies/paper_table/recipes/sanity.yaml)")
     ap.add_argument("--inputs", action="append", default=[], metavar="SKILL=COLUMNS", help="another input list for SKILL (repeatable)")
     ap.add_argument("--data", action="append", default=[], metavar="SKILL=RECIPE",
-                    help="another training recipe for SKILL (recipes/RECIPE.yaml, e.g. a perturbation level: recipes/cameras_door_sink_p0.yaml); "
+                    help="another training recipe for SKILL (recipes/RECIPE.yaml, e.g. a perturbation level: studies/paper_table/recipes/cameras_door_sink_p0.yaml); "
                          "its run folders and evaluations carry its name (repeatable)")
     ap.add_argument("--device", default="auto")
     ap.add_argument("--seed", type=int, default=0)

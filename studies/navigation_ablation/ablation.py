@@ -13,16 +13,16 @@ Rows (issue: reference policies):
 Test episodes come from the recipe's test split (the sounds no training episode uses); nothing
 is tuned on them: every hyper-parameter is the CLI default unless given here.
 
-Usage (the full table: `recipes/bc_navigate.yaml`, 60 + 60 + 60 train / 54 test episodes,
+Usage (the full table: `studies/navigation_ablation/recipes/bc_navigate.yaml`, 60 + 60 + 60 train / 54 test episodes,
 build ~26 min at 6.7 s per episode with 2 uncontended workers):
-  python benchmarks/ablation.py --data data/bc_navigate --runs runs/ablation --episodes 54 --audio-form stored
+  python studies/navigation_ablation/ablation.py --data data/bc_navigate --runs runs/ablation --episodes 54 --audio-form stored
 A small run (a prefix of both splits, fewer test episodes, two rows):
-  python benchmarks/ablation.py --limit 16 --episodes 12 --rows state audio,depth,state --no-planner
+  python studies/navigation_ablation/ablation.py --limit 16 --episodes 12 --rows state audio,depth,state --no-planner
 Audio as the stored spectrogram (the first table of the README; the default is level + ILD), and
 DAgger on a row already trained (its BC run is copied and continued with `--dagger N --resume`,
 not trained again):
-  python benchmarks/ablation.py ... --rows audio,state --audio-form stored --no-planner
-  python benchmarks/ablation.py ... --rows audio,depth,state --dagger 2 --dagger-episodes 20 --no-planner
+  python studies/navigation_ablation/ablation.py ... --rows audio,state --audio-form stored --no-planner
+  python studies/navigation_ablation/ablation.py ... --rows audio,depth,state --dagger 2 --dagger-episodes 20 --no-planner
 `--reuse` scores run folders that already hold a finished run (its `summary.json`, written by this
 script) instead of training them again.
 """
@@ -32,30 +32,15 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
-import subprocess
 import sys
-import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # runner.py
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this checkout's echo_data
+from runner import ROOT, cli, commit  # noqa: E402
+
 NAV_ROWS = ("state", "audio,state", "audio,depth,state", "state,target", "audio,state,target")
 PLANNER_ROWS = ("image", "audio", "audio,image")
-
-
-def cli(*args: str) -> tuple[str, float]:
-    """Run `echo-data ARGS` (this checkout), fail loudly; (stdout, wall seconds)."""
-    t0 = time.perf_counter()
-    r = subprocess.run([sys.executable, "-m", "echo_data.cli", *args], cwd=ROOT, capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"echo-data {' '.join(args)} failed ({r.returncode}):\n{r.stderr[-2000:]}")
-    return r.stdout, time.perf_counter() - t0
-
-
-def _commit() -> str:
-    """The checkout's commit (with "+dirty" for local changes): the numbers belong to this code."""
-    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
-    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
-    return head + ("+dirty" if dirty else "")
 
 
 def navigate_success(doc: dict) -> dict:
@@ -75,7 +60,7 @@ def navigate_success(doc: dict) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--recipe", default=str(ROOT / "recipes" / "bc_navigate.yaml"))
+    ap.add_argument("--recipe", default=str(Path(__file__).with_name("recipes") / "bc_navigate.yaml"))
     ap.add_argument("--data", default=str(ROOT / "data" / "bc_navigate"), help="dataset folder (built unless complete)")
     ap.add_argument("--limit", type=int, default=None, help="build a prefix: N episodes per split")
     ap.add_argument("--runs", default=str(ROOT / "runs" / "ablation"))
@@ -92,7 +77,7 @@ def main() -> None:
     ap.add_argument("--reuse", action="store_true", help="run folders with a summary.json are scored, not trained again")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "ablation.json"))
+    ap.add_argument("--out", default=str(Path(__file__).with_name("results") / "ablation.json"))
     a = ap.parse_args()
 
     data, runs, out = Path(a.data), Path(a.runs), Path(a.out)
@@ -100,7 +85,7 @@ def main() -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     doc: dict = {"recipe": a.recipe, "data": str(data), "limit": a.limit, "seed": a.seed, "epochs": a.epochs, "dagger": a.dagger,
                  "dagger_episodes": a.dagger_episodes, "audio_form": a.audio_form,
-                 "episodes_per_row": a.episodes, "commit": _commit(), "commands": [], "navigate": [], "planner": []}
+                 "episodes_per_row": a.episodes, "commit": commit(), "commands": [], "navigate": [], "planner": []}
 
     def run(*args: str) -> tuple[str, float]:
         doc["commands"].append("echo-data " + " ".join(args))

@@ -1,16 +1,16 @@
 """The paper's main table on echo-data, closed loop: build the training data, train every skill
-learner, evaluate the rows, write benchmarks/results/paper_table.json (every command and commit,
-and a `summary` block), its markdown table and, with --render, the README's copy.
+learner, evaluate the rows, write studies/paper_table/results/paper_table.json (every command and commit,
+and a `summary` block), its markdown table and, with --render, the copies in this study's README and the repository's README.
 
-What the rows are, what each needs, how entries are read, composed, summarised and rendered:
-`echo_data.evaluation.table`. This driver only runs `echo-data` (build, train, evaluate) for the
+What the rows are and what each needs: `rows.py` beside this driver; how entries are read,
+composed, summarised and rendered: `echo_data.evaluation.table`. This driver only runs `echo-data` (build, train, evaluate) for the
 rows asked for and merges what it measured into the JSON. Test split = test sounds only,
 nothing tuned on it; Wilson 95 % intervals.
 
-Evaluation recipes: `recipes/cameras_test_<setting>.yaml` put all test episodes of
-`recipes/sanity.yaml`'s seed and sound split in one setting (or one event, or after a hand-over),
+Evaluation recipes: `recipes/cameras_test_<setting>.yaml` (this folder's) put all test episodes of
+`studies/paper_table/recipes/sanity.yaml`'s seed and sound split in one setting (or one event, or after a hand-over),
 so `-n N` scores N episodes of it (`echo-data evaluate` samples them; the test split is never
-built). A row whose recipe is not in recipes/ yet (the paper-comparable ones: `_magic`) waits,
+built). A row whose recipe is not in this folder's recipes/ yet (the paper-comparable ones: `_magic`) waits,
 said on stderr; so does a learner whose dataset's recipe is not there.
 
 Resumable: the data build resumes, finished run folders (a `summary.json` written here) are not
@@ -19,12 +19,12 @@ Several runs of this script (one row each, on their own cores) share one JSON: e
 it measured under a lock and writes atomically.
 
 Usage:
-  python benchmarks/paper_table.py                      # the whole table (hours on 2 cores)
-  python benchmarks/paper_table.py --rows "Pick alone"  # one row
-  python benchmarks/paper_table.py --learners Pick      # only build the data of and train a learner
-  python benchmarks/paper_table.py --adopt EVAL.json ...  # take in evaluations run before (same recipe and weights)
-  python benchmarks/paper_table.py --render             # only re-render the markdown and the README's copy from the JSON
-  python benchmarks/paper_table.py --tiny --data D --out J   # the test: a quickstart build D, a few steps, 1 episode of D's recipe
+  python studies/paper_table/paper_table.py                      # the whole table (hours on 2 cores)
+  python studies/paper_table/paper_table.py --rows "Pick alone"  # one row
+  python studies/paper_table/paper_table.py --learners Pick      # only build the data of and train a learner
+  python studies/paper_table/paper_table.py --adopt EVAL.json ...  # take in evaluations run before (same recipe and weights)
+  python studies/paper_table/paper_table.py --render             # only re-render the markdown and its copies (this README, the repository's) from the JSON
+  python studies/paper_table/paper_table.py --tiny --data D --out J   # the test: a quickstart build D, a few steps, 1 episode of D's recipe
 """
 
 from __future__ import annotations
@@ -37,16 +37,21 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ablation import ROOT, _commit, cli
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # runner.py
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this checkout's echo_data
+import rows as catalogue  # noqa: E402  (this folder's rows.py: the paper's catalogue)
+from rows import LEARNERS, PLANNER, ROWS  # noqa: E402
+from runner import ROOT, cli, commit  # noqa: E402
 
 from echo_data.dataset.lock import BuildLock
 from echo_data.dataset.storage import atomic_write_bytes, atomic_write_json
 from echo_data.evaluation import table
-from echo_data.evaluation.table import LEARNERS, PLANNER, ROWS, ComposedRow, DerivedRow, EvaluatedRow
+from echo_data.evaluation.table import ComposedRow, DerivedRow, EvaluatedRow
 from echo_data.learn import runs as run_files
 
-README = ROOT / "README.md"
-DEFAULT_OUT = ROOT / "benchmarks" / "results" / "paper_table.json"  # the README's copy renders this one
+HERE = Path(__file__).resolve().parent
+RECIPES = HERE / "recipes"  # the evaluation recipes (cameras_test_<setting>.yaml) and the training data's
+DEFAULT_OUT = HERE / "results" / "paper_table.json"  # the README's copy renders this one
 
 
 def rel(p: Path) -> str:
@@ -82,7 +87,7 @@ def build(recipe: Path, split: str | None, out: Path, workers: int, doc: dict[st
     if not (manifest.is_file() and json.loads(manifest.read_text()).get("complete")):
         args = ["build", str(recipe), *(["--split", split] if split else []), "--workers", str(workers), "--out", str(out), "--no-progress"]
         _, seconds = cli(*args, *(["--resume"] if manifest.is_file() else []))
-        doc.setdefault("datasets", {})[out.name] = {"command": command(args), "wall_seconds": round(seconds, 1), "commit": _commit()}
+        doc.setdefault("datasets", {})[out.name] = {"command": command(args), "wall_seconds": round(seconds, 1), "commit": commit()}
     return out
 
 
@@ -111,7 +116,7 @@ def train(data: Path, runs: Path, name: str, tiny: bool) -> dict[str, Any] | Non
     args = ["train", spec.algo, str(data), "--skill", spec.skill, "--inputs", spec.inputs, *spec.options, "--out", str(folder), "--no-progress",
             *(["--max-steps", "2"] if tiny else [])]
     stdout, seconds = cli(*args)
-    summary = {**json.loads(stdout), "command": command(args), "wall_seconds": round(seconds, 1), "run": rel(folder), "commit": _commit()}
+    summary = {**json.loads(stdout), "command": command(args), "wall_seconds": round(seconds, 1), "run": rel(folder), "commit": commit()}
     run_files.write_json(folder, "summary.json", summary)  # listed in the run's marker: train --overwrite may replace it
     return summary
 
@@ -130,7 +135,7 @@ def train_planner(data: Path, runs: Path, tiny: bool) -> dict[str, Any]:
     report = json.loads(stdout)
     test_args = ["evaluate-planner", str(folder), str(data)]
     scored = json.loads(cli(*test_args)[0])
-    summary = {"command": command(args), "test_command": command(test_args), "wall_seconds": round(seconds, 1), "run": rel(folder), "commit": _commit(),
+    summary = {"command": command(args), "test_command": command(test_args), "wall_seconds": round(seconds, 1), "run": rel(folder), "commit": commit(),
                **{k: report[k] for k in ("episodes", "best") if k in report}, "test": scored["test"]}
     summary["episodes"] = {**summary.get("episodes", {}), **scored["episodes"]}
     run_files.write_json(folder, done.name, summary)
@@ -144,7 +149,7 @@ def evaluate(recipe: Path, row: EvaluatedRow, planner: str, runs: Path, n: int, 
     if out.with_suffix(".episodes.jsonl").is_file():  # a killed evaluation's journal: continue it
         args.append("--resume")
     _, seconds = cli(*args)
-    return {"command": command(args), "wall_seconds": round(seconds, 1), "commit": _commit(), **table.measured(json.loads(out.read_text()))}
+    return {"command": command(args), "wall_seconds": round(seconds, 1), "commit": commit(), **table.measured(json.loads(out.read_text()))}
 
 
 def adopt(path: Path, runs: Path, n: int, workers: int) -> tuple[str, str, dict[str, Any]]:
@@ -165,9 +170,9 @@ def adopt(path: Path, runs: Path, n: int, workers: int) -> tuple[str, str, dict[
         if not isinstance(row, EvaluatedRow) or row.planner != "oracle" or set(row.policy) != set(learned):
             continue
         for setting in row.settings:
-            if row.recipe(setting) != recipe:
+            if catalogue.recipe(row, setting) != recipe:
                 continue
-            if (h := load_recipe(ROOT / "recipes" / recipe).content_hash()) != doc["recipe"]["content_hash"]:
+            if (h := load_recipe(RECIPES / recipe).content_hash()) != doc["recipe"]["content_hash"]:
                 why.append(f"recipes/{recipe} changed since (content hash {h[:12]}, the evaluation's {doc['recipe']['content_hash'][:12]})")
             elif doc["split"] != "test" or doc["n"] != n:
                 why.append(f"it scored {doc['n']} episodes of {doc['split']}, the table {n} of test")
@@ -176,9 +181,9 @@ def adopt(path: Path, runs: Path, n: int, workers: int) -> tuple[str, str, dict[
             else:
                 out = eval_json(runs, name, setting)
                 atomic_write_json(out, doc)  # where the driver keeps the row's document (a computed row may read it)
-                args = ["evaluate", str(ROOT / "recipes" / recipe), "--split", "test", "-n", str(n), *(f"--policy={s}={runs / r}" for s, r in row.policy.items()),
+                args = ["evaluate", str(RECIPES / recipe), "--split", "test", "-n", str(n), *(f"--policy={s}={runs / r}" for s, r in row.policy.items()),
                         "--policy", "oracle", "--planner", "oracle", "--workers", str(workers), "--json", str(out)]
-                return name, setting, {"command": command(args), "wall_seconds": round(float(doc["wall_seconds"]), 1), "commit": _commit(),
+                return name, setting, {"command": command(args), "wall_seconds": round(float(doc["wall_seconds"]), 1), "commit": commit(),
                                        "adopted": f"measured before this run of the table by the same command on the same recipe and weights "
                                                   f"(checkpoint sha256 {', '.join(f'{s} {h[:12]}' for s, h in learned.items())}); taken from its --json document",
                                        **table.measured(doc)}
@@ -205,18 +210,20 @@ def computed(row: ComposedRow | DerivedRow, setting: str, runs: Path) -> dict[st
         print(f"{row.name} / {setting}: waits for {', '.join(rel(p) for p in sources if not p.is_file())}", file=sys.stderr)
         return None
     docs = [json.loads(p.read_text()) for p in sources]
-    how = f"python benchmarks/paper_table.py --rows '{row.name}' (from {' and '.join(rel(p) for p in sources)})"
+    how = f"python studies/paper_table/paper_table.py --rows '{row.name}' (from {' and '.join(rel(p) for p in sources)})"
     if isinstance(row, ComposedRow):
-        return {"command": how, "wall_seconds": 0.0, "commit": _commit(), **table.composed(docs[0], docs[1]), "computed_from": [rel(p) for p in sources]}
-    return {"command": how, "commit": _commit(), **table.derived(docs[0], row.skill), "computed_from": [rel(p) for p in sources]}
+        return {"command": how, "wall_seconds": 0.0, "commit": commit(), **table.composed(docs[0], docs[1]), "computed_from": [rel(p) for p in sources]}
+    return {"command": how, "commit": commit(), **table.derived(docs[0], row.skill), "computed_from": [rel(p) for p in sources]}
 
 
 def render(doc: dict[str, Any], out: Path, readme: bool) -> str:
-    """Write the markdown of `doc` beside the JSON (and, with `readme`, the README's copy)."""
-    md = table.markdown(doc)
+    """Write the markdown of `doc` beside the JSON (and, with `readme`, the copies in this study's
+    README and the repository's README: `rows.copies`)."""
+    md = catalogue.markdown(doc)
     atomic_write_bytes(out.with_suffix(".md"), md.encode())
     if readme:
-        atomic_write_bytes(README, table.with_readme_block(README.read_text(), md).encode())
+        for path, begin, end, rendered in catalogue.copies(ROOT):
+            atomic_write_bytes(path, catalogue.with_rendered_copy(path.read_text(), begin, end, rendered(doc)).encode())
     return md
 
 
@@ -232,7 +239,7 @@ def save(out: Path, mine: dict[str, Any]) -> dict[str, Any]:
             doc.setdefault("rows", {}).setdefault(name, {}).update(per)
         doc.setdefault("rows", {})
         doc.update({k: v for k, v in mine.items() if k not in ("datasets", "training", "rows")})
-        doc["summary"] = table.summary(doc)
+        doc["summary"] = catalogue.summary(doc)
         atomic_write_json(out, doc)
         render(doc, out, readme=False)
     return doc
@@ -250,7 +257,7 @@ def main() -> None:
     ap.add_argument("--no-planner", action="store_true", help="leave out the learned-planner rows (and the planner's data and training)")
     ap.add_argument("--rows", nargs="*", default=None, help="only these rows (names as in the JSON)")
     ap.add_argument("--learners", nargs="*", default=None, help="only build the data of and train these learners (names as in LEARNERS, or planner); no evaluation")
-    ap.add_argument("--render", action="store_true", help="run nothing: rewrite the JSON's summary and the markdown from its entries (and the README's table, for the default --out)")
+    ap.add_argument("--render", action="store_true", help="run nothing: rewrite the JSON's summary and the markdown from its entries (and its copies in the READMEs, for the default --out)")
     ap.add_argument("--adopt", nargs="*", type=Path, default=None, metavar="EVAL_JSON",
                     help="take these `echo-data evaluate --json` documents (same recipe, test split, -n, weights as RUNS/<learner>) in as their rows' entries; nothing else runs")
     ap.add_argument("--tiny", action="store_true", help="the test's version: --data's build (a quickstart), 2 training steps, 1 episode of its recipe")
@@ -264,7 +271,7 @@ def main() -> None:
     if a.adopt is not None:
         for path in a.adopt:
             name, setting, entry = adopt(path, a.runs, n, a.workers)
-            save(a.out, {"commit": _commit(), "rows": {name: {setting: entry}}})
+            save(a.out, {"commit": commit(), "rows": {name: {setting: entry}}})
             print(f"{name} / {setting}: {table.cell(table.skill_success(json.loads(path.read_text())['episodes'], ROWS[name].skill_alone) if ROWS[name].skill_alone else entry['metrics'].get('skill_completion'))} (adopted)", file=sys.stderr)
         return
     if a.tiny and a.data is None:
@@ -272,12 +279,12 @@ def main() -> None:
     unknown = sorted(set(a.rows or ()) - set(ROWS)) + sorted(set(a.learners or ()) - {*LEARNERS, "planner"})
     if unknown:
         ap.error(f"unknown rows or learners {unknown} (rows: {', '.join(ROWS)}; learners: {', '.join([*LEARNERS, 'planner'])})")
-    mine: dict[str, Any] = {"episodes_per_setting": n, "commit": _commit(), "datasets": {}, "training": {}, "rows": {}}
+    mine: dict[str, Any] = {"episodes_per_setting": n, "commit": commit(), "datasets": {}, "training": {}, "rows": {}}
     trained = dict(json.loads(a.out.read_text()).get("training", {})) if a.out.is_file() else {}
     a.runs.mkdir(parents=True, exist_ok=True)
 
     planner_run = a.planner_run or str(a.runs / "planner")
-    chosen = {name: row for name, row in ROWS.items() if (a.rows is None or name in a.rows) and not (a.no_planner and table.needs_learned_planner(row))}
+    chosen = {name: row for name, row in ROWS.items() if (a.rows is None or name in a.rows) and not (a.no_planner and catalogue.needs_learned_planner(row))}
     if a.learners is not None:  # training only: one lane of a table filled by several runs of this script
         chosen = {}
     evaluated = [r for r in chosen.values() if isinstance(r, EvaluatedRow)]
@@ -285,11 +292,11 @@ def main() -> None:
     wants_planner = a.planner_run is None and not a.no_planner and (any(r.planner == "learned" for r in evaluated) or "planner" in (a.learners or ()))
     data: dict[str, Path] = {}
     for key in dict.fromkeys([*(LEARNERS[name].dataset for name in needed), *([PLANNER.dataset] if wants_planner else [])]):
-        recipe = ROOT / table.DATASETS[key].recipe
+        recipe = ROOT / catalogue.DATASETS[key].recipe
         if a.tiny:
             data[key] = a.data
         elif recipe.is_file():
-            data[key] = build(recipe, table.DATASETS[key].split, a.data_root / key, a.workers, mine)
+            data[key] = build(recipe, catalogue.DATASETS[key].split, a.data_root / key, a.workers, mine)
         else:
             print(f"dataset {key}: waits for {rel(recipe)}", file=sys.stderr)
     mine["training"].update({name: s for name in needed if LEARNERS[name].dataset in data
@@ -311,16 +318,16 @@ def main() -> None:
                     mine["rows"] = {name: {setting: entry}}
                     save(a.out, mine)
                 continue
-            rec = tiny_recipe(a.data, a.runs) if a.tiny else ROOT / "recipes" / row.recipe(setting)
+            rec = tiny_recipe(a.data, a.runs) if a.tiny else RECIPES / catalogue.recipe(row, setting)
             if not rec.is_file() or (a.tiny and row.grasp != "physical"):
-                print(f"{name} / {setting}: waits for {rel(ROOT / 'recipes' / row.recipe(setting))}", file=sys.stderr)
+                print(f"{name} / {setting}: waits for {rel(RECIPES / catalogue.recipe(row, setting))}", file=sys.stderr)
                 continue
             res = evaluate(rec, row, "oracle" if row.planner == "oracle" else planner_run, a.runs, n, a.workers, eval_json(a.runs, name, setting))
             mine["rows"] = {name: {setting: res}}
             save(a.out, mine)  # after every evaluation: a kill loses at most the one running (its journal resumes it)
             print(f"{name} / {setting}: {table.cell(res['metrics'].get('skill_completion'))}", file=sys.stderr)
     mine["rows"] = {}
-    print(table.markdown(save(a.out, mine)))
+    print(catalogue.markdown(save(a.out, mine)))
 
 
 if __name__ == "__main__":

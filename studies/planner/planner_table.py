@@ -1,4 +1,4 @@
-"""The planner rows on `recipes/planner_audio.yaml`: build, train each configuration, write the JSON.
+"""The planner rows on `studies/planner/recipes/planner_audio.yaml`: build, train each configuration, write the JSON.
 
 Each row is `echo-data train planner DATA --inputs I [flags] --out RUN` (training chooses on
 validation and writes eval.json without reading the test split), then `echo-data evaluate-planner
@@ -10,11 +10,11 @@ instances, unheard like the test's, and the row's best validation accuracy is re
 its test scores (docs/learners.md).
 
 Usage (build ~10 min with 2 workers; each row 4-15 min on one core):
-  python benchmarks/planner_table.py --data data/planner_audio --runs runs/planner
-  python benchmarks/planner_table.py ... --rows "audio" "audio|--val-by sounds --select accuracy --augment --epochs 15"
-Fresh training voices (`recipes/planner_fresh.yaml`, docs/learners.md):
-  python benchmarks/planner_table.py --recipe recipes/planner_fresh.yaml --data out/planner_fresh --runs runs/planner_fresh \
-      --out benchmarks/results/planner_fresh.json --rows "audio|--select accuracy --epochs 20" "audio|--select accuracy --augment --epochs 20"
+  python studies/planner/planner_table.py --data data/planner_audio --runs runs/planner
+  python studies/planner/planner_table.py ... --rows "audio" "audio|--val-by sounds --select accuracy --augment --epochs 15"
+Fresh training voices (`studies/planner/recipes/planner_fresh.yaml`, docs/learners.md):
+  python studies/planner/planner_table.py --recipe studies/planner/recipes/planner_fresh.yaml --data out/planner_fresh --runs runs/planner_fresh \
+      --out studies/planner/results/planner_fresh.json --rows "audio|--select accuracy --epochs 20" "audio|--select accuracy --augment --epochs 20"
 `--reuse` collects run folders whose eval.json was written by the same arguments instead of
 training them again (and scores them on the test split where their test.json is missing).
 """
@@ -26,9 +26,12 @@ import json
 import os
 import re
 import shlex
+import sys
 from pathlib import Path
 
-from ablation import ROOT, _commit, cli
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # runner.py
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this checkout's echo_data
+from runner import ROOT, cli, commit  # noqa: E402
 
 ROWS = (
     "audio",
@@ -59,18 +62,18 @@ def _validation_max(run: Path) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--recipe", default=str(ROOT / "recipes" / "planner_audio.yaml"))
+    ap.add_argument("--recipe", default=str(Path(__file__).with_name("recipes") / "planner_audio.yaml"))
     ap.add_argument("--data", default=str(ROOT / "data" / "planner_audio"), help="dataset folder (built unless complete)")
     ap.add_argument("--runs", default=str(ROOT / "runs" / "planner"))
     ap.add_argument("--rows", nargs="*", default=list(ROWS), help='"INPUTS" or "INPUTS|FLAGS" per row')
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--reuse", action="store_true", help="collect run folders whose eval.json has the same arguments")
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "planner_audio.json"))
+    ap.add_argument("--out", default=str(Path(__file__).with_name("results") / "planner_audio.json"))
     a = ap.parse_args()
 
     data, runs, out = Path(a.data), Path(a.runs), Path(a.out)
     runs.mkdir(parents=True, exist_ok=True)
-    doc: dict = {"recipe": _rel(a.recipe), "data": _rel(data), "commit": _commit(), "commands": [], "rows": []}
+    doc: dict = {"recipe": _rel(a.recipe), "data": _rel(data), "commit": commit(), "commands": [], "rows": []}
     manifest = data / "manifest.json"
     if not (manifest.is_file() and json.loads(manifest.read_text()).get("complete")):
         build = ["build", a.recipe, "--out", str(data), "--workers", str(a.workers), "--no-progress", "--resume" if data.exists() else "--overwrite"]

@@ -21,9 +21,9 @@ a mirror-symmetric left/right classifier on explicit per-band ILD features of th
 log-mel, its features and C chosen on a validation part of the train split (test is never
 used for a choice); every line-of-sight figure split at the critical distance of the source's
 room, and what a diffuse-field model predicts for the plain ILD. The table is printed and
-written as JSON (`--out`, default benchmarks/results/spatial_cues.json).
+written as JSON (`--out`, default studies/spatial_cues/results/spatial_cues.json).
 
-Usage:  python benchmarks/bench_spatial_cues.py [--recipe recipes/stmm_1_9k.yaml] [--train 20] [--test 10] [--out FILE]
+Usage:  python studies/spatial_cues/bench_spatial_cues.py [--recipe recipes/stmm_1_9k.yaml] [--train 20] [--test 10] [--out FILE]
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ from echo_data.sounds.library import SoundLibrary  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import binaural_cues as bc  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TONAL = ("phone", "alarm", "doorbell", "furby")
 MIN_OFF, MAX_OFF = math.radians(20.0), math.radians(160.0)
 # Tiled estimators (binaural_cues): 20 ERB-spaced gammatone bands; the candidate parameters,
@@ -604,14 +604,14 @@ def main() -> None:
     ap.add_argument("--recipe", default=str(ROOT / "recipes" / "stmm_1_9k.yaml"))
     ap.add_argument("--train", type=int, default=20)
     ap.add_argument("--test", type=int, default=10)
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "spatial_cues.json"))
+    ap.add_argument("--out", default=str(Path(__file__).with_name("results") / "spatial_cues.json"))
     args = ap.parse_args()
     recipe = load_recipe(args.recipe)
     library = SoundLibrary.from_recipe(recipe, Path(args.recipe).resolve().parent)
     t0 = time.perf_counter()
     data, n_ok = render_episodes(args, recipe, library)
     header = dict(
-        command=f"python benchmarks/bench_spatial_cues.py --recipe {Path(args.recipe).name} --train {args.train} --test {args.test}",
+        command=f"python studies/spatial_cues/bench_spatial_cues.py --recipe {Path(args.recipe).name} --train {args.train} --test {args.test}",
         recipe=Path(args.recipe).name, train_indices=args.train, test_indices=args.test, episodes=n_ok,
     )
     out = json_safe(report(data, header))

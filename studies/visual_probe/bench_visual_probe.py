@@ -9,7 +9,7 @@ it, any azimuth; a narrow field of view so the crop is the object and a little o
 surroundings: what a crop of the 128² head frame around the object holds, at 48² pixels).
 Viewpoints inside or behind a wall or a piece of furniture are redrawn (a crop *around an
 object* shows it). The control renders the same shapes, poses and scenes with every object in one grey (`mono`).
-Usage: python benchmarks/bench_visual_probe.py [-n TRAIN_HOMES] [--test N] [--epochs E]
+Usage: python studies/visual_probe/bench_visual_probe.py [-n TRAIN_HOMES] [--test N] [--epochs E]
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ os.environ.setdefault("LP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CLASSES = ("phone", "alarm", "furby", "distractor")
 CROP = 48
 MONO = (0.6, 0.6, 0.6)
