@@ -58,7 +58,7 @@ for SKILL in "$@"; do
   T0=$(date +%s)
   echo "=== $SKILL (limit ${SHARE} s) $(date -u +%T)"
   # The driver merges into the JSON it finds, so every skill's figures end up in one file.
-  timeout -k 10 "$SHARE" $PY "benchmarks/$STUDY.py" --skills "$SKILL" --workers "$WORKERS" \
+  timeout -k 10 "$SHARE" $PY "studies/learners/$STUDY.py" --skills "$SKILL" --workers "$WORKERS" \
       --work "$WORK" --out "$OUT/$STUDY.json" $EXTRA > "$OUT/$SKILL.txt" 2>&1
   RC=$?
   echo "=== $SKILL rc=$RC in $(( $(date +%s) - T0 )) s (total $(( $(date +%s) - START )) s)"

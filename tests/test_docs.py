@@ -98,3 +98,17 @@ def test_a_study_readme_says_question_command_result_conclusion_and_its_command_
     assert r.returncode == 0 and "usage" in r.stdout.lower(), r.stderr[-2000:]
     for name in re.findall(r"`results/([\w.*-]+)`", text):  # every results file the README names is there
         assert list((study / "results").glob(name)), f"{study.name}: results/{name}"
+
+
+def test_every_recipe_resolves_as_it_did_before_the_studies_moved() -> None:
+    """Recipes moved into studies/<name>/recipes/ with their `extends:` paths rewritten: each still
+    resolves to the recipe it was (content hashes taken before the move; a dataset built from it
+    is byte for byte the one before)."""
+    import json
+
+    from echo_data.recipe import load_recipe
+
+    expected = json.loads((ROOT / "tests" / "data" / "recipe_content_hashes.json").read_text())
+    found = sorted(str(p.relative_to(ROOT)) for p in [*(ROOT / "recipes").glob("*.yaml"), *(ROOT / "studies").glob("*/recipes/*.yaml")] if p.name != "base.yaml")
+    assert found == sorted(expected)
+    assert {path: load_recipe(ROOT / path).content_hash() for path in found} == expected

@@ -11,7 +11,7 @@ To look at the same episode, `echo-data evaluate RECIPE --split val -n K --polic
 learners') shows only the plan there, so extend it with `robot.head_camera.rgb: true` (and the
 wrist camera's) for the pictures: the learner reads no image, so its actions are the same.
 
-  python studies/learner_probes/skill_trace.py recipes/paper_table_object_relocation.yaml --run runs/Pick \
+  python studies/learner_probes/skill_trace.py studies/paper_table/recipes/cameras_test_object_relocation.yaml --run runs/Pick \
       --skill Pick --split train --index 0 1 2 [--every 10]
 """
 
