@@ -112,3 +112,15 @@ def test_every_recipe_resolves_as_it_did_before_the_studies_moved() -> None:
     found = sorted(str(p.relative_to(ROOT)) for p in [*(ROOT / "recipes").glob("*.yaml"), *(ROOT / "studies").glob("*/recipes/*.yaml")] if p.name != "base.yaml")
     assert found == sorted(expected)
     assert {path: load_recipe(ROOT / path).content_hash() for path in found} == expected
+
+
+def test_the_study_readmes_result_tables_are_their_json_rendered() -> None:
+    sys.path.insert(0, str(ROOT / "studies"))
+    try:
+        import results_tables
+    finally:
+        sys.path.remove(str(ROOT / "studies"))
+    assert {study for study, *_ in results_tables.COPIES} >= {"learners", "navigation_ablation", "planner"}
+    for study, name, results, render in results_tables.COPIES:
+        held, fresh = results_tables.rendered(study, name, results, render)
+        assert held == fresh, f"studies/{study}/README.md, {name}: python studies/results_tables.py"
