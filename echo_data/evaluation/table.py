@@ -25,9 +25,9 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from echo_data.evaluation.metrics import plan_right_without_receptacle, proportion, summarise, wilson
-from echo_data.skills.registry import SKILL_NAMES
+from echo_data.skills.registry import SKILLS as SKILL_TABLE
 
-SKILLS = SKILL_NAMES  # every skill a row reports, in the registry's order
+SKILLS = tuple(SKILL_TABLE)  # every skill a row reports, in the skill table's order
 NOT_MEASURED = "not measured"
 Grasp = Literal["physical", "magic"]
 

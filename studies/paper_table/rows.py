@@ -24,9 +24,8 @@ from typing import Any
 
 from echo_data.evaluation import table
 from echo_data.evaluation.table import ComposedRow, DatasetSpec, DerivedRow, EvaluatedRow, Grasp, LearnerSpec, PlannerSpec
-from echo_data.skills.registry import SKILL_NAMES
 
-SKILLS = SKILL_NAMES
+SKILLS = table.SKILLS  # the skill table's, in its order
 SETTINGS = ("object_relocation", "state_transition", "multi_event")
 PAPER_ORDER = ("state_transition", "object_relocation", "multi_event")  # the paper's column order
 PAPER_COMPARABLE = " (paper-comparable)"
