@@ -28,10 +28,10 @@ from echo_data.categories import (
     DistractorShape,
     RelocationCategory,
 )
-from echo_data.skills.registry import DEFAULT_MAX_STEPS, SKILL_NAMES
+from echo_data.skill_table import DEFAULT_MAX_STEPS, SKILL_NAMES
 
 SETTINGS = ("object_relocation", "state_transition", "multi_event")
-SKILLS: tuple[str, ...] = SKILL_NAMES  # the skill registry's names (echo_data.skills.registry)
+SKILLS: tuple[str, ...] = SKILL_NAMES  # the skill registry's names (echo_data.skill_table)
 # Apartment layout families (echo_data/scene/layouts.py): rows of rectangular rooms, an L-shaped
 # room, a corridor with rooms off it, an open-plan kitchen/living room.
 LayoutName = Literal["rows", "l_shape", "corridor", "open_plan"]

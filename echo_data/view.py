@@ -122,7 +122,7 @@ def source_states(
     `skill_success` flag of that slot is set, as the env silences it after that step's action.
     An event's object is in the hand from the step after its Pick slot succeeded while the state's
     `holding` is set (a Place ends it)."""
-    from echo_data.skills.registry import SKILLS
+    from echo_data.skill_table import SKILLS
 
     resolver = {int(c["event"]): k for k, c in enumerate(chain) if c["skill"] in SKILLS and SKILLS[c["skill"]].resolves_event}
     picks = {int(c["event"]): k for k, c in enumerate(chain) if c["skill"] == "Pick"}

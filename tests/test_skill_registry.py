@@ -12,7 +12,7 @@ import pytest
 
 from echo_data.episode import SkillCall
 from echo_data.recipe import Recipe
-from echo_data.skills.registry import RESOLVING_SKILLS, SKILLS, skill
+from echo_data.skill_table import RESOLVING_SKILLS, SKILLS, skill
 from echo_data.target import Target
 
 RECIPE = Recipe(name="skill-contract", setting="multi_event")
@@ -44,7 +44,7 @@ def test_the_registry_is_the_one_skill_vocabulary() -> None:
     import ast
     from types import SimpleNamespace
 
-    from echo_data.skills import registry as R
+    from echo_data import skill_table as R
 
     assert dict(RECIPE.robot.max_steps) == R.DEFAULT_MAX_STEPS and tuple(R.DEFAULT_MAX_STEPS) == R.SKILL_NAMES
     assert [c.skill for c in R.event_chain("phone_0", 0, "furniture:3")] == ["Navigate", "Pick", "Place"]

@@ -224,7 +224,7 @@ def run_episode(
     """
     from echo_data.envs.env import EnvInputError, as_action
     from echo_data.envs.privileged import PrivilegedProbe
-    from echo_data.skills.registry import SKILLS, skill_budget
+    from echo_data.skill_table import SKILLS, skill_budget
 
     env = getattr(env, "unwrapped", env)  # gymnasium wrappers around an EchoDataEnv
     spec: EpisodeSpec = env.episode

@@ -41,7 +41,7 @@ from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_DIM, ACTION_SPACES, EE_ACTION_DIM, STATE_DIM
-from echo_data.skills.registry import SKILLS, Situation, apply_effect, skill_budget
+from echo_data.skill_table import SKILLS, Situation, apply_effect, skill_budget
 
 if TYPE_CHECKING:
     from echo_data.envs.audio import Heard
@@ -413,7 +413,7 @@ class EchoDataEnv(gym.Env):
 
     # ------------------------------------------------------------------ success tests
     def _evaluate(self) -> list[bool]:
-        """Every chain skill's success test on the current state, once (`echo_data.skills.registry`)."""
+        """Every chain skill's success test on the current state, once (`echo_data.skill_table`)."""
         return [SKILLS[c.skill].success(self.world, c, self._situation) for c in self.episode.chain]
 
     def skill_success(self, call: SkillCall) -> bool:

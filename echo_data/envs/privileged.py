@@ -124,7 +124,7 @@ class PrivilegedProbe:
 
     def place_spot(self, world: World, spec: EpisodeSpec, call: SkillCall) -> np.ndarray:
         """`place_spot_world` for a Place call, from where the base stands."""
-        from echo_data.skills.registry import carried_object
+        from echo_data.skill_table import carried_object
 
         name = carried_object(spec, call)
         furniture = Target.parse(call.target).index
