@@ -19,6 +19,7 @@ if TYPE_CHECKING:
     import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from echo_data import skill_table
 from echo_data.categories import (
     CATEGORIES,
     DISTRACTOR_SHAPES,
@@ -28,10 +29,8 @@ from echo_data.categories import (
     DistractorShape,
     RelocationCategory,
 )
-from echo_data.skill_table import DEFAULT_MAX_STEPS, SKILL_NAMES
 
 SETTINGS = ("object_relocation", "state_transition", "multi_event")
-SKILLS: tuple[str, ...] = SKILL_NAMES  # the skill registry's names (echo_data.skill_table)
 # Apartment layout families (echo_data/scene/layouts.py): rows of rectangular rooms, an L-shaped
 # room, a corridor with rooms off it, an open-plan kitchen/living room.
 LayoutName = Literal["rows", "l_shape", "corridor", "open_plan"]
@@ -260,7 +259,7 @@ class RobotConfig(_Strict):
     # object nearest the gripper attaches when the gripper closes within 15 cm of it (echo_data.world).
     grasp: Literal["physical", "magic"] = "physical"
     max_steps: dict[str, int] = Field(
-        default_factory=lambda: dict(DEFAULT_MAX_STEPS)
+        default_factory=skill_table.default_max_steps
     )
     # The form a policy acts in by default in `EchoDataEnv` (its `action_mode`):
     # "joint" = `action` (12: base, torso, 7 arm joint targets, gripper opening),
@@ -272,8 +271,8 @@ class RobotConfig(_Strict):
     @classmethod
     def _max_steps(cls, v: dict[str, int]) -> dict[str, int]:
         for k, n in v.items():
-            if k not in SKILL_NAMES:
-                raise ValueError(f"max_steps: unknown skill {k!r} (skills: {', '.join(SKILL_NAMES)})")
+            if k not in skill_table.SKILLS:
+                raise ValueError(f"max_steps: unknown skill {k!r} (skills: {', '.join(skill_table.SKILLS)})")
             if not 1 <= n <= 100_000:
                 raise ValueError(f"max_steps.{k} must lie within [1, 100000], got {n}")
         return v
@@ -379,7 +378,7 @@ class Recipe(_Strict):
     objects: ObjectsConfig = ObjectsConfig()
     sounds: SoundsConfig = SoundsConfig()
     events: EventsConfig = EventsConfig()
-    robot: RobotConfig = RobotConfig()
+    robot: RobotConfig = Field(default_factory=RobotConfig)  # made per recipe: its max_steps reads the skill table then
     acoustics: AcousticsConfig = AcousticsConfig()
     outputs: OutputsConfig = OutputsConfig()
     experts: ExpertsConfig = ExpertsConfig()

@@ -125,7 +125,7 @@ def source_states(
     from echo_data.skill_table import SKILLS
 
     resolver = {int(c["event"]): k for k, c in enumerate(chain) if c["skill"] in SKILLS and SKILLS[c["skill"]].resolves_event}
-    picks = {int(c["event"]): k for k, c in enumerate(chain) if c["skill"] == "Pick"}
+    picks = {int(c["event"]): k for k, c in enumerate(chain) if c["skill"] in SKILLS and SKILLS[c["skill"]].lifts}
     before = np.vstack([np.zeros((1, flags.shape[1]), bool), flags[:-1]]) if len(flags) else flags  # flags as they stood when step t was observed
     sounding = [[not (e in resolver and bool(before[t, resolver[e]])) for e in range(n_events)] for t in range(len(flags))]
     carried = [[e for e, k in picks.items() if bool(before[t, k]) and bool(holding[t])] for t in range(len(flags))]

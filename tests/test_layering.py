@@ -12,7 +12,7 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "echo_data"
 # What the format library may build on: its own modules and the layers below it.
-DATASET_MAY_IMPORT = ("dataset", "recipe", "records", "episode", "target", "seeds", "protocols", "pcm", "camera", "categories", "media", "acoustics")
+DATASET_MAY_IMPORT = ("dataset", "skill_table", "recipe", "records", "episode", "target", "seeds", "protocols", "pcm", "camera", "categories", "media", "acoustics")
 # Who may use the application package: the command line, the app itself, and the commands
 # that run episodes through its worker pool or its pipeline.
 APP_USERS = ("cli", "app", "evaluation", "preview")

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from echo_data.learn import runs
+from echo_data.skill_table import SKILLS, approach_skill, skill
 
 DAGGER_LOG = runs.DAGGER_LOG
 
@@ -112,7 +113,7 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
                     break
                 except SamplingError:
                     continue
-            if spec is None or spec.chain[0].skill != "Navigate":
+            if spec is None or spec.chain[0].skill != approach_skill().name:
                 continue
             obs, info = env.reset(options={"spec": spec})
             hook.start()
@@ -134,8 +135,9 @@ def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_st
     themselves always start from the first."""
     from echo_data.learn.fit import train_skill as train_bc
 
-    if cfg.skill != "Navigate":
-        raise DaggerError(f"--dagger: only Navigate's expert can act from any state (not {cfg.skill!r}; see docs/learners.md)")
+    if not skill(cfg.skill).labels_any_state:
+        able = ", ".join(n for n, s in SKILLS.items() if s.labels_any_state)
+        raise DaggerError(f"--dagger: only {able}'s expert can act from any state (not {cfg.skill!r}; see docs/learners.md)")
     if cfg.window() != 1 or cfg.SEQUENCE:
         raise DaggerError("--dagger: the expert labels one action per state: train bc with --chunk 1")
     _, n_train = recipe_of(Path(cfg.dataset))

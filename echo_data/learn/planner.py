@@ -34,6 +34,7 @@ from echo_data.learn.data import Shards, prepare_rows, split_episodes
 from echo_data.learn.features import FeatureSpec, feature_spec
 from echo_data.learn.loop import LoopConfig, fit, setup_torch
 from echo_data.learn.metrics import rate
+from echo_data.skill_table import role_of
 
 PLANNER_CLASS = "echo_data.learn.policy:PlannerModel"
 
@@ -425,7 +426,7 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     audio_mean = torch.tensor(spec.audio_mean, dtype=torch.float32).view(1, -1, 1, 1)
     priority = cfg.priority if cfg.order == "priority" else None
     # Mixing partners: training rows of single-event episodes, by kind of event (state, relocation).
-    state_cats = {c for c, tpl in cfg.templates.items() if not any(skill == "Place" for skill, _ in tpl)}
+    state_cats = {c for c, tpl in cfg.templates.items() if not any(role_of(skill) == "deliver" for skill, _ in tpl)}
     singles = {kind: np.asarray([n for n in tr if len(train.events[n]) == 1 and (train.events[n][0] in state_cats) == kind], dtype=np.int64)
                for kind in (True, False)}
     rank = {cfg.categories.index(c): k for k, c in enumerate(cfg.priority) if c in cfg.categories}

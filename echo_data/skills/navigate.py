@@ -404,7 +404,7 @@ def navigate(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.n
     `experts.handover_noise`, to a point of the success region drawn per episode instead)."""
     robot = world.robot
     skill, target = call.skill, call.target
-    max_steps = int(robot.cfg.max_steps["Navigate"])
+    max_steps = int(robot.cfg.max_steps[skill])
     grid = current_grid(world)
     try:
         goal = goal_pose(world, target, grid)

@@ -11,8 +11,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from echo_data.scene.objects import object_size
+from echo_data.skill_table import Situation, carried_object
+from echo_data.target import Target
 
 if TYPE_CHECKING:
+    from echo_data.episode import SkillCall
     from echo_data.world import World
 
 # ------------------------------------------------------------------ Pick / Place
@@ -130,3 +133,28 @@ def sink_closed_success(world: World, i: int) -> bool:
     stream = world.handles.water[i]
     stream.update(angle)
     return angle <= faucet.closed_tolerance and not stream.flowing
+
+
+# ------------------------------------------------------------------ as the skill table calls them
+# `echo_data.skill_table` names these "module:function" (it imports nothing above the vocabulary).
+
+
+def navigated(world: World, call: SkillCall, at: Situation) -> bool:
+    return navigate_success(world, call.target, grid=at.nav_grid(), poses=at.poses)
+
+
+def picked(world: World, call: SkillCall, at: Situation) -> bool:
+    return pick_success(world, call.target)
+
+
+def placed(world: World, call: SkillCall, at: Situation) -> bool:
+    name = carried_object(at.spec, call)
+    return name is not None and place_success(world, name, Target.parse(call.target).index)
+
+
+def door_opened(world: World, call: SkillCall, at: Situation) -> bool:
+    return door_open_success(world, Target.parse(call.target).index)
+
+
+def sink_closed(world: World, call: SkillCall, at: Situation) -> bool:
+    return sink_closed_success(world, Target.parse(call.target).index)
