@@ -395,12 +395,12 @@ def test_evaluate_runs_a_trained_planner_and_a_per_skill_bc_run(ds: Path, tmp_pa
 
 
 def test_dagger_labeller_answers_as_the_expert_from_its_start(ds: Path) -> None:
+    from echo_data.dataset.reader import dataset_recipe
     from echo_data.envs.env import EchoDataEnv
-    from echo_data.learn.dagger import recipe_of
     from echo_data.skills import EXPERTS
     from echo_data.skills.navigate import Relabeller
 
-    recipe, n_train = recipe_of(ds)
+    recipe, n_train = dataset_recipe(ds)
     env = EchoDataEnv(recipe, split="train", images=False, audio=False)
     try:
         spec = env.sample_spec("train", 0)

@@ -1,4 +1,8 @@
-"""One reader of a dataset's step rows: metadata apart from frames, windows by delta indices.
+"""The one reader of a built dataset: its manifest, the recipe it holds, `meta/episodes.parquet`,
+its shard files, one episode's rows, and step rows by row number or window.
+
+Every module that reads a dataset (commands, learners, exports, pictures) comes here, so where a
+file lives and how a damaged one is reported is decided once.
 
 `DatasetMeta` is what a dataset says about itself without reading a frame (manifest, step layout,
 shard files per split, the step-row schema, statistics). `StepIndex` holds one split's index
@@ -29,6 +33,45 @@ from echo_data.dataset.manifest import load_manifest
 from echo_data.dataset.schema import StepLayout, column_to_numpy
 
 INDEX_COLUMNS = ("episode_index", "skill", "skill_index", "frame_index")
+EPISODES = Path("meta") / "episodes.parquet"  # one record per episode (dataset/writer writes it)
+
+
+class EpisodeError(ValueError):
+    """An episode the dataset does not hold, or holds no steps of: one line naming the dataset."""
+
+
+def episodes_table(root: Path, columns: Sequence[str] | None = None) -> pa.Table:
+    """`meta/episodes.parquet` of the dataset at `root` (all columns, or `columns`)."""
+    return pq.read_table(Path(root) / EPISODES, columns=list(columns) if columns is not None else None)
+
+
+def episode_records(root: Path, columns: Sequence[str] | None = None) -> list[dict[str, Any]]:
+    """The episode records as dicts, in the file's order (split, then index)."""
+    return list(episodes_table(root, columns).to_pylist())
+
+
+def episode_rows(root: Path, split: str, index: int) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """Episode `index` of `split`: its record and its step rows in order."""
+    import pyarrow.compute as pc
+
+    root = Path(root)
+    m = load_manifest(root)
+    episodes = episodes_table(root)
+    found = episodes.filter(pc.and_(pc.equal(episodes["split"], split), pc.equal(episodes["episode_index"], index))).to_pylist()
+    if not found:
+        n = m["counts"]["episodes"].get(split, 0)
+        raise EpisodeError(f"{root}: no {split} episode {index} (the {split} split has {n} episodes: 0..{n - 1})")
+    ep = found[0]
+    table = pq.read_table(root / "data" / ep["shard"], filters=[("episode_index", "=", index)])
+    return ep, table.to_pylist()
+
+
+def dataset_recipe(root: Path) -> tuple[Any, int]:
+    """The recipe a dataset was built from (its manifest's copy) and its train episode count."""
+    from echo_data.recipe import recipe_from_mapping
+
+    m = load_manifest(Path(root))
+    return recipe_from_mapping(m["recipe"], source=str(Path(root) / "manifest.json")), int(m["splits"].get("train", {}).get("episodes", 0))
 
 
 @dataclass(frozen=True)

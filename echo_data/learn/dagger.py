@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from echo_data.dataset.reader import dataset_recipe
 from echo_data.learn import runs
 from echo_data.skill_table import SKILLS, approach_skill, skill
 
@@ -45,14 +46,6 @@ class Rollouts:
 
     def __len__(self) -> int:
         return len(self.actions)
-
-
-def recipe_of(dataset: Path) -> Any:
-    """The recipe a dataset was built from (its manifest copy) and its train episode count."""
-    from echo_data.recipe import recipe_from_mapping
-
-    manifest = runs.read_json(dataset / "manifest.json")
-    return recipe_from_mapping(manifest["recipe"], source=str(dataset / "manifest.json")), int(manifest["splits"]["train"]["episodes"])
 
 
 class _Labels:
@@ -99,7 +92,7 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
     from echo_data.scene.sampling import SamplingError
 
     policy = BCPolicy.from_run(run)
-    recipe, _ = recipe_of(dataset)
+    recipe, _ = dataset_recipe(dataset)
     images, audio = needs(policy)
     env = EchoDataEnv(recipe, split="train", images=images, audio=audio)
     hook = _Labels(policy)
@@ -140,7 +133,7 @@ def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_st
         raise DaggerError(f"--dagger: only {able}'s expert can act from any state (not {cfg.skill!r}; see docs/learners.md)")
     if cfg.window() != 1 or cfg.SEQUENCE:
         raise DaggerError("--dagger: the expert labels one action per state: train bc with --chunk 1")
-    _, n_train = recipe_of(Path(cfg.dataset))
+    _, n_train = dataset_recipe(Path(cfg.dataset))
     if episodes_per_round > n_train:
         raise DaggerError(f"--dagger-episodes {episodes_per_round}: the train split of {cfg.dataset} has {n_train} episodes")
     summary = train_bc(cfg, out, resume=resume, overwrite=not resume, progress=progress)

@@ -29,7 +29,7 @@ from echo_data.learn.data import SkillRows, append_rows, count_rows, load_skill_
 from echo_data.learn.features import ACTION_FORMS, FeatureSpec, feature_spec, to_action_form
 from echo_data.learn.loop import LoopConfig, fit, setup_torch
 
-POLICY_CLASS = "echo_data.learn.policy:SkillPolicy"
+POLICY_CLASS = runs.POLICY_CLASS
 IMAGE_INPUTS = ("depth", "wrist_depth", "rgb", "image")
 # What a resumed run must share with the run it continues.
 SAME_RUN = ("dataset", "skill", "inputs", "seed", "audio_form", "action_form", "action_column", "algo", "stop")
