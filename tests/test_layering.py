@@ -25,11 +25,14 @@ def module_name(path: Path) -> str:
     return ".".join(path.relative_to(PACKAGE.parent).with_suffix("").parts).removesuffix(".__init__")
 
 
-def imported_modules(source: str, module: str, is_package: bool = False) -> set[str]:
-    """Every `echo_data` module that `source` (the text of `module`) imports, anywhere in it."""
+def imported_modules(source: str, module: str, is_package: bool = False, runtime: bool = False) -> set[str]:
+    """Every `echo_data` module that `source` (the text of `module`) imports, anywhere in it
+    (`runtime`: but under `if TYPE_CHECKING:`). `from pkg import mod` names `pkg.mod` when that
+    is a module, else `pkg` (a name defined in the package)."""
     package = module if is_package else module.rsplit(".", 1)[0]
+    tree = ast.parse(source)
     found: set[str] = set()
-    for node in ast.walk(ast.parse(source)):
+    for node in _runtime_nodes(tree) if runtime else ast.walk(tree):
         if isinstance(node, ast.Import):
             found.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):
@@ -37,8 +40,8 @@ def imported_modules(source: str, module: str, is_package: bool = False) -> set[
             if node.level:
                 parts = package.split(".")[: len(package.split(".")) - node.level + 1]
                 base = ".".join(parts + ([base] if base else []))
-            found.update(f"{base}.{a.name}" if base == "echo_data" else base for a in node.names)
-    return {m for m in found if m == "echo_data" or m.startswith("echo_data.")}
+            found.update(f"{base}.{a.name}" if _exists(f"{base}.{a.name}") else base for a in node.names)
+    return {m for m in found if (m == "echo_data" or m.startswith("echo_data.")) and m != module}
 
 
 def imports_of(path: Path) -> set[str]:
@@ -119,21 +122,8 @@ def _exists(module: str) -> bool:
 
 
 def runtime_imports(path: Path) -> set[str]:
-    """The `echo_data` modules `path` imports when it runs: `from pkg import mod` names `pkg.mod`
-    when that is a module, else `pkg` (a name defined in the package's __init__)."""
-    module = module_name(path)
-    package = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
-    found: set[str] = set()
-    for node in _runtime_nodes(ast.parse(path.read_text())):
-        if isinstance(node, ast.Import):
-            found.update(a.name for a in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                parts = package.split(".")[: len(package.split(".")) - node.level + 1]
-                base = ".".join(parts + ([base] if base else []))
-            found.update(f"{base}.{a.name}" if _exists(f"{base}.{a.name}") else base for a in node.names)
-    return {m for m in found if (m == "echo_data" or m.startswith("echo_data.")) and m != module}
+    """The `echo_data` modules `path` imports when it runs."""
+    return imported_modules(path.read_text(), module_name(path), path.name == "__init__.py", runtime=True)
 
 
 def import_graph() -> dict[str, set[str]]:
