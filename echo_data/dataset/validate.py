@@ -147,8 +147,17 @@ class DamagedDataset(ValueError):
     """A dataset whose shards or WAVs are not what its manifest recorded: one line naming the file."""
 
 
+class UnfinishedBuild(DamagedDataset):
+    """A dataset whose build stopped before it finished (its manifest says `complete: false`)."""
+
+
 def check_whole(out: Path, split: str | None = None, episode: int | None = None) -> None:
-    """Raise `DamagedDataset` naming the first damaged file (`first_damage`), or `ManifestError`."""
+    """Raise `UnfinishedBuild` for a build that has not finished (its files are not all there yet:
+    that is no damage), `DamagedDataset` naming the first damaged file (`first_damage`), or
+    `ManifestError`."""
+    if not load_manifest(out).get("complete"):
+        raise UnfinishedBuild(f"{out}: an unfinished build (manifest.json: complete is false): finish it with "
+                              f"`echo-data build RECIPE --out {out} --resume`")
     damage = first_damage(out, split, episode)
     if damage:
         raise DamagedDataset(f"{out}: damaged: {damage} (`echo-data validate {out}` lists every problem)")
