@@ -28,7 +28,7 @@ from echo_data.scene.nav import NavGrid, interaction_pose
 from echo_data.scene.objects import instance_scale
 from echo_data.scene.structure import GenerationError, door_swing_zone
 from echo_data.skill_table import SKILLS, event_chain
-from echo_data.sounds.synth import fresh_id
+from echo_data.sounds.instance_ids import fresh_id
 from echo_data.target import Target
 
 START_MIN_DISTANCE = 2.0  # m from the first target's sound source
