@@ -246,7 +246,7 @@ def evaluate_planner_cmd(
 ) -> None:
     """Score a trained planner on its dataset's test split (unheard sounds), once its options are chosen on validation; prints and saves RUN/test.json."""
     _need_torch()
-    from echo_data.learn.planner import score_test
+    from echo_data.learn.planner_score import score_test
 
     try:
         report = score_test(run, dataset)
