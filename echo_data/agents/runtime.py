@@ -215,6 +215,8 @@ def run_episode(
     on_step: StepHook | None = None, max_steps: int | None = None, skills: int | None = None,
 ) -> EpisodeRun:
     """Run one episode already reset in `env` (its first observation and info) with a planner and a skill policy.
+    Long because it is the one episode loop (build, evaluate and DAgger share it): its per-skill
+    state (budget, probe, path, stop) lives across the steps of one loop, kept in one place.
 
     Success is read from the environment's `info["skills"]` (one evaluation per step).
     `on_step(env, obs, action, skill_index, call, skill_flags)` is called before each action is

@@ -86,7 +86,8 @@ def _shape(feature: dict[str, Any]) -> str:
 
 
 def card_text(out: Path) -> str:
-    """The card of the complete dataset at `out` (front matter + Markdown body)."""
+    """The card of the complete dataset at `out` (front matter + Markdown body). Long because it is
+    one document's template, read top to bottom like the card it writes."""
     m = load_manifest(out)
     info = json.loads((out / "meta" / "info.json").read_text())
     episodes = pq.read_table(out / "meta" / "episodes.parquet", columns=["split", "events"]).to_pylist()

@@ -150,6 +150,7 @@ def shifted(x: Any, shift: int, rng: np.random.Generator) -> Any:
 
 def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bool = False, progress: bool = True, extra: Any = None) -> dict[str, Any]:
     """Train (or continue) a skill run in `out`; returns the summary also printed by the CLI.
+    Long because setup, resume, the epoch loop and the closing summary share one run's state.
 
     `extra` (DAgger's labelled rollouts: `inputs`, `actions` (n, 1, A)) is appended to the
     training rows, never to validation."""

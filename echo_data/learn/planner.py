@@ -275,7 +275,8 @@ def mix_examples(a: Any, b: Any, ya: Any, yb: Any, std: Any, mean: Any, rank: di
 def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite: bool = False, progress: bool = True) -> dict[str, Any]:
     """Train on the train split and choose the checkpoint and decoder on validation (held-out
     train episodes); writes eval.json (validation figures only: the test split is not read, see
-    `score_test`) in the run folder and returns it."""
+    `planner_score.score_test`) in the run folder and returns it. Long because setup, resume, the
+    epoch loop and the choice of checkpoint and decoder share one run's state."""
     runs.check_out(out, resume, overwrite)
     if resume:
         saved = PlannerConfig.from_dict(runs.read_json(out / runs.CONFIG))
