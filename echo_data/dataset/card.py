@@ -12,10 +12,10 @@ import json
 from pathlib import Path
 from typing import Any
 
-import pyarrow.parquet as pq
 import yaml
 
 from echo_data.dataset.manifest import load_manifest
+from echo_data.dataset.reader import episodes_table
 from echo_data.dataset.schema import (
     ACTION_EE,
     ACTION_EE_EXECUTED,
@@ -90,7 +90,7 @@ def card_text(out: Path) -> str:
     one document's template, read top to bottom like the card it writes."""
     m = load_manifest(out)
     info = json.loads((out / "meta" / "info.json").read_text())
-    episodes = pq.read_table(out / "meta" / "episodes.parquet", columns=["split", "events"]).to_pylist()
+    episodes = episodes_table(out, ["split", "events"]).to_pylist()
     counts = m["counts"]
     splits = sorted(info["splits"], key=SPLIT_KEYS.__getitem__)
     features = StepLayout.from_dict(m["layout"]).hf_features()  # in column order

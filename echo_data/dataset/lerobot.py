@@ -56,6 +56,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset.episode_arrays import ExportError, check_out_folder, check_source, column_values, decode_images
+from echo_data.dataset.reader import episodes_table
 from echo_data.dataset.schema import (
     ACTION,
     ACTION_EXECUTED,
@@ -307,7 +308,7 @@ def _data_files(
     episodes: list[dict[str, Any]] = []
     splits: dict[str, str] = {}
     train: list[dict[str, dict[str, Any]]] = []
-    ep_meta = {(r["split"], r["episode_index"]): r for r in pq.read_table(src / "meta" / "episodes.parquet").to_pylist()}
+    ep_meta = {(r["split"], r["episode_index"]): r for r in episodes_table(src).to_pylist()}
     n_ep = n_rows = 0
     stats_splits = [s for s in manifest["splits"] if s == "train"] or list(manifest["splits"])
 

@@ -29,7 +29,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset.encode import decode_pngs
-from echo_data.dataset.manifest import load_manifest
+from echo_data.dataset.manifest import MANIFEST, ManifestError, load_manifest
 from echo_data.dataset.schema import StepLayout, column_to_numpy
 
 INDEX_COLUMNS = ("episode_index", "skill", "skill_index", "frame_index")
@@ -66,12 +66,24 @@ def episode_rows(root: Path, split: str, index: int) -> tuple[dict[str, Any], li
     return ep, table.to_pylist()
 
 
+def dataset_manifest(root: Path, split: str | None = None, why: str = "") -> dict[str, Any]:
+    """The checked manifest of the dataset at `root` (`manifest.load_manifest`); with `split`, a
+    dataset without that split is refused in one line ending in `why`."""
+    root = Path(root)
+    if not (root / MANIFEST).is_file():
+        raise ManifestError(f"{root}: not an echo-data dataset (no {MANIFEST})")
+    m = load_manifest(root)
+    if split is not None and split not in m["splits"]:
+        raise ManifestError(f"{root / MANIFEST}: no {split!r} split{' ' + why if why else ''}")
+    return m
+
+
 def dataset_recipe(root: Path) -> tuple[Any, int]:
     """The recipe a dataset was built from (its manifest's copy) and its train episode count."""
     from echo_data.recipe import recipe_from_mapping
 
-    m = load_manifest(Path(root))
-    return recipe_from_mapping(m["recipe"], source=str(Path(root) / "manifest.json")), int(m["splits"].get("train", {}).get("episodes", 0))
+    m = dataset_manifest(Path(root))
+    return recipe_from_mapping(m["recipe"], source=str(Path(root) / MANIFEST)), int(m["splits"].get("train", {}).get("episodes", 0))
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from echo_data.dataset.reader import dataset_manifest
 from echo_data.learn import runs
 from echo_data.learn.algos import build_model, config_from_run
 from echo_data.learn.algos.base import SkillConfig, held_entries
@@ -53,11 +54,7 @@ def resolve(cfg: SkillConfig) -> SkillConfig:
 
     cfg.check()
     root = Path(cfg.dataset)
-    if not (root / "manifest.json").is_file():
-        raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)")
-    manifest = runs.read_json(root / "manifest.json")
-    if "train" not in manifest.get("splits", {}):
-        raise runs.RunError(f"{root / 'manifest.json'}: no 'train' split to learn from")
+    manifest = dataset_manifest(root, "train", "to learn from")
     if cfg.action_form not in ACTION_FORMS:
         raise runs.RunError(f"--action-form: unknown form {cfg.action_form!r}; choose from {', '.join(ACTION_FORMS)}")
     if cfg.action_form == "delta" and not {"state", "state_raw"} & set(cfg.inputs):

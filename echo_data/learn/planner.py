@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from echo_data.dataset.reader import dataset_manifest
 from echo_data.evaluation.metrics import plan_right_without_receptacle
 from echo_data.learn import runs
 from echo_data.learn.data import split_episodes
@@ -136,11 +137,7 @@ def resolve(cfg: PlannerConfig) -> PlannerConfig:
     from echo_data.learn.models import audio_shape
 
     root = Path(cfg.dataset)
-    if not (root / "manifest.json").is_file():
-        raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)")
-    manifest = runs.read_json(root / "manifest.json")
-    if "train" not in manifest["splits"]:
-        raise runs.RunError(f"{root / 'manifest.json'}: no 'train' split (the planner trains on train)")
+    manifest = dataset_manifest(root, "train", "(the planner trains on train)")
     rows = episode_rows(root, "train")
     spec = feature_spec(root, cfg.inputs, audio=cfg.audio, image_size=cfg.image_size)
     shape = audio_shape(spec, manifest["layout"])

@@ -10,6 +10,8 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from echo_data.dataset.manifest import MANIFEST
+from echo_data.dataset.reader import dataset_manifest
 from echo_data.learn import runs
 from echo_data.learn.features import FeatureSpec
 from echo_data.learn.loop import setup_torch
@@ -43,10 +45,9 @@ def score_test(run: Path, dataset: Path | None = None) -> dict[str, Any]:
         raise runs.RunError(f"{run / runs.EVAL}: missing (training of {run} has not finished; `echo-data train planner ... --resume` finishes it)")
     cfg = PlannerConfig.from_dict(runs.read_json(run / runs.CONFIG))
     root = Path(cfg.dataset) if dataset is None else dataset
-    if not (root / "manifest.json").is_file():
-        raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)" + ("; give the dataset the run was trained on: evaluate-planner RUN DATASET" if dataset is None else ""))
-    if "test" not in runs.read_json(root / "manifest.json")["splits"]:
-        raise runs.RunError(f"{root / 'manifest.json'}: no 'test' split to score (build the recipe whole into another folder, whose train split is the same, and give it: evaluate-planner RUN DATASET)")
+    if not (root / MANIFEST).is_file():
+        raise runs.RunError(f"{root}: not an echo-data dataset (no {MANIFEST})" + ("; give the dataset the run was trained on: evaluate-planner RUN DATASET" if dataset is None else ""))
+    dataset_manifest(root, "test", "to score (build the recipe whole into another folder, whose train split is the same, and give it: evaluate-planner RUN DATASET)")
     check_whole(root)
     _same_dataset(cfg, root, run)
     setup_torch(cfg.seed, cfg.threads)
