@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -32,67 +32,11 @@ from echo_data.learn.data import split_episodes
 from echo_data.learn.features import FeatureSpec, feature_spec
 from echo_data.learn.loop import LoopConfig, fit, setup_torch
 from echo_data.learn.metrics import rate
+from echo_data.learn.planner_config import PlannerConfig
 from echo_data.learn.planner_data import Episodes, chain_of, chosen_episodes, episode_rows, learn_templates, load_episodes
 from echo_data.skill_table import role_of
 
 PLANNER_CLASS = "echo_data.learn.policy:PlannerModel"
-
-
-@dataclass
-class PlannerConfig:
-    dataset: str
-    inputs: tuple[str, ...] = ("audio",)
-    epochs: int = 60
-    seed: int = 0
-    batch_size: int = 32
-    lr: float = 1e-3
-    weight_decay: float = 1e-4
-    val_fraction: float = 0.15
-    threads: int = 1  # see loop.setup_torch: more threads than free cores is many times slower
-    image_size: int = 64
-    audio: str = "mel"
-    max_steps: int | None = None
-    # Training also reads frames 1..train_frames-1 of each training episode (the windows of the
-    # first seconds, all events still sounding): more views of each scene for few episodes.
-    # Validation and test read frame 0 only, the planner's input.
-    train_frames: int = 10
-    # A seeded subset of the train split's episodes (None: all), for learning curves.
-    train_episodes: int | None = None
-    # What validates: "episodes" (a seeded 15 % of train episodes, which hear the training sound
-    # instances) or "sounds" (a seeded share of each category's train instances is held out; the
-    # episodes that play only held-out instances validate, those that play none train, the rest
-    # are left out), so that validation, like the test split, hears instances never trained on.
-    val_by: str = "episodes"
-    # Which validation score picks best.pt: "loss" (lowest) or "accuracy" (events in order, highest).
-    select: str = "loss"
-    # Training-time augmentation of the audio input (see `augment_audio`): off by default.
-    augment: bool = False
-    # The audio encoder (models.AUDIO_ENCODERS): "flat" (SoundSpaces' CNN, flattened) or "pooled"
-    # (batch-normed blocks, pooled over time: a pattern counts wherever in the second it sounds).
-    encoder: str = "flat"
-    # How the sounding events are ordered: "learned" (the priority scores) or "priority" (the
-    # dataset recipe's priority rule, `events.priority` in the manifest, which the task states:
-    # the order is then a fixed function of the set and only the set must be heard).
-    order: str = "learned"
-    # The share of training examples replaced by a mix of two single-event training examples of
-    # a state and a relocation category (their powers summed, labels united): multi-event scenes
-    # the recipe composes, from voices of the single-event episodes. 0: off.
-    mix: float = 0.0
-    # Filled in by resolve():
-    features: dict[str, Any] = field(default_factory=dict)
-    audio_shape: list[int] | None = None
-    categories: list[str] = field(default_factory=list)
-    templates: dict[str, list[list[str]]] = field(default_factory=dict)  # category -> [[skill, target], ...]
-    val_episodes: list[int] = field(default_factory=list)
-    # The event sets (sorted categories) the training episodes hold, and how the answer is read
-    # from the logits (see `decode`): chosen after training on validation, written to config.json.
-    event_sets: list[list[str]] = field(default_factory=list)
-    decode: str = "threshold"
-    priority: list[str] = field(default_factory=list)  # the recipe's priority rule, most urgent first
-
-    @staticmethod
-    def from_dict(d: dict[str, Any]) -> PlannerConfig:
-        return PlannerConfig(**{**d, "inputs": tuple(d["inputs"])})
 
 
 VAL_BY = ("episodes", "sounds")
