@@ -71,6 +71,22 @@ def _flag(name: str, hint: Any) -> str:
     return f"--{flag}/--no-{flag}" if _option_type(hint) is bool else f"--{flag}"
 
 
+def _dataset_argument() -> inspect.Parameter:
+    return inspect.Parameter("dataset", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation=Path,
+                             default=typer.Argument(..., metavar="DATASET", help="Dataset folder (out/<name>)."))
+
+
+def _run_folder_options(default_out: str) -> list[inspect.Parameter]:
+    """--out, --resume, --overwrite, --progress: every learner's run-folder options."""
+    kw = inspect.Parameter.KEYWORD_ONLY
+    return [
+        inspect.Parameter("out", kw, annotation=Path | None, default=typer.Option(None, "--out", help=f"Run folder (default {default_out}).")),
+        inspect.Parameter("resume", kw, annotation=bool, default=typer.Option(False, "--resume", help="Continue the run in --out from its last checkpoint.")),
+        inspect.Parameter("overwrite", kw, annotation=bool, default=typer.Option(False, "--overwrite", help="Replace the run in --out.")),
+        inspect.Parameter("progress", kw, annotation=bool, default=typer.Option(True, "--progress/--no-progress", help="Show progress bars.")),
+    ]
+
+
 def _field_default(f: Any) -> Any:
     return f.default_factory() if f.default is dataclasses.MISSING else f.default
 
@@ -112,17 +128,12 @@ def _make_train_command(name: str) -> Callable[..., None]:
     algo = algorithm(name)
     cls = algo.config
     fields = cls.options()
-    params = [inspect.Parameter("dataset", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation=Path,
-                                default=typer.Argument(..., metavar="DATASET", help="Dataset folder (out/<name>)."))]
+    params = [_dataset_argument()]
     params += _field_options(cls, fields)
     params += [
         inspect.Parameter("config", inspect.Parameter.KEYWORD_ONLY, annotation=Path | None,
                           default=typer.Option(None, "--config", help="JSON or YAML file of option values (the command line wins).")),
-        inspect.Parameter("out", inspect.Parameter.KEYWORD_ONLY, annotation=Path | None,
-                          default=typer.Option(None, "--out", help=f"Run folder (default runs/{name}-<skill>-<inputs>).")),
-        inspect.Parameter("resume", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(False, "--resume", help="Continue the run in --out from its last checkpoint.")),
-        inspect.Parameter("overwrite", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(False, "--overwrite", help="Replace the run in --out.")),
-        inspect.Parameter("progress", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(True, "--progress/--no-progress", help="Show progress bars.")),
+        *_run_folder_options(f"runs/{name}-<skill>-<inputs>"),
     ]
     if name == "bc":
         params += [
@@ -201,16 +212,9 @@ def _make_planner_command() -> Callable[..., None]:
     from echo_data.learn.planner_config import PlannerConfig
 
     fields = PlannerConfig.options()
-    params = [inspect.Parameter("dataset", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation=Path,
-                                default=typer.Argument(..., metavar="DATASET", help="Dataset folder (out/<name>)."))]
+    params = [_dataset_argument()]
     params += _field_options(PlannerConfig, fields)
-    params += [
-        inspect.Parameter("out", inspect.Parameter.KEYWORD_ONLY, annotation=Path | None,
-                          default=typer.Option(None, "--out", help="Run folder (default runs/planner-<inputs>).")),
-        inspect.Parameter("resume", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(False, "--resume", help="Continue the run in --out from its last checkpoint.")),
-        inspect.Parameter("overwrite", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(False, "--overwrite", help="Replace the run in --out.")),
-        inspect.Parameter("progress", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(True, "--progress/--no-progress", help="Show progress bars.")),
-    ]
+    params += _run_folder_options("runs/planner-<inputs>")
 
     def command(**kw: Any) -> None:
         _need_torch()
