@@ -56,7 +56,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset.episode_arrays import ExportError, check_out_folder, check_source, column_values, decode_images
-from echo_data.dataset.reader import episodes_table
+from echo_data.dataset.reader import episodes_table, split_shards
 from echo_data.dataset.schema import (
     ACTION,
     ACTION_EXECUTED,
@@ -322,7 +322,7 @@ def _data_files(
     for split in sorted(manifest["splits"], key=SPLIT_KEYS.__getitem__):
         close()  # a data file never holds two splits
         first_ep = n_ep
-        for shard in (e for e in manifest["shards"] if e["split"] == split):
+        for shard in split_shards(manifest, split):
             table = conform(pq.read_table(src / shard["file"]), layout.schema())
             ep = table.column("episode_index").to_numpy()
             bounds = np.flatnonzero(np.diff(ep)) + 1

@@ -66,6 +66,11 @@ def episode_rows(root: Path, split: str, index: int) -> tuple[dict[str, Any], li
     return ep, table.to_pylist()
 
 
+def split_shards(manifest: dict[str, Any], split: str) -> list[dict[str, Any]]:
+    """The manifest's entries of `split`'s shard files, in order (where every reader finds shards)."""
+    return [e for e in manifest["shards"] if e["split"] == split]
+
+
 def dataset_manifest(root: Path, split: str | None = None, why: str = "") -> dict[str, Any]:
     """The checked manifest of the dataset at `root` (`manifest.load_manifest`); with `split`, a
     dataset without that split is refused in one line ending in `why`."""
@@ -108,7 +113,7 @@ class DatasetMeta:
         """The split's shard files in order (ValueError naming the split when it has none)."""
         if split not in self.manifest["splits"]:
             raise ValueError(f"{self.root}: no split {split!r} (has {', '.join(self.manifest['splits'])})")
-        return [self.root / e["file"] for e in self.manifest["shards"] if e["split"] == split]
+        return [self.root / e["file"] for e in split_shards(self.manifest, split)]
 
     @cached_property
     def schema(self) -> pa.Schema:
