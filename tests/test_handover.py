@@ -13,7 +13,7 @@ import pytest
 
 from echo_data.agents.builtin import OraclePlanner, OracleSkills, StillSkills
 from echo_data.episode import SkillCall
-from echo_data.skills.registry import SKILLS, handover_call
+from echo_data.skill_table import SKILLS, handover_call
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -148,7 +148,7 @@ def test_handover_goals_lie_in_the_next_skills_stance() -> None:
     asks; the margins keep the follower's stop inside the stance (docs/handover.md)."""
     import numpy as np
 
-    from echo_data.skills.registry import SKILLS
+    from echo_data.skill_table import SKILLS
     from echo_data.skills.success import NAV_SUCCESS_DIST, NAV_SUCCESS_YAW
 
     stance = SKILLS["CloseSink"].stance
@@ -181,7 +181,7 @@ def test_navigate_with_handover_noise_stops_off_the_pose_inside_the_region() -> 
     """The build's Navigate under experts.handover_noise ends where its success test holds and
     inside the next skill's stance, but away from the interaction pose, at a point drawn from the
     episode's own seeded stream; with no skill after it, it drives to the exact pose."""
-    from echo_data.skills.registry import SKILLS
+    from echo_data.skill_table import SKILLS
     from echo_data.skills.success import handed_over
 
     stance = SKILLS["CloseSink"].stance

@@ -225,6 +225,8 @@ def run_episode(
     drive_end: str = "handover",
 ) -> EpisodeRun:
     """Run one episode already reset in `env` (its first observation and info) with a planner and a skill policy.
+    Long because it is the one episode loop (build, evaluate and DAgger share it): its per-skill
+    state (budget, probe, path, stop) lives across the steps of one loop, kept in one place.
 
     Success is read from the environment's `info["skills"]` (one evaluation per step).
     `on_step(env, obs, action, skill_index, call, skill_flags)` is called before each action is
@@ -234,7 +236,7 @@ def run_episode(
     """
     from echo_data.envs.env import EnvInputError, as_action
     from echo_data.envs.privileged import PrivilegedProbe
-    from echo_data.skills.registry import SKILLS, handover_call, skill_budget
+    from echo_data.skill_table import SKILLS, handover_call, skill_budget
 
     if drive_end not in DRIVE_ENDS:
         raise ValueError(f"drive_end {drive_end!r}: expected one of {', '.join(DRIVE_ENDS)}")

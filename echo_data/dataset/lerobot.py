@@ -56,6 +56,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset.episode_arrays import ExportError, check_out_folder, check_source, column_values, decode_images
+from echo_data.dataset.reader import episodes_table, split_shards
 from echo_data.dataset.schema import (
     ACTION,
     ACTION_EXECUTED,
@@ -307,7 +308,7 @@ def _data_files(
     episodes: list[dict[str, Any]] = []
     splits: dict[str, str] = {}
     train: list[dict[str, dict[str, Any]]] = []
-    ep_meta = {(r["split"], r["episode_index"]): r for r in pq.read_table(src / "meta" / "episodes.parquet").to_pylist()}
+    ep_meta = {(r["split"], r["episode_index"]): r for r in episodes_table(src).to_pylist()}
     n_ep = n_rows = 0
     stats_splits = [s for s in manifest["splits"] if s == "train"] or list(manifest["splits"])
 
@@ -321,7 +322,7 @@ def _data_files(
     for split in sorted(manifest["splits"], key=SPLIT_KEYS.__getitem__):
         close()  # a data file never holds two splits
         first_ep = n_ep
-        for shard in (e for e in manifest["shards"] if e["split"] == split):
+        for shard in split_shards(manifest, split):
             table = conform(pq.read_table(src / shard["file"]), layout.schema())
             ep = table.column("episode_index").to_numpy()
             bounds = np.flatnonzero(np.diff(ep)) + 1

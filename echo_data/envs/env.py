@@ -17,7 +17,7 @@ Reward: the number of true-chain skills newly completed in order at this step (t
 tests, latched); `terminated` when the whole chain is done or a non-finite action arrived (the
 reason in `info["failure"]`); `truncated` past the sum of the chain's step budgets.
 `info["skills"][k]["handed_over"]`: entry k's drive ends where the next skill was taught to start
-(docs/handover.md; `skills.registry.HandOver`) — a learned drive that does not STOP ends there. An agent that
+(docs/handover.md; `skill_table.HandOver`) — a learned drive that does not STOP ends there. An agent that
 ends its skills itself (SoundSpaces' STOP) sets `agent_stops`: the active skill then counts only
 when the agent calls `stop_skill()` and its test holds there (else the episode ends failed);
 `run_episode` does this for learned policies that end themselves. After either,
@@ -43,7 +43,8 @@ from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_DIM, ACTION_SPACES, EE_ACTION_DIM, STATE_DIM
-from echo_data.skills.registry import SKILLS, Situation, apply_effect, handover_call, in_stance, skill_budget
+from echo_data.skill_table import SKILLS, Situation, apply_effect, handover_call, skill_budget
+from echo_data.skills.success import in_stance
 
 if TYPE_CHECKING:
     from echo_data.envs.audio import Heard
@@ -419,7 +420,7 @@ class EchoDataEnv(gym.Env):
 
     # ------------------------------------------------------------------ success tests
     def _evaluate(self) -> list[bool]:
-        """Every chain skill's success test on the current state, once (`echo_data.skills.registry`)."""
+        """Every chain skill's success test on the current state, once (`echo_data.skill_table`)."""
         return [SKILLS[c.skill].success(self.world, c, self._situation) for c in self.episode.chain]
 
     def _handed_over(self) -> list[bool]:

@@ -23,6 +23,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from echo_data.skill_table import role_of
+
 Z95 = 1.959963984540054  # two-sided 95 % standard normal quantile
 
 
@@ -56,7 +58,7 @@ def mean_interval(xs: list[float]) -> dict[str, Any]:
 
 def without_receptacle(chain: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """`chain` with the target of every Place step blanked (None), every step kept."""
-    return [dict(c, target=None) if c["skill"] == "Place" else c for c in chain]
+    return [dict(c, target=None) if role_of(c["skill"]) == "deliver" else c for c in chain]
 
 
 def plan_right_without_receptacle(planned: list[dict[str, Any]] | None, true: list[dict[str, Any]]) -> bool:

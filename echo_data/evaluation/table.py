@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from echo_data.evaluation.metrics import plan_right_without_receptacle, proportion, summarise, wilson
-from echo_data.skills.registry import SKILLS as SKILL_TABLE
+from echo_data.skill_table import SKILLS as SKILL_TABLE
 
 SKILLS = tuple(SKILL_TABLE)  # every skill a row reports, in the skill table's order
 NOT_MEASURED = "not measured"

@@ -35,7 +35,9 @@ from typing import Any
 
 import numpy as np
 
+from echo_data.dataset.reader import dataset_recipe
 from echo_data.learn import runs
+from echo_data.skill_table import SKILLS, skill
 
 DAGGER_LOG = runs.DAGGER_LOG
 
@@ -57,14 +59,6 @@ class Rollouts:
         return len(self.actions)
 
 
-def recipe_of(dataset: Path) -> Any:
-    """The recipe a dataset was built from (its manifest copy) and its train episode count."""
-    from echo_data.recipe import recipe_from_mapping
-
-    manifest = runs.read_json(dataset / "manifest.json")
-    return recipe_from_mapping(manifest["recipe"], source=str(dataset / "manifest.json")), int(manifest["splits"]["train"]["episodes"])
-
-
 Label = Callable[[np.ndarray], "np.ndarray | None"]
 
 
@@ -72,9 +66,9 @@ def labeller(env: Any, call: Any, column: str) -> Label:
     """The expert of `call.skill` as a label function: the learner's last action -> the label of
     the state now in `column`'s form (None: the expert has nothing to do from here)."""
     from echo_data.dataset.schema import ACTION
+    from echo_data.skill_table import SKILLS
     from echo_data.skills.labeller import ExpertLabeller
     from echo_data.skills.navigate import Relabeller
-    from echo_data.skills.registry import SKILLS
 
     ee = env.world.robot.ee
     if SKILLS[call.skill].role == "approach":  # a planner + follower: re-planned, its ramp resumed from the learner's last command
@@ -114,7 +108,7 @@ class _Labels:
 
     def __call__(self, env: Any, obs: dict[str, Any], a: np.ndarray, k: int, call: Any, flags: tuple[bool, ...]) -> None:
         from echo_data.agents.runtime import StopEpisode
-        from echo_data.skills.registry import SKILLS
+        from echo_data.skill_table import SKILLS
 
         if k != self.k:  # the experts' skills before it
             return
@@ -152,7 +146,7 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
     policy = BCPolicy.from_run(run)
     column = policy.config.action_column
     mode = next(m for m, c in COLUMN_OF_SPACE.items() if c == column)
-    recipe, _ = recipe_of(dataset)
+    recipe, _ = dataset_recipe(dataset)
     images, audio = needs(policy)
     env = EchoDataEnv(recipe, split="train", images=images, audio=audio, action_mode=mode)
     agent = SkillDispatch({policy.skill: policy}, OracleSkills())
@@ -192,9 +186,12 @@ def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_st
     themselves always start from the first."""
     from echo_data.learn.fit import train_skill as train_bc
 
+    if not skill(cfg.skill).labels_any_state:
+        able = ", ".join(n for n, s in SKILLS.items() if s.labels_any_state)
+        raise DaggerError(f"--dagger: only {able}'s expert can act from any state (not {cfg.skill!r}; see docs/learners.md)")
     if cfg.window() != 1 or cfg.SEQUENCE:
         raise DaggerError("--dagger: the expert labels one action per state: train bc with --chunk 1")
-    _, n_train = recipe_of(Path(cfg.dataset))
+    _, n_train = dataset_recipe(Path(cfg.dataset))
     if episodes_per_round > n_train:
         raise DaggerError(f"--dagger-episodes {episodes_per_round}: the train split of {cfg.dataset} has {n_train} episodes")
     summary = train_bc(cfg, out, resume=resume, overwrite=not resume, progress=progress)

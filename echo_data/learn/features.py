@@ -193,10 +193,10 @@ def feature_spec(
 
 def stored_sides(dataset: Path, inputs: tuple[str, ...]) -> dict[str, tuple[int, int]]:
     """(H, W) of each image input as the dataset stores it (manifest layout)."""
-    from echo_data.dataset.schema import StepLayout
+    from echo_data.dataset.reader import DatasetMeta
 
     try:
-        layout = StepLayout.from_dict(json.loads((dataset / "manifest.json").read_text())["layout"])
+        layout = DatasetMeta.of(dataset).layout
     except (OSError, ValueError, KeyError) as e:
         raise FeatureError(f"{dataset / 'manifest.json'}: cannot read the step layout ({e})") from None
     cols = {"depth": HEAD_DEPTH, "wrist_depth": WRIST_DEPTH, "rgb": HEAD_RGB, "image": HEAD_RGB}

@@ -235,6 +235,6 @@ class PlannerModel:
         return decode(logits[0].numpy(), scores[0].numpy(), self.categories, self.sets, self.priority)
 
     def plan(self, first_obs: Mapping[str, Any]) -> list[dict[str, str]]:
-        from echo_data.learn.planner import chain_of
+        from echo_data.learn.planner_data import chain_of
 
         return chain_of(self.events(first_obs), self.templates)

@@ -52,6 +52,9 @@ _BEFORE_MARKER = re.compile(  # every file a run folder held before the marker e
 )
 
 
+POLICY_CLASS = "echo_data.learn.policy:SkillPolicy"  # the class a skill-policy run names (agent.json)
+
+
 class RunError(ValueError):
     """A run folder that cannot be used as asked (one line, names the file)."""
 

@@ -41,7 +41,7 @@ class ExpertLabeller:
     world's state now, or None when it has nothing to do from here; `joint(ee)` its joint form."""
 
     def __init__(self, world: World, call: SkillCall, spec: EpisodeSpec, expert: Callable[..., Any] | None = None) -> None:
-        from echo_data.skills.registry import SKILLS
+        from echo_data.skill_table import SKILLS
 
         self.world, self.call, self.spec = world, call, spec
         self.expert = expert or SKILLS[call.skill].expert_fn()

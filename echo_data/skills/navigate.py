@@ -25,8 +25,8 @@ from scipy.spatial.transform import Rotation
 from echo_data.records import ACTION_DIM, EE_ACTION_DIM, SkillOutcome
 from echo_data.scene.nav import NavGrid, interaction_pose, target_point
 from echo_data.seeds import HANDOVER, derived_rng
-from echo_data.skills.registry import HandOver, handover_call
-from echo_data.skills.registry import skill as skill_of
+from echo_data.skill_table import HandOver, handover_call
+from echo_data.skill_table import skill as skill_of
 from echo_data.skills.servo import SPEED, TURN, ee_command, step_towards
 from echo_data.skills.success import NAV_SUCCESS_YAW, navigate_success
 
@@ -362,7 +362,7 @@ class Relabeller:
 
 # ---------------------------------------------------------------------- hand-over starts
 # `experts.handover_noise` = f in (0, 1]: the build's Navigate stops at a random point of the next
-# skill's stance (`skills.registry.HandOver`, docs/handover.md) instead of its interaction pose,
+# skill's stance (`skill_table.HandOver`, docs/handover.md) instead of its interaction pose,
 # so the manipulation demonstrations start from the whole region a learned Navigate is made to
 # end in (M3, Gu et al. 2022, "Multi-skill Mobile Manipulation for Object Rearrangement":
 # manipulation skills trained from a distribution of base starts around the target, not one pose).
@@ -408,7 +408,7 @@ def navigate(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.n
     `experts.handover_noise`, to a point of the next skill's stance drawn per episode instead)."""
     robot = world.robot
     skill, target = call.skill, call.target
-    max_steps = int(robot.cfg.max_steps["Navigate"])
+    max_steps = int(robot.cfg.max_steps[skill])
     grid = current_grid(world)
     try:
         goal = goal_pose(world, target, grid)

@@ -253,7 +253,7 @@ def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.
     """The OpenDoor expert for `call.target` = "door:<i>" (see the module docstring)."""
     skill, target = call.skill, call.target
     robot = world.robot
-    max_steps = int(robot.cfg.max_steps["OpenDoor"])
+    max_steps = int(robot.cfg.max_steps[skill])
     i = Target.parse(target).index
     door: Door = world.plan.doors[i]
     art = world.handles.doors[i]

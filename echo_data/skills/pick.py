@@ -35,6 +35,7 @@ from echo_data.records import SkillOutcome
 from echo_data.robot.ee_control import base_frame
 from echo_data.robot.robot import READY_GROUP, yaw_of
 from echo_data.scene.objects import object_size
+from echo_data.skill_table import approach_skill
 from echo_data.skills import servo as S
 from echo_data.skills.budget import Budget, SkillFailed
 from echo_data.skills.servo import jaw_yaw, top_down
@@ -98,7 +99,7 @@ def fixed_in_base(world: World, xyz: tuple[float, float, float], yaw_in_base: fl
 def pick(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
     """Pick expert (generator of `action.ee`; returns the SkillOutcome)."""
     robot = world.robot
-    budget = Budget(int(robot.cfg.max_steps["Pick"]))
+    budget = Budget(int(robot.cfg.max_steps[call.skill]))
     name = call.target
     try:
         yield from budget.run(_pick(world, name))
@@ -281,7 +282,7 @@ def drive_path(world: World, goal: tuple[float, float, float], arm: S.Goal) -> G
     its base velocities, the TCP held at `arm` (a goal fixed in the base frame), torso and gripper held."""
     from echo_data.skills.navigate import drive_to
 
-    gen = drive_to(world, goal, int(world.robot.cfg.max_steps["Navigate"]))
+    gen = drive_to(world, goal, int(world.robot.cfg.max_steps[approach_skill().name]))
     try:
         while True:
             a = next(gen)

@@ -28,6 +28,7 @@ import numpy as np
 
 from echo_data.records import SkillOutcome
 from echo_data.scene.objects import object_size
+from echo_data.skill_table import approach_skill
 from echo_data.skills import servo as S
 from echo_data.skills.budget import Budget, SkillFailed
 from echo_data.skills.pick import (
@@ -126,8 +127,8 @@ def place(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndar
     robot = world.robot
     # Place includes a drive across the apartment: the drive gets Navigate's step limit, the
     # arm work Place's own.
-    drive_budget = Budget(int(robot.cfg.max_steps["Navigate"]))
-    budget = Budget(int(robot.cfg.max_steps["Place"]))
+    drive_budget = Budget(int(robot.cfg.max_steps[approach_skill().name]))
+    budget = Budget(int(robot.cfg.max_steps[call.skill]))
     try:
         tgt = Target.parse(call.target)
     except ValueError:

@@ -11,8 +11,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from echo_data.scene.objects import object_size
+from echo_data.skill_table import Situation, carried_object, skill
+from echo_data.target import Target
 
 if TYPE_CHECKING:
+    from echo_data.episode import SkillCall
     from echo_data.world import World
 
 # ------------------------------------------------------------------ Pick / Place
@@ -132,10 +135,17 @@ def stance_offset(world: World, target: str, grid: Any = None, poses: dict[Any, 
 
 def handed_over(world: World, target: str, distance: float, heading: float, grid: Any = None,
                 poses: dict[Any, Any] | None = None) -> bool:
-    """The base inside a stance (`skills.registry.HandOver`) of `target`: within `distance` m of
+    """The base inside a stance (`skill_table.HandOver`) of `target`: within `distance` m of
     its interaction pose and `heading` rad of that pose's heading."""
     off = stance_offset(world, target, grid, poses)
     return off is not None and off[0] <= distance and off[1] <= heading
+
+
+def in_stance(world: World, call: SkillCall, at: Situation) -> bool:
+    """The base inside the stance of `call` (its skill's `stance` about its target's interaction
+    pose, doors where they stand now, `skill_table.HandOver`); False for a skill without one."""
+    st = skill(call.skill).stance
+    return st is not None and handed_over(world, call.target, st.distance, st.heading, grid=at.nav_grid(), poses=at.poses)
 
 
 # ------------------------------------------------------------------ OpenDoor / CloseSink
@@ -156,3 +166,28 @@ def sink_closed_success(world: World, i: int) -> bool:
     stream = world.handles.water[i]
     stream.update(angle)
     return angle <= faucet.closed_tolerance and not stream.flowing
+
+
+# ------------------------------------------------------------------ as the skill table calls them
+# `echo_data.skill_table` names these "module:function" (it imports nothing above the vocabulary).
+
+
+def navigated(world: World, call: SkillCall, at: Situation) -> bool:
+    return navigate_success(world, call.target, grid=at.nav_grid(), poses=at.poses)
+
+
+def picked(world: World, call: SkillCall, at: Situation) -> bool:
+    return pick_success(world, call.target)
+
+
+def placed(world: World, call: SkillCall, at: Situation) -> bool:
+    name = carried_object(at.spec, call)
+    return name is not None and place_success(world, name, Target.parse(call.target).index)
+
+
+def door_opened(world: World, call: SkillCall, at: Situation) -> bool:
+    return door_open_success(world, Target.parse(call.target).index)
+
+
+def sink_closed(world: World, call: SkillCall, at: Situation) -> bool:
+    return sink_closed_success(world, Target.parse(call.target).index)

@@ -26,10 +26,10 @@ import math
 
 import numpy as np
 
-from echo_data.robot.head_view import HeadView, arm_reach, set_group
 from echo_data.robot.planner import ArmPlanner
 from echo_data.robot.robot import HEAD_TILT
 from echo_data.skills import arm
+from echo_data.skills.head_view import HeadView, arm_reach, set_group
 
 MAX_TILT = 4.0  # deg between the approach axis and straight down along every move
 MAX_STEP = 0.35  # rad: largest joint change of one tree edge

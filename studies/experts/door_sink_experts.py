@@ -81,7 +81,7 @@ def _side(spec: Any, call: Any) -> str:
 def run_one(recipe: Any, spec: Any, call: Any, start: str, expert: str | None = None) -> dict[str, Any]:
     """The expert of `call` alone from the chosen start; its outcome and commanded arm joints."""
     from echo_data.scene.nav import interaction_pose
-    from echo_data.skills.registry import Situation, skill
+    from echo_data.skill_table import Situation, skill
     from echo_data.world import World
 
     pose = interaction_pose(spec.plan, call.target)

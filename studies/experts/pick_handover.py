@@ -33,7 +33,7 @@ TRIES = 500
 def run_skill(world: Any, call: Any, spec: Any) -> Any:
     """Apply every action the skill's expert yields (either form); returns its SkillOutcome."""
     from echo_data.records import EE_ACTION_DIM
-    from echo_data.skills.registry import skill
+    from echo_data.skill_table import skill
 
     gen = skill(call.skill).expert_fn()(world, call, spec)
     try:

@@ -3,7 +3,8 @@
 Why: a carry pose must leave the head camera clear so that Place (and a policy learned from the
 head view) can see where it goes. Used by tests/test_carry_pose.py and the carry-search study.
 The robot stands alone on a floor; each object category's collision box hangs from the pads as
-Pick holds it (top GRASP_BELOW_TOP above the pads, yawed with the jaws).
+Pick holds it (top GRASP_BELOW_TOP above the pads, yawed with the jaws). It lives with the skills
+because it measures their carry pose with their grasp (`skills.pick`, `skills.arm`).
 """
 
 from __future__ import annotations

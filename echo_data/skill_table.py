@@ -2,15 +2,18 @@
 expert, its success test, whether its success resolves (silences) its event, its step budget, what
 it acts on, its role in an event's chain and its effect on the world when it succeeds.
 
-Everything else reads this table and nothing else dispatches on skill names: the recipe takes
+Everything else reads this table and nothing else dispatches on skill names (tests/
+test_skill_vocabulary.py counts the name literals used as logic elsewhere): the recipe takes
 its skill names and default step limits from it, the sampler builds chains from the roles
 (`event_chain`), the environment applies the effects (`apply_effect`, `Skill.effect`), the
-runtime takes budgets, and the experts' table (`echo_data.skills.EXPERTS`) the experts. Adding a
-skill is one module (expert + success test) and one line here (docs/adding_a_skill.md).
+runtime and the experts take budgets, the planner's prompt the descriptions, DAgger the skills
+whose expert labels any state, and the experts' table (`echo_data.skills.EXPERTS`) the experts.
+Adding a skill is one module (expert + success test) and one line here (docs/adding_a_skill.md).
 
-A bottom layer: at import this module reads only `echo_data.target`; experts are named
-"module:function" and success tests import their criteria on first call, so the recipe and the
-sampler can read the table without loading physics or mplib.
+The vocabulary layer (docs/ARCHITECTURE.md), below everything that uses it: at import this
+module reads only `echo_data.target`; experts and success tests are named "module:function" and
+imported on first call, so the recipe and the sampler can read the table without loading
+physics or mplib.
 """
 
 from __future__ import annotations
@@ -93,6 +96,8 @@ class Skill:
     role: ChainRole
     effect: Effect = ""
     follows: str = ""  # "deliver" skills: the resolve skill they carry on from
+    description: str = ""  # what it does, in the planner's prompt (dataset/planner.prompt)
+    labels_any_state: bool = False  # its expert can act from any state the learner reaches (DAgger)
     stance: HandOver | None = None  # where its manipulation begins (None: it only drives)
 
     def expert_fn(self) -> Callable[..., Any]:
@@ -107,6 +112,27 @@ class Skill:
     def drives(self) -> bool:
         """Whether it moves the base to its own target's interaction pose (approach, deliver)."""
         return self.role != "resolve"
+
+    @property
+    def delivers(self) -> bool:
+        """Whether it carries the object its `follows` skill lifted to a goal of its own."""
+        return self.role == "deliver"
+
+    @property
+    def lifts(self) -> bool:
+        """Whether its success puts an object in the hand (a deliver skill follows it)."""
+        return any(s.follows == self.name for s in SKILLS.values())
+
+
+def role_of(name: str) -> ChainRole | None:
+    """The role of skill `name`; None for a name that is no skill (a planner's free answer)."""
+    s = SKILLS.get(name)
+    return s.role if s is not None else None
+
+
+def approach_skill() -> Skill:
+    """The skill that opens every event's chain (its step limit is also a carry's drive limit)."""
+    return next(s for s in SKILLS.values() if s.role == "approach")
 
 
 def carried_object(spec: EpisodeSpec, call: SkillCall) -> str | None:
@@ -130,51 +156,29 @@ def lazy_test(path: str) -> SuccessTest:
     return test
 
 
-def _navigated(world: World, call: SkillCall, at: Situation) -> bool:
-    from echo_data.skills.success import navigate_success
-
-    return navigate_success(world, call.target, grid=at.nav_grid(), poses=at.poses)
-
-
-def _picked(world: World, call: SkillCall, at: Situation) -> bool:
-    from echo_data.skills.success import pick_success
-
-    return pick_success(world, call.target)
-
-
-def _placed(world: World, call: SkillCall, at: Situation) -> bool:
-    from echo_data.skills.success import place_success
-
-    name = carried_object(at.spec, call)
-    return name is not None and place_success(world, name, Target.parse(call.target).index)
-
-
-def _door_opened(world: World, call: SkillCall, at: Situation) -> bool:
-    from echo_data.skills.success import door_open_success
-
-    return door_open_success(world, Target.parse(call.target).index)
-
-
-def _sink_closed(world: World, call: SkillCall, at: Situation) -> bool:
-    from echo_data.skills.success import sink_closed_success
-
-    return sink_closed_success(world, Target.parse(call.target).index)
-
-
 SKILLS: dict[str, Skill] = {
     s.name: s
     for s in (
-        Skill("Navigate", "echo_data.skills.navigate:navigate", _navigated, False, ("Navigate",), ("object", "door", "faucet", "furniture"), 600, "approach"),
-        Skill("Pick", "echo_data.skills.pick:pick", _picked, True, ("Pick",), ("object",), 250, "resolve", stance=STANCE),
+        Skill("Navigate", "echo_data.skills.navigate:navigate", lazy_test("echo_data.skills.success:navigated"), False, ("Navigate",),
+              ("object", "door", "faucet", "furniture"), 600, "approach", labels_any_state=True,
+              description="drive the base to stand in front of a target (object, door, sink or furniture)"),
+        Skill("Pick", "echo_data.skills.pick:pick", lazy_test("echo_data.skills.success:picked"), True, ("Pick",), ("object",), 250, "resolve",
+              stance=STANCE, labels_any_state=True, description="grasp a small object and lift it"),
         # Place also drives the object across the apartment: Navigate's limit is added to its own.
-        Skill("Place", "echo_data.skills.place:place", _placed, False, ("Place", "Navigate"), ("furniture",), 250, "deliver", "places_object", follows="Pick", stance=STANCE),
-        Skill("OpenDoor", "echo_data.skills.open_door:open_door", _door_opened, True, ("OpenDoor",), ("door",), 300, "resolve", "opens_door", stance=STANCE),
-        Skill("CloseSink", "echo_data.skills.close_sink:close_sink", _sink_closed, True, ("CloseSink",), ("faucet",), 200, "resolve", stance=STANCE),
+        Skill("Place", "echo_data.skills.place:place", lazy_test("echo_data.skills.success:placed"), False, ("Place", "Navigate"), ("furniture",), 250,
+              "deliver", "places_object", follows="Pick", stance=STANCE, labels_any_state=True, description="put the held object down on a piece of furniture"),
+        Skill("OpenDoor", "echo_data.skills.open_door:open_door", lazy_test("echo_data.skills.success:door_opened"), True, ("OpenDoor",), ("door",), 300,
+              "resolve", "opens_door", stance=STANCE, labels_any_state=True, description="open the door whose bell rang"),
+        Skill("CloseSink", "echo_data.skills.close_sink:close_sink", lazy_test("echo_data.skills.success:sink_closed"), True, ("CloseSink",), ("faucet",),
+              200, "resolve", stance=STANCE, labels_any_state=True, description="turn the running faucet off"),
     )
 }
-SKILL_NAMES: tuple[str, ...] = tuple(SKILLS)
-DEFAULT_MAX_STEPS: dict[str, int] = {n: s.max_steps for n, s in SKILLS.items()}
-RESOLVING_SKILLS: tuple[str, ...] = tuple(n for n, s in SKILLS.items() if s.resolves_event)
+
+
+def default_max_steps() -> dict[str, int]:
+    """The recipe's default `robot.max_steps`: every skill's own limit (read when a recipe is made,
+    so a skill registered later is in it)."""
+    return {n: s.max_steps for n, s in SKILLS.items()}
 
 
 def event_chain(target: str, event: int, goal: str | None = None) -> list[SkillCall]:
@@ -184,7 +188,7 @@ def event_chain(target: str, event: int, goal: str | None = None) -> list[SkillC
     from echo_data.episode import SkillCall
 
     kind = Target.parse(target).kind
-    approach = next(s for s in SKILLS.values() if s.role == "approach")
+    approach = approach_skill()
     resolve = [s for s in SKILLS.values() if s.role == "resolve" and kind in s.targets]
     if len(resolve) != 1:
         raise ValueError(f"target {target!r}: {len(resolve)} skills resolve a {kind} (need exactly one)")
@@ -215,15 +219,6 @@ def handover_call(chain: Sequence[SkillCall], k: int) -> SkillCall | None:
         nxt = chain[k + 1] if k + 1 < len(chain) else None
         return nxt if nxt is not None and nxt.target == chain[k].target and skill(nxt.skill).stance is not None else None
     return chain[k] if s.drives and s.stance is not None else None
-
-
-def in_stance(world: World, call: SkillCall, at: Situation) -> bool:
-    """The base inside the stance of `call` (its skill's `stance` about its target's interaction
-    pose, doors where they stand now); False for a skill without one."""
-    from echo_data.skills.success import handed_over
-
-    st = skill(call.skill).stance
-    return st is not None and handed_over(world, call.target, st.distance, st.heading, grid=at.nav_grid(), poses=at.poses)
 
 
 def skill(name: str) -> Skill:
