@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from echo_data.evaluation.metrics import plan_right_without_receptacle, proportion, summarise, wilson
+from echo_data.evaluation.provenance import row_state
+from echo_data.learn.reference import ReferenceSet
 
 SKILLS = ("Navigate", "Pick", "Place", "OpenDoor", "CloseSink")
 SETTINGS = ("object_relocation", "state_transition", "multi_event")
@@ -307,7 +309,8 @@ def measured(doc: dict[str, Any]) -> dict[str, Any]:
     return {"metrics": {**{k: metrics[k] for k in ("episodes", "task_planning", "skill_completion", "progressive", "navigate_success") if k in metrics},
                         "planning_without_place_target": planning_without_place_target(doc["episodes"]),
                         "navigate_shortfall": handover(doc["episodes"])},
-            "skills": {s: skill_success(doc["episodes"], s) for s in SKILLS}}
+            "skills": {s: skill_success(doc["episodes"], s) for s in SKILLS},
+            **({"weights": doc["weights"]} if doc.get("weights") else {})}  # what it was measured with (evaluation.provenance)
 
 
 def composed(plans: dict[str, Any], runs_of: dict[str, Any]) -> dict[str, Any]:
@@ -330,7 +333,8 @@ def composed(plans: dict[str, Any], runs_of: dict[str, Any]) -> dict[str, Any]:
         if not p["plan_correct"]:
             rec.update(skills=[], skills_completed=0, success=False, navigate=[], failure=p["failure"], steps=p["steps"])
         out.append(rec)
-    return measured({"metrics": {"all": summarise(out)}, "episodes": out})
+    used = None if not (plans.get("weights") and runs_of.get("weights")) else {**runs_of["weights"], "planner": plans["weights"]["planner"]}
+    return measured({"metrics": {"all": summarise(out)}, "episodes": out, "weights": used})
 
 
 def derived(source: dict[str, Any], skill: str) -> dict[str, Any]:
@@ -411,7 +415,8 @@ def markdown(doc: dict[str, Any]) -> str:
     setting, exact and receptacle-free planning where they differ, the skills alone. A row with
     no entry reads "not measured"."""
     read = {name: entries(doc, name) for name in ROWS}
-    mark = {name: " †" * any("computed_from" in e for e in per.values()) + " ‡" * previous for name, (per, previous) in read.items()}
+    stale = {name: row_state(per, ReferenceSet.load()).state == "stale" for name, (per, _) in read.items()}  # evaluation.provenance
+    mark = {name: " †" * any("computed_from" in e for e in per.values()) + " ‡" * previous + " §" * stale[name] for name, (per, previous) in read.items()}
     chain = [r for r in ROWS.values() if r.skill_alone is None]
     head = ["| row | " + " | ".join(f"{_words(s)}: planning | completion" for s in PAPER_ORDER) + " |", "|---|" + "---|---|" * len(PAPER_ORDER)]
     prog = ["| row | setting | progressive success (through skill 1, 2, ...) |", "|---|---|---|"]
@@ -451,6 +456,8 @@ def markdown(doc: dict[str, Any]) -> str:
                      "(`composed` and `derived` in echo_data/evaluation/table.py say why this is exact).")
     if any("‡" in m for m in mark.values()):
         notes.append("‡ the previous session's measurement (`previous_session` in the JSON): " + doc["previous_session"].get("note", ""))
+    if any(stale.values()):
+        notes.append("§ stale: measured with weights that are not the shipped reference learners' (echo_data/reference/manifest.json); re-measure it.")
     if any(r.grasp == "magic" for r in ROWS.values()):
         notes.append("paper-comparable: Habitat's grasp (`robot.grasp: magic`, the one the paper's skills use) instead of "
                      "ours (finger friction alone), Pick and Place cloned from demonstrations with that grasp; starred, the drives are "

@@ -1,0 +1,310 @@
+"""Reference learners: trained weights shipped with the package, so a row of the paper table is
+reproduced with no training (`echo-data evaluate RECIPE --policy reference --planner reference`).
+
+The reference set is a folder (the package's `echo_data/reference/`, or `$ECHO_DATA_REFERENCE`):
+
+  manifest.json          {"format", "learners": {NAME: {...}}, "skills": {SKILL: NAME}, "planner": NAME | null}
+  NAME/
+    weights.safetensors  the run's best weights: fp16 where the round trip leaves every action of
+                         the check (its dataset's steps) within FP16_TOLERANCE, fp32 elsewhere
+    config.json          the run's config.json (algorithm, inputs, skill, normalisation...), the
+                         dataset named by its folder name, not a path of the machine it ran on
+    policy.json          the run's kind and class; agent.json: how `evaluate` constructs it
+    recipe.yaml          the recipe of the dataset it was trained on
+    SHA256SUMS           `sha256  file` of every file above (checked at every load)
+
+A learner folder is also a checkpoint folder (`--policy echo_data/reference/NAME` works).
+`echo-data reference add RUN --name NAME` makes one from a training run folder.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from echo_data.dataset.storage import atomic_write_bytes, canonical_json
+from echo_data.learn import runs
+
+FORMAT = "echo-data-reference/1"
+ENV = "ECHO_DATA_REFERENCE"  # a reference set elsewhere than the package's (tests, a user's own)
+PACKAGE_DIR = Path(__file__).resolve().parents[1] / "reference"
+MANIFEST = "manifest.json"
+SUMS = "SHA256SUMS"
+RECIPE = "recipe.yaml"
+NAME = "reference"  # the name `--policy` / `--planner` take
+BUDGET_BYTES = 30 * 2**20  # every shipped weights file together (issue 45)
+# Largest change of any action entry (joint targets in rad, base velocities, gripper) an fp16
+# round trip may cause on the check's steps; a binary entry that flips or a STOP that moves
+# changes by 1 or more and keeps its tensors in fp32.
+FP16_TOLERANCE = 1e-3
+CHECK_STEPS = 200  # dataset steps the fp16 check acts on
+COPIED = (runs.POLICY, runs.AGENT)
+
+
+class ReferenceError(ValueError):
+    """A reference set or learner that cannot be used as asked (one line, names the file or skill)."""
+
+
+def reference_dir() -> Path:
+    """The reference set in use: `$ECHO_DATA_REFERENCE` when set, else the package's."""
+    env = os.environ.get(ENV)
+    return Path(env) if env else PACKAGE_DIR
+
+
+@dataclass
+class ReferenceSet:
+    """A reference set's manifest: which learner serves which skill, and the planner."""
+
+    root: Path
+    learners: dict[str, dict[str, Any]] = field(default_factory=dict)
+    skills: dict[str, str] = field(default_factory=dict)
+    planner: str | None = None
+
+    @classmethod
+    def load(cls, root: Path | None = None) -> ReferenceSet:
+        root = reference_dir() if root is None else Path(root)
+        path = root / MANIFEST
+        if not path.is_file():
+            return cls(root)  # no set yet: every skill unserved
+        try:
+            doc = json.loads(path.read_text())
+            if doc.get("format") != FORMAT:
+                raise ReferenceError(f"{path}: format {doc.get('format')!r} is not {FORMAT}")
+            learners, skills, planner = dict(doc["learners"]), dict(doc["skills"]), doc["planner"]
+        except (ValueError, KeyError, TypeError, AttributeError) as e:
+            raise ReferenceError(f"{path}: not a reference manifest ({type(e).__name__}: {e})".splitlines()[0]) from None
+        for served in [*skills.values(), *([planner] if planner else [])]:
+            if served not in learners:
+                raise ReferenceError(f"{path}: serves {served!r}, which learners does not list")
+        return cls(root, learners, skills, planner)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"format": FORMAT, "learners": self.learners, "skills": self.skills, "planner": self.planner}
+
+    def learner(self, skill: str | None) -> Path:
+        """The checked folder of the learner serving `skill` (None: the planner)."""
+        name = self.planner if skill is None else self.skills.get(skill)
+        if name is None:
+            what = "no planner" if skill is None else f"no learner for skill {skill}"
+            raise ReferenceError(f"the reference set {self.root / MANIFEST} ships {what} (echo-data reference add RUN --name NAME adds one)")
+        folder = self.root / name
+        verify(folder)
+        return folder
+
+    def weights_sha256(self, skill: str | None) -> str | None:
+        """The SHA-256 of the weights serving `skill` (None: the planner); None if unserved."""
+        name = self.planner if skill is None else self.skills.get(skill)
+        return None if name is None else str(self.learners[name]["weights_sha256"])
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def verify(folder: Path) -> None:
+    """Every file SHA256SUMS lists is there with its recorded hash: the weights evaluated are
+    the weights shipped."""
+    sums = folder / SUMS
+    try:
+        lines = sums.read_text().splitlines()
+    except OSError:
+        raise ReferenceError(f"{sums}: missing (not a reference learner folder)") from None
+    for line in lines:
+        want, _, name = line.partition("  ")
+        try:
+            got = _sha256((folder / name).read_bytes())
+        except OSError:
+            raise ReferenceError(f"{folder / name}: missing (listed in {sums})") from None
+        if got != want:
+            raise ReferenceError(f"{folder / name}: SHA-256 {got[:12]} is not the {want[:12]} {sums} records")
+
+
+def shipped_bytes(root: Path | None = None) -> int:
+    """Bytes of every weights file in the reference set (the budget is BUDGET_BYTES)."""
+    root = reference_dir() if root is None else Path(root)
+    return sum(p.stat().st_size for p in root.glob(f"*/{runs.WEIGHTS}"))
+
+
+# --- making a reference learner from a run folder ---------------------------------------------
+
+def _portable(obj: Any) -> Any:
+    """The config without this machine's paths: an absolute path becomes its last name."""
+    if isinstance(obj, dict):
+        return {k: _portable(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_portable(v) for v in obj]
+    if isinstance(obj, str) and os.path.isabs(obj) and os.sep in obj:
+        return Path(obj).name
+    return obj
+
+
+def _probe(run: Path, kind: str, dataset: Path) -> tuple[Any, Callable[[Mapping[str, Any]], tuple[np.ndarray, Any]]]:
+    """(model, act): `act(state_dict)` loads those weights into the run's model and returns
+    (every output on the check's observations, the decisions taken from them)."""
+    import torch
+
+    if kind == "planner":
+        from echo_data.learn.planner import decode, load_episodes
+        from echo_data.learn.policy import PlannerModel
+
+        planner = PlannerModel.from_run(run)
+        ep = load_episodes(dataset, _split(dataset), planner.spec)
+
+        def plans(state: Mapping[str, Any]) -> tuple[np.ndarray, Any]:
+            planner.model.load_state_dict(state)
+            with torch.no_grad():
+                logits, scores = planner.model(ep.inputs)
+            out = np.concatenate([logits.numpy().ravel(), scores.numpy().ravel()])
+            return out, [decode(logits[n].numpy(), scores[n].numpy(), planner.categories, planner.sets, planner.priority) for n in range(len(ep.events))]
+
+        return planner.model, plans
+
+    from echo_data.learn.policy import SkillPolicy
+
+    policy = SkillPolicy.from_run(run)
+    steps = _skill_steps(dataset, policy.skill)
+
+    def actions(state: Mapping[str, Any]) -> tuple[np.ndarray, Any]:
+        policy.model.load_state_dict(state)
+        out, segment = [], None
+        for key, obs in steps:
+            if key != segment:
+                policy.reset({})
+                segment = key
+            a = policy.act(obs)
+            out.append(np.full(policy.action_dim, np.inf, np.float32) if a is None else a)  # a STOP that moves changes by inf
+        return np.stack(out).astype(np.float64), None
+
+    return policy.model, actions
+
+
+def _split(dataset: Path) -> str:
+    """The split the check reads: test (never trained on) where the dataset has one."""
+    splits = json.loads((dataset / "manifest.json").read_text()).get("splits", {})
+    return "test" if splits.get("test") else "train"
+
+
+def _skill_steps(dataset: Path, skill: str) -> list[tuple[tuple[int, int], dict[str, Any]]]:
+    """The first CHECK_STEPS steps of `skill`'s segments in the check's split, keyed by
+    (episode, skill index); a run that reads the target position gets the segment's last base
+    pose as its goal, as in training."""
+    from echo_data.dataset.schema import STATE
+    from echo_data.dataset.torch import StepDataset
+    from echo_data.records import GOAL_POSE
+
+    data = StepDataset(dataset, _split(dataset), skill=skill)
+    if len(data) == 0:
+        data = StepDataset(dataset, "train", skill=skill)
+    items = [data[i] for i in range(min(len(data), CHECK_STEPS))]
+    keys = [(int(it["episode_index"]), int(it["skill_index"])) for it in items]
+    goal = {k: np.asarray(it[STATE])[:3] for k, it in zip(keys, items)}  # the last step of each segment wins
+    steps = []
+    for k, it in zip(keys, items):
+        obs = {c: v for c, v in it.items() if c.startswith("observation.")}
+        obs[GOAL_POSE] = goal[k]
+        steps.append((k, obs))
+    if not steps:
+        raise ReferenceError(f"{dataset}: holds no {skill} step to check the fp16 weights on")
+    return steps
+
+
+def fp16_weights(run: Path, kind: str, dataset: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(the tensors to store, the check's report): each floating tensor in fp16 unless its round
+    trip moves the learner's output beyond FP16_TOLERANCE on the dataset's steps (the plan, for
+    a planner); those stay fp32, the largest effects first, until the whole set is within it."""
+    model, act = _probe(run, kind, dataset)
+    full = {k: v.detach().clone() for k, v in model.state_dict().items()}
+    ref, decided = act(full)
+
+    def rounded(keys: set[str]) -> dict[str, Any]:
+        return {k: v.half().float() if k in keys else v for k, v in full.items()}
+
+    def change(state: dict[str, Any]) -> float:
+        out, plans = act(state)
+        if plans != decided or out.shape != ref.shape:
+            return float("inf")
+        same = out == ref  # inf == inf: the same STOP
+        return float(np.abs(np.where(same, 0.0, out - ref)).max(initial=0.0))
+
+    floats = {k for k, v in full.items() if v.is_floating_point()}
+    half = set(floats)
+    diff = change(rounded(half))
+    if diff > FP16_TOLERANCE:
+        alone = sorted(floats, key=lambda k: change(rounded({k})), reverse=True)
+        for k in alone:
+            half.discard(k)
+            diff = change(rounded(half))
+            if diff <= FP16_TOLERANCE:
+                break
+    stored = {k: (v.half() if k in half else v).contiguous() for k, v in full.items()}
+    what = ("episodes", len(decided), "max_output_difference") if kind == "planner" else ("steps", len(ref), "max_action_difference")
+    report = {what[0]: what[1], what[2]: diff, "tolerance": FP16_TOLERANCE, "fp32_tensors": sorted(floats - half), "fp16_tensors": len(half)}
+    return stored, report
+
+
+def add(run: Path, name: str, root: Path | None = None, dataset: Path | None = None, overwrite: bool = False) -> dict[str, Any]:
+    """Make reference learner `name` from the run folder `run` (its best weights) in the set at
+    `root` and let it serve its skill (or be the planner); returns its manifest entry. The folder
+    is written beside and renamed in, then the manifest: a failure leaves the set as it was."""
+    import yaml
+    from safetensors.torch import save
+
+    root = reference_dir() if root is None else Path(root)
+    if not name or "/" in name or name.startswith(".") or name != name.strip():
+        raise ReferenceError(f"--name {name!r}: a plain folder name")
+    refs = ReferenceSet.load(root)
+    target = root / name
+    if target.exists() and not (overwrite and name in refs.learners):
+        raise ReferenceError(f"{target}: exists; pass --overwrite to replace the reference learner {name}" if name in refs.learners
+                             else f"{target}: exists and is no reference learner of {root / MANIFEST}")
+    policy = runs.read_json(run / runs.POLICY)
+    kind = policy.get("kind")
+    if kind not in ("policy", "planner"):
+        raise ReferenceError(f"{run / runs.POLICY}: kind {kind!r} is neither a skill policy nor a planner")
+    config = runs.read_json(run / runs.CONFIG)
+    data = Path(config["dataset"]) if dataset is None else dataset
+    if not (data / "manifest.json").is_file():
+        raise ReferenceError(f"{data}: not the dataset {run} was trained on (no manifest.json); give it with --data")
+    recipe = json.loads((data / "manifest.json").read_text())["recipe"]
+    stored, report = fp16_weights(run, kind, data)
+    files = {runs.WEIGHTS: save(stored, metadata={"format": FORMAT}),
+             runs.CONFIG: canonical_json(_portable(config)),
+             RECIPE: yaml.safe_dump(recipe, sort_keys=False).encode(),
+             **{f: (run / f).read_bytes() for f in COPIED}}
+    files[SUMS] = "".join(f"{_sha256(b)}  {f}\n" for f, b in sorted(files.items())).encode()
+    skill = config.get("skill") if kind == "policy" else None
+    entry = {"kind": kind, "skill": skill, "algo": config.get("algo"), "inputs": config.get("inputs"), "dataset": Path(data).name,
+             "weights_sha256": _sha256(files[runs.WEIGHTS]), "bytes": len(files[runs.WEIGHTS]), "fp16_check": report}
+    others = shipped_bytes(root) - ((target / runs.WEIGHTS).stat().st_size if (target / runs.WEIGHTS).is_file() else 0)
+    if others + entry["bytes"] > BUDGET_BYTES:
+        raise ReferenceError(f"{name}: {entry['bytes'] / 2**20:.1f} MB of weights would take the set past its {BUDGET_BYTES // 2**20} MB budget "
+                             f"({others / 2**20:.1f} MB shipped)")
+    root.mkdir(parents=True, exist_ok=True)
+    tmp = root / f".{name}.partial"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    for f, b in files.items():
+        (tmp / f).write_bytes(b)
+    old = root / f".{name}.old"
+    if target.exists():
+        shutil.rmtree(old, ignore_errors=True)
+        target.rename(old)
+    tmp.rename(target)
+    shutil.rmtree(old, ignore_errors=True)
+    refs.skills = {k: v for k, v in refs.skills.items() if v != name}  # a replaced learner serves only what it now is
+    refs.planner = None if refs.planner == name else refs.planner
+    refs.learners[name] = entry
+    if kind == "planner":
+        refs.planner = name
+    else:
+        refs.skills[str(skill)] = name
+    atomic_write_bytes(root / MANIFEST, canonical_json(refs.to_dict()))
+    return {"name": name, **entry}
