@@ -204,3 +204,27 @@ def test_a_reference_learners_first_episode_reproduces_exactly(use: Path, tmp_pa
     first, second = once(), once()
     assert first[0] == second[0] and first[0]["skills"][0]["steps"] > 1
     assert len(first[1]) == len(second[1]) and all(np.array_equal(a, b) for a, b in zip(first[1], second[1]))
+
+
+def test_a_planner_ships_and_plans_as_its_run(synth_dataset: Callable[[dict[str, int]], Path], tmp_path: Path,
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    from echo_data.agents.loading import identity, load_planner
+    from echo_data.dataset.torch import StepDataset
+    from echo_data.learn.policy import PlannerModel
+
+    ds = synth_dataset({"train": 3, "test": 1})
+    run = tmp_path / "planner"
+    res = runner.invoke(app, ["train", "planner", str(ds), "--inputs", "audio", "--epochs", "1", "--out", str(run), "--threads", "1", "--no-progress"])
+    assert res.exit_code == 0, res.output
+    root = tmp_path / "set"
+    res = runner.invoke(app, ["reference", "add", str(run), "--name", "planner", "--to", str(root)])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["fp16_check"]["max_output_difference"] <= reference.FP16_TOLERANCE
+    res = runner.invoke(app, ["reference", "add", str(run), "--name", "planner", "--to", str(root)])
+    assert res.exit_code == 2 and "--overwrite" in res.output  # a learner is replaced only when asked
+    monkeypatch.setenv(reference.ENV, str(root))
+    planner = load_planner("reference")
+    assert isinstance(planner, PlannerModel) and planner.weights_sha256 == ReferenceSet.load(root).weights_sha256(None)
+    assert identity(planner, "reference")["reference"] == "planner"
+    first = {k: v for k, v in StepDataset(ds, "test")[0].items() if k.startswith("observation.")}
+    assert planner.plan(first) == PlannerModel.from_run(run).plan(first)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-reference_app = typer.Typer(add_completion=False, no_args_is_help=True, help="The shipped reference learners (docs/learners.md#reference-learners).")
+reference_app = typer.Typer(add_completion=False, no_args_is_help=True, help="The shipped reference learners (docs/learners.md#reference-learners-a-row-reproduced-with-no-training).")
 
 
 def _root(to: Path | None) -> Path:
