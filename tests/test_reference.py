@@ -121,6 +121,7 @@ def test_reference_with_no_shipped_learner_is_one_line_naming_the_skill(tmp_path
 def test_the_package_ships_its_reference_set_within_budget() -> None:
     refs = ReferenceSet.load(reference.PACKAGE_DIR)
     assert reference.shipped_bytes(reference.PACKAGE_DIR) <= reference.BUDGET_BYTES
+    assert {p.name for p in reference.PACKAGE_DIR.iterdir() if p.is_dir()} == set(refs.learners)  # nothing shipped unlisted (and unsized)
     for skill in refs.skills:
         assert runs.file_sha256(refs.learner(skill) / runs.WEIGHTS) == refs.weights_sha256(skill)
     if refs.planner:
@@ -147,6 +148,11 @@ def test_rows_are_current_only_with_the_shipped_weights(shipped: Path) -> None:
     assert provenance.verdict({"skills": {}, "planner": "1" * 64}, refs).state == "stale"  # no planner shipped
     assert provenance.verdict(None, refs).state == "unrecorded"
     assert provenance.row_state({"a": {"weights": learned}, "b": {"weights": other}}, refs).state == "stale"
+    assert provenance.stale_rows({"new": {"a": {"weights": learned}}, "old": {"a": {"weights": other}}, "before": {"a": {}}}, refs) == {"old"}
+    # a learned-planner row composed from two evaluations: the skills of one, the planner of the other
+    plans = {"weights": {"skills": dict.fromkeys(learned["skills"]), "planner": "2" * 64}}
+    assert provenance.composed_weights(plans, {"weights": learned}) == {"skills": learned["skills"], "planner": "2" * 64}
+    assert provenance.composed_weights(plans, {}) is None
 
 
 def test_the_table_marks_a_row_measured_with_other_weights_stale(shipped: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -61,3 +61,18 @@ def row_state(entries: Mapping[str, Mapping[str, Any]], shipped: ReferenceSet) -
     measured with): stale if any entry is, unrecorded if any is and none is stale."""
     found = [verdict(e.get("weights"), shipped) for e in entries.values()]
     return next((v for v in found if v.state == "stale"), next((v for v in found if v.state == "unrecorded"), Verdict("current")))
+
+
+def stale_rows(rows: Mapping[str, Mapping[str, Mapping[str, Any]]], shipped: ReferenceSet | None = None) -> set[str]:
+    """The names of the rows ({name: {setting: entry}}) measured with weights the reference set
+    (default: the one in use, `learn.reference.reference_dir`) no longer ships: what a table marks."""
+    shipped = ReferenceSet.load() if shipped is None else shipped
+    return {name for name, per in rows.items() if row_state(per, shipped).state == "stale"}
+
+
+def composed_weights(plans: Mapping[str, Any], outcomes: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The weights of a row composed from two evaluations: the skills' of `outcomes`, the planner's
+    of `plans` (None when either did not record them)."""
+    if not (plans.get("weights") and outcomes.get("weights")):
+        return None
+    return {**outcomes["weights"], "planner": plans["weights"]["planner"]}

@@ -27,8 +27,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from echo_data.evaluation.metrics import plan_right_without_receptacle, proportion, summarise, wilson
-from echo_data.evaluation.provenance import row_state
-from echo_data.learn.reference import ReferenceSet
+from echo_data.evaluation.provenance import composed_weights, stale_rows
 
 SKILLS = ("Navigate", "Pick", "Place", "OpenDoor", "CloseSink")
 SETTINGS = ("object_relocation", "state_transition", "multi_event")
@@ -333,8 +332,7 @@ def composed(plans: dict[str, Any], runs_of: dict[str, Any]) -> dict[str, Any]:
         if not p["plan_correct"]:
             rec.update(skills=[], skills_completed=0, success=False, navigate=[], failure=p["failure"], steps=p["steps"])
         out.append(rec)
-    used = None if not (plans.get("weights") and runs_of.get("weights")) else {**runs_of["weights"], "planner": plans["weights"]["planner"]}
-    return measured({"metrics": {"all": summarise(out)}, "episodes": out, "weights": used})
+    return measured({"metrics": {"all": summarise(out)}, "episodes": out, "weights": composed_weights(plans, runs_of)})
 
 
 def derived(source: dict[str, Any], skill: str) -> dict[str, Any]:
@@ -415,8 +413,8 @@ def markdown(doc: dict[str, Any]) -> str:
     setting, exact and receptacle-free planning where they differ, the skills alone. A row with
     no entry reads "not measured"."""
     read = {name: entries(doc, name) for name in ROWS}
-    stale = {name: row_state(per, ReferenceSet.load()).state == "stale" for name, (per, _) in read.items()}  # evaluation.provenance
-    mark = {name: " †" * any("computed_from" in e for e in per.values()) + " ‡" * previous + " §" * stale[name] for name, (per, previous) in read.items()}
+    stale = stale_rows({name: per for name, (per, _) in read.items()})  # measured with weights no longer shipped (evaluation.provenance)
+    mark = {name: " †" * any("computed_from" in e for e in per.values()) + " ‡" * previous + " §" * (name in stale) for name, (per, previous) in read.items()}
     chain = [r for r in ROWS.values() if r.skill_alone is None]
     head = ["| row | " + " | ".join(f"{_words(s)}: planning | completion" for s in PAPER_ORDER) + " |", "|---|" + "---|---|" * len(PAPER_ORDER)]
     prog = ["| row | setting | progressive success (through skill 1, 2, ...) |", "|---|---|---|"]
@@ -456,7 +454,7 @@ def markdown(doc: dict[str, Any]) -> str:
                      "(`composed` and `derived` in echo_data/evaluation/table.py say why this is exact).")
     if any("‡" in m for m in mark.values()):
         notes.append("‡ the previous session's measurement (`previous_session` in the JSON): " + doc["previous_session"].get("note", ""))
-    if any(stale.values()):
+    if stale:
         notes.append("§ stale: measured with weights that are not the shipped reference learners' (echo_data/reference/manifest.json); re-measure it.")
     if any(r.grasp == "magic" for r in ROWS.values()):
         notes.append("paper-comparable: Habitat's grasp (`robot.grasp: magic`, the one the paper's skills use) instead of "

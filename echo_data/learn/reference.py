@@ -128,9 +128,9 @@ def verify(folder: Path) -> None:
 
 
 def shipped_bytes(root: Path | None = None) -> int:
-    """Bytes of every weights file in the reference set (the budget is BUDGET_BYTES)."""
-    root = reference_dir() if root is None else Path(root)
-    return sum(p.stat().st_size for p in root.glob(f"*/{runs.WEIGHTS}"))
+    """Bytes of the weights files of every learner the set's manifest lists (the budget is BUDGET_BYTES)."""
+    refs = ReferenceSet.load(root)
+    return sum((refs.root / name / runs.WEIGHTS).stat().st_size for name in refs.learners if (refs.root / name / runs.WEIGHTS).is_file())
 
 
 # --- making a reference learner from a run folder ---------------------------------------------
