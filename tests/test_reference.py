@@ -79,7 +79,7 @@ def test_a_reference_learner_holds_its_weights_config_recipe_and_sums(trained: P
     assert yaml.safe_load((folder / reference.RECIPE).read_text())["name"] == "synth"
     # fp16 where the actions stay within the tolerance, measured on the dataset's steps
     check = entry["fp16_check"]
-    assert check["steps"] > 0 and check["max_action_difference"] <= reference.FP16_TOLERANCE
+    assert "dataset steps" in check["on"] and 0 < check["max_relative_difference"] <= reference.FP16_TOLERANCE
     from safetensors.torch import load_file
 
     stored = load_file(str(folder / runs.WEIGHTS))
@@ -104,7 +104,7 @@ def test_fp32_is_kept_where_the_fp16_round_trip_changes_the_actions(trained: Pat
     monkeypatch.setattr(reference, "FP16_TOLERANCE", 0.0)  # any change of an action is too much
     entry = reference.add(trained, "exact", tmp_path)
     check = entry["fp16_check"]
-    assert check["max_action_difference"] == 0.0 and check["fp32_tensors"]
+    assert check["max_action_difference"] == check["max_relative_difference"] == 0.0 and check["fp32_tensors"]
     from safetensors.torch import load_file
 
     stored = load_file(str(tmp_path / "exact" / runs.WEIGHTS))
@@ -225,7 +225,7 @@ def test_a_planner_ships_and_plans_as_its_run(synth_dataset: Callable[[dict[str,
     root = tmp_path / "set"
     res = runner.invoke(app, ["reference", "add", str(run), "--name", "planner", "--to", str(root)])
     assert res.exit_code == 0, res.output
-    assert json.loads(res.stdout)["fp16_check"]["max_output_difference"] <= reference.FP16_TOLERANCE
+    assert json.loads(res.stdout)["fp16_check"]["max_relative_difference"] <= reference.FP16_TOLERANCE
     res = runner.invoke(app, ["reference", "add", str(run), "--name", "planner", "--to", str(root)])
     assert res.exit_code == 2 and "--overwrite" in res.output  # a learner is replaced only when asked
     monkeypatch.setenv(reference.ENV, str(root))

@@ -6,7 +6,7 @@ The reference set is a folder (the package's `echo_data/reference/`, or `$ECHO_D
   manifest.json          {"format", "learners": {NAME: {...}}, "skills": {SKILL: NAME}, "planner": NAME | null}
   NAME/
     weights.safetensors  the run's best weights: fp16 where the round trip leaves every action of
-                         the check (its dataset's steps) within FP16_TOLERANCE, fp32 elsewhere
+                         the check (its dataset's steps) within FP16_TOLERANCE std, fp32 elsewhere
     config.json          the run's config.json (algorithm, inputs, skill, normalisation...), the
                          dataset named by its folder name, not a path of the machine it ran on
     policy.json          the run's kind and class; agent.json: how `evaluate` constructs it
@@ -41,10 +41,11 @@ SUMS = "SHA256SUMS"
 RECIPE = "recipe.yaml"
 NAME = "reference"  # the name `--policy` / `--planner` take
 BUDGET_BYTES = 30 * 2**20  # every shipped weights file together (issue 45)
-# Largest change of any action entry (joint targets in rad, base velocities, gripper) an fp16
-# round trip may cause on the check's steps; a binary entry that flips or a STOP that moves
-# changes by 1 or more and keeps its tensors in fp32.
-FP16_TOLERANCE = 1e-3
+# Largest change of any action entry an fp16 round trip may cause on the check's steps, in units
+# of that entry's standard deviation in the training actions (a planner: of its logits, and no
+# plan may change): far below what a learner's own error is. A binary entry that flips or a
+# STOP that moves changes by two std or more, and keeps its tensors in fp32.
+FP16_TOLERANCE = 1e-2
 CHECK_STEPS = 200  # dataset steps the fp16 check acts on
 COPIED = (runs.POLICY, runs.AGENT)
 
@@ -146,9 +147,18 @@ def _portable(obj: Any) -> Any:
     return obj
 
 
-def _probe(run: Path, kind: str, dataset: Path) -> tuple[Any, Callable[[Mapping[str, Any]], tuple[np.ndarray, Any]]]:
-    """(model, act): `act(state_dict)` loads those weights into the run's model and returns
-    (every output on the check's observations, the decisions taken from them)."""
+@dataclass
+class Probe:
+    """A run's model and `act(state_dict)`: load those weights and return (every output on the
+    check's observations, the decisions taken from them, each output column's scale)."""
+
+    model: Any
+    act: Callable[[Mapping[str, Any]], tuple[np.ndarray, Any]]
+    scale: np.ndarray
+    unit: str  # what the outputs are, for the report
+
+
+def _probe(run: Path, kind: str, dataset: Path) -> Probe:
     import torch
 
     if kind == "planner":
@@ -156,16 +166,17 @@ def _probe(run: Path, kind: str, dataset: Path) -> tuple[Any, Callable[[Mapping[
         from echo_data.learn.policy import PlannerModel
 
         planner = PlannerModel.from_run(run)
-        ep = load_episodes(dataset, _split(dataset), planner.spec)
+        ep = load_episodes(dataset, _splits(dataset)[0], planner.spec)
 
         def plans(state: Mapping[str, Any]) -> tuple[np.ndarray, Any]:
             planner.model.load_state_dict(state)
             with torch.no_grad():
                 logits, scores = planner.model(ep.inputs)
-            out = np.concatenate([logits.numpy().ravel(), scores.numpy().ravel()])
-            return out, [decode(logits[n].numpy(), scores[n].numpy(), planner.categories, planner.sets, planner.priority) for n in range(len(ep.events))]
+            out = np.concatenate([logits.numpy().reshape(len(ep.events), -1), scores.numpy().reshape(len(ep.events), -1)], axis=1)
+            return out.astype(np.float64), [decode(logits[n].numpy(), scores[n].numpy(), planner.categories, planner.sets, planner.priority)
+                                             for n in range(len(ep.events))]
 
-        return planner.model, plans
+        return Probe(planner.model, plans, np.ones(1), f"logits of the first frames of {len(ep.events)} episodes")
 
     from echo_data.learn.policy import SkillPolicy
 
@@ -183,34 +194,32 @@ def _probe(run: Path, kind: str, dataset: Path) -> tuple[Any, Callable[[Mapping[
             out.append(np.full(policy.action_dim, np.inf, np.float32) if a is None else a)  # a STOP that moves changes by inf
         return np.stack(out).astype(np.float64), None
 
-    return policy.model, actions
+    spread = np.maximum(np.abs(policy.std[: policy.action_dim]).astype(np.float64), 1e-6)
+    return Probe(policy.model, actions, spread, f"actions of {len(steps)} dataset steps, in units of the training actions' std")
 
 
-def _split(dataset: Path) -> str:
-    """The split the check reads: test (never trained on) where the dataset has one."""
+def _splits(dataset: Path) -> list[str]:
+    """The splits the check reads, in order: test (never trained on) first."""
     splits = json.loads((dataset / "manifest.json").read_text()).get("splits", {})
-    return "test" if splits.get("test") else "train"
+    return [s for s in ("test", "val", "train") if splits.get(s)]
 
 
-def _skill_steps(dataset: Path, skill: str) -> list[tuple[tuple[int, int], dict[str, Any]]]:
-    """The first CHECK_STEPS steps of `skill`'s segments in the check's split, keyed by
-    (episode, skill index); a run that reads the target position gets the segment's last base
-    pose as its goal, as in training."""
+def _skill_steps(dataset: Path, skill: str) -> list[tuple[tuple[str, int, int], dict[str, Any]]]:
+    """Up to CHECK_STEPS steps of `skill`'s segments, the test split's first, keyed by (split,
+    episode, skill index); a run that reads the target position gets the segment's last base pose
+    as its goal, as in training."""
     from echo_data.dataset.schema import STATE
     from echo_data.dataset.torch import StepDataset
     from echo_data.records import GOAL_POSE
 
-    data = StepDataset(dataset, _split(dataset), skill=skill)
-    if len(data) == 0:
-        data = StepDataset(dataset, "train", skill=skill)
-    items = [data[i] for i in range(min(len(data), CHECK_STEPS))]
-    keys = [(int(it["episode_index"]), int(it["skill_index"])) for it in items]
-    goal = {k: np.asarray(it[STATE])[:3] for k, it in zip(keys, items)}  # the last step of each segment wins
-    steps = []
-    for k, it in zip(keys, items):
-        obs = {c: v for c, v in it.items() if c.startswith("observation.")}
-        obs[GOAL_POSE] = goal[k]
-        steps.append((k, obs))
+    items: list[tuple[tuple[str, int, int], dict[str, Any]]] = []
+    for split in _splits(dataset):
+        data = StepDataset(dataset, split, skill=skill)
+        for i in range(min(len(data), CHECK_STEPS - len(items))):
+            it = data[i]
+            items.append(((split, int(it["episode_index"]), int(it["skill_index"])), it))
+    goal = {k: np.asarray(it[STATE])[:3] for k, it in items}  # the last step of each segment wins
+    steps = [(k, {**{c: v for c, v in it.items() if c.startswith("observation.")}, GOAL_POSE: goal[k]}) for k, it in items]
     if not steps:
         raise ReferenceError(f"{dataset}: holds no {skill} step to check the fp16 weights on")
     return steps
@@ -218,35 +227,37 @@ def _skill_steps(dataset: Path, skill: str) -> list[tuple[tuple[int, int], dict[
 
 def fp16_weights(run: Path, kind: str, dataset: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     """(the tensors to store, the check's report): each floating tensor in fp16 unless its round
-    trip moves the learner's output beyond FP16_TOLERANCE on the dataset's steps (the plan, for
-    a planner); those stay fp32, the largest effects first, until the whole set is within it."""
-    model, act = _probe(run, kind, dataset)
-    full = {k: v.detach().clone() for k, v in model.state_dict().items()}
-    ref, decided = act(full)
+    trip moves an output of the learner by more than FP16_TOLERANCE of its scale on the dataset's
+    steps (a planner: or changes a plan); those stay fp32, the largest effects first, until the
+    whole set is within it."""
+    probe = _probe(run, kind, dataset)
+    full = {k: v.detach().clone() for k, v in probe.model.state_dict().items()}
+    ref, decided = probe.act(full)
 
     def rounded(keys: set[str]) -> dict[str, Any]:
         return {k: v.half().float() if k in keys else v for k, v in full.items()}
 
-    def change(state: dict[str, Any]) -> float:
-        out, plans = act(state)
+    def change(state: dict[str, Any]) -> tuple[float, float]:
+        """(largest change in units of the scale, in the outputs' own units)."""
+        out, plans = probe.act(state)
         if plans != decided or out.shape != ref.shape:
-            return float("inf")
-        same = out == ref  # inf == inf: the same STOP
-        return float(np.abs(np.where(same, 0.0, out - ref)).max(initial=0.0))
+            return float("inf"), float("inf")
+        d = np.abs(np.where(out == ref, 0.0, out - ref))  # inf == inf: the same STOP
+        return float((d / probe.scale).max(initial=0.0)), float(d.max(initial=0.0))
 
     floats = {k for k, v in full.items() if v.is_floating_point()}
     half = set(floats)
     diff = change(rounded(half))
-    if diff > FP16_TOLERANCE:
-        alone = sorted(floats, key=lambda k: change(rounded({k})), reverse=True)
-        for k in alone:
+    if diff[0] > FP16_TOLERANCE:
+        for k in sorted(floats, key=lambda k: change(rounded({k}))[0], reverse=True):
             half.discard(k)
             diff = change(rounded(half))
-            if diff <= FP16_TOLERANCE:
+            if diff[0] <= FP16_TOLERANCE:
                 break
     stored = {k: (v.half() if k in half else v).contiguous() for k, v in full.items()}
-    what = ("episodes", len(decided), "max_output_difference") if kind == "planner" else ("steps", len(ref), "max_action_difference")
-    report = {what[0]: what[1], what[2]: diff, "tolerance": FP16_TOLERANCE, "fp32_tensors": sorted(floats - half), "fp16_tensors": len(half)}
+    name = "max_output_difference" if kind == "planner" else "max_action_difference"
+    report = {"on": probe.unit, name: diff[1], "max_relative_difference": diff[0], "tolerance": FP16_TOLERANCE,
+              "fp32_tensors": sorted(floats - half), "fp16_tensors": len(half)}
     return stored, report
 
 
