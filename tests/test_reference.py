@@ -234,3 +234,24 @@ def test_a_planner_ships_and_plans_as_its_run(synth_dataset: Callable[[dict[str,
     assert identity(planner, "reference")["reference"] == "planner"
     first = {k: v for k, v in StepDataset(ds, "test")[0].items() if k.startswith("observation.")}
     assert planner.plan(first) == PlannerModel.from_run(run).plan(first)
+
+
+def test_a_variant_ships_beside_the_serving_learner_and_is_asked_for_by_name(trained: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from echo_data.agents.loading import AgentLoadError, identity, load_policy
+
+    root = tmp_path / "set"
+    reference.add(trained, "nav", root)
+    monkeypatch.setattr(reference, "FP16_TOLERANCE", 0.0)  # other weights than the serving learner's
+    variant = reference.add(trained, "nav-exact", root, serve=False)
+    refs = ReferenceSet.load(root)
+    assert refs.skills == {"Navigate": "nav"} and refs.of("Navigate") == ["nav", "nav-exact"]
+    assert refs.shipped("Navigate") == {refs.weights_sha256("Navigate"), variant["weights_sha256"]} and len(refs.shipped("Navigate")) == 2
+    monkeypatch.setenv(reference.ENV, str(root))
+    policy = load_policy(("Navigate=reference:nav-exact", "oracle"))
+    who = identity(policy, ("Navigate=reference:nav-exact", "oracle"))["skills"]["Navigate"]
+    assert who["reference"] == "nav-exact" and who["weights_sha256"] == variant["weights_sha256"]
+    assert provenance.verdict({"skills": {"Navigate": variant["weights_sha256"]}, "planner": None}, refs).state == "current"
+    for spec, says in (("Pick=reference:nav-exact", "not a learner for skill Pick"), ("Navigate=reference:nope", "no learner 'nope'"),
+                       ("reference:nav-exact", "give SKILL=reference:nav-exact")):
+        with pytest.raises(AgentLoadError, match=says):
+            load_policy((spec, "oracle") if "=" in spec else spec)

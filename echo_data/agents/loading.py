@@ -98,6 +98,8 @@ def load_policy(target: str | Sequence[str]) -> Policy:
 
     one = target if isinstance(target, str) else target[0]
     if not is_composite(target) and one != REFERENCE:
+        if one.startswith(REFERENCE + ":"):
+            raise AgentLoadError(f"--policy {one}: a reference learner drives its own skill: give SKILL={one}")
         return _load(one, BUILTIN_POLICIES, "policy", ("reset", "act"))
     try:
         by_skill, fallback = parse_specs([target] if isinstance(target, str) else target)
@@ -110,9 +112,10 @@ def load_policy(target: str | Sequence[str]) -> Policy:
     loaded: dict[str, Any] = {}  # one instance per distinct target (a reference learner: per skill)
 
     def get(t: str, skill: str) -> Any:
-        key = f"{t}:{skill}" if t == REFERENCE else t
+        shipped = t == REFERENCE or t.startswith(REFERENCE + ":")
+        key = f"{t}@{skill}" if shipped else t
         if key not in loaded:
-            loaded[key] = _reference(skill) if t == REFERENCE else _load(t, BUILTIN_POLICIES, "policy", ("reset", "act"))
+            loaded[key] = _reference(skill, t) if shipped else _load(t, BUILTIN_POLICIES, "policy", ("reset", "act"))
         return loaded[key]
 
     agents = {s: get(t, s) for s, t in by_skill.items()}
@@ -120,14 +123,15 @@ def load_policy(target: str | Sequence[str]) -> Policy:
     return SkillDispatch(agents, rest, {**by_skill, "*": fallback})
 
 
-def _reference(skill: str | None) -> Any:
-    """The shipped reference learner of `skill` (None: the planner), checked against its SHA256SUMS."""
+def _reference(skill: str | None, target: str) -> Any:
+    """The shipped reference learner `target` names for `skill` (None: the planner): `reference`,
+    the one serving it, or `reference:NAME`; checked against its SHA256SUMS."""
     from echo_data.learn.reference import ReferenceError, ReferenceSet
 
     try:
-        folder = ReferenceSet.load().learner(skill)
+        folder = ReferenceSet.load().learner(skill, target.partition(":")[2] or None)
     except ReferenceError as e:
-        raise AgentLoadError(f"{'--planner' if skill is None else '--policy'} reference: {e}") from None
+        raise AgentLoadError(f"{'--planner' if skill is None else '--policy'} {target}: {e}") from None
     what = "planner" if skill is None else "policy"
     agent = _load(str(folder), BUILTIN_PLANNERS if skill is None else BUILTIN_POLICIES, what, ("plan",) if skill is None else ("reset", "act"))
     agent.reference = folder.name  # `identity` names the learner, not the folder of this machine
@@ -136,10 +140,11 @@ def _reference(skill: str | None) -> Any:
 
 def load_planner(target: str) -> Planner:
     """A high-level planner: `plan(first_obs) -> [{"skill": ..., "target": ...}, ...]` (optional `reset(info)`);
-    `reference`: the shipped one (echo_data.learn.reference)."""
+    `reference`: the shipped one, `reference:NAME` a listed one (echo_data.learn.reference)."""
     from echo_data.learn.reference import NAME as REFERENCE
 
-    return _reference(None) if target == REFERENCE else _load(target, BUILTIN_PLANNERS, "planner", ("plan",))
+    shipped = target == REFERENCE or target.startswith(REFERENCE + ":")
+    return _reference(None, target) if shipped else _load(target, BUILTIN_PLANNERS, "planner", ("plan",))
 
 
 def identity(agent: Any, target: str | Sequence[str]) -> dict[str, Any]:

@@ -40,8 +40,8 @@ class Verdict:
 
 
 def verdict(recorded: Mapping[str, Any] | None, shipped: ReferenceSet) -> Verdict:
-    """`current` when every learned skill (and a learned planner) was measured with the weights
-    the reference set ships for it now; `stale` naming the first that was not; `unrecorded` for
+    """`current` when every learned skill (and a learned planner) was measured with weights the
+    reference set ships for it now (serving or a variant); `stale` naming the first that was not; `unrecorded` for
     a measurement from before results named their weights. Scripted skills (no hash) always match."""
     if not recorded:
         return Verdict("unrecorded", "measured before results named their weights")
@@ -49,9 +49,9 @@ def verdict(recorded: Mapping[str, Any] | None, shipped: ReferenceSet) -> Verdic
     for who, sha in used.items():
         if sha is None:
             continue
-        ships = shipped.weights_sha256(None if who == PLANNER else who)
-        if ships != sha:
-            now = "ships none" if ships is None else f"ships {ships[:12]}"
+        ships = shipped.shipped(None if who == PLANNER else who)
+        if sha not in ships:
+            now = f"ships {', '.join(sorted(h[:12] for h in ships))}" if ships else "ships none"
             return Verdict("stale", f"{who}: measured with weights {sha[:12]}, the reference set {now}")
     return Verdict("current")
 

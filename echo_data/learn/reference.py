@@ -13,7 +13,8 @@ The reference set is a folder (the package's `echo_data/reference/`, or `$ECHO_D
     recipe.yaml          the recipe of the dataset it was trained on
     SHA256SUMS           `sha256  file` of every file above (checked at every load)
 
-A learner folder is also a checkpoint folder (`--policy echo_data/reference/NAME` works).
+A learner folder is also a checkpoint folder. `--policy reference` drives each skill by the learner
+serving it, `--policy SKILL=reference:NAME` by a listed variant (a row's magic-grasp Pick, say).
 `echo-data reference add RUN --name NAME` makes one from a training run folder.
 """
 
@@ -39,7 +40,7 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1] / "reference"
 MANIFEST = "manifest.json"
 SUMS = "SHA256SUMS"
 RECIPE = "recipe.yaml"
-NAME = "reference"  # the name `--policy` / `--planner` take
+NAME = "reference"  # the name `--policy` / `--planner` take: the serving learner; `reference:LEARNER` a listed one
 BUDGET_BYTES = 30 * 2**20  # every shipped weights file together (issue 45)
 # Largest change of any action entry an fp16 round trip may cause on the check's steps, in units
 # of that entry's standard deviation in the training actions (a planner: of its logits, and no
@@ -90,20 +91,35 @@ class ReferenceSet:
     def to_dict(self) -> dict[str, Any]:
         return {"format": FORMAT, "learners": self.learners, "skills": self.skills, "planner": self.planner}
 
-    def learner(self, skill: str | None) -> Path:
-        """The checked folder of the learner serving `skill` (None: the planner)."""
-        name = self.planner if skill is None else self.skills.get(skill)
+    def learner(self, skill: str | None, name: str | None = None) -> Path:
+        """The checked folder of learner `name`, which must act as `skill` (None: the planner);
+        without a name, the one serving `skill`."""
+        what = "planner" if skill is None else f"learner for skill {skill}"
         if name is None:
-            what = "no planner" if skill is None else f"no learner for skill {skill}"
-            raise ReferenceError(f"the reference set {self.root / MANIFEST} ships {what} (echo-data reference add RUN --name NAME adds one)")
+            name = self.planner if skill is None else self.skills.get(skill)
+            if name is None:
+                raise ReferenceError(f"the reference set {self.root / MANIFEST} ships no {what} (echo-data reference add RUN --name NAME adds one)")
+        elif name not in self.learners:
+            raise ReferenceError(f"the reference set {self.root / MANIFEST} has no learner {name!r} ({', '.join(sorted(self.learners)) or 'none'})")
+        elif name not in self.of(skill):
+            raise ReferenceError(f"{self.root / MANIFEST}: learner {name!r} is not a {what}")
         folder = self.root / name
         verify(folder)
         return folder
+
+    def of(self, skill: str | None) -> list[str]:
+        """Every listed learner that acts as `skill` (None: every planner), served or not."""
+        return [n for n, e in self.learners.items() if (e.get("kind") == "planner" if skill is None else e.get("skill") == skill)]
 
     def weights_sha256(self, skill: str | None) -> str | None:
         """The SHA-256 of the weights serving `skill` (None: the planner); None if unserved."""
         name = self.planner if skill is None else self.skills.get(skill)
         return None if name is None else str(self.learners[name]["weights_sha256"])
+
+    def shipped(self, skill: str | None) -> set[str]:
+        """The SHA-256 of every shipped learner's weights for `skill` (None: the planners): a
+        row's variant (a magic-grasp Pick, a starred Place) is shipped without serving its skill."""
+        return {str(self.learners[n]["weights_sha256"]) for n in self.of(skill)}
 
 
 def _sha256(data: bytes) -> str:
@@ -261,10 +277,11 @@ def fp16_weights(run: Path, kind: str, dataset: Path) -> tuple[dict[str, Any], d
     return stored, report
 
 
-def add(run: Path, name: str, root: Path | None = None, dataset: Path | None = None, overwrite: bool = False) -> dict[str, Any]:
+def add(run: Path, name: str, root: Path | None = None, dataset: Path | None = None, overwrite: bool = False, serve: bool = True) -> dict[str, Any]:
     """Make reference learner `name` from the run folder `run` (its best weights) in the set at
-    `root` and let it serve its skill (or be the planner); returns its manifest entry. The folder
-    is written beside and renamed in, then the manifest: a failure leaves the set as it was."""
+    `root` and, with `serve`, let it serve its skill (or be the planner; else it is a variant,
+    `reference:NAME`); returns its manifest entry. The folder is written beside and renamed in,
+    then the manifest: a failure leaves the set as it was."""
     import yaml
     from safetensors.torch import save
 
@@ -313,9 +330,9 @@ def add(run: Path, name: str, root: Path | None = None, dataset: Path | None = N
     refs.skills = {k: v for k, v in refs.skills.items() if v != name}  # a replaced learner serves only what it now is
     refs.planner = None if refs.planner == name else refs.planner
     refs.learners[name] = entry
-    if kind == "planner":
+    if serve and kind == "planner":
         refs.planner = name
-    else:
+    elif serve:
         refs.skills[str(skill)] = name
     atomic_write_bytes(root / MANIFEST, canonical_json(refs.to_dict()))
     return {"name": name, **entry}

@@ -23,6 +23,7 @@ def add_cmd(
     data: Path | None = typer.Option(None, "--data", help="The dataset the run was trained on (default: the one its config.json names)."),
     to: Path | None = typer.Option(None, "--to", help="The reference set (default: $ECHO_DATA_REFERENCE, else the package's echo_data/reference)."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace a learner of the same name."),
+    serve: bool = typer.Option(True, "--serve/--variant", help="Serve its skill (or be the planner), or ship it as a variant: --policy SKILL=reference:NAME."),
 ) -> None:
     """Convert RUN's best weights to safetensors (fp16 where its actions do not change), copy its
     config and data recipe, record their SHA-256, and let it serve its skill (or be the planner)."""
@@ -30,7 +31,7 @@ def add_cmd(
     from echo_data.learn.runs import RunError
 
     try:
-        entry = add(run, name, _root(to), data, overwrite)
+        entry = add(run, name, _root(to), data, overwrite, serve)
     except (ReferenceError, RunError) as e:
         typer.echo(f"error: {e}", err=True)
         raise typer.Exit(2) from None
@@ -50,7 +51,9 @@ def list_cmd(to: Path | None = typer.Option(None, "--to", help="The reference se
     from echo_data.skills import EXPERTS
 
     for who in [*EXPERTS, "planner"]:
-        name = refs.planner if who == "planner" else refs.skills.get(who)
-        sha = refs.weights_sha256(None if who == "planner" else who)
-        typer.echo(f"{who:<10} {name or '-'}" + (f"  sha256 {sha}" if sha else ""))
+        skill = None if who == "planner" else who
+        served = refs.planner if skill is None else refs.skills.get(who)
+        names = [n for n in refs.of(skill) if n != served]
+        line = f"{who:<10} {served or '-'}" + (f"  sha256 {refs.weights_sha256(skill)}" if served else "")
+        typer.echo(line + (f"  variants: {', '.join(names)}" if names else ""))
     typer.echo(f"weights: {shipped_bytes(refs.root) / 2**20:.2f} MB")
