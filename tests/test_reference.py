@@ -251,6 +251,8 @@ def test_a_variant_ships_beside_the_serving_learner_and_is_asked_for_by_name(tra
     who = identity(policy, ("Navigate=reference:nav-exact", "oracle"))["skills"]["Navigate"]
     assert who["reference"] == "nav-exact" and who["weights_sha256"] == variant["weights_sha256"]
     assert provenance.verdict({"skills": {"Navigate": variant["weights_sha256"]}, "planner": None}, refs).state == "current"
+    with pytest.raises(reference.ReferenceError, match="a plain folder name"):
+        reference.add(trained, "nav:b", root)
     for spec, says in (("Pick=reference:nav-exact", "not a learner for skill Pick"), ("Navigate=reference:nope", "no learner 'nope'"),
                        ("reference:nav-exact", "give SKILL=reference:nav-exact")):
         with pytest.raises(AgentLoadError, match=says):

@@ -286,8 +286,8 @@ def add(run: Path, name: str, root: Path | None = None, dataset: Path | None = N
     from safetensors.torch import save
 
     root = reference_dir() if root is None else Path(root)
-    if not name or "/" in name or name.startswith(".") or name != name.strip():
-        raise ReferenceError(f"--name {name!r}: a plain folder name")
+    if not name or any(c in name for c in "/\\:") or name.startswith(".") or name != name.strip():
+        raise ReferenceError(f"--name {name!r}: a plain folder name (no '/', '\\' or ':', which `reference:NAME` reads)")
     refs = ReferenceSet.load(root)
     target = root / name
     if target.exists() and not (overwrite and name in refs.learners):
