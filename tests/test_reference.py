@@ -251,6 +251,13 @@ def test_a_variant_ships_beside_the_serving_learner_and_is_asked_for_by_name(tra
     who = identity(policy, ("Navigate=reference:nav-exact", "oracle"))["skills"]["Navigate"]
     assert who["reference"] == "nav-exact" and who["weights_sha256"] == variant["weights_sha256"]
     assert provenance.verdict({"skills": {"Navigate": variant["weights_sha256"]}, "planner": None}, refs).state == "current"
+    # an evaluation over two training seeds (evaluation.seeds): the members' hashes, member by member
+    served = identity(load_policy(("Navigate=reference", "oracle")), ("Navigate=reference", "oracle"))
+    both = provenance.weights({"name": "two seeds", "members": [served, {"skills": {"Navigate": who, "*": {"name": "oracle"}}}]}, {"name": "oracle"})
+    assert both["skills"]["Navigate"] == [refs.weights_sha256("Navigate"), variant["weights_sha256"]] and both["skills"]["Pick"] is None
+    assert provenance.verdict(both, refs).state == "current"
+    both["skills"]["Navigate"][1] = "3" * 64
+    assert provenance.verdict(both, refs).state == "stale"
     with pytest.raises(reference.ReferenceError, match="a plain folder name"):
         reference.add(trained, "nav:b", root)
     for spec, says in (("Pick=reference:nav-exact", "not a learner for skill Pick"), ("Navigate=reference:nope", "no learner 'nope'"),

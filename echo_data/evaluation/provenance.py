@@ -22,7 +22,13 @@ PLANNER = "planner"  # the planner's key beside the skills' in a row's verdict
 
 def weights(policy: Mapping[str, Any], planner: Mapping[str, Any]) -> dict[str, Any]:
     """The `weights` block from the results' `policy` and `planner` identities
-    (`agents.loading.identity`): {"skills": {skill: sha256 | None}, "planner": sha256 | None}."""
+    (`agents.loading.identity`): {"skills": {skill: sha256 | None}, "planner": sha256 | None}; an
+    evaluation over several training seeds (`evaluation.seeds`, identity `members`) gives a skill
+    whose members differ the list of their hashes, member by member."""
+    if "members" in policy:
+        each = [weights(m, planner)["skills"] for m in policy["members"]]
+        return {"skills": {s: each[0][s] if len({m[s] for m in each}) == 1 else [m[s] for m in each] for s in EXPERTS},
+                "planner": planner.get("weights_sha256")}
     per = policy.get("skills")
     if per is None:  # one policy drives every skill
         skills = {s: policy.get("weights_sha256") for s in EXPERTS}
@@ -46,13 +52,12 @@ def verdict(recorded: Mapping[str, Any] | None, shipped: ReferenceSet) -> Verdic
     if not recorded:
         return Verdict("unrecorded", "measured before results named their weights")
     used = {**dict(recorded.get("skills") or {}), PLANNER: recorded.get("planner")}
-    for who, sha in used.items():
-        if sha is None:
-            continue
+    for who, hashes in used.items():
         ships = shipped.shipped(None if who == PLANNER else who)
-        if sha not in ships:
-            now = f"ships {', '.join(sorted(h[:12] for h in ships))}" if ships else "ships none"
-            return Verdict("stale", f"{who}: measured with weights {sha[:12]}, the reference set {now}")
+        for sha in hashes if isinstance(hashes, list) else [hashes]:  # a list: one per training seed
+            if sha is not None and sha not in ships:
+                now = f"ships {', '.join(sorted(h[:12] for h in ships))}" if ships else "ships none"
+                return Verdict("stale", f"{who}: measured with weights {sha[:12]}, the reference set {now}")
     return Verdict("current")
 
 
