@@ -277,7 +277,7 @@ def test_a_learned_policy_that_ends_itself_is_judged_where_it_stops(nav_episode)
     assert run.outcomes[0].success and run.outcomes[0].steps == len(actions) and env.progress == 1
     assert any(ok for ok, _ in flags) and not any(done for _, done in flags)  # in the region early, counted only at the stop
     # The hand-over record: stopped where the expert stops, at its interaction pose (the expert
-    # arrives within ~3 cm and ~1.4 deg, benchmarks/results/handover_starts.json), arm held.
+    # arrives within ~3 cm and ~1.4 deg, studies/experts/results/handover_starts.json), arm held.
     at_stop = run.navigate[0]
     assert at_stop.goal_distance < 0.06 and at_stop.heading_error < math.radians(3) and at_stop.arm_moved < 0.01, at_stop
     assert flags[0] == (False, False)

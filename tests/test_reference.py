@@ -161,12 +161,15 @@ def test_the_table_marks_a_row_measured_with_other_weights_stale(shipped: Path, 
     m = {"episodes": 1, "task_planning": {"k": 1, "n": 1, "value": 1.0, "ci95": [0.2, 1.0]},
          "skill_completion": {"k": 0, "n": 1, "value": 0.0, "ci95": [0.0, 0.8]}, "progressive": []}
     row = "oracle planner + learned skills"
+    settings = ("object_relocation", "state_transition")
+    rows: dict[str, table.Row] = {row: table.EvaluatedRow(name=row, planner="oracle", policy={"Navigate": "nav"}, settings=settings)}
 
-    def doc(nav: str) -> dict:
-        return {"rows": {row: {s: {"metrics": m, "weights": {"skills": {"Navigate": nav}, "planner": None}} for s in table.SETTINGS}}}
+    def md(nav: str) -> str:
+        doc = {"rows": {row: {s: {"metrics": m, "weights": {"skills": {"Navigate": nav}, "planner": None}} for s in settings}}}
+        return table.markdown(doc, rows, settings)
 
-    assert f"| {row} §" in table.markdown(doc("0" * 64)) and "§ stale" in table.markdown(doc("0" * 64))
-    assert f"| {row} §" not in table.markdown(doc(str(sha))) and "§ stale" not in table.markdown(doc(str(sha)))
+    assert f"| {row} §" in md("0" * 64) and "§ stale" in md("0" * 64)
+    assert f"| {row} §" not in md(str(sha)) and "§ stale" not in md(str(sha))
 
 
 def test_evaluate_reference_renders_the_wrist_camera_the_recipe_does_not_store_and_names_the_weights(use: Path, tmp_path: Path) -> None:

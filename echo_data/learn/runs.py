@@ -49,7 +49,7 @@ RUN_FORMAT = "echo-data-run/1"
 _BEFORE_MARKER = re.compile(  # every file a run folder held before the marker existed
     rf"(?:{SELECT_DIR}/scored-\d+/)?(?:config|policy|agent)\.json|(?:{SELECT_DIR}/scored-\d+/)?(?:checkpoint|best)\.pt"
     r"|losses\.csv|curves\.png|eval\.json|dagger\.csv"
-    r"|summary\.json|command\.txt"  # what benchmarks/ablation, paper_table and planner_table put beside a run then
+    r"|summary\.json|command\.txt"  # what the ablation, paper-table and planner study drivers put beside a run then
 )
 
 

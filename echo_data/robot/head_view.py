@@ -1,7 +1,7 @@
 """How much of the head camera's view the arm and a held object cover in a given arm configuration.
 
 Why: a carry pose must leave the head camera clear so that Place (and a policy learned from the
-head view) can see where it goes. Used by tests/test_carry_pose.py and benchmarks/carry_*.py.
+head view) can see where it goes. Used by tests/test_carry_pose.py and the carry-search study.
 The robot stands alone on a floor; each object category's collision box hangs from the pads as
 Pick holds it (top GRASP_BELOW_TOP above the pads, yawed with the jaws).
 """
