@@ -24,6 +24,10 @@ from echo_data.learn.cli import evaluate_planner_cmd, train_app  # noqa: E402
 
 app.add_typer(train_app, name="train")
 
+from echo_data.learn.reference_cli import reference_app  # noqa: E402
+
+app.add_typer(reference_app, name="reference")
+
 
 @app.command()
 def version() -> None:
@@ -166,10 +170,10 @@ def evaluate(
     n: int = typer.Option(30, "-n", min=1, help="Episodes: indices 0..n-1 of the split."),
     policy: list[str] = typer.Option(
         ["oracle"], "--policy",
-        help="Skill policy: oracle | random | still | module:Class | checkpoint folder; repeat as SKILL=POLICY for one per skill "
+        help="Skill policy: oracle | random | still | reference (the shipped learners; SKILL=reference:NAME a listed one) | module:Class | checkpoint folder; repeat as SKILL=POLICY for one per skill "
         "(e.g. --policy Navigate=runs/nav --policy oracle: skills not named use the plain one, default oracle).",
     ),
-    planner: str = typer.Option("oracle", "--planner", help="Planner: oracle | module:Class | checkpoint folder."),
+    planner: str = typer.Option("oracle", "--planner", help="Planner: oracle | reference (the shipped one; reference:NAME a listed one) | module:Class | checkpoint folder."),
     workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
     json_out: Path | None = typer.Option(None, "--json", help="Write the results (metrics, per-episode outcomes) here."),
     video: Path | None = typer.Option(None, "--video", help="Write one MP4 per episode (picture + binaural sound) into this folder."),

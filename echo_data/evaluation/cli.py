@@ -87,6 +87,7 @@ def run_evaluate(
     from echo_data.agents.runtime import RUNTIME_OBSERVATIONS, AgentActionError
     from echo_data.envs.env import observation_space
     from echo_data.evaluation.journal import Journal, JournalError, journal_path
+    from echo_data.evaluation.rendered import rendering
     from echo_data.evaluation.run import evaluate
     from echo_data.evaluation.seeds import SeedSpecError, split_members
 
@@ -109,7 +110,7 @@ def run_evaluate(
     try:
         members = split_members(policy)  # one per training seed (`evaluation.seeds`)
         pols, plan = [load_policy(m) for m in members], load_planner(planner)
-        known = (*observation_space(recipe).spaces, *RUNTIME_OBSERVATIONS)  # GOAL_POSE, privileged: the runtime adds them
+        known = (*observation_space(rendering(recipe, *pols, plan)).spaces, *RUNTIME_OBSERVATIONS)  # GOAL_POSE, privileged: the runtime adds them
         for pol, member in zip(pols, members, strict=True):
             check_observations(pol, f"policy {spec_name(member)!r}", known)
         check_observations(plan, f"planner {planner!r}", known)

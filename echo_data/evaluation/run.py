@@ -85,7 +85,9 @@ def _worker_state(job: EvalJob) -> tuple[Any, Any, Any]:
         images, audio = needs(policy, planner)
         if job.video_dir:
             images = audio = True
-        env = EchoDataEnv(job.recipe, split=job.split, images=images, audio=audio, recipe_dir=job.recipe_dir)
+        from echo_data.evaluation.rendered import rendering
+
+        env = EchoDataEnv(rendering(job.recipe, policy, planner), split=job.split, images=images, audio=audio, recipe_dir=job.recipe_dir)
         _WORKER.update(job=job, env=env, policy=policy, planner=planner)
     return _WORKER["env"], _WORKER["policy"], _WORKER["planner"]
 
@@ -283,12 +285,15 @@ def evaluate(
     scored = [e for e in episodes if "skipped" not in e]
     shown = identity(pols[0], members[0]) if len(members) == 1 else {
         "name": spec_name(policy), "members": [identity(p, m) for p, m in zip(pols, members, strict=True)]}
+    from echo_data.evaluation.provenance import weights
+
     doc = {
         "recipe": {"name": recipe.name, "path": _shown_path(recipe_path) if recipe_path else None, "content_hash": recipe.content_hash()},
         "split": split,
         "n": n,
         "policy": shown,
         "planner": identity(plan, planner),
+        "weights": weights(shown, identity(plan, planner)),  # per skill and the planner: SHA-256 of the weights acted with
         "drive_end": drive_end,
         "versions": versions(),
         "metrics": by_setting(scored),

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from echo_data.evaluation.metrics import plan_right_without_receptacle, proportion, summarise, wilson
+from echo_data.evaluation.provenance import composed_weights, stale_rows
 from echo_data.skill_table import SKILLS as SKILL_TABLE
 
 SKILLS = tuple(SKILL_TABLE)  # every skill a row reports, in the skill table's order
@@ -171,7 +172,8 @@ def measured(doc: dict[str, Any]) -> dict[str, Any]:
     return {"metrics": {**{k: metrics[k] for k in ("episodes", "task_planning", "skill_completion", "progressive", "navigate_success") if k in metrics},
                         "planning_without_place_target": planning_without_place_target(doc["episodes"]),
                         "navigate_shortfall": handover(doc["episodes"])},
-            "skills": {s: skill_success(doc["episodes"], s) for s in SKILLS}}
+            "skills": {s: skill_success(doc["episodes"], s) for s in SKILLS},
+            **({"weights": doc["weights"]} if doc.get("weights") else {})}  # what it was measured with (evaluation.provenance)
 
 
 def composed(plans: dict[str, Any], runs_of: dict[str, Any]) -> dict[str, Any]:
@@ -194,7 +196,7 @@ def composed(plans: dict[str, Any], runs_of: dict[str, Any]) -> dict[str, Any]:
         if not p["plan_correct"]:
             rec.update(skills=[], skills_completed=0, success=False, navigate=[], failure=p["failure"], steps=p["steps"])
         out.append(rec)
-    return measured({"metrics": {"all": summarise(out)}, "episodes": out})
+    return measured({"metrics": {"all": summarise(out)}, "episodes": out, "weights": composed_weights(plans, runs_of)})
 
 
 def derived(source: dict[str, Any], skill: str) -> dict[str, Any]:
@@ -275,7 +277,8 @@ def markdown(doc: dict[str, Any], rows: dict[str, Row], order: tuple[str, ...]) 
     setting, exact and receptacle-free planning where they differ, the skills alone. A row with
     no entry reads "not measured"."""
     read = {name: entries(doc, name) for name in rows}
-    mark = {name: " †" * any("computed_from" in e for e in per.values()) + " ‡" * previous for name, (per, previous) in read.items()}
+    stale = stale_rows({name: per for name, (per, _) in read.items()})  # measured with weights no longer shipped (evaluation.provenance)
+    mark = {name: " †" * any("computed_from" in e for e in per.values()) + " ‡" * previous + " §" * (name in stale) for name, (per, previous) in read.items()}
     chain = [r for r in rows.values() if r.skill_alone is None]
     head = ["| row | " + " | ".join(f"{_words(s)}: planning | completion" for s in order) + " |", "|---|" + "---|---|" * len(order)]
     prog = ["| row | setting | progressive success (through skill 1, 2, ...) |", "|---|---|---|"]
@@ -315,6 +318,8 @@ def markdown(doc: dict[str, Any], rows: dict[str, Row], order: tuple[str, ...]) 
                      "(`composed` and `derived` in echo_data/evaluation/table.py say why this is exact).")
     if any("‡" in m for m in mark.values()):
         notes.append("‡ the previous session's measurement (`previous_session` in the JSON): " + doc["previous_session"].get("note", ""))
+    if stale:
+        notes.append("§ stale: measured with weights that are not the shipped reference learners' (echo_data/reference/manifest.json); re-measure it.")
     if any(r.grasp == "magic" for r in rows.values()):
         notes.append("paper-comparable: Habitat's grasp (`robot.grasp: magic`, the one the paper's skills use) instead of "
                      "ours (finger friction alone), Pick and Place cloned from demonstrations with that grasp; starred, the drives are "
