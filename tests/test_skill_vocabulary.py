@@ -66,8 +66,10 @@ def test_a_new_skill_reaches_the_prompt_the_recipe_and_the_chains(toy: list[str]
 @pytest.mark.slow
 def test_a_new_skill_is_run_checked_and_scored_by_evaluate(toy: list[str]) -> None:
     """The oracle answers a running sink with the toy skill; the environment evaluates the toy's
-    success test every step; `evaluate` records the skill's outcome under its name."""
+    success test every step; `evaluate` records the skill's outcome under its name, and the
+    results table reports it."""
     from echo_data.evaluation.run import evaluate
+    from echo_data.evaluation.table import measured
 
     recipe = Recipe(name="toy", setting="state_transition", events={"categories": {"doorbell": 0.0, "sink": 1.0}})
     doc = evaluate(recipe, None, "test", 1, "oracle", "oracle")
@@ -76,3 +78,4 @@ def test_a_new_skill_is_run_checked_and_scored_by_evaluate(toy: list[str]) -> No
     assert [s["skill"] for s in episode["skills"]] == ["Navigate", "TurnTapOff"]
     assert episode["success"], episode["skills"]
     assert toy and set(toy) == {episode["skills"][1]["target"]}
+    assert measured(doc)["skills"]["TurnTapOff"]["k"] == 1 and "CloseSink" not in measured(doc)["skills"]

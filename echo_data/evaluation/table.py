@@ -169,10 +169,10 @@ def measured(doc: dict[str, Any]) -> dict[str, Any]:
     """A row's measurement from `echo-data evaluate --json`'s document: the paper's metrics, the
     planning without the receptacle, the hand-over, and every skill's success over its attempts."""
     metrics: dict[str, Any] = doc["metrics"].get("all") or next(iter(doc["metrics"].values()), {})
-    return {"metrics": {**{k: metrics[k] for k in ("episodes", "task_planning", "skill_completion", "progressive", "navigate_success") if k in metrics},
+    return {"metrics": {**{k: metrics[k] for k in ("episodes", "task_planning", "skill_completion", "progressive", "navigate_success", "navigate_handover") if k in metrics},
                         "planning_without_place_target": planning_without_place_target(doc["episodes"]),
                         "navigate_shortfall": handover(doc["episodes"])},
-            "skills": {s: skill_success(doc["episodes"], s) for s in SKILLS},
+            "skills": {s: skill_success(doc["episodes"], s) for s in SKILL_TABLE},  # the table now: a skill added later is in it
             **({"weights": doc["weights"]} if doc.get("weights") else {})}  # what it was measured with (evaluation.provenance)
 
 
