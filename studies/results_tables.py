@@ -62,6 +62,16 @@ def planner(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def drives(doc: dict[str, Any]) -> str:
+    """The base motion inside each manipulation skill's demonstrations, per start."""
+    lines = ["| start | skill | segments (expert successes) | base path, median / max (m) | base turn, median / max (deg) |", "|---|---|---|---|---|"]
+    for start, run in doc["starts"].items():
+        for s, x in run["skills"].items():
+            lines.append(f"| {start} | {s} | {x['segments']} ({x['expert_success']}) | {x['path_m']['median']:.2f} / {x['path_m']['max']:.2f} | "
+                         f"{x['turn_deg']['median']:.0f} / {x['turn_deg']['max']:.0f} |")
+    return "\n".join(lines) + f"\n\n{doc['episodes_per_setting']} test episodes of each of {', '.join(doc['settings'])}; commit {doc['commit'][:7]}.\n"
+
+
 Renderer = Callable[[dict[str, Any]], str]
 # (study, copy name, results file in the study's results/, renderer)
 COPIES: list[tuple[str, str, str, Renderer]] = [
@@ -70,6 +80,7 @@ COPIES: list[tuple[str, str, str, Renderer]] = [
     ("learners", "navigate", "navigate_from_sound.json", navigate),
     ("navigation_ablation", "ablation", "ablation.json", ablation),
     ("planner", "fresh", "planner_fresh.json", planner),
+    ("handover", "drives", "drives.json", drives),
 ]
 
 
