@@ -64,6 +64,12 @@ def test_robomimic_sequence_dataset_reads_the_export(ds: Path, tmp_path: Path) -
     assert r.exit_code == 0, r.output
     rows = _rows(ds)
     with h5py.File(out, "r") as f:
+        clipped_line = f"{f['data'].attrs['actions_clipped']} action values outside the train split's range clipped to [-1, 1]"
+        assert clipped_line in r.output  # export says it, not only the file's attributes
+        depth_range = float(f["data/demo_0/obs/head_depth"].attrs["depth_range_m"])
+        stats = json.loads((ds / "meta" / "stats.json").read_text())["observation.images.head_depth"]
+        assert depth_range == np.ceil(stats["max"][0] / 0.5) * 0.5  # the train split's farthest depth: no train pixel clips
+        assert json.loads(f["data"].attrs["depth_range_m"])["head_depth"] == depth_range
         assert [n.decode() for n in f["mask/train"][:]] == ["demo_0", "demo_1", "demo_2"] and len(f["mask/test"]) == 2
         assert f["data"].attrs["total"] == len(rows) and json.loads(f["data"].attrs["env_args"])["env_name"] == "EchoData"
         d0 = f["data/demo_0"]
@@ -100,7 +106,11 @@ def test_robomimic_sequence_dataset_reads_the_export(ds: Path, tmp_path: Path) -
         np.testing.assert_array_equal(item["obs"]["spectrogram"][0], np.array(rows[i]["observation.audio.spectrogram"], np.float32))
         # images as stored (robomimic's ObsUtils.process_obs makes them channel-first floats for its models)
         np.testing.assert_array_equal(item["obs"]["head_rgb"][0], _png(rows[i]["observation.images.head_rgb"]))
-        np.testing.assert_array_equal(item["obs"]["head_depth"][0][..., 0], _png(rows[i]["observation.images.head_depth"]))
+        mm = item["obs"]["head_depth"][0][..., 0].astype(np.float64) * depth_range * 1000.0  # the stored fraction of the range
+        np.testing.assert_allclose(mm, _png(rows[i]["observation.images.head_depth"]), atol=0.01)
+        # robomimic's own observation processing (its `depth` modality: /1, clip to [0, 1], channel first) keeps the picture
+        seen = obs_utils.process_obs(item["obs"]["head_depth"][0], obs_key="head_depth")
+        assert seen.shape[0] == 1 and np.ptp(seen) > 0.05 and 0.0 <= seen.min() and seen.max() <= 1.0
     again = CliRunner().invoke(app, ["export", str(ds), "--format", "robomimic", "--out", str(out)])
     assert again.exit_code == 2 and "already exists" in again.output
 

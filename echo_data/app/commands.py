@@ -163,6 +163,8 @@ def export_cmd(
     except OSError as e:
         raise _fail(write_failed("--out", out, e), 2) from None
     typer.echo(f"{out}: {fmt} {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
+    for note in info.get("notes", []):  # what a user must know about the written numbers (e.g. clipped actions)
+        typer.echo(note)
 
 
 def view_cmd(

@@ -55,7 +55,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from echo_data.dataset.episode_arrays import ExportError, check_out_folder, check_source, column_values, decode_images
+from echo_data.dataset.episode_arrays import ExportError, check_out_folder, check_source, column_values, decode_images, depth_ranges
 from echo_data.dataset.schema import (
     ACTION,
     ACTION_EXECUTED,
@@ -93,7 +93,6 @@ VIDEO_GOP: int | None = 2  # frames between keyframes: random access decodes at 
 ENV_STATE = "observation.environment_state"  # LeRobot's environment-state key (ACT, Diffusion read it)
 EXTRA_PREFIX = "extra."  # carried, never a policy input or output (see the module docstring)
 AUDIO_FOR_POLICY = (SPECTROGRAM, MEL)  # the first present becomes ENV_STATE
-DEPTH_STEP_M = 0.5  # depth image ranges are rounded up to this
 # The natural-language task of each setting (LeRobot's `task`; index = echo-data's task_index).
 TASKS = {
     "object_relocation": "Find the sounding object, pick it up and put it where it belongs.",
@@ -129,21 +128,6 @@ def lerobot_name(col: str, layout: StepLayout) -> str:
     if col.startswith(ACTION + ".") or col.startswith(PRIVILEGED_PREFIX) or col in layout.arrays:
         return EXTRA_PREFIX + col
     return col
-
-
-def depth_ranges(src: Path, layout: StepLayout) -> dict[str, float]:
-    """Per depth camera, the metres that map to 255 in its 8-bit image: the source's train-split
-    99th-percentile depth (meta/stats.json, metres; its maximum where no quantile is stored)
-    rounded up to DEPTH_STEP_M. The maximum would spend the 256 levels on a few far pixels: the
-    wrist camera sees 9 m across a room now and then but mostly works within 3.5 m."""
-    stats = json.loads((src / "meta" / "stats.json").read_text())
-    out = {}
-    for col, (kind, _, _) in layout.images.items():
-        if kind == "depth":
-            st = stats.get(col, {})
-            top = max(st.get("q99") or st.get("max") or [0.0])
-            out[col] = max(DEPTH_STEP_M, float(np.ceil(top / DEPTH_STEP_M) * DEPTH_STEP_M))
-    return out
 
 
 def depth_image(mm: np.ndarray, range_m: float) -> np.ndarray:
