@@ -8,9 +8,10 @@ robomimic (and LIBERO, ManiSkill's demo tools) read demonstrations as
 echo-data's val split is `mask/valid` and its test split `mask/test` (never train or tune on it).
 
 Observations (`obs/`): `state` (25), `head_rgb` (H, W, 3) uint8, `head_depth` / `wrist_depth`
-(H, W, 1) float32 depth as a fraction of the camera's range (`metres = value * depth_range_m`, the
-dataset attribute `depth_range_m`; the range is the train split's farthest depth rounded up to
-0.5 m, also in `data` attribute `depth_range_m`): robomimic's `depth` modality divides by 1 and
+(H, W, 1) float32 depth as a fraction of the camera's range (`metres = value * range`, the range
+by key in the `data` attribute `depth_range_m` (JSON): the train split's farthest depth rounded up
+to 0.5 m; not an attribute of each depth dataset, because an attribute write that fails on a
+full disk crashes h5py at close, see `_KeepsFirstWriteError`): robomimic's `depth` modality divides by 1 and
 clips to [0, 1], so millimetres would reach its models as a constant 1.0. `spectrogram` and `mel` of the last second (F, time, ear),
 `camera_pose_head` / `camera_pose_wrist` (4, 4). Large observations are chunked one frame per
 chunk: robomimic reads one random step at a time, and a chunk holding a whole trajectory made each
@@ -105,12 +106,9 @@ def _write_demo(data: Any, name: str, ep: EpisodeArrays, actions: np.ndarray, ne
     g.create_dataset("dones", data=ep.columns["done"].astype(np.int64))
     obs = g.create_group("obs")
     nxt = g.create_group("next_obs") if next_obs else None
-    ranges = {OBS_KEYS[col]: r for col, r in depth_range_m.items()}
     for key, x in _obs(ep, depth_range_m).items():
         big = x[0].size > 64
         d = obs.create_dataset(key, data=x, chunks=(min(CHUNK_FRAMES, n), *x.shape[1:]) if big else None, compression=COMPRESSION if big else None)
-        if key in ranges:
-            d.attrs["depth_range_m"] = ranges[key]
         if nxt is None:
             continue
         layout = h5py.VirtualLayout(shape=x.shape, dtype=x.dtype)
