@@ -260,3 +260,35 @@ def test_diffusion_audio_costs_few_parameters(tmp_path: Path) -> None:
     assert p.returncode == 0, p.stderr[-3000:]
     got = json.loads(p.stdout.strip().splitlines()[-1])
     assert got["with_audio"] > got["without_audio"] and got["with_audio"] <= 1.2 * got["without_audio"], got
+
+
+def test_episode_stats_match_lerobots_compute_episode_stats(ds: Path, tmp_path: Path) -> None:
+    """The export's per-episode statistics (meta/episodes `stats/*`) are what LeRobot's own
+    `compute_episode_stats` makes of the same frames, for every numeric non-camera feature:
+    min, max, mean, std and count per value (the quantiles are sketches on both sides: a float
+    feature's median within a tenth of the value's range)."""
+    out = tmp_path / "le"
+    assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out)]).exit_code == 0
+    code = (
+        "import json, sys, numpy as np, pyarrow.parquet as pq\n"
+        "from lerobot.datasets.compute_stats import compute_episode_stats\n"
+        "root = sys.argv[1]; info = json.load(open(root + '/meta/info.json'))\n"
+        "rows = pq.read_table(root + '/data/chunk-000/file-000.parquet').to_pydict()\n"
+        "ep = np.asarray(rows['episode_index']) == 0\n"
+        "feats = {k: f for k, f in info['features'].items() if f['dtype'] not in ('image', 'video', 'string')}\n"
+        "data = {k: np.asarray(rows[k], dtype=np.float64)[ep].reshape(int(ep.sum()), -1) for k in feats}\n"
+        "stats = compute_episode_stats(data, feats)\n"
+        "print(json.dumps({k: {s: np.asarray(v).tolist() for s, v in st.items()} for k, st in stats.items()}))\n"
+    )
+    p = run_lerobot(["-c", code, str(out)], tmp_path)
+    assert p.returncode == 0, p.stderr[-3000:]
+    theirs = json.loads(p.stdout.strip().splitlines()[-1])
+    ours = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()[0]
+    assert "observation.environment_state" in theirs and "extra.observation.audio.spectrogram" in theirs
+    for k, st in theirs.items():
+        for s in ("min", "max", "mean", "std", "count"):
+            np.testing.assert_allclose(ours[f"stats/{k}/{s}"], st[s], rtol=1e-4, atol=1e-6, err_msg=f"{k} {s}")
+        if json.loads((out / "meta" / "info.json").read_text())["features"][k]["dtype"] != "float32":
+            continue  # a median of integers lies anywhere between two of them
+        span = np.asarray(st["max"]) - np.asarray(st["min"])
+        assert np.all(np.abs(np.asarray(ours[f"stats/{k}/q50"]) - np.asarray(st["q50"])) <= 0.1 * span + 1e-6), k
