@@ -246,3 +246,25 @@ def test_frame_text_keeps_its_spaces() -> None:
     from echo_data.viz.frames import FONT
 
     assert FONT.getlength(" ") >= FONT.getlength("a") / 3 and FONT.getlength(" ") >= 3
+
+
+def test_topdown_room_label_stays_readable_over_the_start_ring() -> None:
+    """Room names are drawn last on a backing: a start ring at a room's centre (where its name
+    is) no longer crosses the name."""
+    from PIL import ImageDraw as Draw
+
+    from echo_data.recipe import load_recipe
+    from echo_data.scene.generate import generate_floorplan_from_seed
+    from echo_data.viz import palette
+
+    plan = generate_floorplan_from_seed(load_recipe(Path(__file__).parents[1] / "recipes" / "quickstart.yaml"), 3)
+    room = plan.rooms[0]
+    cx, cy = room.rect.center
+    m = TopDownMap(plan, [], px_per_m=100, labels=True)
+    img = m.draw((), start=(cx, cy, 0.0))
+    from PIL import Image
+
+    left, top, right, bottom = (int(v) for v in Draw.Draw(Image.new("RGB", (1, 1))).textbbox(m.px(cx, cy), f"{room.kind} {room.index}", anchor="mm"))
+    inside = img[top:bottom, left:right].reshape(-1, 3)
+    assert (inside.max(axis=1) < 160).sum() > 10  # the name is there (grey text, antialiased)
+    assert not (inside == palette.ROBOT).all(axis=1).any()  # and the ring does not cross it
