@@ -400,7 +400,7 @@ def export_card(info: dict[str, Any], src_card: Path, folder: Path) -> str:
     card's sections that hold for the export too (counts, sounds, how it was made, success, uses,
     limits), their pointers to files only the source has made to say so."""
     ed = info["echo_data"]
-    front = {
+    front: dict[str, Any] = {
         "license": LICENSE,
         "task_categories": ["robotics"],
         "annotations_creators": ["machine-generated"],
@@ -415,10 +415,6 @@ def export_card(info: dict[str, Any], src_card: Path, folder: Path) -> str:
     feats = info["features"]
     renamed = ed.get("renamed", {})
     lines = [
-        "---",
-        yaml.safe_dump(front, sort_keys=False).rstrip(),
-        "---",
-        "",
         f"# LeRobot {info['codebase_version']} export of echo-data {ed['source']}",
         "",
         f"{info['total_episodes']} episodes, {info['total_frames']} frames at {info['fps']} Hz, written by `echo-data export "
@@ -471,7 +467,11 @@ def export_card(info: dict[str, Any], src_card: Path, folder: Path) -> str:
         *["## " + sec.rstrip() + "\n" for sec in kept],
         *links_and_citation(ed["source"], export=True),
     ]
-    return "\n".join(lines)
+    # the front matter through huggingface_hub's card classes (what the Hub reads them with)
+    from huggingface_hub import DatasetCard, DatasetCardData
+
+    card = DatasetCard("---\n" + DatasetCardData(**front).to_yaml() + "\n---\n\n" + "\n".join(lines))
+    return str(card.content)
 
 
 def _source_pointers(section: str) -> str:
