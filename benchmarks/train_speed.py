@@ -5,8 +5,8 @@ in the same run: optimiser steps per second and training samples per second, and
         [--inputs depth,wrist_depth,state] [--threads 1] [--batch-size 64] \
         [--action-column action.ee] [--shift 4] [--devices cpu,cuda]
 
-The camera learners' Pick (benchmarks/camera_learners.py) is `--inputs depth,wrist_depth,state,kind
---action-column action.ee --shift 4` on a `recipes/cameras_pick_place.yaml` build.
+The camera learners' Pick (studies/learners/camera_learners.py) is `--inputs depth,wrist_depth,state,kind
+--action-column action.ee --shift 4` on a `studies/paper_table/recipes/cameras_pick_place.yaml` build.
 
 Samples per second are over every optimiser step by the fit loop's own clock (data decoding,
 the same on both devices, is left out; it shows in the run seconds). Each device trains `WARMUP`

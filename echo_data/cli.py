@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from enum import Enum
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -18,9 +19,14 @@ from echo_data.sounds.cli import sounds_app  # noqa: E402
 
 app.add_typer(sounds_app, name="sounds")
 
+from echo_data.agents.runtime import DRIVE_ENDS  # noqa: E402
 from echo_data.learn.cli import evaluate_planner_cmd, train_app  # noqa: E402
 
 app.add_typer(train_app, name="train")
+
+from echo_data.learn.reference_cli import reference_app  # noqa: E402
+
+app.add_typer(reference_app, name="reference")
 
 
 @app.command()
@@ -159,6 +165,10 @@ def preview(
     typer.echo(f"wrote {', '.join(sorted(p.name for p in out.iterdir() if not p.name.startswith('.')))} to {out}")
 
 
+# `--drive-end`'s choices, from their one owner (typer takes choices as an Enum).
+DriveEnd = Enum("DriveEnd", {v: v for v in DRIVE_ENDS}, type=str)  # type: ignore[misc]
+
+
 @app.command()
 def evaluate(
     recipe_path: Path = typer.Argument(..., metavar="RECIPE", help="Recipe YAML (its episodes, split sizes and budgets)."),
@@ -166,19 +176,23 @@ def evaluate(
     n: int = typer.Option(30, "-n", min=1, help="Episodes: indices 0..n-1 of the split."),
     policy: list[str] = typer.Option(
         ["oracle"], "--policy",
-        help="Skill policy: oracle | random | still | module:Class | checkpoint folder; repeat as SKILL=POLICY for one per skill "
+        help="Skill policy: oracle | random | still | reference (the shipped learners; SKILL=reference:NAME a listed one) | module:Class | checkpoint folder; repeat as SKILL=POLICY for one per skill "
         "(e.g. --policy Navigate=runs/nav --policy oracle: skills not named use the plain one, default oracle).",
     ),
-    planner: str = typer.Option("oracle", "--planner", help="Planner: oracle | module:Class | checkpoint folder."),
+    planner: str = typer.Option("oracle", "--planner", help="Planner: oracle | reference (the shipped one; reference:NAME a listed one) | module:Class | checkpoint folder."),
     workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
     json_out: Path | None = typer.Option(None, "--json", help="Write the results (metrics, per-episode outcomes) here."),
     video: Path | None = typer.Option(None, "--video", help="Write one MP4 per episode (picture + binaural sound) into this folder."),
     resume: bool = typer.Option(False, "--resume", help="Continue an interrupted evaluation from the episodes recorded next to --json (OUT.episodes.jsonl)."),
+    drive_end: DriveEnd = typer.Option(
+        "handover", "--drive-end",
+        help="How a learned Navigate that does not STOP ends: handover (inside the next skill's stance, docs/handover.md) | "
+        "success (the first step inside the paper's 1.5 m success region)."),
 ) -> None:
     """Run a policy closed-loop on a split and report the paper's metrics with 95 % intervals."""
     from echo_data.evaluation.cli import run_evaluate
 
-    code = run_evaluate(_load(recipe_path), recipe_path, split, n, tuple(policy), planner, workers, json_out, video, resume)
+    code = run_evaluate(_load(recipe_path), recipe_path, split, n, tuple(policy), planner, workers, json_out, video, resume, drive_end.value)
     raise typer.Exit(code)
 
 

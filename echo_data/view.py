@@ -16,48 +16,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow.compute as pc
-import pyarrow.parquet as pq
 
 from echo_data.camera import DEPTH_UNIT_M
 from echo_data.dataset.encode import decode_png
 from echo_data.dataset.manifest import load_manifest
+from echo_data.dataset.reader import EpisodeError, episode_rows
 from echo_data.dataset.schema import IMAGE_COLUMNS, STATE
 from echo_data.records import STATE_NAMES
 from echo_data.viz.frames import PANEL, EpisodeFrames
 from echo_data.viz.listening import listening
-from echo_data.viz.topdown import TopDownMap
+from echo_data.viz.topdown import TopDownMap, episode_plan
 
 HAND_AHEAD_M = 0.35  # a carried object is drawn this far ahead of the base centre (the gripper is in front)
 
 
-class ViewError(ValueError):
-    """Bad input for `view` (no such episode, no images): exit 2, nothing written."""
-
-
-def episode_rows(root: Path, split: str, index: int) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """The episode record and its step rows (in order)."""
-    m = load_manifest(root)
-    episodes = pq.read_table(root / "meta" / "episodes.parquet")
-    mask = pc.and_(pc.equal(episodes["split"], split), pc.equal(episodes["episode_index"], index))
-    found = episodes.filter(mask).to_pylist()
-    if not found:
-        n = m["counts"]["episodes"].get(split, 0)
-        raise ViewError(f"{root}: no {split} episode {index} (the {split} split has {n} episodes: 0..{n - 1})")
-    ep = found[0]
-    table = pq.read_table(root / "data" / ep["shard"], filters=[("episode_index", "=", index)])
-    return ep, table.to_pylist()
-
-
-def episode_plan(manifest: dict[str, Any], scene_seed: int) -> Any:
-    """The episode's apartment, regenerated from the recipe and its scene seed (None if impossible)."""
-    try:
-        from echo_data.recipe import Recipe
-        from echo_data.scene.generate import generate_floorplan_from_seed
-
-        return generate_floorplan_from_seed(Recipe.model_validate(manifest["recipe"]), int(scene_seed))
-    except Exception:  # the map is still useful without walls
-        return None
+# Bad input for `view` (no such episode, no images): exit 2, nothing written. The reader's own.
+ViewError = EpisodeError
 
 
 def render_episode_video(root: str | Path, index: int, out: str | Path, split: str = "train") -> dict[str, Any]:
@@ -122,10 +96,10 @@ def source_states(
     `skill_success` flag of that slot is set, as the env silences it after that step's action.
     An event's object is in the hand from the step after its Pick slot succeeded while the state's
     `holding` is set (a Place ends it)."""
-    from echo_data.skills.registry import SKILLS
+    from echo_data.skill_table import SKILLS
 
     resolver = {int(c["event"]): k for k, c in enumerate(chain) if c["skill"] in SKILLS and SKILLS[c["skill"]].resolves_event}
-    picks = {int(c["event"]): k for k, c in enumerate(chain) if c["skill"] == "Pick"}
+    picks = {int(c["event"]): k for k, c in enumerate(chain) if c["skill"] in SKILLS and SKILLS[c["skill"]].lifts}
     before = np.vstack([np.zeros((1, flags.shape[1]), bool), flags[:-1]]) if len(flags) else flags  # flags as they stood when step t was observed
     sounding = [[not (e in resolver and bool(before[t, resolver[e]])) for e in range(n_events)] for t in range(len(flags))]
     carried = [[e for e, k in picks.items() if bool(before[t, k]) and bool(holding[t])] for t in range(len(flags))]

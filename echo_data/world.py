@@ -20,6 +20,10 @@ end-effector position with the objects' positions against `grasp_thresh_dist`, 0
 (`ArmActionConfig`, habitat/config/default_structured_configs.py), and releases when the grip
 action opens. Habitat snaps the object into the hand; here it is held where it is (the same stiff
 drive as a door leaf): no teleport, so physics stays continuous and a replay stays exact.
+Habitat's rule covers articulated handles the same way (its grasp action snaps to a handle
+marker within the same distance), so under `robot.grasp: magic` a closing gripper also holds
+the door leaf whose swing-side handle bar centre is within MAGIC_GRASP_DIST of the TCP: the
+paper-comparable OpenDoor.
 """
 
 from __future__ import annotations
@@ -154,15 +158,24 @@ class World:
         return float(self.robot.applied_action()[11]) < GRIP_CLOSED  # the drives' command, noise included
 
     def _grasp_door(self) -> None:
-        """Hold a door leaf both fingers press on (see the module docstring)."""
+        """Hold a door leaf both fingers press on, or under the magic grasp the leaf whose
+        swing-side handle bar centre is within MAGIC_GRASP_DIST of the TCP (module docstring)."""
         if not self.handles.doors:
             return
         left, right = self.robot.finger_contacts()
-        for art in self.handles.doors:
+        for i, art in enumerate(self.handles.doors):
             leaf = art.links[1]
-            if leaf.entity in left and leaf.entity in right:
+            if (leaf.entity in left and leaf.entity in right) or (self.magic_grasp and self._handle_in_reach(i)):
                 self._door_hold = attach(self.scene, self.robot.ee_link, leaf)
                 return
+
+    def _handle_in_reach(self, i: int) -> bool:
+        """Door i's swing-side handle bar centre lies within MAGIC_GRASP_DIST of the TCP."""
+        from echo_data.scene.door_handle import door_handle_world
+
+        door = self.plan.doors[i]
+        bar = door_handle_world(door, float(self.handles.doors[i].get_qpos()[0]), door.open_sign)
+        return float(np.linalg.norm(bar - np.asarray(self.robot.ee_pose().p, dtype=np.float64))) < MAGIC_GRASP_DIST
 
     def _grasp_magic(self) -> None:
         """Attach the object nearest the TCP if its centre is within MAGIC_GRASP_DIST (module docstring)."""

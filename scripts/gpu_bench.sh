@@ -53,7 +53,7 @@ EOF
 cat "$OUT/versions.txt"
 
 # --- training a skill on the GPU (issue 29), when a dataset travels in TRAIN_DATA ------------------
-# TRAIN_DATA: a `recipes/cameras_pick_place.yaml` build (or its Pick rows alone: a dataset must fit the
+# TRAIN_DATA: a `studies/paper_table/recipes/cameras_pick_place.yaml` build (or its Pick rows alone: a dataset must fit the
 # 64 MiB the working tree may carry). The camera learners' Pick: ACT on head and wrist depth,
 # proprioception and the target kind, end-effector actions, random shift 4 px.
 TRAIN_DATA=${TRAIN_DATA:-}

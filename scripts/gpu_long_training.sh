@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Longer training than 2 CPU cores allow, on an NVIDIA GPU machine without a package registry
 # (issue 29: "Diffusion at this budget is far behind ... longer training is GPU work"). Builds the
-# train split of recipes/$RECIPE.yaml there (the experts need no mplib), then trains the camera
+# train split of studies/paper_table/recipes/$RECIPE.yaml there (the experts need no mplib), then trains the camera
 # learners' Diffusion Policy for $SKILL (head and wrist depth, base-frame proprioception, the
-# target kind, end-effector actions, random shift 4 px: benchmarks/sanity_learners.py CAMERAS) in
+# target kind, end-effector actions, random shift 4 px: studies/learners/sanity_learners.py CAMERAS) in
 # each variant of $VARIANTS at once on the one GPU, until the deadline. Brings back what a run
 # folder needs to load as a policy (7 files, each under 16 MiB): per variant the weights halfway
 # through and at the end (optimiser state left out), and a tarball of its config, policy files,
@@ -45,7 +45,7 @@ echo "setup: $(since) s"
 # --- the data ---------------------------------------------------------------------------------
 DATA=$WORK/data/$RECIPE
 echo "=== build $RECIPE (limit $BUILD_S s) $(date -u +%T)"
-timeout -k 10 "$BUILD_S" $PY -m echo_data.cli build "recipes/$RECIPE.yaml" --split train --workers "$WORKERS" \
+timeout -k 10 "$BUILD_S" $PY -m echo_data.cli build "studies/paper_table/recipes/$RECIPE.yaml" --split train --workers "$WORKERS" \
     --out "$DATA" --no-progress ${LIMIT:+--limit $LIMIT} > "$WORK/build.txt" 2>&1
 echo "=== build rc=$? after $(since) s"; tail -n 5 "$WORK/build.txt"
 $PY - "$DATA/manifest.json" <<'EOF' || { echo "NO COMPLETE BUILD: nothing to train"; exit 1; }

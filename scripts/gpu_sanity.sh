@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# The privileged sanity learner per manipulation skill (benchmarks/sanity_learners.py) on an NVIDIA
+# The privileged sanity learner per manipulation skill (studies/learners/sanity_learners.py) on an NVIDIA
 # GPU machine without a package registry (Python 3.12 image with numpy 2, scipy, pyarrow, torch with
 # CUDA). Needs the bundle of what that image lacks in the git-ignored .gpu_bundle/site312.tar.xz of
 # the checkout (as scripts/gpu_bench.sh). From the checkout's root:
 #   OUT=/some/dir bash scripts/gpu_sanity.sh      # outputs under $OUT (default ./gpu_out)
 # (SANITY_COMMIT=<hash> names the commit in the JSON where the copy has no .git; WORKERS, BUDGET_S,
 # SKILLS="Pick OpenDoor" and EXTRA="--epochs 20 ..." are optional; STUDY=camera_learners runs the
-# camera learners instead, benchmarks/camera_learners.py: the same path with both depth cameras
+# camera learners instead, studies/learners/camera_learners.py: the same path with both depth cameras
 # rendered, so that one needs the NVIDIA Vulkan ICD.)
 # Skills in the order Pick, OpenDoor, CloseSink, Place, each with its own share of one overall
 # deadline (BUDGET_S, default 480 s); a skill that fails or runs out of time is reported and the
@@ -58,7 +58,7 @@ for SKILL in "$@"; do
   T0=$(date +%s)
   echo "=== $SKILL (limit ${SHARE} s) $(date -u +%T)"
   # The driver merges into the JSON it finds, so every skill's figures end up in one file.
-  timeout -k 10 "$SHARE" $PY "benchmarks/$STUDY.py" --skills "$SKILL" --workers "$WORKERS" \
+  timeout -k 10 "$SHARE" $PY "studies/learners/$STUDY.py" --skills "$SKILL" --workers "$WORKERS" \
       --work "$WORK" --out "$OUT/$STUDY.json" $EXTRA > "$OUT/$SKILL.txt" 2>&1
   RC=$?
   echo "=== $SKILL rc=$RC in $(( $(date +%s) - T0 )) s (total $(( $(date +%s) - START )) s)"

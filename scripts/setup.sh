@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then bash scripts/setup_system.sh; fi
-python3 -m pip install -q --disable-pip-version-check -e '.[test]'
+python3 -m pip install -q --disable-pip-version-check -e '.[test,docs]'   # docs: the site .ci/run builds
 # robomimic's SequenceDataset reads `export --format robomimic` in the tests; its declared deps
 # (a CUDA torchvision, egl_probe) do not install beside the CPU torch: see pyproject.toml.
 python3 -m pip install -q --disable-pip-version-check --no-deps "robomimic==0.3.0"

@@ -20,7 +20,7 @@ from echo_data.sounds.library import SoundLibrary
 
 ROOT = Path(__file__).resolve().parent.parent
 FIXTURE = ROOT / "tests" / "data" / "rows_layout_digests.json"
-RECIPES = ("recipes/quickstart.yaml", "recipes/bc_navigate.yaml")
+RECIPES = ("recipes/quickstart.yaml", "studies/navigation_ablation/recipes/bc_navigate.yaml")
 PLAN_SEEDS = range(40)
 EPISODES = (("train", 0), ("train", 1), ("train", 2), ("test", 0), ("test", 1), ("test", 2))
 

@@ -1,4 +1,4 @@
-"""The tiled cue estimators of the spatial-cue benchmark (benchmarks/binaural_cues.py).
+"""The tiled cue estimators of the spatial-cue benchmark (studies/spatial_cues/binaural_cues.py).
 
 A direct source 60° to the left plays short noise bursts through the KEMAR HRIR; a continuous
 interaural-incoherent field (independent noise at each ear, like the late part of a diffuse
@@ -24,7 +24,7 @@ ILD_BAND, ITD_BAND = (500.0, 8000.0), (300.0, 1500.0)
 
 
 def _cues():
-    spec = importlib.util.spec_from_file_location("binaural_cues", ROOT / "benchmarks" / "binaural_cues.py")
+    spec = importlib.util.spec_from_file_location("binaural_cues", ROOT / "studies" / "spatial_cues" / "binaural_cues.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)  # type: ignore[union-attr]
     return mod

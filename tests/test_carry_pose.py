@@ -9,10 +9,10 @@ import numpy as np
 import sapien
 
 from echo_data.recipe import Recipe
-from echo_data.robot.head_view import HeadView, arm_reach, set_group
 from echo_data.robot.planner import ArmPlanner
 from echo_data.robot.robot import HEAD_TILT, Robot
 from echo_data.skills import arm
+from echo_data.skills.head_view import HeadView, arm_reach, set_group
 from echo_data.skills.place import CARRY_DRIVE_GROUP
 
 

@@ -277,7 +277,7 @@ def test_a_learned_policy_that_ends_itself_is_judged_where_it_stops(nav_episode)
     assert run.outcomes[0].success and run.outcomes[0].steps == len(actions) and env.progress == 1
     assert any(ok for ok, _ in flags) and not any(done for _, done in flags)  # in the region early, counted only at the stop
     # The hand-over record: stopped where the expert stops, at its interaction pose (the expert
-    # arrives within ~3 cm and ~1.4 deg, benchmarks/results/handover_starts.json), arm held.
+    # arrives within ~3 cm and ~1.4 deg, studies/experts/results/handover_starts.json), arm held.
     at_stop = run.navigate[0]
     assert at_stop.goal_distance < 0.06 and at_stop.heading_error < math.radians(3) and at_stop.arm_moved < 0.01, at_stop
     assert flags[0] == (False, False)
@@ -293,7 +293,12 @@ def test_a_learned_policy_that_ends_itself_is_judged_where_it_stops(nav_episode)
         env.stop_skill()
 
     obs, info = env.reset(options={"spec": spec})
-    run = run_episode(env, obs, info, OraclePlanner(), _Spy(actions), skills=1)  # no STOP: cut at the first success
+    run = run_episode(env, obs, info, OraclePlanner(), _Spy(actions), skills=1, drive_end="success")  # no STOP: cut at the first success
     first = next(i for i, (ok, _) in enumerate(flags) if ok)  # flags[i]: after i steps
     assert run.outcomes[0].success and run.outcomes[0].steps == first < len(actions)
     assert run.navigate[0].goal_distance > at_stop.goal_distance + 0.1  # cut at the region's rim, short of the expert's stop
+    assert not run.navigate[0].handed_over
+
+    obs, info = env.reset(options={"spec": spec})
+    run = run_episode(env, obs, info, OraclePlanner(), _Spy(actions), skills=1)  # no STOP, the default: cut at the hand-over
+    assert run.outcomes[0].success and first < run.outcomes[0].steps <= len(actions) and run.navigate[0].handed_over

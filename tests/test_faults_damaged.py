@@ -53,3 +53,22 @@ def test_damaged_dataset_is_one_line_naming_the_file(damage: str, command: str, 
     assert r.exit_code == 2 and len(err) == 1, r.output
     assert says in err[0] and "Traceback" not in r.output, err[0]
     assert not out.exists()
+
+
+@pytest.mark.parametrize("command", [cli_param(c, COMMANDS[c]) for c in sorted(COMMANDS)])
+def test_unfinished_build_says_so_and_how_to_finish_it(command: str, pristine: Path, tmp_path: Path) -> None:
+    """A build stopped before its end (no meta/episodes.parquet yet) is not damaged: the one line
+    says it is unfinished and that `build --resume` finishes it."""
+    import json
+
+    ds = damageable_copy(pristine, tmp_path)
+    manifest = json.loads((ds / "manifest.json").read_text())
+    (ds / "manifest.json").write_text(json.dumps({**manifest, "complete": False}))
+    (ds / "meta" / "episodes.parquet").unlink()
+    out = tmp_path / "out"
+    r = CliRunner().invoke(app, [a.format(ds=ds, out=out) for a in COMMANDS[command]])
+    err = [ln for ln in r.output.splitlines() if ln.startswith("error:")]
+    assert r.exit_code == 2 and len(err) == 1, r.output
+    assert "unfinished build" in err[0] and "echo-data build" in err[0] and "--resume" in err[0], err[0]
+    assert "damaged" not in err[0] and "Traceback" not in r.output
+    assert not out.exists()

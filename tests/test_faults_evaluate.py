@@ -195,3 +195,22 @@ def test_an_earlier_result_is_recognised_and_nothing_else(tmp_path: Path) -> Non
         assert not is_result(p)
     p.write_bytes(b"\xff\xfe not json")
     assert not is_result(p)
+
+
+@pytest.mark.parametrize("line", ['{"foo": 1}', "[1, 2]", '{"index": "3"}', '{"index": 0}', "7"])
+def test_resume_refuses_a_journal_line_that_is_json_but_no_episode_record(tmp_path: Path, line: str) -> None:
+    """A record file edited by hand or written by something else: one line naming the file and
+    the line, never a KeyError from deep inside the resume."""
+    from echo_data.evaluation.journal import Journal, JournalError
+
+    key = {"recipe": "r", "split": "test"}
+    log = tmp_path / "r.episodes.jsonl"
+    good = {"index": 0, "skipped": "no solvable layout"}
+    log.write_text("\n".join([json.dumps({"evaluation": key}), json.dumps(good), line]) + "\n")
+    with pytest.raises(JournalError, match=rf"{log}: line 3 is not an episode record"):
+        Journal(log, key, resume=True)
+    log.write_text("\n".join([json.dumps({"evaluation": key}), json.dumps(good)]) + "\n")
+    assert Journal(log, key, resume=True).records == {0: good}
+    log.write_text(json.dumps({"evaluation": [1]}) + "\n")
+    with pytest.raises(JournalError, match="names no evaluation"):
+        Journal(log, key, resume=True)

@@ -1,4 +1,4 @@
-"""benchmarks/first_steps.py: the expert's side is the dataset's own first actions of each segment,
+"""studies/learner_probes/first_steps.py: the expert's side is the dataset's own first actions of each segment,
 the learner's side comes from the run's chosen checkpoint."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from echo_data.cli import app
 from echo_data.records import EE_ACTION_NAMES
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT / "studies" / "learner_probes"))
 
 from first_steps import first_steps  # noqa: E402
 

@@ -181,7 +181,7 @@ def test_state_velocities_echo_the_previous_action(ds: Path) -> None:
 
 
 def test_planner_trains_scores_and_plans(ds: Path, tmp_path: Path) -> None:
-    from echo_data.learn.planner import episode_rows, export_chain
+    from echo_data.learn.planner_data import episode_rows, export_chain
 
     run = tmp_path / "planner"
     res = runner.invoke(app, ["train", "planner", str(ds), "--inputs", "audio,image", "--epochs", "2", "--out", str(run), "--threads", "1", "--no-progress"])
@@ -216,7 +216,7 @@ def test_planner_trains_scores_and_plans(ds: Path, tmp_path: Path) -> None:
 
 def test_planner_learning_curve_subsets_are_seeded_and_nested(ds: Path, tmp_path: Path) -> None:
     """`--train-episodes N` trains on N train episodes drawn from the seed, nested across sizes."""
-    from echo_data.learn.planner import subset
+    from echo_data.learn.planner_data import subset
 
     assert subset(list(range(40)), 10, 0) < subset(list(range(40)), 20, 0)
     assert subset(list(range(40)), 10, 0) != subset(list(range(40)), 10, 1) and subset([3, 4], None, 0) == {3, 4}
@@ -231,7 +231,7 @@ def test_planner_learning_curve_subsets_are_seeded_and_nested(ds: Path, tmp_path
 def test_planner_validation_by_sounds_holds_out_instances_never_trained_on() -> None:
     """--val-by sounds: validation episodes play only held-out train instances, training episodes
     none, so validation hears unheard sounds as the test split does."""
-    from echo_data.learn.planner import split_by_sounds
+    from echo_data.learn.planner_data import split_by_sounds
 
     rows = [{"episode_index": i, "events": [{"category": c, "sound_id": f"{c}{i % n}"} for c, n in evs]}
             for i, evs in enumerate([[("phone", 6)], [("sink", 3)], [("phone", 6), ("sink", 3)], [("alarm", 1)]] * 10)]
@@ -395,12 +395,12 @@ def test_evaluate_runs_a_trained_planner_and_a_per_skill_bc_run(ds: Path, tmp_pa
 
 
 def test_dagger_labeller_answers_as_the_expert_from_its_start(ds: Path) -> None:
+    from echo_data.dataset.reader import dataset_recipe
     from echo_data.envs.env import EchoDataEnv
-    from echo_data.learn.dagger import recipe_of
     from echo_data.skills import EXPERTS
     from echo_data.skills.navigate import Relabeller
 
-    recipe, n_train = recipe_of(ds)
+    recipe, n_train = dataset_recipe(ds)
     env = EchoDataEnv(recipe, split="train", images=False, audio=False)
     try:
         spec = env.sample_spec("train", 0)
@@ -425,13 +425,26 @@ def test_dagger_round_adds_expert_labelled_rows_and_retrains(ds: Path, tmp_path:
     log = (run / "dagger.csv").read_text().splitlines()
     assert log[0].startswith("round,") and log[1].split(",")[:4] == ["1", "0", "5", "5"]
     assert BCPolicy.from_run(run).act(_obs(ds, "test")[0]).shape == (ACTION_DIM,)
-    res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Pick", "--out", str(tmp_path / "pick"), "--dagger", "1", "--no-progress"])
-    assert res.exit_code == 2 and "only Navigate's expert can act from any state" in res.output, res.output
     # --resume: the rounds start from the finished BC run already in the folder (not trained again)
     shutil.copytree(tmp_path / "bc", tmp_path / "from_bc")
     again = _train(ds, tmp_path / "from_bc", "--inputs", "state", "--epochs", "1", "--dagger", "1", "--dagger-episodes", "1", "--dagger-steps", "5", "--resume")
     assert (tmp_path / "from_bc" / "dagger.csv").read_text().splitlines()[1].split(",")[:4] == ["1", "0", "5", "5"]
     assert again["rows"] == summary["rows"] and again["best_val_loss"] == summary["best_val_loss"]
+
+
+@pytest.mark.parametrize("column", ["action", "action.ee"])
+def test_dagger_round_on_pick_labels_the_learner_after_the_experts_hand_over(ds: Path, tmp_path: Path, column: str) -> None:
+    """A manipulation skill: the experts run the chain up to Pick, the learner acts from there and
+    the Pick expert labels each state it visits (in the run's action column); the rows train."""
+    run = tmp_path / "pick"
+    res = runner.invoke(app, ["train", "bc", str(ds), "--skill", "Pick", "--out", str(run), "--threads", "1", "--no-progress", "--batch-size", "32",
+                              "--inputs", "state", "--epochs", "1", "--action-column", column, "--dagger", "1", "--dagger-episodes", "1", "--dagger-steps", "6"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.stdout)
+    assert summary["rows"]["dagger"] == 6 and summary["dagger"]["rows_aggregated"] == 6
+    log = (run / runs.DAGGER_LOG).read_text().splitlines()
+    row = log[1].split(",")
+    assert row[:4] == ["1", "0", "6", "6"] and np.isfinite(float(row[5]))  # the learner-expert gap was measured
 
 
 def test_checkpoint_chosen_closed_loop_on_validation_episodes(ds: Path, tmp_path: Path) -> None:

@@ -69,3 +69,21 @@ def test_errors_tell_order_missed_extra_and_swapped() -> None:
     assert e["wrong"] == 4 and e["of"] == 5
     assert e["kinds"] == {"extra": 1, "missed": 1, "order": 1, "swapped": 1}
     assert e["pairs"]["sink+phone -> sink"] == 1 and sum(e["pairs"].values()) == 4
+
+
+def test_planner_options_are_generated_from_its_config() -> None:
+    """`train planner` offers one option per `opt` field of PlannerConfig (as the skill learners
+    do from theirs), with the config's default in the help: a new field is an option at once."""
+    import typer
+
+    from echo_data.cli import app
+    from echo_data.learn.planner_config import PlannerConfig
+
+    command = typer.main.get_command(app).commands["train"].commands["planner"]  # type: ignore[attr-defined]
+    helps = {p.name: p for p in command.params}
+    names = [f.name for f in PlannerConfig.options()]
+    assert len(names) >= 14 and "batch_size" not in names  # internal constants stay out of the CLI
+    for f in PlannerConfig.options():
+        assert f.name in helps and f.metadata["help"] in helps[f.name].help, f.name
+    assert "(default 60)" in helps["epochs"].help and "(default episodes)" in helps["val_by"].help
+    assert "--no-augment" in helps["augment"].secondary_opts and helps["mix"].max == 0.99

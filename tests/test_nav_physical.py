@@ -141,48 +141,64 @@ def test_drive_holds_the_arm_exactly_and_corrects_a_perturbed_arm() -> None:
     gen.close()
 
 
-def test_handover_goals_lie_in_navigates_success_region() -> None:
-    """experts.handover_noise: stop poses drawn uniformly from a disc of f x HANDOVER_RADIUS around
-    the interaction point, on free cells in straight sight of it, facing the target within
-    f x HANDOVER_YAW; the margins keep the follower's stop inside navigate_success's region."""
+def test_handover_goals_lie_in_the_next_skills_stance() -> None:
+    """experts.handover_noise: stop poses drawn uniformly from a disc of f x (stance distance -
+    GOAL_TOL) around the interaction point, on free cells in straight sight of it, heading within
+    f x (stance heading - YAW_TOL) of the pose's and facing the target as Navigate's success test
+    asks; the margins keep the follower's stop inside the stance (docs/handover.md)."""
     import numpy as np
 
+    from echo_data.skill_table import SKILLS
     from echo_data.skills.success import NAV_SUCCESS_DIST, NAV_SUCCESS_YAW
 
-    assert nav_skill.HANDOVER_RADIUS + 2 * nav_skill.GOAL_TOL < NAV_SUCCESS_DIST
-    assert nav_skill.HANDOVER_YAW + nav_skill.YAW_TOL < NAV_SUCCESS_YAW
+    stance = SKILLS["CloseSink"].stance
+    assert stance is not None and stance.distance < NAV_SUCCESS_DIST and stance.heading < NAV_SUCCESS_YAW
+    radius, spread = stance.distance - nav_skill.GOAL_TOL, stance.heading - nav_skill.YAW_TOL
     doors = {0: math.radians(90)}
     plan = two_room_plan(door_angle=math.radians(90))
     grid = NavGrid.from_plan(plan, door_angles=doors)
     exact = interaction_pose(plan, "faucet:0", door_angles=doors, grid=grid)
     tx, ty = target_point(plan, "faucet:0", doors)
-    assert nav_skill.handover_goal(plan, "faucet:0", grid, exact, 0.0, np.random.default_rng(0), doors) == exact
+    assert nav_skill.handover_goal(plan, "faucet:0", grid, exact, 0.0, np.random.default_rng(0), stance, doors) == exact
     for noise in (0.5, 1.0):
-        dists = []
+        dists, turns = [], []
         for i in range(100):
-            x, y, yaw = nav_skill.handover_goal(plan, "faucet:0", grid, exact, noise, np.random.default_rng(i), doors)
+            x, y, yaw = nav_skill.handover_goal(plan, "faucet:0", grid, exact, noise, np.random.default_rng(i), stance, doors)
             d = math.hypot(x - exact[0], y - exact[1])
-            assert d <= noise * nav_skill.HANDOVER_RADIUS + 1e-9 and grid.is_free(x, y)
+            assert d <= noise * radius + 1e-9 and grid.is_free(x, y)
             assert grid.segment_clearance((x, y), exact[:2]) >= grid.robot_radius
-            assert abs(math.remainder(math.atan2(ty - y, tx - x) - yaw, 2 * math.pi)) <= noise * nav_skill.HANDOVER_YAW + 1e-9
+            assert abs(math.remainder(yaw - exact[2], 2 * math.pi)) <= noise * spread + 1e-9
+            assert abs(math.remainder(math.atan2(ty - y, tx - x) - yaw, 2 * math.pi)) <= NAV_SUCCESS_YAW - nav_skill.YAW_TOL + 1e-9
             dists.append(d)
-        # uniform by area over the free part of the disc: the median radius is near R / sqrt(2)
-        assert 0.4 * noise * nav_skill.HANDOVER_RADIUS < float(np.median(dists)) < 0.8 * noise * nav_skill.HANDOVER_RADIUS
+            turns.append(abs(math.remainder(yaw - exact[2], 2 * math.pi)))
+        # uniform by area over the free part of the disc: the median radius is near R / sqrt(2);
+        # the heading uniform: its median offset near half the spread
+        assert 0.4 * noise * radius < float(np.median(dists)) < 0.8 * noise * radius
+        assert 0.3 * noise * spread < float(np.median(turns)) < 0.7 * noise * spread
 
 
 def test_navigate_with_handover_noise_stops_off_the_pose_inside_the_region() -> None:
-    """The build's Navigate under experts.handover_noise ends where its success test holds but
-    away from the interaction pose, at a point drawn from the episode's own seeded stream."""
+    """The build's Navigate under experts.handover_noise ends where its success test holds and
+    inside the next skill's stance, but away from the interaction pose, at a point drawn from the
+    episode's own seeded stream; with no skill after it, it drives to the exact pose."""
+    from echo_data.skill_table import SKILLS
+    from echo_data.skills.success import handed_over
+
+    stance = SKILLS["CloseSink"].stance
+    assert stance is not None
     call = SkillCall("Navigate", "faucet:0", 0)
+    chain = (call, SkillCall("CloseSink", "faucet:0", 0))
     plan = two_room_plan(door_angle=math.radians(90))
     gx, gy, _ = interaction_pose(plan, "faucet:0", door_angles={0: math.radians(90)})
     ends = []
-    for seed in (1, 1, 2):
-        world = _world(plan, (1.0, 1.0, 0.0), handover=1.0, chain=(call,), seed=seed)
+    for seed, calls in ((1, chain), (1, chain), (2, chain), (2, (call,))):
+        world = _world(plan, (1.0, 1.0, 0.0), handover=1.0, chain=calls, seed=seed)
         outcome, _, contact_steps = _run(world, nav_skill.navigate(world, call, world.spec))
         assert outcome.success and contact_steps == 0 and nav_skill.navigate_success(world, "faucet:0")
+        assert handed_over(world, "faucet:0", stance.distance, stance.heading)
         x, y, yaw = world.robot.base_pose()
         ends.append((round(x, 3), round(y, 3)))
         world.close()
     assert ends[0] == ends[1] != ends[2]  # the episode's seed decides the point
-    assert max(math.hypot(x - gx, y - gy) for x, y in ends) > 0.2
+    assert max(math.hypot(x - gx, y - gy) for x, y in ends[:3]) > 0.03
+    assert math.hypot(ends[3][0] - gx, ends[3][1] - gy) < nav_skill.GOAL_TOL + 0.02  # nothing to hand over to: the exact pose

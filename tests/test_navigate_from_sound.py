@@ -1,5 +1,5 @@
-"""benchmarks/navigate_from_sound.py: its bad input is one line, exit 2, nothing written. (Its
---tiny path shares build, training, choice and scoring with benchmarks/sanity_learners.py, whose
+"""studies/learners/navigate_from_sound.py: its bad input is one line, exit 2, nothing written. (Its
+--tiny path shares build, training, choice and scoring with studies/learners/sanity_learners.py, whose
 tiny path tests/test_sanity_learners.py runs; the driver's own --tiny run is in docs/learners.md.)"""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-DRIVER = ROOT / "benchmarks" / "navigate_from_sound.py"
+DRIVER = ROOT / "studies" / "learners" / "navigate_from_sound.py"
 
 
 @pytest.mark.parametrize("args, says", [

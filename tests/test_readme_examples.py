@@ -1,4 +1,5 @@
-"""The README's loading examples run as written, on a small dataset at out/quickstart.
+"""The loading examples of the docs' "Exports and loading" page run as written, on a small
+dataset at out/quickstart; the README's three are the same code, and its recipe example loads.
 
 datasets, torch, robomimic and zarr examples run here (after the export the README names); the
 LeRobot one in LeRobot's own environment (see tests/test_export_lerobot.py); the LLaMA-Factory training YAML is checked the way LLaMA-Factory
@@ -21,8 +22,9 @@ from typer.testing import CliRunner
 
 from echo_data.cli import app
 
-README = (HERE.parent / "README.md").read_text()
-EXAMPLES = dict(re.findall(r"<!-- example: (\w+) -->\n```\w+\n(.*?)```", README, flags=re.S))
+EXAMPLE = r"<!-- example: (\w+) -->\n```\w+\n(.*?)```"
+README = dict(re.findall(EXAMPLE, (HERE.parent / "README.md").read_text(), flags=re.S))
+EXAMPLES = dict(re.findall(EXAMPLE, (HERE.parent / "docs" / "loading.md").read_text(), flags=re.S))
 
 
 @pytest.fixture(scope="module")
@@ -39,6 +41,20 @@ def _code(name: str) -> str:
 
 def test_all_four_examples_are_there() -> None:
     assert set(EXAMPLES) == {"datasets", "torch", "lerobot", "lerobot_train", "robomimic", "zarr", "llamafactory"}
+
+
+def test_the_readme_shows_three_of_them_as_the_docs_do() -> None:
+    assert set(README) == {"datasets", "torch", "lerobot", "recipe"}
+    assert all(README[name] == EXAMPLES[name] for name in ("datasets", "torch", "lerobot"))
+
+
+def test_the_readme_recipe_loads_beside_recipes(tmp_path: Path) -> None:
+    from echo_data.recipe import load_recipe
+
+    path = tmp_path / "my_multi_event.yaml"  # as if beside recipes/: the extends path made absolute
+    path.write_text(README["recipe"].replace("extends: recipes/", f"extends: {HERE.parent / 'recipes'}/"))
+    recipe = load_recipe(path)
+    assert recipe.name == "my_multi_event" and recipe.robot.head_camera.width == 224
 
 
 @pytest.mark.parametrize("name", ["datasets", pytest.param("torch", marks=needs_torch), pytest.param("robomimic", marks=needs_torch), "zarr"])
@@ -69,7 +85,7 @@ def test_lerobot_example_runs(workdir: Path, tmp_path: Path) -> None:
 
 
 def test_lerobot_train_command_runs_offline_on_the_train_split(workdir: Path, tmp_path: Path) -> None:
-    """The README's `lerobot-train` command as written, but for 2 steps: it trains offline (no
+    """The `lerobot-train` command of docs/loading.md as written, but for 2 steps: it trains offline (no
     ImageNet download: an empty torch hub cache) and reads no test episode."""
     import shlex
     import subprocess

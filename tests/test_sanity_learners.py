@@ -1,4 +1,4 @@
-"""benchmarks/sanity_learners.py: the privileged sanity learner's whole path (camera-free build,
+"""studies/learners/sanity_learners.py: the privileged sanity learner's whole path (camera-free build,
 every candidate learner (ACT, a chunked MLP) on state + privileged columns with closed-loop checkpoint choice, evaluation on the test
 split alone and after a hand-over) in its --tiny form, and its bad input (one line, exit 2)."""
 
@@ -15,7 +15,8 @@ from support.optional import needs_torch
 from echo_data.evaluation.metrics import wilson
 
 ROOT = Path(__file__).resolve().parents[1]
-DRIVER = ROOT / "benchmarks" / "sanity_learners.py"
+DRIVER = ROOT / "studies" / "learners" / "sanity_learners.py"
+RECIPES = ROOT / "studies" / "paper_table" / "recipes"  # the table's recipe family: sanity*, cameras_*, nav_audio*
 
 
 def _driver(*args: str) -> subprocess.CompletedProcess[str]:
@@ -29,7 +30,7 @@ def test_the_tiny_path_writes_both_blocks_with_wilson_intervals(tmp_path: Path) 
     r = _driver("--tiny", "--skills", "Pick", "--workers", "1", "--work", str(tmp_path / "work"), "--out", str(out))
     assert r.returncode == 0, r.stderr[-3000:]
     doc = json.loads(out.read_text())
-    assert doc["commit"] and doc["machine"] and doc["command"].startswith("python benchmarks/sanity_learners.py")
+    assert doc["commit"] and doc["machine"] and doc["command"].startswith("python studies/learners/sanity_learners.py")
     assert str(tmp_path) not in json.dumps(doc)  # no paths of this machine in the results
     for block in ("skills", "skills_handover"):
         e = doc[block]["Pick"]
@@ -78,7 +79,7 @@ def test_a_dataset_without_the_privileged_column_is_one_line_naming_file_and_col
     assert not out.exists()
 
 
-CAMERA_DRIVER = ROOT / "benchmarks" / "camera_learners.py"
+CAMERA_DRIVER = ROOT / "studies" / "learners" / "camera_learners.py"
 
 
 def test_the_camera_learners_read_no_privileged_column(tmp_path: Path) -> None:
@@ -97,8 +98,8 @@ def test_a_camera_recipe_is_its_sanity_recipe_with_both_depth_cameras_on(name: s
     only the cameras and the stored observations differ, so their rows compare the inputs alone."""
     from echo_data.recipe import load_recipe
 
-    cams = load_recipe(ROOT / "recipes" / f"{name}.yaml").model_dump(mode="json")
-    sanity = load_recipe(ROOT / "recipes" / f"{name.replace('cameras_', 'sanity_')}.yaml").model_dump(mode="json")
+    cams = load_recipe(RECIPES / f"{name}.yaml").model_dump(mode="json")
+    sanity = load_recipe(RECIPES / f"{name.replace('cameras_', 'sanity_')}.yaml").model_dump(mode="json")
     for doc in (cams, sanity):
         del doc["name"]
     assert cams["robot"]["head_camera"]["depth"] and cams["robot"]["wrist_camera"]["depth"]
@@ -116,8 +117,8 @@ def test_the_stop_navigate_data_is_nav_audio_ending_at_the_interaction_pose() ->
     expert's Navigate ends differs, so the STOP row compares the hand-over alone."""
     from echo_data.recipe import load_recipe
 
-    stop = load_recipe(ROOT / "benchmarks" / "recipes" / "nav_audio_stop.yaml").model_dump(mode="json")
-    nav = load_recipe(ROOT / "benchmarks" / "recipes" / "nav_audio.yaml").model_dump(mode="json")
+    stop = load_recipe(RECIPES / "nav_audio_stop.yaml").model_dump(mode="json")
+    nav = load_recipe(RECIPES / "nav_audio.yaml").model_dump(mode="json")
     assert (stop["experts"]["handover_noise"], nav["experts"]["handover_noise"]) == (0.0, 1.0)
     for doc in (stop, nav):
         del doc["name"]
@@ -126,14 +127,14 @@ def test_the_stop_navigate_data_is_nav_audio_ending_at_the_interaction_pose() ->
 
 
 def test_door_near_recipe_is_the_door_sink_recipe_with_doors_only_and_near_handovers() -> None:
-    """The OpenDoor-near learner's data (recipes/cameras_door_near.yaml) differs from the table's
+    """The OpenDoor-near learner's data (studies/paper_table/recipes/cameras_door_near.yaml) differs from the table's
     OpenDoor data only in what the stance study changes: every state event a door, 160 training
     episodes (about the door segments of cameras_door_sink's 300) and hand-overs within 0.3 of the
     success region's radius; cameras, perturbation and experts are the same."""
     from echo_data.recipe import load_recipe
 
-    near = load_recipe(ROOT / "recipes" / "cameras_door_near.yaml").model_dump(mode="json")
-    door_sink = load_recipe(ROOT / "recipes" / "cameras_door_sink.yaml").model_dump(mode="json")
+    near = load_recipe(RECIPES / "cameras_door_near.yaml").model_dump(mode="json")
+    door_sink = load_recipe(RECIPES / "cameras_door_sink.yaml").model_dump(mode="json")
     assert (near["experts"]["handover_noise"], door_sink["experts"]["handover_noise"]) == (0.3, 1.0)
     assert near["events"]["categories"]["sink"] == 0.0 < door_sink["events"]["categories"]["sink"]
     assert near["composition"]["state_transition"]["train"] == 160
@@ -152,8 +153,8 @@ def test_a_perturbation_recipe_is_the_door_sink_recipe_at_another_level(name: st
     0.5 cm / 1 degree), so its rows compare the level alone."""
     from echo_data.recipe import load_recipe
 
-    other = load_recipe(ROOT / "recipes" / f"{name}.yaml").model_dump(mode="json")
-    shipped = load_recipe(ROOT / "recipes" / "cameras_door_sink.yaml").model_dump(mode="json")
+    other = load_recipe(RECIPES / f"{name}.yaml").model_dump(mode="json")
+    shipped = load_recipe(RECIPES / "cameras_door_sink.yaml").model_dump(mode="json")
     assert (shipped["experts"]["perturbation"]["position_cm"], shipped["experts"]["perturbation"]["rotation_deg"]) == (0.5, 1.0)
     assert (other["experts"]["perturbation"]["position_cm"], other["experts"]["perturbation"]["rotation_deg"]) == level
     for doc in (other, shipped):
@@ -167,7 +168,7 @@ def test_the_driver_names_an_unknown_training_recipe(tmp_path: Path) -> None:
     r = subprocess.run([sys.executable, str(CAMERA_DRIVER), "--data", "CloseSink=cameras_door_sink_p9",
                         "--work", str(tmp_path / "work"), "--out", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
-    assert "--data CloseSink: no recipe recipes/cameras_door_sink_p9.yaml" in r.stderr
+    assert "--data CloseSink: no recipe studies/paper_table/recipes/cameras_door_sink_p9.yaml" in r.stderr
     assert not out.exists() and not (tmp_path / "work").exists()
 
 

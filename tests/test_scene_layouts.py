@@ -146,7 +146,7 @@ def test_rows_reproduce_the_old_generator() -> None:
     for name in RECIPES:
         assert compute(as_before(load_recipe(ROOT / name))) == ref[name], name
     # bc_navigate as shipped asks for exactly that (its ablation numbers must stay reproducible)
-    bc = load_recipe(ROOT / "recipes/bc_navigate.yaml")
+    bc = load_recipe(ROOT / "studies/navigation_ablation/recipes/bc_navigate.yaml")
     assert bc.scene.layouts == ("rows",) and bc.scene.wet_floor_materials is None and not bc.objects.size_variants
 
 

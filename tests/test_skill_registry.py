@@ -12,7 +12,7 @@ import pytest
 
 from echo_data.episode import SkillCall
 from echo_data.recipe import Recipe
-from echo_data.skills.registry import RESOLVING_SKILLS, SKILLS, skill
+from echo_data.skill_table import SKILLS, default_max_steps, skill
 from echo_data.target import Target
 
 RECIPE = Recipe(name="skill-contract", setting="multi_event")
@@ -20,15 +20,14 @@ SEARCH = 12  # train indices searched for an episode that uses each skill
 
 
 def test_registry_matches_the_recipe_and_the_experts() -> None:
-    from echo_data.recipe import SKILLS as RECIPE_SKILLS
     from echo_data.skills import EXPERTS
 
-    assert tuple(SKILLS) == tuple(RECIPE_SKILLS)
+    assert tuple(RECIPE.robot.max_steps) == tuple(SKILLS)
     assert set(EXPERTS) == set(SKILLS)
     for s in SKILLS.values():
         assert set(s.budget) <= set(RECIPE.robot.max_steps), s.name
         assert s.step_budget(RECIPE) > sum(RECIPE.robot.max_steps[k] for k in s.budget)  # plus the guard
-    assert RESOLVING_SKILLS == ("Pick", "OpenDoor", "CloseSink")
+    assert tuple(n for n, s in SKILLS.items() if s.resolves_event) == ("Pick", "OpenDoor", "CloseSink")
     with pytest.raises(KeyError, match="known: Navigate"):
         skill("Fly")
 
@@ -44,9 +43,9 @@ def test_the_registry_is_the_one_skill_vocabulary() -> None:
     import ast
     from types import SimpleNamespace
 
-    from echo_data.skills import registry as R
+    from echo_data import skill_table as R
 
-    assert dict(RECIPE.robot.max_steps) == R.DEFAULT_MAX_STEPS and tuple(R.DEFAULT_MAX_STEPS) == R.SKILL_NAMES
+    assert dict(RECIPE.robot.max_steps) == default_max_steps() and tuple(default_max_steps()) == tuple(SKILLS)
     assert [c.skill for c in R.event_chain("phone_0", 0, "furniture:3")] == ["Navigate", "Pick", "Place"]
     assert [str(c.target) for c in R.event_chain("phone_0", 0, "furniture:3")] == ["phone_0", "phone_0", "furniture:3"]
     assert [c.skill for c in R.event_chain("door:1", 2)] == ["Navigate", "OpenDoor"]

@@ -1,5 +1,6 @@
-"""The paper table as a module (echo_data.evaluation.table) and its driver
-(benchmarks/paper_table.py): a learned-planner row composed from the planner's run with the
+"""The paper table: the machinery (echo_data.evaluation.table), the paper's catalogue
+(studies/paper_table/rows.py) and its driver
+(studies/paper_table/paper_table.py): a learned-planner row composed from the planner's run with the
 experts and the oracle-planner run with the learned skills, a skill-alone row read from a chain
 row, the one definition of "plan right without the receptacle" (the table's and the planner's),
 the summary block, the rendering (the committed markdown and the README's copy are the
@@ -8,6 +9,7 @@ module's rendering of the committed JSON), and the driver end to end on a real q
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import subprocess
@@ -29,7 +31,12 @@ from echo_data.evaluation.metrics import plan_right_without_receptacle, proporti
 from echo_data.learn.planner import Episodes, score
 
 ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "benchmarks" / "results" / "paper_table.json"
+RESULTS = ROOT / "studies" / "paper_table" / "results" / "paper_table.json"
+RECIPES = ROOT / "studies" / "paper_table" / "recipes"
+_spec = importlib.util.spec_from_file_location("paper_table_rows", ROOT / "studies" / "paper_table" / "rows.py")
+assert _spec is not None and _spec.loader is not None
+paper = importlib.util.module_from_spec(_spec)  # the paper's catalogue, beside its driver
+_spec.loader.exec_module(paper)
 CHAIN = [{"skill": "Navigate", "target": "phone"}, {"skill": "Pick", "target": "phone"}]
 PLACE = [*CHAIN, {"skill": "Place", "target": "furniture:1"}]
 
@@ -127,20 +134,20 @@ def test_the_summary_names_rows_and_settings_and_leaves_the_unmeasured_empty() -
                     "Navigate alone": {"object_relocation": {"skills": {"Navigate": proportion(30, 50)}},
                                        "state_transition": {"skills": {"Navigate": proportion(40, 49)}}}},
            "previous_session": {"rows": {"Place alone": {"object_relocation": _entry(1, 50)}, "Pick alone": {"object_relocation": _entry(9, 50)}}}}
-    s = table.summary(doc)
+    s = paper.summary(doc)
     lo, hi = wilson(3, 50)
     assert s["completion"]["oracle planner + learned skills"]["multi_event"] == {"successes": 3, "n": 50, "low": round(lo, 4), "high": round(hi, 4)}
     assert s["completion"]["oracle planner + learned skills"]["object_relocation"] is None  # in the spec, not measured
-    assert s["completion"]["oracle planner + learned skills* (paper-comparable)"] == dict.fromkeys(table.SETTINGS)
+    assert s["completion"]["oracle planner + learned skills* (paper-comparable)"] == dict.fromkeys(paper.SETTINGS)
     assert s["skills_alone"]["Navigate"]["successes"] == 70 and s["skills_alone"]["Navigate"]["n"] == 99  # over both settings
     assert s["skills_alone"]["Pick"]["successes"] == 8 and "previous_session" not in s["skills_alone"]["Pick"]  # this session's wins
     assert s["skills_alone"]["Place"]["previous_session"] is True and s["skills_alone"]["Place"]["successes"] == 1
     assert s["skills_alone"]["Pick (paper-comparable)"] is None and s["skills_alone"]["OpenDoor"] is None
-    assert set(s["skills_alone"]) == {r.label for r in table.ROWS.values() if r.skill_alone}
+    assert set(s["skills_alone"]) == {r.label for r in paper.ROWS.values() if r.skill_alone}
 
 
 def test_an_unmeasured_row_renders_as_not_measured_and_a_measured_one_with_its_counts() -> None:
-    md = table.markdown({"rows": {"oracle planner + learned skills": {s: _entry(2, 50, planned=49) for s in table.SETTINGS}}})
+    md = paper.markdown({"rows": {"oracle planner + learned skills": {s: _entry(2, 50, planned=49) for s in paper.SETTINGS}}})
     line = next(x for x in md.splitlines() if x.startswith("| oracle planner + learned skills* (paper-comparable) |"))
     assert line.count(table.NOT_MEASURED) == 6
     ours = next(x for x in md.splitlines() if x.startswith("| oracle planner + learned skills |"))
@@ -152,27 +159,30 @@ def test_an_unmeasured_row_renders_as_not_measured_and_a_measured_one_with_its_c
 
 def test_the_committed_json_markdown_and_readme_are_one_rendering() -> None:
     doc = json.loads(RESULTS.read_text())
-    assert set(doc["rows"]) <= set(table.ROWS), "a row in the JSON the catalogue does not know would vanish from the table"
-    assert doc["summary"] == table.summary(doc)
-    md = table.markdown(doc)
+    assert set(doc["rows"]) <= set(paper.ROWS), "a row in the JSON the catalogue does not know would vanish from the table"
+    assert doc["summary"] == paper.summary(doc)
+    md = paper.markdown(doc)
     assert RESULTS.with_suffix(".md").read_text() == md
-    assert table.readme_block((ROOT / "README.md").read_text()) == md, "README's table: python benchmarks/paper_table.py --render"
+    for path, begin, end, rendered in paper.copies(ROOT):  # the study's README (all of it) and the repository's (the headline)
+        assert paper.rendered_copy(path.read_text(), begin, end) == rendered(doc), f"{path.name}'s table: python studies/paper_table/paper_table.py --render"
+    headline = paper.headline(doc)
+    assert "| row | state transition: planning |" in headline and "| skill alone | settings | success |" in headline
     commands = [e.get("command", "") for per in doc["rows"].values() for e in per.values()]
     commands += [t.get("command", "") for t in doc["training"].values()] + [d["command"] for d in doc["datasets"].values()]
     assert all(c and " /" not in c and "=/" not in c for c in commands), "a command names a path of the machine it ran on"
 
 
 def test_every_row_names_known_learners_rows_and_settings() -> None:
-    for row in table.ROWS.values():
+    for row in paper.ROWS.values():
         if isinstance(row, table.EvaluatedRow):
-            assert set(row.policy.values()) <= set(table.LEARNERS) and set(row.policy) <= set(table.SKILLS), row.name
+            assert set(row.policy.values()) <= set(paper.LEARNERS) and set(row.policy) <= set(table.SKILLS), row.name
             if row.grasp == "physical":
-                assert all((ROOT / "recipes" / row.recipe(s)).is_file() for s in row.settings), row.name
+                assert all((RECIPES / paper.recipe(row, s)).is_file() for s in row.settings), row.name
         elif isinstance(row, table.ComposedRow):
-            assert {row.plans, row.outcomes} <= set(table.ROWS) and row.grasp == table.ROWS[row.outcomes].grasp == table.ROWS[row.plans].grasp
+            assert {row.plans, row.outcomes} <= set(paper.ROWS) and row.grasp == paper.ROWS[row.outcomes].grasp == paper.ROWS[row.plans].grasp
         else:
-            assert row.source in table.ROWS
-    assert all(spec.dataset in table.DATASETS for spec in table.LEARNERS.values())
+            assert row.source in paper.ROWS
+    assert all(spec.dataset in paper.DATASETS for spec in paper.LEARNERS.values())
 
 
 def test_the_results_lock_waits_for_its_holder(tmp_path: Path) -> None:
@@ -208,7 +218,7 @@ def quickstart(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @needs_torch
 def test_paper_table_tiny_evaluates_a_learner_in_evaluate_and_resumes(quickstart: Path, tmp_path: Path) -> None:
     runs_dir, out = tmp_path / "runs", tmp_path / "table.json"
-    cmd = [sys.executable, str(ROOT / "benchmarks" / "paper_table.py"), "--tiny", "--data", str(quickstart), "--runs", str(runs_dir), "--out", str(out),
+    cmd = [sys.executable, str(ROOT / "studies" / "paper_table" / "paper_table.py"), "--tiny", "--data", str(quickstart), "--runs", str(runs_dir), "--out", str(out),
            "--rows", "Pick alone", "--workers", "1"]
     r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-3000:]
@@ -236,7 +246,7 @@ def _study_eval(runs_dir: Path, recipe: str, **change: Any) -> dict[str, Any]:
     from echo_data.recipe import load_recipe
 
     eps = [_record(0, True, 2)]
-    doc = {"recipe": {"path": f"recipes/{recipe}", "name": recipe[:-5], "content_hash": load_recipe(ROOT / "recipes" / recipe).content_hash()},
+    doc = {"recipe": {"path": f"recipes/{recipe}", "name": recipe[:-5], "content_hash": load_recipe(RECIPES / recipe).content_hash()},
            "split": "test", "n": 1, "planner": {"name": "oracle"}, "wall_seconds": 12.5, "episodes": eps, "metrics": {"all": summarise(eps)},
            "policy": {"name": "Pick=elsewhere,oracle", "skills": {"*": {"name": "oracle"}, "Pick": {"checkpoint_sha256": folder_sha256(runs_dir / "Pick")}}}}
     doc.update(change)
@@ -247,7 +257,7 @@ def test_an_evaluation_is_adopted_only_with_the_same_recipe_split_size_and_weigh
     runs_dir, out = tmp_path / "runs", tmp_path / "table.json"
     (runs_dir / "Pick").mkdir(parents=True)
     (runs_dir / "Pick" / "best.pt").write_bytes(b"weights")
-    cmd = [sys.executable, str(ROOT / "benchmarks" / "paper_table.py"), "--runs", str(runs_dir), "--out", str(out), "-n", "1", "--workers", "1", "--adopt"]
+    cmd = [sys.executable, str(ROOT / "studies" / "paper_table" / "paper_table.py"), "--runs", str(runs_dir), "--out", str(out), "-n", "1", "--workers", "1", "--adopt"]
     ev = tmp_path / "study.json"
 
     def adopt(doc: dict[str, Any]) -> subprocess.CompletedProcess[str]:
@@ -258,10 +268,10 @@ def test_an_evaluation_is_adopted_only_with_the_same_recipe_split_size_and_weigh
     assert r.returncode == 0, r.stderr[-2000:]
     entry = json.loads(out.read_text())["rows"]["Pick after a hand-over"]["pick_place_handover"]
     assert entry["skills"]["Pick"]["k"] == 1 and "adopted" in entry and entry["wall_seconds"] == 12.5
-    assert entry["command"].startswith("echo-data evaluate recipes/cameras_test_pick_place_handover.yaml --split test -n 1 --policy=Pick=")
+    assert entry["command"].startswith("echo-data evaluate studies/paper_table/recipes/cameras_test_pick_place_handover.yaml --split test -n 1 --policy=Pick=")
     assert (runs_dir / "eval-Pick_after_a_hand-over-pick_place_handover.json").is_file()
     refused = [_study_eval(runs_dir, "cameras_test_pick_place.yaml", n=50),  # another size
-               {**_study_eval(runs_dir, "cameras_test_pick_place.yaml"), "recipe": {"path": "recipes/cameras_test_pick_place.yaml", "content_hash": "0" * 64}},
+               {**_study_eval(runs_dir, "cameras_test_pick_place.yaml"), "recipe": {"path": "studies/paper_table/recipes/cameras_test_pick_place.yaml", "content_hash": "0" * 64}},
                _study_eval(runs_dir, "cameras_test_door.yaml")]  # no row evaluates Pick there
     for doc in refused:
         r = adopt(doc)

@@ -1,4 +1,4 @@
-"""A tiny run of the visual probe (benchmarks/bench_visual_probe.py): a small CNN trained on crops
+"""A tiny run of the visual probe (studies/visual_probe/bench_visual_probe.py): a small CNN trained on crops
 of a few homes tells phone / alarm / furby / distractor apart on homes of other seeds well above
 chance. Rendering and training are seeded, so the figure is the same on every run."""
 
@@ -14,7 +14,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _probe():
-    spec = importlib.util.spec_from_file_location("bench_visual_probe", ROOT / "benchmarks" / "bench_visual_probe.py")
+    spec = importlib.util.spec_from_file_location("bench_visual_probe", ROOT / "studies" / "visual_probe" / "bench_visual_probe.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)  # type: ignore[union-attr]
     return mod

@@ -11,7 +11,7 @@ from echo_data.scene.generate import generate_floorplan
 from echo_data.viz import palette
 from echo_data.viz.frames import HEIGHT, PANEL, WIDTH, EpisodeFrames
 from echo_data.viz.spectrogram import GAP_ROWS, spectrogram_db, spectrogram_picture
-from echo_data.viz.topdown import TopDownMap
+from echo_data.viz.topdown import TopDownMap, target_point
 
 FS = 16000
 
@@ -71,3 +71,14 @@ def test_frame_layout(plan: FloorPlan) -> None:
     assert f.shape == (HEIGHT, WIDTH, 3)
     with pytest.raises(ValueError, match="map panel"):
         EpisodeFrames(TopDownMap(plan, size=PANEL + 1), audio, FS)
+
+
+def test_target_points_read_the_target_text_through_target(plan: FloorPlan) -> None:
+    """`Target` owns the "kind:index" text: what it refuses has no point on the map (a hand-made
+    parser took "door:-1" for the last door)."""
+    assert plan.doors and target_point(plan, "door:0") is not None
+    assert target_point(plan, "door:-1") is None
+    assert target_point(plan, "window:0") is None and target_point(plan, "door:x") is None
+    assert target_point(plan, f"door:{len(plan.doors)}") is None
+    name = plan.objects[0].name
+    assert target_point(plan, name) == tuple(plan.objects[0].position[:2])

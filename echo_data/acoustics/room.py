@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from echo_data.acoustics.arrivals import PathSet, omni_rir
 from echo_data.acoustics.geometry import (
     Opening,
     RoomBox,
@@ -53,11 +54,12 @@ from echo_data.acoustics.geometry import (
 )
 from echo_data.acoustics.ism import BoxLattice, ImagePaths, segment_losses
 from echo_data.acoustics.materials import BANDS, absorption, air_absorption, reflection_amplitude
-from echo_data.acoustics.tail import NoiseBank, RoomAcoustics, band_masks, scattered_share
+from echo_data.acoustics.tail import NoiseBank, RoomAcoustics, scattered_share
 from echo_data.acoustics.types import SPEED_OF_SOUND, AcousticResponse, ApertureTail, Arrival
 from echo_data.recipe import AcousticsConfig
 from echo_data.scene.floorplan import FloorPlan
 
+__all__ = ["AcousticScene", "omni_rir"]  # omni_rir: rendered in acoustics.arrivals, long imported from here
 Vec3 = tuple[float, float, float]
 _FACE_INSET = 0.01  # secondary sources sit 1 cm inside the room faces of a doorway
 _EDGE_MARGIN = 0.05  # and at least 5 cm from the jambs and the lintel
@@ -167,7 +169,7 @@ class AcousticScene:
         c = SPEED_OF_SOUND
         max_len = self.length / self.fs * c
 
-        paths = _PathSet()
+        paths = PathSet()
         # 1) image sources of the source room, for every receiver
         lat = self.lattices[a_room]
         ip = lat.trace(S, rcv, self.occ, self.cfg.closed_door_loss_db, walls=True)
@@ -386,7 +388,7 @@ class AcousticScene:
         delta = a + b - math.sqrt(max(a * a + b * b + 2 * a * b * cos, 0.0))
         return diffraction_loss_db(np.asarray(delta), BANDS)
 
-    def _entry_paths(self, paths: _PathSet, rows: np.ndarray, rcv: np.ndarray, e: _Entry, hub: _Hub, direct_ok: np.ndarray) -> np.ndarray:
+    def _entry_paths(self, paths: PathSet, rows: np.ndarray, rcv: np.ndarray, e: _Entry, hub: _Hub, direct_ok: np.ndarray) -> np.ndarray:
         """Secondary-source paths through doorway `e` for receivers of its room; returns the
         earliest arrival time per receiver (the tail onset)."""
         op = e.opening
@@ -441,77 +443,3 @@ class AcousticScene:
         mid_a, mid_b = self._doorway_points(op, e.frm, e.room, self._clamp_in_opening(op, self._opening_centre(op, float(Q[2]))))
         centre = hub.length + np.linalg.norm(mid_a - Q) + np.linalg.norm(mid_b - mid_a) + np.linalg.norm(rcv - mid_b, axis=1)
         return np.minimum(first, centre) / SPEED_OF_SOUND
-
-
-class _PathSet:
-    """Valid paths of many receivers, gathered as arrays and turned into `Arrival`s at once."""
-
-    def __init__(self) -> None:
-        self.parts: list[tuple[np.ndarray, ...]] = []
-
-    def add(self, rows: np.ndarray, ip: ImagePaths, log0: np.ndarray, len0: float | np.ndarray, len_prefix: np.ndarray, skip_direct: np.ndarray | None) -> None:
-        """Add the valid paths of `ip` (receivers `rows`), with per-(receiver, cell) log gain
-        and length prefixes (diffraction, route to a doorway); `skip_direct` drops cell 0
-        for receivers that already have the geometric direct path."""
-        ok = ip.valid.copy()
-        if skip_direct is not None:
-            ok[:, 0] &= ~skip_direct
-        r, i = np.nonzero(ok)
-        length = ip.length[r, i] + len_prefix[r, i] + len0
-        door = ip.door_db[r, i]
-        order = ip.order[i].astype(np.int64)
-        order = np.where((door > 0.0) & (order == 0), -1, order)
-        self.parts.append((rows[r], length, ip.direction[r, i], ip.log_gain[r, i] + log0[r, i], door, order))
-
-    def arrivals(self, n: int, air: np.ndarray, max_len: float) -> list[list[Arrival]]:
-        out: list[list[Arrival]] = [[] for _ in range(n)]
-        if not self.parts:
-            return out
-        row, L, d, lg, door, order = (np.concatenate(x) for x in zip(*self.parts))
-        keep = max_len > L
-        row, L, d, lg, door, order = row[keep], L[keep], d[keep], lg[keep], door[keep], order[keep]
-        L = np.maximum(L, 1e-3)
-        band = np.exp(lg - 0.5 * air[None] * L[:, None])
-        gain = 10.0 ** (-door / 20.0) / L
-        srt = np.lexsort((order, L, row))
-        objs = list(
-            map(
-                Arrival,
-                (L / SPEED_OF_SOUND)[srt].tolist(),
-                map(tuple, d[srt].tolist()),
-                gain[srt].tolist(),
-                map(tuple, band[srt].tolist()),
-                order[srt].tolist(),
-            )
-        )
-        bounds = np.searchsorted(row[srt], np.arange(n + 1)).tolist()
-        return [objs[bounds[i] : bounds[i + 1]] for i in range(n)]
-
-
-def omni_rir(response: AcousticResponse) -> np.ndarray:
-    """The response rendered for an omnidirectional receiver: float32 (length,).
-
-    Each arrival is a fractional-delay impulse shaped by its band gains through
-    amplitude-complementary octave masks (unit band gains give an exact band-limited
-    impulse), rendered in the frequency domain; the tails (own room, openings) are added as is.
-    """
-    L = response.length
-    fs = response.fs
-    n_fft = 1 << int(math.ceil(math.log2(2 * L + 64)))
-    f = np.fft.rfftfreq(n_fft, 1.0 / fs)
-    masks = band_masks(n_fft, fs, power=False)
-    spec = np.zeros(len(f), dtype=np.complex128)
-    arr = [a for a in response.arrivals if a.delay_s * fs < L]
-    for s in range(0, len(arr), 64):
-        chunk = arr[s : s + 64]
-        tau = np.asarray([a.delay_s for a in chunk])
-        g = np.asarray([a.gain for a in chunk])[:, None] * np.asarray([a.band_gains for a in chunk])  # (A, bands)
-        ph = np.exp(-2j * np.pi * f[None, :] * tau[:, None])  # (A, F)
-        spec += np.einsum("ab,bf,af->f", g, masks, ph)
-    h = np.fft.irfft(spec, n=n_fft)[:L]
-    tail = np.asarray(response.tail, dtype=np.float64)[:L]
-    h[: len(tail)] += tail
-    for ap in response.apertures:  # an omni receiver sums the opening's late energy too
-        late = np.asarray(ap.signals, dtype=np.float64).sum(axis=0)[:L]
-        h[: len(late)] += late
-    return h.astype(np.float32)

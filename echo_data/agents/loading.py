@@ -94,24 +94,57 @@ def load_policy(target: str | Sequence[str]) -> Policy:
     A list of specs (`["Navigate=runs/nav", "oracle"]`) gives one policy per skill
     (`echo_data.agents.compose`)."""
     from echo_data.agents.compose import PolicySpecError, SkillDispatch, is_composite, parse_specs
+    from echo_data.learn.reference import NAME as REFERENCE
 
-    if not is_composite(target):
-        one = target if isinstance(target, str) else target[0]
+    one = target if isinstance(target, str) else target[0]
+    if not is_composite(target) and one != REFERENCE:
+        if one.startswith(REFERENCE + ":"):
+            raise AgentLoadError(f"--policy {one}: a reference learner drives its own skill: give SKILL={one}")
         return _load(one, BUILTIN_POLICIES, "policy", ("reset", "act"))
     try:
-        by_skill, fallback = parse_specs(target)
+        by_skill, fallback = parse_specs([target] if isinstance(target, str) else target)
     except PolicySpecError as e:
         raise AgentLoadError(str(e)) from None
-    loaded: dict[str, Any] = {}  # one instance per distinct target
-    for t in [*by_skill.values(), fallback]:
-        if t not in loaded:
-            loaded[t] = _load(t, BUILTIN_POLICIES, "policy", ("reset", "act"))
-    return SkillDispatch({s: loaded[t] for s, t in by_skill.items()}, loaded[fallback], {**by_skill, "*": fallback})
+    if fallback == REFERENCE:  # every skill not named: its shipped learner
+        from echo_data.skills import EXPERTS
+
+        by_skill = {**{s: REFERENCE for s in EXPERTS}, **by_skill}
+    loaded: dict[str, Any] = {}  # one instance per distinct target (a reference learner: per skill)
+
+    def get(t: str, skill: str) -> Any:
+        shipped = t == REFERENCE or t.startswith(REFERENCE + ":")
+        key = f"{t}@{skill}" if shipped else t
+        if key not in loaded:
+            loaded[key] = _reference(skill, t) if shipped else _load(t, BUILTIN_POLICIES, "policy", ("reset", "act"))
+        return loaded[key]
+
+    agents = {s: get(t, s) for s, t in by_skill.items()}
+    rest = next(iter(agents.values())) if fallback == REFERENCE else get(fallback, "*")  # reference: every skill is named, the fallback never asked
+    return SkillDispatch(agents, rest, {**by_skill, "*": fallback})
+
+
+def _reference(skill: str | None, target: str) -> Any:
+    """The shipped reference learner `target` names for `skill` (None: the planner): `reference`,
+    the one serving it, or `reference:NAME`; checked against its SHA256SUMS."""
+    from echo_data.learn.reference import ReferenceError, ReferenceSet
+
+    try:
+        folder = ReferenceSet.load().learner(skill, target.partition(":")[2] or None)
+    except ReferenceError as e:
+        raise AgentLoadError(f"{'--planner' if skill is None else '--policy'} {target}: {e}") from None
+    what = "planner" if skill is None else "policy"
+    agent = _load(str(folder), BUILTIN_PLANNERS if skill is None else BUILTIN_POLICIES, what, ("plan",) if skill is None else ("reset", "act"))
+    agent.reference = folder.name  # `identity` names the learner, not the folder of this machine
+    return agent
 
 
 def load_planner(target: str) -> Planner:
-    """A high-level planner: `plan(first_obs) -> [{"skill": ..., "target": ...}, ...]` (optional `reset(info)`)."""
-    return _load(target, BUILTIN_PLANNERS, "planner", ("plan",))
+    """A high-level planner: `plan(first_obs) -> [{"skill": ..., "target": ...}, ...]` (optional `reset(info)`);
+    `reference`: the shipped one, `reference:NAME` a listed one (echo_data.learn.reference)."""
+    from echo_data.learn.reference import NAME as REFERENCE
+
+    shipped = target == REFERENCE or target.startswith(REFERENCE + ":")
+    return _reference(None, target) if shipped else _load(target, BUILTIN_PLANNERS, "planner", ("plan",))
 
 
 def identity(agent: Any, target: str | Sequence[str]) -> dict[str, Any]:
@@ -126,11 +159,14 @@ def identity(agent: Any, target: str | Sequence[str]) -> dict[str, Any]:
         target = target[0]
     cls = type(agent)
     out: dict[str, Any] = {"name": target, "class": f"{cls.__module__}:{cls.__qualname__}"}
-    for attr in ("version", "checkpoint"):
+    reference = getattr(agent, "reference", None)
+    for attr in ("version", "reference") if reference is not None else ("version", "checkpoint"):
         v = getattr(agent, attr, None)
         if v is not None:
             out[attr] = str(v)
-    if Path(target).is_dir():
+    if getattr(agent, "weights_sha256", None) is not None:
+        out["weights_sha256"] = agent.weights_sha256  # the weights file acted with (evaluation.provenance)
+    if reference is None and Path(target).is_dir():
         out["checkpoint_sha256"] = folder_sha256(Path(target))
     return out
 

@@ -78,6 +78,9 @@ class NavigateRecord:
     goal_distance: float = math.nan
     heading_error: float = math.nan
     arm_moved: float = math.nan
+    # Whether it ended inside the next skill's stance (the environment's `handed_over`,
+    # docs/handover.md); the paper's Navigate success is `success`.
+    handed_over: bool = False
 
     @property
     def spl(self) -> float:
@@ -207,25 +210,36 @@ def succeeded(info: dict[str, Any], k: int) -> bool:
     return bool(info["skills"][k]["success"])
 
 
+# How a learned drive that does not STOP ends (`run_episode(drive_end=...)`, docs/handover.md):
+# "handover": when it stands inside the next skill's stance (its success test holding too), or at
+# its budget, where the success test on that state decides; "success": the first step its
+# success test holds (the paper's 1.5 m region: it hands over at the region's edge).
+DRIVE_ENDS = ("handover", "success")
+
 StepHook = Callable[["EchoDataEnv", dict[str, np.ndarray], np.ndarray, int, SkillCall, tuple[bool, ...]], None]
 
 
 def run_episode(
     env: Any, first_obs: dict[str, np.ndarray], info: dict[str, Any], planner: Planner, policy: Policy,
     on_step: StepHook | None = None, max_steps: int | None = None, skills: int | None = None,
+    drive_end: str = "handover",
 ) -> EpisodeRun:
     """Run one episode already reset in `env` (its first observation and info) with a planner and a skill policy.
+    Long because it is the one episode loop (build, evaluate and DAgger share it): its per-skill
+    state (budget, probe, path, stop) lives across the steps of one loop, kept in one place.
 
     Success is read from the environment's `info["skills"]` (one evaluation per step).
     `on_step(env, obs, action, skill_index, call, skill_flags)` is called before each action is
     applied (the build records its rows there; DAgger labels there); it may raise `StopEpisode`.
     `max_steps`: cut the episode after that many control steps (see the module docstring);
-    `skills`: run only the chain's first `skills` skills.
+    `skills`: run only the chain's first `skills` skills; `drive_end`: see `DRIVE_ENDS`.
     """
     from echo_data.envs.env import EnvInputError, as_action
     from echo_data.envs.privileged import PrivilegedProbe
-    from echo_data.skills.registry import SKILLS, skill_budget
+    from echo_data.skill_table import SKILLS, handover_call, skill_budget
 
+    if drive_end not in DRIVE_ENDS:
+        raise ValueError(f"drive_end {drive_end!r}: expected one of {', '.join(DRIVE_ENDS)}")
     env = getattr(env, "unwrapped", env)  # gymnasium wrappers around an EchoDataEnv
     spec: EpisodeSpec = env.episode
     truth = true_chain(spec)
@@ -269,6 +283,9 @@ def run_episode(
         goal = _goal_observation(env, call) if GOAL_POSE in wanted else None
         probe = PrivilegedProbe() if any(c in wanted for c in PRIVILEGED_COLUMNS) else None
         approach = SKILLS[call.skill].role == "approach"  # Navigate: scored by SPL too
+        # a learned drive that does not STOP ends at the hand-over (else at its success test)
+        at_handover = approach and not ends_itself and drive_end == "handover" and handover_call(spec.chain, k) is not None
+        end_flag = "handed_over" if at_handover else "success"
         expert_len, nav_goal = _expert_path(env, call) if approach else (math.nan, None)
         arm_start = _arm_joints(env) if approach else np.zeros(0)  # where the arm was when a Navigate began (its hand-over record)
         path = 0.0
@@ -276,7 +293,7 @@ def run_episode(
         reason = ""
         ended = False
         while True:
-            if not ends_itself and succeeded(info, k):
+            if not ends_itself and info["skills"][k][end_flag]:
                 break
             if goal is not None:
                 obs = {**obs, GOAL_POSE: goal}
@@ -292,8 +309,8 @@ def run_episode(
             if cut():  # after act(): a skill that ends exactly at the cut is finished, not cut
                 run.truncated_at = env.steps
                 break
-            if n >= budget:
-                reason = "timeout"
+            if n >= budget:  # a drive out of steps inside its success region still counts (as the expert's)
+                reason = "" if at_handover and succeeded(info, k) else "timeout"
                 break
             try:
                 a = as_action(action, EE_ACTION_DIM if mode == "ee_delta" else ACTION_DIM)
@@ -328,7 +345,8 @@ def run_episode(
             reason = getattr(expert, "reason", "") or "success test false"
         run.outcomes.append(SkillOutcome(call.skill, call.target, ok, "" if ok else reason, n))
         if approach:
-            run.navigate.append(NavigateRecord(k, ok, path, expert_len, **_handover(env, nav_goal, arm_start)))
+            run.navigate.append(NavigateRecord(k, ok, path, expert_len, **_handover(env, nav_goal, arm_start),
+                                               handed_over=bool(info["skills"][k]["handed_over"])))
         if not ok:
             run.failure = f"{call.skill}({call.target}): {reason}"
             break

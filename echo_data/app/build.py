@@ -1,7 +1,8 @@
 """`echo-data build`: episodes -> shards, with workers, resume and kill-safety (the orchestration).
 
 Episodes are computed anywhere (see `echo_data.app.executors`): a worker samples, simulates and
-hears one episode (`echo_data.app.pipeline`) and encodes it (`echo_data.dataset.encode`); this
+hears one episode (`echo_data.app.pipeline`) and encodes it (`echo_data.dataset.encode`), its
+attempts in `echo_data.app.attempts`; this
 process alone writes, through `echo_data.dataset.writer.DatasetWriter` (staging, shards in
 order, manifest, meta), whose files are all replaced atomically (`echo_data.dataset.storage`).
 A kill therefore loses at most the episodes in flight, and a resume verifies shards by sha256,
@@ -14,7 +15,6 @@ from __future__ import annotations
 import errno
 import threading
 import time
-from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from multiprocessing import get_context
@@ -22,8 +22,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 from echo_data.app import episode_progress
+from echo_data.app.attempts import FailedEpisode, Generate, Job, default_library, init_job, one_line, run_task
 from echo_data.app.executors import ExecutorError, make_executor
-from echo_data.dataset.encode import EncodedEpisode
 from echo_data.dataset.lock import LOCK_NAME, BuildLock, BuildLockedError
 from echo_data.dataset.manifest import (
     ManifestError,
@@ -37,15 +37,11 @@ from echo_data.dataset.manifest import (
 from echo_data.dataset.schema import FORMAT_VERSION, StepLayout
 from echo_data.dataset.writer import DatasetWriter
 from echo_data.dataset.written import DATASET, NotWrittenByUs, dataset_files, read_marker, remove_written, write_marker
-from echo_data.episode import attempt_draws
 from echo_data.outputs import OutputError, check_output_path
-from echo_data.pcm import ClippingError
 from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
-from echo_data.records import EpisodeResult
 
 BuildMode = Literal["new", "resume", "overwrite"]
-Generate = Callable[..., EpisodeResult]
 
 
 class OutputWriteError(OutputError):
@@ -84,123 +80,6 @@ class BuildSummary:
             f"episode success {rate} ({self.failed_attempts} failed attempts, {self.rejected} rejected samples)"
             + (f"; skills {skills}" if skills else "")
         )
-
-
-# ---------------------------------------------------------------- worker side
-
-
-@dataclass(frozen=True)
-class _Job:
-    """What every worker needs, sent once per worker."""
-
-    recipe: Recipe
-    recipe_dir: Path
-    layout: StepLayout
-    generate: Generate
-    make_library: Callable[[Recipe, Path], SoundLibrary] | None
-
-
-@dataclass
-class FailedEpisode:
-    """No attempt of an episode succeeded within `max_attempts_per_episode`."""
-
-    split: str
-    index: int
-    failures: list[dict[str, Any]]
-    error: str = ""  # set when the episode broke the EpisodeResult contract (not retried)
-
-
-_UNSET = object()
-_JOB: _Job | None = None
-_LIBRARY: Any = _UNSET
-
-
-def _init_job(job: _Job, slots: Any = None, counter: Any = None) -> None:
-    global _JOB, _LIBRARY
-    _JOB, _LIBRARY = job, _UNSET
-    if slots is not None:
-        episode_progress.install(slots, counter)
-
-
-def default_library(recipe: Recipe, recipe_dir: Path) -> SoundLibrary:
-    """The recipe's sound library (built once per worker)."""
-    try:
-        from echo_data.sounds import SoundLibrary
-    except ImportError:
-        from echo_data.sounds.library import SoundLibrary
-    return SoundLibrary.from_recipe(recipe, recipe_dir)
-
-
-def _is_sampling_error(e: BaseException) -> bool:
-    # By name: importing echo_data.scene.sampling would pull SAPIEN into every process.
-    return any(c.__name__ == "SamplingError" for c in type(e).__mro__)
-
-
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())[:500]
-
-
-def _run_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
-    """Try attempts 0, 1, ... of one episode until one succeeds; encode it (runs in a worker).
-    The worker's progress slot is cleared before the result leaves (episode_progress)."""
-    try:
-        episode_progress.prepare()
-        return _attempt_episode(task)
-    finally:
-        episode_progress.end()
-
-
-def _attempt_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
-    global _LIBRARY
-    from echo_data.dataset.encode import encode_episode
-
-    assert _JOB is not None, "worker not initialised"
-    job = _JOB
-    split, index = task
-    if _LIBRARY is _UNSET:
-        _LIBRARY = (job.make_library or default_library)(job.recipe, job.recipe_dir)
-    failures: list[dict[str, Any]] = []
-    rejected: Counter[str] = Counter()
-    skills: dict[str, list[int]] = {}
-    budget = job.recipe.max_attempts_per_episode
-    for attempt in range(budget):
-        draws = attempt_draws(job.recipe.seed, split, index, attempt, budget)
-        # Until a spec names the draw it used, the attempt is known by its draws (a sampling
-        # failure used them all); `attempt` alone redoes it: generate(..., attempt=attempt).
-        record: dict[str, Any] = {
-            "split": split, "index": index, "attempt": attempt, "draws": [draws[0][0], draws[-1][0] + 1], "seed": draws[0][1],
-        }
-        try:
-            result = job.generate(job.recipe, split, index, _LIBRARY, job.recipe_dir, attempt=attempt)
-        except ClippingError as e:  # the track is too loud to store: a calibration problem, never retried away
-            return FailedEpisode(split, index, failures, f"cannot be stored: {_one_line(str(e))}")
-        except Exception as e:  # an attempt that crashed is recorded and retried, never half-written
-            counts = getattr(e, "counts", None) or getattr(e, "rejected", None) or {}  # SamplingError.counts
-            rejected.update({str(k): int(v) for k, v in counts.items()})
-            kind = "sampling" if _is_sampling_error(e) else f"error: {type(e).__name__}"
-            failures.append({**record, "reason": _one_line(f"{kind}: {e}"), "outcomes": []})
-            continue
-        spec = result.spec
-        if (spec.split, int(spec.index)) != (split, index):
-            return FailedEpisode(split, index, failures, f"generator returned episode {spec.split}/{spec.index}")
-        record.update(draw=int(spec.attempt), seed=int(spec.seed))  # what was simulated
-        rejected.update({str(k): int(v) for k, v in result.rejected.items()})
-        for o in result.outcomes:
-            s = skills.setdefault(o.skill, [0, 0])
-            s[0] += 1
-            s[1] += int(bool(o.success))
-        if result.complete:  # succeeded, or cut by outputs.max_frames with no expert failure before the cut
-            try:
-                enc = encode_episode(result, job.layout)
-            except ValueError as e:  # the result does not fit the dataset contract: a bug, not bad luck
-                return FailedEpisode(split, index, failures, f"cannot be stored: {_one_line(str(e))}")
-            enc.failures, enc.rejected, enc.skills = failures, dict(sorted(rejected.items())), dict(sorted(skills.items()))
-            return enc
-        bad = next((o for o in result.outcomes if not o.success), None)
-        reason = f"{bad.skill}({bad.target}): {bad.reason or 'failed'}" if bad else "episode unsuccessful"
-        outcomes = [{"skill": o.skill, "target": o.target, "success": bool(o.success), "reason": o.reason} for o in result.outcomes]
-        failures.append({**record, "reason": _one_line(reason), "outcomes": outcomes})
-    return FailedEpisode(split, index, failures)
 
 
 # ---------------------------------------------------------------- output checks
@@ -456,11 +335,11 @@ def _build_locked(
     only: Sequence[str] | None,
 ) -> BuildSummary:
     """The build proper, run while this process holds the folder's build lock."""
-    job = _Job(recipe, Path(recipe_path).resolve().parent, layout, gen, make_library)
+    job = Job(recipe, Path(recipe_path).resolve().parent, layout, gen, make_library)
     # Ray workers cannot share memory with us: their bar moves per finished episode only.
     slots, counter = episode_progress.make_slots(workers, get_context("spawn")) if executor == "local" and progress else (None, None)
     try:  # before anything is written: a cluster that cannot be joined is bad input
-        ex = make_executor(executor, workers, _init_job, (job, slots, counter), address)
+        ex = make_executor(executor, workers, init_job, (job, slots, counter), address)
     except ExecutorError as e:
         raise OutputError(str(e)) from None
     bar = None
@@ -485,7 +364,7 @@ def _build_locked(
         rate = _Rate(sum(split_sizes(recipe, None).values()) - reused, total - reused)
         attempts = successes = 0
         with _LiveBar(bar, slots, rate) as live:
-            for res in ex.imap_unordered(_run_episode, todo):
+            for res in ex.imap_unordered(run_task, todo):
                 if isinstance(res, FailedEpisode) and res.error:
                     raise BuildError(f"{res.split} episode {res.index}: {res.error}")
                 if isinstance(res, FailedEpisode):
@@ -504,7 +383,7 @@ def _build_locked(
         raise
     except Exception as e:
         if type(e).__name__ == "BrokenProcessPool" or type(e).__module__.startswith("ray."):
-            raise BuildError(f"a worker process or node died ({_one_line(str(e))[:300]}); finished episodes are kept: rerun with --resume") from e
+            raise BuildError(f"a worker process or node died ({one_line(str(e))[:300]}); finished episodes are kept: rerun with --resume") from e
         raise
     finally:
         ex.close()

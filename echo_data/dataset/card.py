@@ -12,10 +12,10 @@ import json
 from pathlib import Path
 from typing import Any
 
-import pyarrow.parquet as pq
 import yaml
 
 from echo_data.dataset.manifest import load_manifest
+from echo_data.dataset.reader import episodes_table
 from echo_data.dataset.schema import (
     ACTION_EE,
     ACTION_EE_EXECUTED,
@@ -86,10 +86,11 @@ def _shape(feature: dict[str, Any]) -> str:
 
 
 def card_text(out: Path) -> str:
-    """The card of the complete dataset at `out` (front matter + Markdown body)."""
+    """The card of the complete dataset at `out` (front matter + Markdown body). Long because it is
+    one document's template, read top to bottom like the card it writes."""
     m = load_manifest(out)
     info = json.loads((out / "meta" / "info.json").read_text())
-    episodes = pq.read_table(out / "meta" / "episodes.parquet", columns=["split", "events"]).to_pylist()
+    episodes = episodes_table(out, ["split", "events"]).to_pylist()
     counts = m["counts"]
     splits = sorted(info["splits"], key=SPLIT_KEYS.__getitem__)
     features = StepLayout.from_dict(m["layout"]).hf_features()  # in column order

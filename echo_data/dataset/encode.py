@@ -248,7 +248,8 @@ def _vector_stack(episode_id: str, steps: list[StepRecord], col: str, dim: int) 
 
 
 def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
-    """Validate a complete (successful or cut) `EpisodeResult` against the layout and encode it (runs in workers)."""
+    """Validate a complete (successful or cut) `EpisodeResult` against the layout and encode it (runs in workers).
+    Long because each column is checked where it is encoded, in the stored order (one pass over the steps)."""
     spec = result.spec
     steps = result.steps
     n = len(steps)

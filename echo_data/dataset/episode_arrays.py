@@ -18,6 +18,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset.manifest import ManifestError, load_manifest
+from echo_data.dataset.reader import episodes_table, split_shards
 from echo_data.dataset.schema import StepLayout
 from echo_data.episode import SPLIT_KEYS
 
@@ -149,9 +150,9 @@ def iter_episodes(src: Path, manifest: dict[str, Any], splits: list[str] | None 
     """Every stored episode of `splits` (default: all), train first (then val, test), in episode
     order within a split."""
     layout = StepLayout.from_dict(manifest["layout"])
-    records = {(r["split"], r["episode_index"]): r for r in pq.read_table(src / "meta" / "episodes.parquet").to_pylist()}
+    records = {(r["split"], r["episode_index"]): r for r in episodes_table(src).to_pylist()}
     for split in splits if splits is not None else export_splits(manifest, None):
-        for shard in (e for e in manifest["shards"] if e["split"] == split):
+        for shard in split_shards(manifest, split):
             table = pq.read_table(src / shard["file"])
             ep = table.column("episode_index").to_numpy()
             bounds = np.flatnonzero(np.diff(ep)) + 1

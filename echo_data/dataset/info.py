@@ -5,9 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import pyarrow.parquet as pq
-
 from echo_data.dataset.manifest import load_manifest
+from echo_data.dataset.reader import EPISODES, episode_records
 
 
 def info(out: Path) -> dict[str, Any]:
@@ -20,9 +19,8 @@ def info(out: Path) -> dict[str, Any]:
     counts = m["counts"]
     sounds: dict[str, list[str]] = {}
     events: dict[str, dict[str, int]] = {}
-    ep_path = out / "meta" / "episodes.parquet"
-    if ep_path.is_file():
-        for row in pq.read_table(ep_path, columns=["split", "events"]).to_pylist():
+    if (out / EPISODES).is_file():
+        for row in episode_records(out, ["split", "events"]):
             for e in row["events"]:
                 sounds.setdefault(row["split"], [])
                 if e["sound_id"] not in sounds[row["split"]]:

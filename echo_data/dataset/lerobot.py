@@ -74,6 +74,7 @@ from echo_data.dataset.episode_arrays import (
     depth_ranges,
     export_splits,
 )
+from echo_data.dataset.reader import episodes_table, split_shards
 from echo_data.dataset.schema import (
     ACTION,
     ACTION_EXECUTED,
@@ -170,7 +171,7 @@ def audio_standardisation(src: Path, manifest: dict[str, Any], col: str, shape: 
     pool = audio_pool(shape)
     splits = ["train"] if "train" in manifest["splits"] else list(manifest["splits"])
     parts = []
-    for shard in (e for e in manifest["shards"] if e["split"] in splits):
+    for shard in (sh for sp in splits for sh in split_shards(manifest, sp)):
         column = pq.read_table(src / shard["file"], columns=[col]).column(col)
         parts.append(pooled_audio(column_values(column, len(column)).reshape(len(column), *shape), pool).astype(np.float64))
     values = np.concatenate(parts)
@@ -371,7 +372,7 @@ def _data_files(
     episodes: list[dict[str, Any]] = []
     splits: dict[str, str] = {}
     train: list[dict[str, dict[str, Any]]] = []
-    ep_meta = {(r["split"], r["episode_index"]): r for r in pq.read_table(src / "meta" / "episodes.parquet").to_pylist()}
+    ep_meta = {(r["split"], r["episode_index"]): r for r in episodes_table(src).to_pylist()}
     n_ep = n_rows = 0
 
     def close() -> None:
@@ -384,7 +385,7 @@ def _data_files(
     for split in splits_out:
         close()  # a data file never holds two splits
         first_ep = n_ep
-        for shard in (e for e in manifest["shards"] if e["split"] == split):
+        for shard in split_shards(manifest, split):
             table = conform(pq.read_table(src / shard["file"]), layout.schema())
             ep = table.column("episode_index").to_numpy()
             bounds = np.flatnonzero(np.diff(ep)) + 1

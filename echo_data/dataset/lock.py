@@ -8,7 +8,7 @@ second still waits on the old one; it is emptied on release instead. Descriptors
 inherit the lock.
 
 The same lock, waited for instead of refused (`wait=True`) and under another file name, serialises
-the writers of one shared results file (benchmarks/paper_table.py: several runs, one JSON).
+the writers of one shared results file (the paper-table study's driver: several runs, one JSON).
 """
 
 from __future__ import annotations

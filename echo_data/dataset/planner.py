@@ -18,6 +18,7 @@ from typing import Any
 
 from echo_data.dataset.storage import atomic_write_json
 from echo_data.recipe import Recipe
+from echo_data.skill_table import SKILLS
 
 # planner/ media folders, one file per episode: (folder, suffix). The one place their paths are written.
 MEDIA = {"audio": ("audio", "wav"), "audio_binaural": ("audio_binaural", "wav"), "image": ("images", "png")}
@@ -29,18 +30,9 @@ def media_path(kind: str, split: str, episode_id: str) -> str:
     return f"{folder}/{split}/{episode_id}.{suffix}"
 
 
-SKILL_LIBRARY = {
-    "Navigate": "drive the base to stand in front of a target (object, door, sink or furniture)",
-    "Pick": "grasp a small object and lift it",
-    "Place": "put the held object down on a piece of furniture",
-    "OpenDoor": "open the door whose bell rang",
-    "CloseSink": "turn the running faucet off",
-}
-
-
 def prompt(with_image: bool) -> str:
     """The user turn: what the model gets, the skills it may use, the answer format."""
-    skills = "\n".join(f"- {name}(target): {what}" for name, what in SKILL_LIBRARY.items())
+    skills = "\n".join(f"- {s.name}(target): {s.description}" for s in SKILLS.values())
     media = "<audio><image>" if with_image else "<audio>"
     return (
         f"{media}You are a home robot. You hear the sound above"

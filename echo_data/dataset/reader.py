@@ -1,4 +1,8 @@
-"""One reader of a dataset's step rows: metadata apart from frames, windows by delta indices.
+"""The one reader of a built dataset: its manifest, the recipe it holds, `meta/episodes.parquet`,
+its shard files, one episode's rows, and step rows by row number or window.
+
+Every module that reads a dataset (commands, learners, exports, pictures) comes here, so where a
+file lives and how a damaged one is reported is decided once.
 
 `DatasetMeta` is what a dataset says about itself without reading a frame (manifest, step layout,
 shard files per split, the step-row schema, statistics). `StepIndex` holds one split's index
@@ -25,10 +29,66 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from echo_data.dataset.encode import decode_pngs
-from echo_data.dataset.manifest import load_manifest
+from echo_data.dataset.manifest import MANIFEST, ManifestError, load_manifest
 from echo_data.dataset.schema import StepLayout, column_to_numpy
 
 INDEX_COLUMNS = ("episode_index", "skill", "skill_index", "frame_index")
+EPISODES = Path("meta") / "episodes.parquet"  # one record per episode (dataset/writer writes it)
+
+
+class EpisodeError(ValueError):
+    """An episode the dataset does not hold, or holds no steps of: one line naming the dataset."""
+
+
+def episodes_table(root: Path, columns: Sequence[str] | None = None) -> pa.Table:
+    """`meta/episodes.parquet` of the dataset at `root` (all columns, or `columns`)."""
+    return pq.read_table(Path(root) / EPISODES, columns=list(columns) if columns is not None else None)
+
+
+def episode_records(root: Path, columns: Sequence[str] | None = None) -> list[dict[str, Any]]:
+    """The episode records as dicts, in the file's order (split, then index)."""
+    return list(episodes_table(root, columns).to_pylist())
+
+
+def episode_rows(root: Path, split: str, index: int) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """Episode `index` of `split`: its record and its step rows in order."""
+    import pyarrow.compute as pc
+
+    root = Path(root)
+    m = load_manifest(root)
+    episodes = episodes_table(root)
+    found = episodes.filter(pc.and_(pc.equal(episodes["split"], split), pc.equal(episodes["episode_index"], index))).to_pylist()
+    if not found:
+        n = m["counts"]["episodes"].get(split, 0)
+        raise EpisodeError(f"{root}: no {split} episode {index} (the {split} split has {n} episodes: 0..{n - 1})")
+    ep = found[0]
+    table = pq.read_table(root / "data" / ep["shard"], filters=[("episode_index", "=", index)])
+    return ep, table.to_pylist()
+
+
+def split_shards(manifest: dict[str, Any], split: str) -> list[dict[str, Any]]:
+    """The manifest's entries of `split`'s shard files, in order (where every reader finds shards)."""
+    return [e for e in manifest["shards"] if e["split"] == split]
+
+
+def dataset_manifest(root: Path, split: str | None = None, why: str = "") -> dict[str, Any]:
+    """The checked manifest of the dataset at `root` (`manifest.load_manifest`); with `split`, a
+    dataset without that split is refused in one line ending in `why`."""
+    root = Path(root)
+    if not (root / MANIFEST).is_file():
+        raise ManifestError(f"{root}: not an echo-data dataset (no {MANIFEST})")
+    m = load_manifest(root)
+    if split is not None and split not in m["splits"]:
+        raise ManifestError(f"{root / MANIFEST}: no {split!r} split{' ' + why if why else ''}")
+    return m
+
+
+def dataset_recipe(root: Path) -> tuple[Any, int]:
+    """The recipe a dataset was built from (its manifest's copy) and its train episode count."""
+    from echo_data.recipe import recipe_from_mapping
+
+    m = dataset_manifest(Path(root))
+    return recipe_from_mapping(m["recipe"], source=str(Path(root) / MANIFEST)), int(m["splits"].get("train", {}).get("episodes", 0))
 
 
 @dataclass(frozen=True)
@@ -53,7 +113,7 @@ class DatasetMeta:
         """The split's shard files in order (ValueError naming the split when it has none)."""
         if split not in self.manifest["splits"]:
             raise ValueError(f"{self.root}: no split {split!r} (has {', '.join(self.manifest['splits'])})")
-        return [self.root / e["file"] for e in self.manifest["shards"] if e["split"] == split]
+        return [self.root / e["file"] for e in split_shards(self.manifest, split)]
 
     @cached_property
     def schema(self) -> pa.Schema:

@@ -26,6 +26,7 @@ from echo_data.dataset import stats as stats_mod
 from echo_data.dataset.encode import planner_binaural_wav_bytes, planner_wav_bytes
 from echo_data.dataset.manifest import ManifestError, load_manifest, new_manifest, plan_shards, totals
 from echo_data.dataset.planner import MEDIA, media_path
+from echo_data.dataset.reader import episodes_table
 from echo_data.dataset.schema import (
     ACTION_EE,
     ACTION_EE_EXECUTED,
@@ -124,7 +125,7 @@ def first_damage(out: Path, split: str | None = None, episode: int | None = None
     for a folder that is no dataset."""
     manifest = load_manifest(out)
     try:
-        records = pq.read_table(out / "meta" / "episodes.parquet").to_pylist()
+        records = episodes_table(out).to_pylist()
     except Exception as e:
         return f"meta/episodes.parquet: unreadable ({type(e).__name__})"
     chosen = [r for r in records if (split is None or r["split"] == split) and (episode is None or r["episode_index"] == episode)]
@@ -147,8 +148,17 @@ class DamagedDataset(ValueError):
     """A dataset whose shards or WAVs are not what its manifest recorded: one line naming the file."""
 
 
+class UnfinishedBuild(DamagedDataset):
+    """A dataset whose build stopped before it finished (its manifest says `complete: false`)."""
+
+
 def check_whole(out: Path, split: str | None = None, episode: int | None = None) -> None:
-    """Raise `DamagedDataset` naming the first damaged file (`first_damage`), or `ManifestError`."""
+    """Raise `UnfinishedBuild` for a build that has not finished (its files are not all there yet:
+    that is no damage), `DamagedDataset` naming the first damaged file (`first_damage`), or
+    `ManifestError`."""
+    if not load_manifest(out).get("complete"):
+        raise UnfinishedBuild(f"{out}: an unfinished build (manifest.json: complete is false): finish it with "
+                              f"`echo-data build RECIPE --out {out} --resume`")
     damage = first_damage(out, split, episode)
     if damage:
         raise DamagedDataset(f"{out}: damaged: {damage} (`echo-data validate {out}` lists every problem)")
@@ -317,7 +327,7 @@ def _episode_fields(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
 def _meta_problems(out: Path, recipe: Recipe, rows: list[dict[str, Any]]) -> list[str]:
     problems = []
     try:
-        ep = pq.read_table(out / "meta" / "episodes.parquet").to_pylist()
+        ep = episodes_table(out).to_pylist()
         if _episode_fields(ep) != _episode_fields(rows):
             problems.append("meta/episodes.parquet: differs from the episode records in the shards")
     except Exception as e:

@@ -29,10 +29,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow.parquet as pq
 
 from echo_data.dataset.episode_arrays import ExportError as ExportError  # the CLI catches `module.ExportError`
 from echo_data.dataset.episode_arrays import check_out_folder, check_source, export_splits, iter_episodes
+from echo_data.dataset.reader import episodes_table
 from echo_data.dataset.robomimic import OBS_KEYS
 from echo_data.dataset.schema import ACTION, ACTION_EE, CAMERA_POSES, SKILL_STOP
 from echo_data.dataset.written import mark_export, replace_folder
@@ -76,7 +76,7 @@ def export_zarr(
     manifest = check_source(src)
     chosen = export_splits(manifest, split)
     check_out_folder(src, out, overwrite, KIND)
-    eps = pq.read_table(src / "meta" / "episodes.parquet", columns=["n_steps", "split"]).to_pydict()
+    eps = episodes_table(src, ["n_steps", "split"]).to_pydict()
     lengths = np.asarray([n for n, s in zip(eps["n_steps"], eps["split"]) if s in chosen], np.int64)
     chunk_steps = max(1, int(np.median(lengths)))
     total = int(lengths.sum())

@@ -15,7 +15,9 @@ control period (the episode WAV is these blocks one after another).
 
 Reward: the number of true-chain skills newly completed in order at this step (their success
 tests, latched); `terminated` when the whole chain is done or a non-finite action arrived (the
-reason in `info["failure"]`); `truncated` past the sum of the chain's step budgets. An agent that
+reason in `info["failure"]`); `truncated` past the sum of the chain's step budgets.
+`info["skills"][k]["handed_over"]`: entry k's drive ends where the next skill was taught to start
+(docs/handover.md; `skill_table.HandOver`) — a learned drive that does not STOP ends there. An agent that
 ends its skills itself (SoundSpaces' STOP) sets `agent_stops`: the active skill then counts only
 when the agent calls `stop_skill()` and its test holds there (else the episode ends failed);
 `run_episode` does this for learned policies that end themselves. After either,
@@ -41,7 +43,8 @@ from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_DIM, ACTION_SPACES, EE_ACTION_DIM, STATE_DIM
-from echo_data.skills.registry import SKILLS, Situation, apply_effect, skill_budget
+from echo_data.skill_table import SKILLS, Situation, apply_effect, handover_call, skill_budget
+from echo_data.skills.success import in_stance
 
 if TYPE_CHECKING:
     from echo_data.envs.audio import Heard
@@ -274,7 +277,9 @@ class EchoDataEnv(gym.Env):
         self._resolver = {call.event: k for k, call in enumerate(spec.chain) if SKILLS[call.skill].resolves_event}
         self.max_episode_steps = sum(skill_budget(self.recipe, c.skill) for c in spec.chain)
         self._situation = Situation(spec, self.nav_grid)
+        self._handover_to = [handover_call(spec.chain, k) for k in range(len(spec.chain))]
         self.success_flags = self._evaluate()
+        self.handover_flags = self._handed_over()
         self.track = None
         heard = None
         if self.audio:
@@ -302,6 +307,7 @@ class EchoDataEnv(gym.Env):
         self.world.step(a)
         self.steps += 1
         self.success_flags = self._evaluate()  # the one evaluation of this step: events, progress, reward, info
+        self.handover_flags = self._handed_over()
         newly = self._update_events()
         heard = None
         if self.track is not None:  # heard on the listening thread while the cameras render (`_observe` waits for it)
@@ -398,7 +404,8 @@ class EchoDataEnv(gym.Env):
                 for e, ev in enumerate(spec.events)
             ],
             "skills": [
-                {"skill": c.skill, "target": c.target, "event": c.event, "success": self.success_flags[k], "done": k < self.progress}
+                {"skill": c.skill, "target": c.target, "event": c.event, "success": self.success_flags[k], "done": k < self.progress,
+                 "handed_over": self.handover_flags[k]}
                 for k, c in enumerate(spec.chain)
             ],
             "active_skill": spec.chain[self.progress].skill if self.progress < len(spec.chain) else None,
@@ -413,8 +420,16 @@ class EchoDataEnv(gym.Env):
 
     # ------------------------------------------------------------------ success tests
     def _evaluate(self) -> list[bool]:
-        """Every chain skill's success test on the current state, once (`echo_data.skills.registry`)."""
+        """Every chain skill's success test on the current state, once (`echo_data.skill_table`)."""
         return [SKILLS[c.skill].success(self.world, c, self._situation) for c in self.episode.chain]
+
+    def _handed_over(self) -> list[bool]:
+        """Per chain entry, whether its drive has handed over (docs/handover.md): an approach
+        skill's success test holds and the base stands inside the next skill's stance; a skill
+        that drives itself (Place's carry) stands inside its own; False where none follows."""
+        chain = self.episode.chain
+        return [to is not None and (to is chain[k] or self.success_flags[k]) and in_stance(self.world, to, self._situation)
+                for k, to in enumerate(self._handover_to)]
 
     def skill_success(self, call: SkillCall) -> bool:
         """The success test of `call` on the current state, evaluated now (the runtime reads

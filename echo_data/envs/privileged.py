@@ -22,6 +22,7 @@ from scipy.spatial.transform import Rotation
 
 from echo_data.records import PRIVILEGED_PREFIX
 from echo_data.robot.ee_control import base_frame
+from echo_data.skill_table import skill
 from echo_data.target import Target
 
 if TYPE_CHECKING:
@@ -124,7 +125,7 @@ class PrivilegedProbe:
 
     def place_spot(self, world: World, spec: EpisodeSpec, call: SkillCall) -> np.ndarray:
         """`place_spot_world` for a Place call, from where the base stands."""
-        from echo_data.skills.registry import carried_object
+        from echo_data.skill_table import carried_object
 
         name = carried_object(spec, call)
         furniture = Target.parse(call.target).index
@@ -136,7 +137,7 @@ class PrivilegedProbe:
     def __call__(self, world: World, spec: EpisodeSpec, call: SkillCall) -> dict[str, np.ndarray]:
         base = world.robot.base_pose()
         to_base = rigid_inverse(base_frame(*base))
-        spot = self.place_spot(world, spec, call) if call.skill == "Place" else None
+        spot = self.place_spot(world, spec, call) if skill(call.skill).delivers else None
         target, angle = target_world(world, spec, call, spot)
         target_b = to_base @ target
         tcp = np.asarray(world.robot.ee_pose().p, dtype=np.float64)

@@ -30,7 +30,12 @@ def format_tables(doc: dict[str, Any]) -> str:
         for p in m["progressive"]:
             lines.append(f"    through skill {p['through']}    {cell(p)}")
         lines.append(f"    Navigate success   {cell(m['navigate_success'])}")
+        lines.append(f"    Navigate hand-over {cell(m['navigate_handover'])}")
         lines.append(f"    Navigate SPL       {cell(m['navigate_spl'])}")
+    if "seeds" in doc:
+        seeds = doc["seeds"]
+        each = ", ".join(f"{m['k']}/{m['n']}" for m in seeds["per_seed"])
+        lines.append(f"  {seeds['members']} training seeds: skill completion pooled {cell(seeds['pooled'])}; per seed {each}")
     if doc["skipped"]:
         lines.append(f"  skipped (no solvable layout): {doc['skipped']}")
     lines.append(f"  wall time {doc['wall_seconds']:.1f} s on {doc['workers']} worker(s)")
@@ -69,7 +74,7 @@ def _check_targets(json_out: Path | None, video: Path | None, resume: bool, spli
 
 def run_evaluate(
     recipe: Recipe, recipe_path: Path, split: str, n: int, policy: str | tuple[str, ...], planner: str, workers: int, json_out: Path | None, video: Path | None,
-    resume: bool = False,
+    resume: bool = False, drive_end: str = "handover",
 ) -> int:
     """`echo-data evaluate`: 0 when the results are written, 2 for bad input (one line on stderr).
 
@@ -82,7 +87,9 @@ def run_evaluate(
     from echo_data.agents.runtime import RUNTIME_OBSERVATIONS, AgentActionError
     from echo_data.envs.env import observation_space
     from echo_data.evaluation.journal import Journal, JournalError, journal_path
+    from echo_data.evaluation.rendered import rendering
     from echo_data.evaluation.run import evaluate
+    from echo_data.evaluation.seeds import SeedSpecError, split_members
 
     size = recipe.splits.get(split)
     if size is None:
@@ -101,12 +108,16 @@ def run_evaluate(
     if not isinstance(policy, str) and not is_composite(policy):
         policy = policy[0]  # one plain policy: as before
     try:
-        pol, plan = load_policy(policy), load_planner(planner)
-        known = (*observation_space(recipe).spaces, *RUNTIME_OBSERVATIONS)  # GOAL_POSE, privileged: the runtime adds them
-        check_observations(pol, f"policy {spec_name(policy)!r}", known)
+        members = split_members(policy)  # one per training seed (`evaluation.seeds`)
+        pols, plan = [load_policy(m) for m in members], load_planner(planner)
+        known = (*observation_space(rendering(recipe, *pols, plan)).spaces, *RUNTIME_OBSERVATIONS)  # GOAL_POSE, privileged: the runtime adds them
+        for pol, member in zip(pols, members, strict=True):
+            check_observations(pol, f"policy {spec_name(member)!r}", known)
         check_observations(plan, f"planner {planner!r}", known)
-        key = {"recipe": recipe.content_hash(), "split": split, "policy": identity(pol, policy), "planner": identity(plan, planner), "video": video is not None}
-    except AgentLoadError as e:
+        shown = [identity(p, m) for p, m in zip(pols, members, strict=True)]
+        key = {"recipe": recipe.content_hash(), "split": split, "policy": shown[0] if len(shown) == 1 else shown,
+               "planner": identity(plan, planner), "video": video is not None, "drive_end": drive_end}
+    except (AgentLoadError, SeedSpecError) as e:
         return _fail(str(e))
     journal = None
     if json_out is not None:
@@ -130,7 +141,7 @@ def run_evaluate(
 
     finished = False
     try:
-        doc = evaluate(recipe, recipe_path.resolve(), split, n, policy, planner, workers, video, progress=tick, done=done)
+        doc = evaluate(recipe, recipe_path.resolve(), split, n, policy, planner, workers, video, progress=tick, done=done, drive_end=drive_end)
         finished = True
     except (AgentActionError, AgentLoadError) as e:
         bar.close()  # before the error line, so it stands alone

@@ -29,6 +29,19 @@ def journal_path(json_out: Path) -> Path:
     return json_out.with_name(json_out.stem + SUFFIX)
 
 
+# What every journal line after the header holds: a scored episode (evaluation.run.episode_record)
+# or a skipped one.
+EPISODE_KEYS = ("index", "episode_id", "setting", "true_chain", "planned_chain", "plan_correct", "skills", "skills_completed",
+                "success", "steps", "navigate")
+
+
+def is_episode_record(rec: Any) -> bool:
+    """Whether `rec` is a record `evaluate` wrote: an episode's outcome or its skip."""
+    if not isinstance(rec, dict) or not isinstance(rec.get("index"), int) or isinstance(rec["index"], bool) or rec["index"] < 0:
+        return False
+    return "skipped" in rec or all(k in rec for k in EPISODE_KEYS)
+
+
 def _read(path: Path, key: dict[str, Any]) -> tuple[dict[int, dict[str, Any]], int]:
     """(records by index, bytes of whole lines) of an existing record file of evaluation `key`."""
     data = path.read_bytes()
@@ -40,16 +53,20 @@ def _read(path: Path, key: dict[str, Any]) -> tuple[dict[int, dict[str, Any]], i
         head = None
     if not isinstance(head, dict) or "evaluation" not in head:
         raise JournalError(f"{path}: not an evaluation record file (first line is not its header)")
+    if not isinstance(head["evaluation"], dict):
+        raise JournalError(f"{path}: not an evaluation record file (its header names no evaluation)")
     if head["evaluation"] != key:
         diff = sorted(k for k in set(key) | set(head["evaluation"]) if key.get(k) != head["evaluation"].get(k))
         raise JournalError(f"{path}: records of a different evaluation ({', '.join(diff)} differ); delete it to start over")
     records: dict[int, dict[str, Any]] = {}
     size = len(whole[0]) + 1
-    for line in whole[1:]:
+    for number, line in enumerate(whole[1:], start=2):
         try:
             rec = json.loads(line)
         except ValueError:
             break  # torn inside (a kill between write and fsync on another filesystem): keep what precedes
+        if not is_episode_record(rec):
+            raise JournalError(f"{path}: line {number} is not an episode record (no integer 'index' and outcome); delete the file to start over")
         records[int(rec["index"])] = rec
         size += len(line) + 1
     return records, size

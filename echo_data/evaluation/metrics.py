@@ -8,6 +8,8 @@
   episodes whose chain has at least p skills (Habitat-style latched stages);
 - Navigate success: the Navigate skill's success test, over every Navigate skill attempted (a
   skill is attempted when the plan is right and the skills before it succeeded);
+- Navigate hand-over: the share of attempted Navigate skills that ended inside the next skill's
+  stance (docs/handover.md), the paper's success region being the wider one;
 - Navigate SPL: S * l / max(l, p) per attempted Navigate skill (Anderson et al. 2018, "On
   Evaluation of Embodied Navigation Agents"), l = the navigation expert's planned path from where
   the skill started, p = the path the base drove.
@@ -20,6 +22,8 @@ from __future__ import annotations
 
 import math
 from typing import Any
+
+from echo_data.skill_table import role_of
 
 Z95 = 1.959963984540054  # two-sided 95 % standard normal quantile
 
@@ -54,7 +58,7 @@ def mean_interval(xs: list[float]) -> dict[str, Any]:
 
 def without_receptacle(chain: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """`chain` with the target of every Place step blanked (None), every step kept."""
-    return [dict(c, target=None) if c["skill"] == "Place" else c for c in chain]
+    return [dict(c, target=None) if role_of(c["skill"]) == "deliver" else c for c in chain]
 
 
 def plan_right_without_receptacle(planned: list[dict[str, Any]] | None, true: list[dict[str, Any]]) -> bool:
@@ -85,6 +89,7 @@ def summarise(episodes: list[dict[str, Any]]) -> dict[str, Any]:
         "skill_completion": proportion(done, n),
         "progressive": progressive,
         "navigate_success": proportion(sum(nav), len(nav)),
+        "navigate_handover": proportion(sum(bool(nv.get("handed_over")) for e in episodes for nv in e["navigate"]), len(nav)),
         "navigate_spl": mean_interval(spl),
         "mean_steps": sum(e["steps"] for e in episodes) / n if n else None,
         "seconds": sum(e.get("seconds", 0.0) for e in episodes),

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,6 +36,8 @@ class EvalJob:
     policy: str | tuple[str, ...]  # a tuple: one policy per skill (`echo_data.agents.compose`)
     planner: str
     video_dir: str | None = None
+    drive_end: str = "handover"  # how a learned drive that does not STOP ends (`agents.runtime.DRIVE_ENDS`)
+    member: int | None = None  # which training seed's runs act (`evaluation.seeds`); None: a single training
 
 
 RESULT_KEYS = ("recipe", "split", "n", "policy", "planner", "versions", "metrics", "episodes")  # evaluate's document
@@ -83,7 +85,9 @@ def _worker_state(job: EvalJob) -> tuple[Any, Any, Any]:
         images, audio = needs(policy, planner)
         if job.video_dir:
             images = audio = True
-        env = EchoDataEnv(job.recipe, split=job.split, images=images, audio=audio, recipe_dir=job.recipe_dir)
+        from echo_data.evaluation.rendered import rendering
+
+        env = EchoDataEnv(rendering(job.recipe, policy, planner), split=job.split, images=images, audio=audio, recipe_dir=job.recipe_dir)
         _WORKER.update(job=job, env=env, policy=policy, planner=planner)
     return _WORKER["env"], _WORKER["policy"], _WORKER["planner"]
 
@@ -107,7 +111,8 @@ def episode_record(run: Any, index: int) -> dict[str, Any]:
              "expert_length": None if r.expert_length != r.expert_length else round(r.expert_length, 6),
              "spl": None if r.expert_length != r.expert_length else round(r.spl, 6),
              **{k: None if v != v else round(v, 6) for k, v in (("goal_distance", r.goal_distance), ("heading_error", r.heading_error),
-                                                                 ("arm_moved", r.arm_moved))}}
+                                                                 ("arm_moved", r.arm_moved))},
+             "handed_over": r.handed_over}
             for r in run.navigate
         ],
         "failure": run.failure,
@@ -133,7 +138,7 @@ def evaluate_episode(job: EvalJob, index: int) -> dict[str, Any]:
     obs, info = env.reset(options={"spec": spec})
     video = _VideoRecorder(env) if job.video_dir else None
     try:
-        run = run_episode(env, obs, info, planner, policy, on_step=video)
+        run = run_episode(env, obs, info, planner, policy, on_step=video, drive_end=job.drive_end)
     except AgentActionError:
         raise
     except Exception as e:  # the agent's own code failed mid-episode: that episode fails, the evaluation goes on
@@ -146,6 +151,8 @@ def evaluate_episode(job: EvalJob, index: int) -> dict[str, Any]:
         if callable(close):
             close()
     rec = episode_record(run, index)
+    if job.member is not None:
+        rec["member"] = job.member
     if video is not None and video.frames:
         rec["video"] = video.write(video_path(Path(job.video_dir), spec.episode_id))  # type: ignore[arg-type]
     rec["seconds"] = time.perf_counter() - t0
@@ -209,15 +216,18 @@ def _evaluate_index(index: int) -> dict[str, Any]:
 
 def run_episodes(
     job: EvalJob, n: int, workers: int = 1, progress: Callable[[dict[str, Any]], None] | None = None, done: dict[int, dict[str, Any]] | None = None,
+    indices: Sequence[int] | None = None,
 ) -> list[dict[str, Any]]:
-    """Episodes 0..n-1 of the split, on `workers` processes (the build's pool); records ordered by index.
+    """Episodes 0..n-1 of the split (or those of `indices`), on `workers` processes (the build's
+    pool); records ordered by index.
 
     `done`: records already finished (a resumed evaluation): those episodes are not run again.
     `progress` is called with each newly finished record as it completes."""
     from echo_data.app.executors import make_executor
 
-    out = {i: r for i, r in (done or {}).items() if i < n}
-    todo = [i for i in range(n) if i not in out]
+    wanted = list(range(n)) if indices is None else list(indices)
+    out = {i: r for i, r in (done or {}).items() if i in set(wanted)}
+    todo = [i for i in wanted if i not in out]
     pool = make_executor("local", max(1, min(workers, len(todo))), _set_job, (job,)) if todo else None
     try:
         for rec in pool.imap_unordered(_evaluate_index, todo) if pool is not None else ():
@@ -227,7 +237,7 @@ def run_episodes(
     finally:
         if pool is not None:
             pool.close()
-    return [out[i] for i in range(n)]
+    return [out[i] for i in wanted]
 
 
 def _shown_path(path: Path) -> str:
@@ -249,27 +259,42 @@ def evaluate(
     video_dir: Path | None = None,
     progress: Callable[[dict[str, Any]], None] | None = None,
     done: dict[int, dict[str, Any]] | None = None,
+    drive_end: str = "handover",
 ) -> dict[str, Any]:
     """The results document: metrics per setting, per-episode outcomes, what was evaluated.
 
-    `done`: records of episodes already finished (`evaluation.journal`), not run again."""
+    `done`: records of episodes already finished (`evaluation.journal`), not run again;
+    `drive_end`: how a learned drive that does not STOP ends (`agents.runtime.DRIVE_ENDS`)."""
+    from echo_data.agents.compose import spec_name
     from echo_data.agents.loading import identity, load_planner, load_policy
     from echo_data.dataset.manifest import versions
     from echo_data.evaluation.metrics import by_setting
+    from echo_data.evaluation.seeds import member_of, per_seed, split_members
 
-    pol, plan = load_policy(policy), load_planner(planner)  # fail fast, in this process
+    members = split_members(policy)  # one per training seed (`evaluation.seeds`)
+    pols, plan = [load_policy(m) for m in members], load_planner(planner)  # fail fast, in this process
     if not isinstance(policy, str):
         policy = tuple(policy)
-    job = EvalJob(recipe, str(recipe_path.parent) if recipe_path else None, split, policy, planner, str(video_dir) if video_dir else None)
     t0 = time.perf_counter()
-    episodes = run_episodes(job, n, workers, progress, done)
+    episodes: list[dict[str, Any]] = []
+    for j, member in enumerate(members):
+        job = EvalJob(recipe, str(recipe_path.parent) if recipe_path else None, split, member, planner, str(video_dir) if video_dir else None,
+                      drive_end, j if len(members) > 1 else None)
+        episodes += run_episodes(job, n, workers, progress, done, indices=[i for i in range(n) if member_of(i, len(members)) == j])
+    episodes.sort(key=lambda e: e["index"])
     scored = [e for e in episodes if "skipped" not in e]
-    return {
+    shown = identity(pols[0], members[0]) if len(members) == 1 else {
+        "name": spec_name(policy), "members": [identity(p, m) for p, m in zip(pols, members, strict=True)]}
+    from echo_data.evaluation.provenance import weights
+
+    doc = {
         "recipe": {"name": recipe.name, "path": _shown_path(recipe_path) if recipe_path else None, "content_hash": recipe.content_hash()},
         "split": split,
         "n": n,
-        "policy": identity(pol, policy),
+        "policy": shown,
         "planner": identity(plan, planner),
+        "weights": weights(shown, identity(plan, planner)),  # per skill and the planner: SHA-256 of the weights acted with
+        "drive_end": drive_end,
         "versions": versions(),
         "metrics": by_setting(scored),
         "skipped": [e["index"] for e in episodes if "skipped" in e],
@@ -277,3 +302,6 @@ def evaluate(
         "wall_seconds": time.perf_counter() - t0,
         "workers": workers,
     }
+    if len(members) > 1:
+        doc["seeds"] = per_seed(episodes, len(members))
+    return doc

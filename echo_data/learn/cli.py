@@ -3,6 +3,7 @@ algorithm's config) and the audio planner (needs the torch extra)."""
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import json
 import types
@@ -16,15 +17,6 @@ import typer
 from echo_data.targets import write_failed
 
 train_app = typer.Typer(add_completion=False, no_args_is_help=True, help="Train reference policies on a dataset (needs the torch extra).")
-
-_Dataset = Annotated[Path, typer.Argument(metavar="DATASET", help="Dataset folder (out/<name>).")]
-_Epochs = Annotated[int | None, typer.Option("--epochs", min=1, help="Passes over the training rows.")]
-_Seed = Annotated[int, typer.Option("--seed", help="Seed of initialisation, split and batch order.")]
-_Resume = Annotated[bool, typer.Option("--resume", help="Continue the run in --out from its last checkpoint.")]
-_Overwrite = Annotated[bool, typer.Option("--overwrite", help="Replace the run in --out.")]
-_MaxSteps = Annotated[int | None, typer.Option("--max-steps", min=1, help="Stop after this many optimiser steps (checkpointed).")]
-_Threads = Annotated[int, typer.Option("--threads", min=1, help="torch CPU threads (results are reproducible for a fixed count; 1 is fastest on a busy machine).")]
-_Progress = Annotated[bool, typer.Option("--progress/--no-progress", help="Show progress bars.")]
 
 
 def _fail(message: str) -> typer.Exit:
@@ -40,15 +32,6 @@ def _errors() -> tuple[type[Exception], ...]:
     from echo_data.targets import TargetError
 
     return (FeatureError, RunError, TargetError, ManifestError, DamagedDataset)
-
-
-def _not_applying(ctx: typer.Context, needs: dict[str, tuple[bool, str]]) -> None:
-    """Refuse an option given on the command line where it has no effect (it would be stored in
-    the run's config as if it had mattered): `needs` maps a parameter to (applies, why not)."""
-    for name, (applies, why) in needs.items():
-        source = ctx.get_parameter_source(name)  # typer vendors its own click: match the enum by name
-        if not applies and source is not None and source.name == "COMMANDLINE":
-            raise _fail(f"--{name.replace('_', '-')}: does not apply {why}")
 
 
 def _check(dataset: Path, folder: Path) -> None:
@@ -82,6 +65,48 @@ def _option_type(hint: Any) -> Any:
     return args[0] if args and typing.get_origin(hint) in (typing.Union, types.UnionType) else hint
 
 
+def _flag(name: str, hint: Any) -> str:
+    """A field's option name: "--train-frames"; a switch both ways: "--augment/--no-augment"."""
+    flag = name.replace("_", "-")
+    return f"--{flag}/--no-{flag}" if _option_type(hint) is bool else f"--{flag}"
+
+
+def _dataset_argument() -> inspect.Parameter:
+    return inspect.Parameter("dataset", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation=Path,
+                             default=typer.Argument(..., metavar="DATASET", help="Dataset folder (out/<name>)."))
+
+
+def _run_folder_options(default_out: str) -> list[inspect.Parameter]:
+    """--out, --resume, --overwrite, --progress: every learner's run-folder options."""
+    kw = inspect.Parameter.KEYWORD_ONLY
+    return [
+        inspect.Parameter("out", kw, annotation=Path | None, default=typer.Option(None, "--out", help=f"Run folder (default {default_out}).")),
+        inspect.Parameter("resume", kw, annotation=bool, default=typer.Option(False, "--resume", help="Continue the run in --out from its last checkpoint.")),
+        inspect.Parameter("overwrite", kw, annotation=bool, default=typer.Option(False, "--overwrite", help="Replace the run in --out.")),
+        inspect.Parameter("progress", kw, annotation=bool, default=typer.Option(True, "--progress/--no-progress", help="Show progress bars.")),
+    ]
+
+
+def _field_default(f: Any) -> Any:
+    return f.default_factory() if f.default is dataclasses.MISSING else f.default
+
+
+def _field_options(cls: type, fields: list[Any]) -> list[inspect.Parameter]:
+    """One keyword option per config field (its `opt` help, bounds and default): the options of
+    every `echo-data train` learner are generated here from its config class. Each defaults to
+    None on the command line, so a value the user gave is told apart from the config's default."""
+    hints = typing.get_type_hints(cls)
+    params = []
+    for f in fields:
+        default = _field_default(f)
+        shown = ",".join(default) if isinstance(default, tuple) else default
+        help_text = f.metadata["help"] + (" (required)" if f.metadata.get("required") else f" (default {shown})")
+        bounds = {k: f.metadata[k] for k in ("min", "max") if k in f.metadata}
+        params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, annotation=_option_type(hints[f.name]) | None,
+                                        default=typer.Option(None, _flag(f.name, hints[f.name]), help=help_text, show_default=False, **bounds)))
+    return params
+
+
 def _read_config_file(path: Path) -> dict[str, Any]:
     """--config FILE: a JSON or YAML mapping of option names (underscores or dashes) to values."""
     import yaml
@@ -102,33 +127,22 @@ def _make_train_command(name: str) -> Callable[..., None]:
 
     algo = algorithm(name)
     cls = algo.config
-    hints = typing.get_type_hints(cls)
     fields = cls.options()
-    params = [inspect.Parameter("dataset", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation=Path,
-                                default=typer.Argument(..., metavar="DATASET", help="Dataset folder (out/<name>)."))]
-    for f in fields:
-        default = cls.default_of(f)
-        shown = ",".join(default) if isinstance(default, tuple) else default
-        help_text = f.metadata["help"] + (" (required)" if f.metadata.get("required") else f" (default {shown})")
-        params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, annotation=_option_type(hints[f.name]) | None,
-                                        default=typer.Option(None, f"--{f.name.replace('_', '-')}", help=help_text, show_default=False)))
+    params = [_dataset_argument()]
+    params += _field_options(cls, fields)
     params += [
         inspect.Parameter("config", inspect.Parameter.KEYWORD_ONLY, annotation=Path | None,
                           default=typer.Option(None, "--config", help="JSON or YAML file of option values (the command line wins).")),
-        inspect.Parameter("out", inspect.Parameter.KEYWORD_ONLY, annotation=Path | None,
-                          default=typer.Option(None, "--out", help=f"Run folder (default runs/{name}-<skill>-<inputs>).")),
-        inspect.Parameter("resume", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(False, "--resume", help="Continue the run in --out from its last checkpoint.")),
-        inspect.Parameter("overwrite", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(False, "--overwrite", help="Replace the run in --out.")),
-        inspect.Parameter("progress", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(True, "--progress/--no-progress", help="Show progress bars.")),
+        *_run_folder_options(f"runs/{name}-<skill>-<inputs>"),
     ]
     if name == "bc":
         params += [
             inspect.Parameter("dagger", inspect.Parameter.KEYWORD_ONLY, annotation=int, default=typer.Option(
-                0, "--dagger", min=0, help="DAgger rounds after BC (Navigate only): roll the learner on train episodes, label with the expert, retrain. With --resume: start from the BC run in --out.")),
+                0, "--dagger", min=0, help="DAgger rounds after BC: roll the learner on train episodes (from where the experts hand its skill over), label every state with the expert, retrain. With --resume: start from the BC run in --out.")),
             inspect.Parameter("dagger_episodes", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
                 None, "--dagger-episodes", min=1, help="Train episodes rolled per DAgger round (default 8).")),
             inspect.Parameter("dagger_steps", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
-                None, "--dagger-steps", min=1, help="Learner steps per rollout (default: the Navigate budget).")),
+                None, "--dagger-steps", min=1, help="Learner steps per rollout (default: the skill's budget).")),
         ]
 
     def command(**kw: Any) -> None:
@@ -192,52 +206,53 @@ def register_algorithms() -> None:
 register_algorithms()
 
 
-@train_app.command("planner")
-def planner_cmd(
-    ctx: typer.Context,
-    dataset: _Dataset,
-    inputs: Annotated[str, typer.Option("--inputs", help="Comma list of audio, image (first head RGB frame).")] = "audio",
-    audio: Annotated[str, typer.Option("--audio", help="Audio feature: mel (64 bands x 101 frames) or spectrogram (SoundSpaces 65 x 26).")] = "mel",
-    train_frames: Annotated[int, typer.Option("--train-frames", min=1, help="Frames 0..N-1 of each training episode are training examples (test: frame 0).")] = 10,
-    train_episodes: Annotated[int | None, typer.Option("--train-episodes", min=1, help="Train on a seeded subset of N train episodes (learning curves).")] = None,
-    val_by: Annotated[str, typer.Option("--val-by", help="Validation: episodes (held-out train episodes) or sounds (episodes of held-out train sound instances, unheard like the test's).")] = "episodes",
-    select: Annotated[str, typer.Option("--select", help="Checkpoint kept: lowest validation loss (loss) or highest validation accuracy of the events in order, single- and multi-event episodes weighing half each (accuracy).")] = "loss",
-    augment: Annotated[bool, typer.Option("--augment/--no-augment", help="Augment training audio: pitch shift, gain, SpecAugment masks.")] = False,
-    encoder: Annotated[str, typer.Option("--encoder", help="Audio encoder: flat (SoundSpaces' CNN, flattened) or pooled (batch-normed CNN pooled over time).")] = "flat",
-    order: Annotated[str, typer.Option("--order", help="Order of the sounding events: learned (priority scores) or priority (the recipe's priority rule from the manifest).")] = "learned",
-    mix: Annotated[float, typer.Option("--mix", min=0.0, max=0.99, help="Share of single-event training rows mixed with a single event of the other kind (state + relocation) into a multi-event example; 0 = off.")] = 0.0,
-    epochs: _Epochs = None,
-    seed: _Seed = 0,
-    out: Annotated[Path | None, typer.Option("--out", help="Run folder (default runs/planner-<inputs>).")] = None,
-    max_steps: _MaxSteps = None,
-    threads: _Threads = 1,
-    resume: _Resume = False,
-    overwrite: _Overwrite = False,
-    progress: _Progress = True,
-) -> None:
-    """Train the planner on the train split, choosing on validation; prints and saves eval.json. The test split is not read: `echo-data evaluate-planner RUN` scores it."""
-    _need_torch()
-    from echo_data.learn.algos.base import SEED_LIMIT
-    from echo_data.learn.features import PLANNER_INPUTS, parse_inputs
-    from echo_data.learn.planner import PlannerConfig, train_planner
+def _make_planner_command() -> Callable[..., None]:
+    """`echo-data train planner`: one option per `opt` field of `PlannerConfig` (like the skill
+    learners'), plus the run-folder options."""
+    from echo_data.learn.planner_config import PlannerConfig
 
-    try:
-        names = parse_inputs(inputs, PLANNER_INPUTS)
-        if not 0 <= seed < SEED_LIMIT:
-            raise _fail(f"--seed {seed}: must be within [0, 2**64)")
-        _not_applying(ctx, {name: ("audio" in names, "without audio in --inputs") for name in ("audio", "augment", "encoder", "mix")})
-        folder = out or Path("runs") / f"planner-{'-'.join(names)}"
-        cfg = PlannerConfig(str(dataset), names, seed=seed, audio=audio, max_steps=max_steps, threads=threads, train_frames=train_frames, train_episodes=train_episodes,
-                            val_by=val_by, select=select, augment=augment, encoder=encoder, order=order, mix=mix)
-        if epochs is not None:
-            cfg.epochs = epochs
-        _check(dataset, folder)
-        report = train_planner(cfg, folder, resume=resume, overwrite=overwrite, progress=progress)
-    except _errors() as e:
-        raise _fail(str(e)) from None
-    except OSError as e:
-        raise _fail(write_failed("--out", folder, e)) from None
-    typer.echo(json.dumps(report, indent=1))
+    fields = PlannerConfig.options()
+    params = [_dataset_argument()]
+    params += _field_options(PlannerConfig, fields)
+    params += _run_folder_options("runs/planner-<inputs>")
+
+    def command(**kw: Any) -> None:
+        _need_torch()
+        from echo_data.learn.algos.base import SEED_LIMIT
+        from echo_data.learn.features import PLANNER_INPUTS, parse_inputs
+        from echo_data.learn.planner import train_planner
+
+        values = {f.name: kw[f.name] for f in fields if kw[f.name] is not None}
+        dataset = kw["dataset"]
+        folder = kw["out"] or Path("runs")
+        try:
+            inputs = values.pop("inputs", ",".join(_field_default(next(f for f in fields if f.name == "inputs"))))
+            names = parse_inputs(inputs, PLANNER_INPUTS)
+            seed = values.get("seed", 0)
+            if not 0 <= seed < SEED_LIMIT:
+                raise _fail(f"--seed {seed}: must be within [0, 2**64)")
+            for f in fields:  # an audio option given without audio would be stored as if it had mattered
+                if f.metadata.get("needs_audio") and f.name in values and "audio" not in names:
+                    raise _fail(f"--{f.name.replace('_', '-')}: does not apply without audio in --inputs")
+            folder = kw["out"] or Path("runs") / f"planner-{'-'.join(names)}"
+            cfg = PlannerConfig(str(dataset), names, **values)
+            _check(dataset, folder)
+            report = train_planner(cfg, folder, resume=kw["resume"], overwrite=kw["overwrite"], progress=kw["progress"])
+        except _errors() as e:
+            raise _fail(str(e)) from None
+        except OSError as e:
+            raise _fail(write_failed("--out", folder, e)) from None
+        typer.echo(json.dumps(report, indent=1))
+
+    command.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
+    command.__annotations__ = {p.name: p.annotation for p in params}
+    command.__doc__ = ("Train the planner on the train split, choosing on validation; prints and saves eval.json. "
+                       "The test split is not read: `echo-data evaluate-planner RUN` scores it.")
+    command.__name__ = "train_planner"
+    return command
+
+
+train_app.command("planner")(_make_planner_command())
 
 
 def evaluate_planner_cmd(
@@ -246,7 +261,7 @@ def evaluate_planner_cmd(
 ) -> None:
     """Score a trained planner on its dataset's test split (unheard sounds), once its options are chosen on validation; prints and saves RUN/test.json."""
     _need_torch()
-    from echo_data.learn.planner import score_test
+    from echo_data.learn.planner_score import score_test
 
     try:
         report = score_test(run, dataset)

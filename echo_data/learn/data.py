@@ -20,7 +20,7 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from echo_data.dataset.encode import decode_pngs
-from echo_data.dataset.reader import DatasetMeta, StepReader
+from echo_data.dataset.reader import DatasetMeta, StepReader, episodes_table
 from echo_data.dataset.schema import ACTION, IMAGE_COLUMNS, SKILL_STOP, STATE, StepLayout, column_to_numpy
 from echo_data.learn.features import FeatureError, FeatureSpec, canonical, kind_index, prepare
 from echo_data.records import STATE_DIM
@@ -88,7 +88,7 @@ def skills_in(dataset: Path, split: str) -> list[str]:
 
 def chain_kinds(dataset: Path, split: str) -> dict[tuple[int, int], str]:
     """(episode_index, skill_index) -> the target kind of that chain entry, for one split."""
-    table = pq.read_table(dataset / "meta" / "episodes.parquet", columns=["episode_index", "split", "chain"])
+    table = episodes_table(dataset, ["episode_index", "split", "chain"])
     out: dict[tuple[int, int], str] = {}
     for ep, sp, chain in zip(*(table.column(c).to_pylist() for c in ("episode_index", "split", "chain")), strict=True):
         if sp == split:
@@ -98,7 +98,7 @@ def chain_kinds(dataset: Path, split: str) -> dict[tuple[int, int], str]:
 
 def skill_kinds(dataset: Path, split: str, skill: str) -> tuple[str, ...]:
     """The target kinds `skill` serves in a split (sorted): the "kind" input's vocabulary."""
-    table = pq.read_table(dataset / "meta" / "episodes.parquet", columns=["split", "chain"])
+    table = episodes_table(dataset, ["split", "chain"])
     return tuple(sorted({str(c["target_kind"]) for sp, chain in zip(*(table.column(c).to_pylist() for c in ("split", "chain")), strict=True)
                          if sp == split for c in chain if c["skill"] == skill}))
 

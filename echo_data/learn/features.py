@@ -51,7 +51,7 @@ YAW = STATE_NAMES.index("base_yaw")
 # gripper opening stay as they are), normalised with the statistics of the skill's own training
 # rows. Why: an absolute target is the measured joint plus a small step, so a network fed the
 # joints learns to copy them and under-steps, and closed loop the arm slows to a stop short of
-# the object (measured: benchmarks/skill_trace.py on a Pick run, docs/learners.md); the change
+# the object (measured: the skill-trace study on a Pick run, docs/learners.md); the change
 # cannot be copied from the input. The stored `action` column is untouched: the form is the run's.
 ACTION_FORMS = ("absolute", "delta")
 DELTA_JOINTS = ("torso",) + tuple(f"arm_{i}" for i in range(7))
@@ -193,10 +193,10 @@ def feature_spec(
 
 def stored_sides(dataset: Path, inputs: tuple[str, ...]) -> dict[str, tuple[int, int]]:
     """(H, W) of each image input as the dataset stores it (manifest layout)."""
-    from echo_data.dataset.schema import StepLayout
+    from echo_data.dataset.reader import DatasetMeta
 
     try:
-        layout = StepLayout.from_dict(json.loads((dataset / "manifest.json").read_text())["layout"])
+        layout = DatasetMeta.of(dataset).layout
     except (OSError, ValueError, KeyError) as e:
         raise FeatureError(f"{dataset / 'manifest.json'}: cannot read the step layout ({e})") from None
     cols = {"depth": HEAD_DEPTH, "wrist_depth": WRIST_DEPTH, "rgb": HEAD_RGB, "image": HEAD_RGB}

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from echo_data.dataset.reader import dataset_manifest
 from echo_data.learn import runs
 from echo_data.learn.algos import build_model, config_from_run
 from echo_data.learn.algos.base import SkillConfig, held_entries
@@ -29,7 +30,7 @@ from echo_data.learn.data import SkillRows, append_rows, count_rows, load_skill_
 from echo_data.learn.features import ACTION_FORMS, FeatureSpec, feature_spec, to_action_form
 from echo_data.learn.loop import LoopConfig, fit, setup_torch
 
-POLICY_CLASS = "echo_data.learn.policy:SkillPolicy"
+POLICY_CLASS = runs.POLICY_CLASS
 IMAGE_INPUTS = ("depth", "wrist_depth", "rgb", "image")
 # What a resumed run must share with the run it continues.
 SAME_RUN = ("dataset", "skill", "inputs", "seed", "audio_form", "action_form", "action_column", "algo", "stop")
@@ -53,11 +54,7 @@ def resolve(cfg: SkillConfig) -> SkillConfig:
 
     cfg.check()
     root = Path(cfg.dataset)
-    if not (root / "manifest.json").is_file():
-        raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)")
-    manifest = runs.read_json(root / "manifest.json")
-    if "train" not in manifest.get("splits", {}):
-        raise runs.RunError(f"{root / 'manifest.json'}: no 'train' split to learn from")
+    manifest = dataset_manifest(root, "train", "to learn from")
     if cfg.action_form not in ACTION_FORMS:
         raise runs.RunError(f"--action-form: unknown form {cfg.action_form!r}; choose from {', '.join(ACTION_FORMS)}")
     if cfg.action_form == "delta" and not {"state", "state_raw"} & set(cfg.inputs):
@@ -150,6 +147,7 @@ def shifted(x: Any, shift: int, rng: np.random.Generator) -> Any:
 
 def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bool = False, progress: bool = True, extra: Any = None) -> dict[str, Any]:
     """Train (or continue) a skill run in `out`; returns the summary also printed by the CLI.
+    Long because setup, resume, the epoch loop and the closing summary share one run's state.
 
     `extra` (DAgger's labelled rollouts: `inputs`, `actions` (n, 1, A)) is appended to the
     training rows, never to validation."""

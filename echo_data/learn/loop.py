@@ -42,7 +42,7 @@ def setup_torch(seed: int, threads: int) -> Any:
     other (measured here: 1.7 s per BC step with 2 threads against 0.22 s with 1). On CUDA too:
     two seeded ACT and diffusion runs on an H200 gave identical weights; ACT's attention backward
     then takes torch's deterministic kernel, 5x slower than the default one (2,738 against 13,559
-    samples/s, benchmarks/results/gpu_figures.json) and still 6x one CPU thread."""
+    samples/s, the GPU figures in the benchmarks' results) and still 6x one CPU thread."""
     import torch
 
     torch.set_num_threads(threads)

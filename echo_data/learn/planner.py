@@ -17,82 +17,26 @@ tuned by looking at test figures.
 
 from __future__ import annotations
 
-import json
 import math
 from collections import Counter
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow.parquet as pq
 
-from echo_data import seeds
+from echo_data.dataset.reader import dataset_manifest
 from echo_data.evaluation.metrics import plan_right_without_receptacle
 from echo_data.learn import runs
-from echo_data.learn.data import Shards, prepare_rows, split_episodes
+from echo_data.learn.data import split_episodes
 from echo_data.learn.features import FeatureSpec, feature_spec
 from echo_data.learn.loop import LoopConfig, fit, setup_torch
 from echo_data.learn.metrics import rate
+from echo_data.learn.planner_config import PlannerConfig
+from echo_data.learn.planner_data import Episodes, chain_of, chosen_episodes, episode_rows, learn_templates, load_episodes
+from echo_data.skill_table import role_of
 
 PLANNER_CLASS = "echo_data.learn.policy:PlannerModel"
-
-
-@dataclass
-class PlannerConfig:
-    dataset: str
-    inputs: tuple[str, ...] = ("audio",)
-    epochs: int = 60
-    seed: int = 0
-    batch_size: int = 32
-    lr: float = 1e-3
-    weight_decay: float = 1e-4
-    val_fraction: float = 0.15
-    threads: int = 1  # see loop.setup_torch: more threads than free cores is many times slower
-    image_size: int = 64
-    audio: str = "mel"
-    max_steps: int | None = None
-    # Training also reads frames 1..train_frames-1 of each training episode (the windows of the
-    # first seconds, all events still sounding): more views of each scene for few episodes.
-    # Validation and test read frame 0 only, the planner's input.
-    train_frames: int = 10
-    # A seeded subset of the train split's episodes (None: all), for learning curves.
-    train_episodes: int | None = None
-    # What validates: "episodes" (a seeded 15 % of train episodes, which hear the training sound
-    # instances) or "sounds" (a seeded share of each category's train instances is held out; the
-    # episodes that play only held-out instances validate, those that play none train, the rest
-    # are left out), so that validation, like the test split, hears instances never trained on.
-    val_by: str = "episodes"
-    # Which validation score picks best.pt: "loss" (lowest) or "accuracy" (events in order, highest).
-    select: str = "loss"
-    # Training-time augmentation of the audio input (see `augment_audio`): off by default.
-    augment: bool = False
-    # The audio encoder (models.AUDIO_ENCODERS): "flat" (SoundSpaces' CNN, flattened) or "pooled"
-    # (batch-normed blocks, pooled over time: a pattern counts wherever in the second it sounds).
-    encoder: str = "flat"
-    # How the sounding events are ordered: "learned" (the priority scores) or "priority" (the
-    # dataset recipe's priority rule, `events.priority` in the manifest, which the task states:
-    # the order is then a fixed function of the set and only the set must be heard).
-    order: str = "learned"
-    # The share of training examples replaced by a mix of two single-event training examples of
-    # a state and a relocation category (their powers summed, labels united): multi-event scenes
-    # the recipe composes, from voices of the single-event episodes. 0: off.
-    mix: float = 0.0
-    # Filled in by resolve():
-    features: dict[str, Any] = field(default_factory=dict)
-    audio_shape: list[int] | None = None
-    categories: list[str] = field(default_factory=list)
-    templates: dict[str, list[list[str]]] = field(default_factory=dict)  # category -> [[skill, target], ...]
-    val_episodes: list[int] = field(default_factory=list)
-    # The event sets (sorted categories) the training episodes hold, and how the answer is read
-    # from the logits (see `decode`): chosen after training on validation, written to config.json.
-    event_sets: list[list[str]] = field(default_factory=list)
-    decode: str = "threshold"
-    priority: list[str] = field(default_factory=list)  # the recipe's priority rule, most urgent first
-
-    @staticmethod
-    def from_dict(d: dict[str, Any]) -> PlannerConfig:
-        return PlannerConfig(**{**d, "inputs": tuple(d["inputs"])})
 
 
 VAL_BY = ("episodes", "sounds")
@@ -133,126 +77,11 @@ def augment_audio(x: Any, std_db: Any, rng: np.random.Generator) -> Any:
     return out
 
 
-def split_by_sounds(rows: list[dict[str, Any]], fraction: float, seed: int) -> tuple[set[int], set[int], list[str]]:
-    """(train episodes, validation episodes, held-out instances): per category a seeded
-    `fraction` of its train instances (at least one, never all) is held out; an episode
-    validates when every sound it plays is held out, trains when none is."""
-    by_cat: dict[str, set[str]] = {}
-    for r in rows:
-        for e in r["events"]:
-            by_cat.setdefault(e["category"], set()).add(e["sound_id"])
-    held: set[str] = set()
-    rng = seeds.derived_rng(seeds.HELD_OUT_SOUNDS, seed)
-    for cat in sorted(by_cat):
-        ids = sorted(by_cat[cat])
-        if len(ids) >= 2:
-            n = min(len(ids) - 1, max(1, int(round(fraction * len(ids)))))
-            held |= set(rng.permutation(ids)[:n].tolist())
-    train = {r["episode_index"] for r in rows if not any(e["sound_id"] in held for e in r["events"])}
-    val = {r["episode_index"] for r in rows if all(e["sound_id"] in held for e in r["events"])}
-    return train, val, sorted(held)
-
-
-@dataclass
-class Episodes:
-    """Inputs of the first frames of every episode in a split, and each row's labels."""
-
-    inputs: dict[str, Any]
-    index: np.ndarray  # episode_index
-    frame: np.ndarray  # frame_index
-    events: list[list[str]]  # categories in resolution order (priority 0 first)
-    chains: list[list[dict[str, str]]]  # the export's answer: [{"skill", "target"}, ...]
-    sounds: list[list[str]]  # sound instance ids
-
-
-def episode_rows(dataset: Path, split: str) -> list[dict[str, Any]]:
-    rows = pq.read_table(dataset / "meta" / "episodes.parquet").to_pylist()
-    return sorted((r for r in rows if r["split"] == split), key=lambda r: r["episode_index"])
-
-
-def _ordered_events(row: dict[str, Any]) -> list[dict[str, Any]]:
-    return sorted(row["events"], key=lambda e: e["priority"])
-
-
-def export_chain(row: dict[str, Any]) -> list[dict[str, str]]:
-    """The planner export's answer for an episode row (echo_data.dataset.planner.answer)."""
-    from echo_data.dataset.planner import answer
-
-    return json.loads(answer(row["chain"]))
-
-
-def learn_templates(rows: list[dict[str, Any]]) -> dict[str, list[list[str]]]:
-    """Per category, the most frequent (skill, target kind) sequence of its chain entries."""
-    seen: dict[str, Counter] = {}
-    for r in rows:
-        for k, ev in enumerate(r["events"]):
-            seq = tuple((c["skill"], c["target_kind"]) for c in r["chain"] if c["event"] == k)
-            seen.setdefault(ev["category"], Counter())[seq] += 1
-    return {cat: [list(p) for p in c.most_common(1)[0][0]] for cat, c in sorted(seen.items())}
-
-
-def chain_of(categories: list[str], templates: dict[str, list[list[str]]]) -> list[dict[str, str]]:
-    return [{"skill": s, "target": t} for cat in categories for s, t in templates.get(cat, [])]
-
-
-def chosen_episodes(cfg: PlannerConfig, meta: list[dict[str, Any]]) -> tuple[set[int], set[int] | None, list[str]]:
-    """(the train episodes the run reads, its validation episodes when drawn by sounds (None:
-    drawn from those read, by `split_episodes`), the held-out sound instances) of the train
-    split's rows `meta`: one place, so that scoring the test split later knows what was heard."""
-    chosen = subset([r["episode_index"] for r in meta], cfg.train_episodes, cfg.seed)
-    if cfg.val_by != "sounds":
-        return chosen, None, []
-    fit_eps, val_set, held = split_by_sounds([r for r in meta if r["episode_index"] in chosen], cfg.val_fraction, cfg.seed)
-    return fit_eps | val_set, val_set, held
-
-
-def subset(indices: list[int], n: int | None, seed: int) -> set[int]:
-    """The first `n` episodes of a permutation drawn from `seed` (all when `n` is None): a size
-    that mixes the settings (episode indices run setting by setting), nested across sizes so a
-    learning curve adds episodes to the same set."""
-    order = seeds.derived_rng(seeds.SUBSET, seed).permutation(sorted(indices))
-    return {int(i) for i in order[: len(order) if n is None else n]}
-
-
-def load_episodes(dataset: Path, split: str, spec: FeatureSpec, frames: int = 1, episodes: set[int] | None = None) -> Episodes:
-    """Frames 0..frames-1 of every episode of `split` (or of `episodes`) while its first skill runs
-    (no event is resolved before the first skill, a Navigate, ends), prepared with `features.prepare`."""
-    import torch
-
-    meta = {r["episode_index"]: r for r in episode_rows(dataset, split) if episodes is None or r["episode_index"] in episodes}
-    shards = Shards.of(dataset, split)
-    parts: dict[str, list[Any]] = {}
-    index: list[int] = []
-    frame: list[int] = []
-    for f in shards.files:
-        pf = pq.ParquetFile(f)
-        t = pf.read(columns=["episode_index", "frame_index", "skill_index"])
-        fr = t.column("frame_index").to_numpy()
-        keep = np.flatnonzero((fr < frames) & (t.column("skill_index").to_numpy() == 0) & np.isin(t.column("episode_index").to_numpy(), list(meta)))
-        index += t.column("episode_index").to_numpy()[keep].tolist()
-        frame += fr[keep].tolist()
-        for k, v in prepare_rows(pf, shards, keep, spec).items():
-            parts.setdefault(k, []).append(v)
-    rows = [meta[i] for i in index]
-    return Episodes(
-        inputs={k: torch.cat(v) for k, v in parts.items()},
-        index=np.asarray(index),
-        frame=np.asarray(frame),
-        events=[[e["category"] for e in _ordered_events(r)] for r in rows],
-        chains=[export_chain(r) for r in rows],
-        sounds=[[e["sound_id"] for e in r["events"]] for r in rows],
-    )
-
-
 def resolve(cfg: PlannerConfig) -> PlannerConfig:
     from echo_data.learn.models import audio_shape
 
     root = Path(cfg.dataset)
-    if not (root / "manifest.json").is_file():
-        raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)")
-    manifest = runs.read_json(root / "manifest.json")
-    if "train" not in manifest["splits"]:
-        raise runs.RunError(f"{root / 'manifest.json'}: no 'train' split (the planner trains on train)")
+    manifest = dataset_manifest(root, "train", "(the planner trains on train)")
     rows = episode_rows(root, "train")
     spec = feature_spec(root, cfg.inputs, audio=cfg.audio, image_size=cfg.image_size)
     shape = audio_shape(spec, manifest["layout"])
@@ -387,7 +216,8 @@ def mix_examples(a: Any, b: Any, ya: Any, yb: Any, std: Any, mean: Any, rank: di
 def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite: bool = False, progress: bool = True) -> dict[str, Any]:
     """Train on the train split and choose the checkpoint and decoder on validation (held-out
     train episodes); writes eval.json (validation figures only: the test split is not read, see
-    `score_test`) in the run folder and returns it."""
+    `planner_score.score_test`) in the run folder and returns it. Long because setup, resume, the
+    epoch loop and the choice of checkpoint and decoder share one run's state."""
     runs.check_out(out, resume, overwrite)
     if resume:
         saved = PlannerConfig.from_dict(runs.read_json(out / runs.CONFIG))
@@ -425,7 +255,7 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     audio_mean = torch.tensor(spec.audio_mean, dtype=torch.float32).view(1, -1, 1, 1)
     priority = cfg.priority if cfg.order == "priority" else None
     # Mixing partners: training rows of single-event episodes, by kind of event (state, relocation).
-    state_cats = {c for c, tpl in cfg.templates.items() if not any(skill == "Place" for skill, _ in tpl)}
+    state_cats = {c for c, tpl in cfg.templates.items() if not any(role_of(skill) == "deliver" for skill, _ in tpl)}
     singles = {kind: np.asarray([n for n in tr if len(train.events[n]) == 1 and (train.events[n][0] in state_cats) == kind], dtype=np.int64)
                for kind in (True, False)}
     rank = {cfg.categories.index(c): k for k, c in enumerate(cfg.priority) if c in cfg.categories}
@@ -522,63 +352,3 @@ def train_planner(cfg: PlannerConfig, out: Path, resume: bool = False, overwrite
     return report
 
 
-def _same_dataset(cfg: PlannerConfig, root: Path, run: Path) -> None:
-    """Refuse a dataset other than the one `run` was trained on: what training derived from its
-    train split (feature constants, categories, skill templates, event sets, priority rule) must
-    be what the run's config.json holds, or the test figures would not be the run's."""
-    again = asdict(resolve(PlannerConfig(str(root), cfg.inputs, audio=cfg.audio, image_size=cfg.image_size, order=cfg.order)))
-    saved = asdict(cfg)
-    for key in ("features", "audio_shape", "categories", "templates", "event_sets", "priority"):
-        if json.loads(json.dumps(again[key])) != json.loads(json.dumps(saved[key])):
-            raise runs.RunError(f"{root}: not the dataset {run} was trained on ({key} of its train split differs from {run / runs.CONFIG})")
-
-
-def score_test(run: Path, dataset: Path | None = None) -> dict[str, Any]:
-    """Score a finished planner run on the test split of its dataset (`dataset`, default the one
-    in config.json): the kept checkpoint (best.pt) with the decoder chosen on validation, plus
-    both decoders for the record (neither chooses anything). Writes test.json in the run folder
-    and returns it; the figures and keys are those eval.json carried when training scored the
-    test split itself."""
-    from echo_data.dataset.validate import check_whole
-
-    policy = runs.read_json(run / runs.POLICY)
-    if policy.get("kind") != "planner":
-        raise runs.RunError(f"{run / runs.POLICY}: a {policy.get('kind')!r} run, not a planner run")
-    if not (run / runs.EVAL).is_file():
-        raise runs.RunError(f"{run / runs.EVAL}: missing (training of {run} has not finished; `echo-data train planner ... --resume` finishes it)")
-    cfg = PlannerConfig.from_dict(runs.read_json(run / runs.CONFIG))
-    root = Path(cfg.dataset) if dataset is None else dataset
-    if not (root / "manifest.json").is_file():
-        raise runs.RunError(f"{root}: not an echo-data dataset (no manifest.json)" + ("; give the dataset the run was trained on: evaluate-planner RUN DATASET" if dataset is None else ""))
-    if "test" not in runs.read_json(root / "manifest.json")["splits"]:
-        raise runs.RunError(f"{root / 'manifest.json'}: no 'test' split to score (build the recipe whole into another folder, whose train split is the same, and give it: evaluate-planner RUN DATASET)")
-    check_whole(root)
-    _same_dataset(cfg, root, run)
-    setup_torch(cfg.seed, cfg.threads)
-    model = build_model(cfg)
-    model.load_state_dict(runs.load_torch(run / runs.BEST)["model"])
-    model.eval()
-    meta = episode_rows(root, "train")
-    chosen, _, _ = chosen_episodes(cfg, meta)
-    heard = {e["sound_id"] for r in meta if r["episode_index"] in chosen for e in r["events"]}  # the sounds of the episodes training read
-    test = load_episodes(root, "test", FeatureSpec.from_dict(cfg.features))
-    priority = cfg.priority if cfg.order == "priority" else None
-    decoders = {"threshold": None, "sets": cfg.event_sets}
-    test_said = predict(model, test, cfg.categories, decoders[cfg.decode], priority)
-    report = {
-        "run": str(run),
-        "decode": cfg.decode,
-        "episodes": {"test": len(test.events)},
-        "test_sounds_heard_in_training": sorted({s for ss in test.sounds for s in ss} & heard),
-        "test": score(test_said, test, cfg.templates),
-        # what the kept checkpoint gets wrong on the test split, for the record (never used to choose)
-        "test_errors": errors(test_said, test.events),
-        # both decoders on the test split, for the record; the one scored above was chosen on validation
-        "test_events_in_order_by_decoder": {
-            name: {g: v["events_in_order"] for g, v in score(predict(model, test, cfg.categories, sets, priority), test, cfg.templates).items()}
-            for name, sets in decoders.items()
-        },
-    }
-    runs.adopt(run)
-    runs.write_json(run, runs.TEST, report)
-    return report

@@ -24,13 +24,13 @@ from echo_data.learn.features import FeatureError, FeatureSpec, from_action_form
 from echo_data.records import GOAL_POSE
 
 
-def _load(folder: Path, config_cls: Any, build: Any) -> tuple[Any, Any, FeatureSpec]:
-    """(config, model in eval mode with the best weights, feature spec) of a run folder."""
+def _load(folder: Path, config_cls: Any, build: Any) -> tuple[Any, Any, FeatureSpec, Path]:
+    """(config, model in eval mode with the best weights, feature spec, the weights' file) of a run folder."""
     cfg = config_cls.from_dict(runs.read_json(folder / runs.CONFIG))
     model = build(cfg)
-    path = folder / runs.BEST if (folder / runs.BEST).is_file() else folder / runs.CHECKPOINT
-    model.load_state_dict(runs.load_torch(path)["model"])
-    return cfg, model.eval(), FeatureSpec.from_dict(cfg.features)
+    state, path = runs.load_weights(folder)
+    model.load_state_dict(state)
+    return cfg, model.eval(), FeatureSpec.from_dict(cfg.features), path
 
 
 def goal_from_obs(obs: Mapping[str, Any]) -> np.ndarray:
@@ -61,9 +61,10 @@ class SkillPolicy:
         self.checkpoint = Path(checkpoint)
         self.config = cfg = config_from_run(runs.read_json(self.checkpoint / runs.CONFIG))
         model = build_model(cfg)
-        path = self.checkpoint / runs.BEST if (self.checkpoint / runs.BEST).is_file() else self.checkpoint / runs.CHECKPOINT
-        model.load_state_dict(runs.load_torch(path)["model"])
+        state, path = runs.load_weights(self.checkpoint)
+        model.load_state_dict(state)
         self.model = model.eval()
+        self.weights_sha256 = runs.file_sha256(path)  # what an evaluation's results name (evaluation.provenance)
         self.spec = FeatureSpec.from_dict(cfg.features)
         self.algo = cfg.ALGO
         self.mean = np.asarray(cfg.action_mean, dtype=np.float32)
@@ -213,7 +214,8 @@ class PlannerModel:
         from echo_data.learn.planner import PlannerConfig, build_model
 
         self.checkpoint = Path(checkpoint)
-        cfg, self.model, self.spec = _load(self.checkpoint, PlannerConfig, build_model)
+        cfg, self.model, self.spec, path = _load(self.checkpoint, PlannerConfig, build_model)
+        self.weights_sha256 = runs.file_sha256(path)  # what an evaluation's results name (evaluation.provenance)
         self.categories = cfg.categories
         self.templates = cfg.templates
         self.sets = cfg.event_sets if cfg.decode == "sets" else None  # the decoder chosen on validation
@@ -235,6 +237,6 @@ class PlannerModel:
         return decode(logits[0].numpy(), scores[0].numpy(), self.categories, self.sets, self.priority)
 
     def plan(self, first_obs: Mapping[str, Any]) -> list[dict[str, str]]:
-        from echo_data.learn.planner import chain_of
+        from echo_data.learn.planner_data import chain_of
 
         return chain_of(self.events(first_obs), self.templates)

@@ -37,6 +37,7 @@ POLICY = "policy.json"
 AGENT = "agent.json"
 CHECKPOINT = "checkpoint.pt"
 BEST = "best.pt"
+WEIGHTS = "weights.safetensors"  # a reference learner's weights, in place of best.pt (echo_data.learn.reference)
 LOSSES = "losses.csv"
 CURVES = "curves.png"
 EVAL = "eval.json"
@@ -48,8 +49,11 @@ RUN_FORMAT = "echo-data-run/1"
 _BEFORE_MARKER = re.compile(  # every file a run folder held before the marker existed
     rf"(?:{SELECT_DIR}/scored-\d+/)?(?:config|policy|agent)\.json|(?:{SELECT_DIR}/scored-\d+/)?(?:checkpoint|best)\.pt"
     r"|losses\.csv|curves\.png|eval\.json|dagger\.csv"
-    r"|summary\.json|command\.txt"  # what benchmarks/ablation, paper_table and planner_table put beside a run then
+    r"|summary\.json|command\.txt"  # what the ablation, paper-table and planner study drivers put beside a run then
 )
+
+
+POLICY_CLASS = "echo_data.learn.policy:SkillPolicy"  # the class a skill-policy run names (agent.json)
 
 
 class RunError(ValueError):
@@ -95,6 +99,34 @@ def load_torch(path: Path) -> Any:
         return torch.load(path, map_location="cpu", weights_only=False)
     except (OSError, RuntimeError, EOFError) as e:
         raise RunError(f"{path}: cannot read checkpoint ({e})") from None
+
+
+def load_weights(folder: Path) -> tuple[dict[str, Any], Path]:
+    """(state dict, the file it came from) a policy acts with: a reference learner's
+    weights.safetensors (fp16 tensors widened to fp32, the dtype the model computes in), else
+    the run's best.pt, else its last checkpoint.pt."""
+    if (folder / WEIGHTS).is_file():
+        from safetensors import SafetensorError
+        from safetensors.torch import load_file
+
+        try:
+            state = load_file(str(folder / WEIGHTS))
+        except (OSError, SafetensorError) as e:
+            raise RunError(f"{folder / WEIGHTS}: cannot read weights ({e})") from None
+        return {k: v.float() if v.is_floating_point() else v for k, v in state.items()}, folder / WEIGHTS
+    path = folder / BEST if (folder / BEST).is_file() else folder / CHECKPOINT
+    return load_torch(path)["model"], path
+
+
+def file_sha256(path: Path) -> str:
+    """SHA-256 of a file's bytes: the identity of the weights an evaluation acted with."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with path.open("rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 def read_json(path: Path) -> dict[str, Any]:

@@ -22,16 +22,14 @@ SELECT_DIR = runs.SELECT_DIR
 
 def validation_recipe(dataset: Path, skill: str, episodes: int) -> Any:
     """The dataset's recipe with at least `episodes` val episodes in a setting that holds `skill`."""
-    import pyarrow.parquet as pq
+    from echo_data.dataset.reader import dataset_recipe, episode_records
 
-    from echo_data.learn.dagger import recipe_of
-
-    recipe, _ = recipe_of(dataset)
+    recipe, _ = dataset_recipe(dataset)
     if recipe.splits.get("val", 0) >= episodes:
         return recipe
     if not recipe.composition:
         return recipe.model_copy(update={"splits": {**recipe.splits, "val": episodes}})
-    table = pq.read_table(dataset / "meta" / "episodes.parquet", columns=["split", "setting", "chain"]).to_pylist()
+    table = episode_records(dataset, ["split", "setting", "chain"])
     having = sorted({r["setting"] for r in table if r["split"] == "train" and any(c["skill"] == skill for c in r["chain"])})
     if not having:
         raise runs.RunError(f"--select-every: no train episode of {dataset} holds {skill}")
@@ -46,9 +44,9 @@ COLUMN_OF_SPACE = {"joint": "action", "ee_delta": "action.ee"}
 def check_action_space(dataset: Path, action_column: str) -> None:
     """Refuse, before any training, a closed-loop choice that could never act: validation episodes
     run in the dataset recipe's `robot.action_space`, which takes one action column's form."""
-    from echo_data.learn.dagger import recipe_of
+    from echo_data.dataset.reader import dataset_recipe
 
-    recipe, _ = recipe_of(dataset)
+    recipe, _ = dataset_recipe(dataset)
     want = COLUMN_OF_SPACE[recipe.robot.action_space]
     if action_column != want:
         raise runs.RunError(f"--select-every with --action-column {action_column}: {dataset}'s recipe acts in robot.action_space "
@@ -84,14 +82,13 @@ def closed_loop_success(cfg: Any, model: Any, out: Path) -> float:
     """Success rate of `cfg.skill` over `cfg.select_episodes` validation episodes with the
     model's current weights (nan when no episode reached the skill)."""
     from echo_data.evaluation.run import evaluate
-    from echo_data.learn.fit import POLICY_CLASS
 
     scored = out / SELECT_DIR
     # One folder per scoring: evaluate keeps a loaded policy per (recipe, split, policy path) in
     # its in-process worker, so a reused path would score the first weights again.
     at = f"{SELECT_DIR}/scored-{len(list(scored.glob('scored-*'))) + 1:03d}"
     folder = out / at
-    runs.write_run_files(out, "policy", POLICY_CLASS, cfg.to_dict(), {"algo": cfg.ALGO, "skill": cfg.skill}, at=at)
+    runs.write_run_files(out, "policy", runs.POLICY_CLASS, cfg.to_dict(), {"algo": cfg.ALGO, "skill": cfg.skill}, at=at)
     runs.save_torch(out, f"{at}/{runs.BEST}", {"model": {k: v.detach().cpu() for k, v in model.state_dict().items()}})
     recipe = validation_recipe(Path(cfg.dataset), cfg.skill, cfg.select_episodes)
     was_training = model.training

@@ -67,8 +67,6 @@ class EeController:
     """Forward/inverse kinematics of the arm and the `action.ee` <-> `action` map for one robot."""
 
     def __init__(self, robot: Robot) -> None:
-        from echo_data.robot.robot import GRIPPER_OPEN, HEAD_PAN, HEAD_TILT, READY_GROUP
-
         self.robot = robot
         art = robot.articulation
         self.model = art.create_pinocchio_model()
@@ -77,15 +75,15 @@ class EeController:
         self.torso_link_index = links.index("torso_lift_link")
         self.dof = art.dof
         self.q0 = np.zeros(self.dof)
-        self.q0[robot.head_indices] = (HEAD_PAN, HEAD_TILT)
-        self.q0[robot.finger_indices] = GRIPPER_OPEN / 2.0
+        self.q0[robot.head_indices] = robot.HEAD_REST
+        self.q0[robot.finger_indices] = robot.GRIPPER_OPEN / 2.0
         self.mask = np.zeros(self.dof, dtype=np.int32)
         self.mask[robot.arm_indices] = 1
         lim = np.asarray(art.get_qlimits(), dtype=np.float64).reshape(self.dof, 2)
         self.lower = lim[robot.arm_indices, 0]
         self.upper = lim[robot.arm_indices, 1]
-        self.gripper_open = GRIPPER_OPEN
-        self.posture = np.asarray(READY_GROUP[1:], dtype=np.float64)
+        self.gripper_open = robot.GRIPPER_OPEN
+        self.posture = np.asarray(robot.READY_GROUP[1:], dtype=np.float64)
 
     # ------------------------------------------------------------------ kinematics
     def _full(self, arm: np.ndarray) -> np.ndarray:

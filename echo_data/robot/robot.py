@@ -83,6 +83,12 @@ class Robot:
     `tuck_qpos` (7,), `cfg`. Call `set_base_pose` once before stepping.
     """
 
+    # The rest pose, read through the instance by the end-effector map (`robot.ee_control`,
+    # which this module imports: it does not import this module back).
+    READY_GROUP = READY_GROUP
+    HEAD_REST = (HEAD_PAN, HEAD_TILT)
+    GRIPPER_OPEN = GRIPPER_OPEN
+
     def __init__(self, scene: sapien.Scene, cfg: RobotConfig) -> None:
         self.scene = scene
         self.cfg = cfg

@@ -27,8 +27,8 @@ from echo_data.scene.generate import generate_floorplan
 from echo_data.scene.nav import NavGrid, interaction_pose
 from echo_data.scene.objects import instance_scale
 from echo_data.scene.structure import GenerationError, door_swing_zone
-from echo_data.skills.registry import SKILLS, event_chain
-from echo_data.sounds.synth import fresh_id
+from echo_data.skill_table import SKILLS, event_chain
+from echo_data.sounds.instance_ids import fresh_id
 from echo_data.target import Target
 
 START_MIN_DISTANCE = 2.0  # m from the first target's sound source
@@ -147,7 +147,9 @@ def region_free(plan: FloorPlan, region: Rect, room: int, ignore_door: int | Non
 # ------------------------------------------------------------------------------ one draw
 def draw_episode(recipe: Recipe, split: str, index: int, attempt: int, seed: int, library: SoundLibrary) -> EpisodeSpec:
     """Draw `attempt` of episode (split, index) from `seed`; `Reject` names why it is not solvable.
-    The physics check of the drawn objects is the SAPIEN side's (`echo_data.scene.sampling`)."""
+    The physics check of the drawn objects is the SAPIEN side's (`echo_data.scene.sampling`).
+    Long because the order of its random draws is the episode's seed story: kept in one body so a
+    change cannot reorder the draws (every dataset's bytes hang on it)."""
     rng = np.random.default_rng(seed)
     setting = recipe.setting_for(split, index, rng)
     try:

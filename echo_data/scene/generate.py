@@ -90,6 +90,8 @@ def generate_floorplan_from_seed(recipe: Recipe, seed: int, max_tries: int = 40)
 
 
 def _try_generate(recipe: Recipe, rng: np.random.Generator, seed: int, family: str) -> FloorPlan | None:
+    """One try at a floor plan of `family`, or None. Long because the order of its random draws
+    is every plan's seed story: kept in one body so a change cannot reorder the draws."""
     sc = recipe.scene
     t = sc.wall_thickness
     layout = draw_layout(recipe, family, rng)

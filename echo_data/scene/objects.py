@@ -75,6 +75,8 @@ VARIANT_COLOURS: dict[str, tuple[tuple[float, float, float], ...]] = {
 
 
 def _models() -> dict[str, ObjectModel]:
+    """The look of every object category. Long because it is a table (one entry per category),
+    written as code because each entry places its own parts."""
     m: dict[str, ObjectModel] = {}
     # phone: thin slab in the body colour, a printed screen (home-screen icons) and a camera bump
     sz = 0.015

@@ -25,8 +25,10 @@ from scipy.spatial.transform import Rotation
 from echo_data.records import ACTION_DIM, EE_ACTION_DIM, SkillOutcome
 from echo_data.scene.nav import NavGrid, interaction_pose, target_point
 from echo_data.seeds import HANDOVER, derived_rng
+from echo_data.skill_table import HandOver, handover_call
+from echo_data.skill_table import skill as skill_of
 from echo_data.skills.servo import SPEED, TURN, ee_command, step_towards
-from echo_data.skills.success import NAV_SUCCESS_DIST, NAV_SUCCESS_YAW, navigate_success
+from echo_data.skills.success import NAV_SUCCESS_YAW, navigate_success
 
 if TYPE_CHECKING:
     from echo_data.episode import EpisodeSpec, SkillCall
@@ -359,37 +361,39 @@ class Relabeller:
 
 
 # ---------------------------------------------------------------------- hand-over starts
-# `experts.handover_noise` = f in (0, 1]: the build's Navigate stops at a random point of its own
-# success region instead of the interaction pose, so the manipulation demonstrations start
-# where a learned Navigate hands over (M3, Gu et al. 2022, "Multi-skill Mobile Manipulation for
-# Object Rearrangement": manipulation skills trained from a distribution of base starts around
-# the target rather than one pose). The point is uniform (by area) in the disc of radius
-# f * HANDOVER_RADIUS around the interaction point, on a free cell that sees the interaction
-# point along a free straight line (never behind a wall or a closed door: Habitat's region
-# is Euclidean), heading at the target within f * HANDOVER_YAW. The margins keep the stop, with
-# the follower's tolerances (GOAL_TOL, YAW_TOL), inside navigate_success's region.
-HANDOVER_RADIUS = NAV_SUCCESS_DIST - 0.2  # m
-HANDOVER_YAW = NAV_SUCCESS_YAW - 2.0 * YAW_TOL  # rad
+# `experts.handover_noise` = f in (0, 1]: the build's Navigate stops at a random point of the next
+# skill's stance (`skill_table.HandOver`, docs/handover.md) instead of its interaction pose,
+# so the manipulation demonstrations start from the whole region a learned Navigate is made to
+# end in (M3, Gu et al. 2022, "Multi-skill Mobile Manipulation for Object Rearrangement":
+# manipulation skills trained from a distribution of base starts around the target, not one pose).
+# The point is uniform (by area) in the disc of radius f x (stance distance - GOAL_TOL) about the
+# interaction point, on a free cell in straight sight of it along a free line (never behind a wall
+# or a closed door), the heading uniform within f x (stance heading - YAW_TOL) of the pose's; a
+# draw where Navigate's own success test (facing the target within NAV_SUCCESS_YAW, less YAW_TOL)
+# would fail is drawn again. The margins keep the follower's stop inside the stance.
 HANDOVER_TRIES = 64  # draws before the interaction pose itself is kept
 
 
 def handover_goal(plan: FloorPlan, target: str, grid: NavGrid, exact: tuple[float, float, float], noise: float,
-                  rng: np.random.Generator, doors: dict[int, float] | None = None) -> tuple[float, float, float]:
-    """A stop pose drawn from the success region of Navigate to `target` (see the block above),
-    `exact` being its interaction pose and `doors` the hinge angles (default: the plan's);
-    `exact` itself when no draw within HANDOVER_TRIES lands on a usable cell."""
+                  rng: np.random.Generator, stance: HandOver, doors: dict[int, float] | None = None) -> tuple[float, float, float]:
+    """A stop pose drawn from the fraction `noise` of `stance` about `target`'s interaction pose
+    `exact` (see the block above), `doors` the hinge angles (default: the plan's); `exact`
+    itself when no draw within HANDOVER_TRIES lands on a usable cell."""
     if noise <= 0.0:
         return exact
     tx, ty = target_point(plan, target, doors or None)
-    px, py = exact[0], exact[1]
+    px, py, pyaw = exact
+    radius, spread = noise * max(stance.distance - GOAL_TOL, 0.0), noise * max(stance.heading - YAW_TOL, 0.0)
     for _ in range(HANDOVER_TRIES):
         u, phi, s = rng.random(3)
-        r = noise * HANDOVER_RADIUS * math.sqrt(u)
+        r = radius * math.sqrt(u)
         x, y = px + r * math.cos(2.0 * math.pi * phi), py + r * math.sin(2.0 * math.pi * phi)
         if not grid.is_free(x, y) or grid.segment_clearance((x, y), (px, py)) < grid.robot_radius:
             continue
-        yaw = math.atan2(ty - y, tx - x) + noise * HANDOVER_YAW * (2.0 * s - 1.0)
-        return (x, y, wrap(yaw))
+        yaw = wrap(pyaw + spread * (2.0 * s - 1.0))
+        if abs(wrap(math.atan2(ty - y, tx - x) - yaw)) > NAV_SUCCESS_YAW - YAW_TOL:
+            continue
+        return (x, y, yaw)
     return exact
 
 
@@ -401,18 +405,20 @@ def _handover_rng(spec: EpisodeSpec, call: SkillCall) -> np.random.Generator:
 
 def navigate(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
     """The Navigate expert: drive to the interaction pose of `call.target` and face it (with
-    `experts.handover_noise`, to a point of the success region drawn per episode instead)."""
+    `experts.handover_noise`, to a point of the next skill's stance drawn per episode instead)."""
     robot = world.robot
     skill, target = call.skill, call.target
-    max_steps = int(robot.cfg.max_steps["Navigate"])
+    max_steps = int(robot.cfg.max_steps[skill])
     grid = current_grid(world)
     try:
         goal = goal_pose(world, target, grid)
     except ValueError:
         return SkillOutcome(skill, target, False, "no_path", 0)
     noise = float(world.recipe.experts.handover_noise)
-    if noise > 0.0:
-        goal = handover_goal(world.plan, target, grid, goal, noise, _handover_rng(spec, call), door_angles(world))
+    to = handover_call(spec.chain, spec.chain.index(call)) if noise > 0.0 and spec is not None and call in spec.chain else None
+    stance = skill_of(to.skill).stance if to is not None else None
+    if stance is not None:
+        goal = handover_goal(world.plan, target, grid, goal, noise, _handover_rng(spec, call), stance, door_angles(world))
     result = yield from drive_to(world, goal, max_steps, grid=grid)
     if not result.success and not (result.reason == "timeout" and navigate_success(world, target)):
         # (out of steps but already within the success region counts: the criterion is the state)

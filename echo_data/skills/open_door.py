@@ -25,7 +25,8 @@ Every command is computed from the state the step starts in (docs/SIMULATION_NOT
    relative to the leaf *at its current angle*; the arm servoes its TCP back to the grasp pose
    in the base frame (a perturbation of the arm is undone). Until the hinge is `OPEN_MARGIN`
    beyond `Door.open_threshold` and at rest. A leaf that stops following (a blocked door, a lost
-   grip) ends the skill with "lost_handle".
+   grip) ends the skill with "lost_handle". Started with the leaf already held (a state a learner
+   reached, asked by `echo_data.skills.labeller`), the expert goes straight on with the swing.
 6. **release, retreat, tuck**: the gripper opens (the world lets the leaf go), the base backs
    `BACK_OFF` straight away from the bar, the TCP returns to READY, then folds into the tuck
    (`echo_data.skills.servo.tuck`, as Place ends: a drive after the skill carries the arm
@@ -218,11 +219,41 @@ def _close_on_bar(world: World) -> Generator[np.ndarray, None, bool]:
     return False
 
 
+def _grasp_bar(world: World, door: Door, art: Any, target: str, q_start: float, q_goal: float) -> Generator[np.ndarray, None, str | None]:
+    """Phases 1-4 of the module docstring: stance, untuck, pre-grasp, straight in, close on the
+    bar; None once the world holds the leaf, else the reason it failed."""
+    robot = world.robot
+    # 1. the stance: where the base stands when it serves, else the first of STANCES whose swing
+    # is free and whose grasp the arm reaches
+    if not stance_here(world, door, robot.base_pose(), q_start, q_goal):
+        choice = next((k for k, stance in enumerate(door_stances(door, q_start)) if _serves(world, door, stance, q_start, q_goal)), None)
+        if choice is None:
+            return "no_grasp_stance"
+        if not (yield from approach(world, target, lambda: door_stances(door, _hinge(art))[choice], max_steps=DRIVE_STEPS, close=False)):
+            return "stance_not_reached"
+
+    # 2.-4. untuck, pre-grasp, straight in, close on the bar
+    if not (yield from to_ready(world, close=False)):
+        return "untuck_failed"
+    if not (yield from servo(world, lambda: grasp_pose(door, _hinge(art), PREGRASP_BACK), speed=PREGRASP_SPEED, torso=GRASP_TORSO, max_steps=PREGRASP_STEPS, close=False,
+                                **TRANSIT)):
+        return "pregrasp_not_reached"
+    at_bar = yield from servo(world, lambda: grasp_pose(door, _hinge(art)), speed=SLOW_SPEED, torso=GRASP_TORSO, max_steps=APPROACH_STEPS,
+                              close=False, **CONTACT)
+    # a jaw resting on the bar stops the hand short (seen under DART noise: 2 cm): close anyway
+    # when the open jaws still straddle it; the grasp test below decides
+    if not at_bar and float(np.linalg.norm(measured_tcp(world)[:3, 3] - grasp_pose(door, _hinge(art))[:3, 3])) > JAW_SLACK:
+        return "handle_not_reached"
+    if not (yield from _close_on_bar(world)):
+        return "grasp_failed"
+    return None
+
+
 def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
     """The OpenDoor expert for `call.target` = "door:<i>" (see the module docstring)."""
     skill, target = call.skill, call.target
     robot = world.robot
-    max_steps = int(robot.cfg.max_steps["OpenDoor"])
+    max_steps = int(robot.cfg.max_steps[skill])
     i = Target.parse(target).index
     door: Door = world.plan.doors[i]
     art = world.handles.doors[i]
@@ -233,33 +264,15 @@ def open_door(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.
 
     q_start = _hinge(art)
     q_goal = swing_goal(door)
-    if q_start >= door.open_threshold:
+    if q_start >= door.open_threshold and not world.holding_door:
         ok = door_open_success(world, i)
         return SkillOutcome(skill, target, ok, "" if ok else "door_moving", 0)
 
-    # 1. the stance: where the base stands when it serves, else the first of STANCES whose swing
-    # is free and whose grasp the arm reaches
-    if not stance_here(world, door, robot.base_pose(), q_start, q_goal):
-        choice = next((k for k, stance in enumerate(door_stances(door, q_start)) if _serves(world, door, stance, q_start, q_goal)), None)
-        if choice is None:
-            return fail("no_grasp_stance")
-        if not (yield from st.run(approach(world, target, lambda: door_stances(door, _hinge(art))[choice], max_steps=DRIVE_STEPS, close=False))):
-            return fail("stance_not_reached")
-
-    # 2.-4. untuck, pre-grasp, straight in, close on the bar
-    if not (yield from st.run(to_ready(world, close=False))):
-        return fail("untuck_failed")
-    if not (yield from st.run(servo(world, lambda: grasp_pose(door, _hinge(art), PREGRASP_BACK), speed=PREGRASP_SPEED, torso=GRASP_TORSO, max_steps=PREGRASP_STEPS, close=False,
-                                     **TRANSIT))):
-        return fail("pregrasp_not_reached")
-    at_bar = yield from st.run(servo(world, lambda: grasp_pose(door, _hinge(art)), speed=SLOW_SPEED, torso=GRASP_TORSO, max_steps=APPROACH_STEPS,
-                                     close=False, **CONTACT))
-    # a jaw resting on the bar stops the hand short (seen under DART noise: 2 cm): close anyway
-    # when the open jaws still straddle it; the grasp test below decides
-    if not at_bar and float(np.linalg.norm(measured_tcp(world)[:3, 3] - grasp_pose(door, _hinge(art))[:3, 3])) > JAW_SLACK:
-        return fail("handle_not_reached")
-    if not (yield from st.run(_close_on_bar(world))):
-        return fail("grasp_failed")
+    # (started on a leaf already in the hand, a state a learner reached, it goes on swinging)
+    if not world.holding_door:
+        reason = yield from st.run(_grasp_bar(world, door, art, target, q_start, q_goal))
+        if reason is not None:
+            return fail(reason)
 
     # 5. swing about the hinge with the leaf
     reason = yield from st.run(_swing(world, door, art, q_goal, max_steps - st.n))

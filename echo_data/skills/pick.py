@@ -15,6 +15,10 @@ base is brought back by the next label and a nudged object is followed. The phas
    object's pose every step;
 5. close (binary), lift LIFT_HEIGHT straight up, then the carry pose (`success.CARRY_TCP`).
 
+Started with the object already in the hand (a state a learner reached, asked by
+`echo_data.skills.labeller`), it goes straight to phase 5's lift (what is left of it) and carry;
+started with the jaws closed on nothing, the untuck and hover phases re-aim and open the jaws.
+
 No weld, no teleport unless the recipe asks for Habitat's magic grasp (`robot.grasp: magic`,
 `echo_data.world`): by default the object stays in the hand by friction alone.
 """
@@ -31,10 +35,11 @@ from echo_data.records import SkillOutcome
 from echo_data.robot.ee_control import base_frame
 from echo_data.robot.robot import READY_GROUP, yaw_of
 from echo_data.scene.objects import object_size
+from echo_data.skill_table import approach_skill
 from echo_data.skills import servo as S
 from echo_data.skills.budget import Budget, SkillFailed
 from echo_data.skills.servo import jaw_yaw, top_down
-from echo_data.skills.success import CARRY_TCP, object_bottom, pick_success
+from echo_data.skills.success import CARRY_TCP, object_bottom, pick_success, receptacle_of
 
 if TYPE_CHECKING:
     from echo_data.episode import EpisodeSpec, SkillCall
@@ -43,6 +48,7 @@ if TYPE_CHECKING:
 HOVER = 0.16  # m: TCP above the grasp point while the wrist camera looks at the object
 PRE_GRASP = 0.04  # m above the grasp point: the last stretch at the slow speed
 LIFT_HEIGHT = 0.15  # m
+MIN_LIFT = 0.01  # m: a lift left shorter than this is skipped (an object already lifted)
 # m: pads centred this far below the object's top (the palm's underside is 4.2 cm above the TCP;
 # pressing a round top against it makes the furby creep to a tilt instead of swing: worse, see
 # docs/manipulation_experts.md) ...
@@ -93,7 +99,7 @@ def fixed_in_base(world: World, xyz: tuple[float, float, float], yaw_in_base: fl
 def pick(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
     """Pick expert (generator of `action.ee`; returns the SkillOutcome)."""
     robot = world.robot
-    budget = Budget(int(robot.cfg.max_steps["Pick"]))
+    budget = Budget(int(robot.cfg.max_steps[call.skill]))
     name = call.target
     try:
         yield from budget.run(_pick(world, name))
@@ -162,6 +168,9 @@ def reach_cost(world: World, pose_world: np.ndarray) -> float:
 
 def _pick(world: World, name: str) -> Generator[np.ndarray, None, None]:
     robot = world.robot
+    if robot.holding == name:  # started on a grasp already made (a learner's; the build never starts so)
+        yield from lift_and_carry(world, name, LIFT_HEIGHT - lifted(world, name))
+        return
     yield from approach_base(world, name)
     # untuck: torso up, hand to the approach point beside the head (object-independent)
     yield from S.servo(world, fixed_in_base(world, APPROACH_TCP, APPROACH_JAW), torso=TORSO_UP, torso_speed=TORSO_SPEED, max_steps=70)
@@ -184,9 +193,21 @@ def _pick(world: World, name: str) -> Generator[np.ndarray, None, None]:
     yield from S.hold_at(world, grasp.pose(), CLOSE_STEPS, close=True)  # the jaws close where the hand is
     if robot.holding != name:
         raise SkillFailed("grasp missed")
-    lift = S.measured_tcp(world)
-    lift[2, 3] += LIFT_HEIGHT
-    yield from S.servo(world, in_world_fixed(world, lift), speed=S.SLOW_SPEED * 2, max_steps=40, close=True, accel=CARRY_ACCEL)
+    yield from lift_and_carry(world, name, LIFT_HEIGHT)
+
+
+def lifted(world: World, name: str) -> float:
+    """How far (m) the object's bottom is above the top it stood on."""
+    return object_bottom(world, name) - world.plan.furniture[receptacle_of(world, name)].top_z
+
+
+def lift_and_carry(world: World, name: str, lift_by: float) -> Generator[np.ndarray, None, None]:
+    """The held object lifted `lift_by` m straight up (nothing when under MIN_LIFT), then to the carry pose."""
+    robot = world.robot
+    if lift_by >= MIN_LIFT:
+        lift = S.measured_tcp(world)
+        lift[2, 3] += lift_by
+        yield from S.servo(world, in_world_fixed(world, lift), speed=S.SLOW_SPEED * 2, max_steps=40, close=True, accel=CARRY_ACCEL)
     if robot.holding != name:
         raise SkillFailed("grasp slipped")
     carry = fixed_in_base(world, CARRY_TCP, jaw_yaw(S.in_base(world, S.measured_tcp(world))))
@@ -261,7 +282,7 @@ def drive_path(world: World, goal: tuple[float, float, float], arm: S.Goal) -> G
     its base velocities, the TCP held at `arm` (a goal fixed in the base frame), torso and gripper held."""
     from echo_data.skills.navigate import drive_to
 
-    gen = drive_to(world, goal, int(world.robot.cfg.max_steps["Navigate"]))
+    gen = drive_to(world, goal, int(world.robot.cfg.max_steps[approach_skill().name]))
     try:
         while True:
             a = next(gen)

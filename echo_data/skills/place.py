@@ -28,6 +28,7 @@ import numpy as np
 
 from echo_data.records import SkillOutcome
 from echo_data.scene.objects import object_size
+from echo_data.skill_table import approach_skill
 from echo_data.skills import servo as S
 from echo_data.skills.budget import Budget, SkillFailed
 from echo_data.skills.pick import (
@@ -74,7 +75,7 @@ UPRIGHT_TOL = math.radians(8.0)  # rad: the held object's axis from the vertical
 SET_DOWN_TRIES = 3  # lowerings onto the top, each followed by a lift to RETRY_ABOVE if the object leans
 RETRY_ABOVE = 0.04  # m: object bottom over the top after a lowering that left it leaning
 # The arm configuration whose TCP is the carry pose (pick.APPROACH_TCP, APPROACH_JAW): found once
-# (benchmarks/carry_search.py) with hand and object covering 0-7 % of the head view against READY's
+# (the carry-search study) with hand and object covering 0-7 % of the head view against READY's
 # 74 % (tests/test_carry_pose.py measures both), every arm link origin within 0.36 m of the base axis.
 CARRY_DRIVE_GROUP = np.array([0.386, 0.679, -1.098, -2.373, 1.701, 0.33, 1.781, 1.144])
 
@@ -126,8 +127,8 @@ def place(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndar
     robot = world.robot
     # Place includes a drive across the apartment: the drive gets Navigate's step limit, the
     # arm work Place's own.
-    drive_budget = Budget(int(robot.cfg.max_steps["Navigate"]))
-    budget = Budget(int(robot.cfg.max_steps["Place"]))
+    drive_budget = Budget(int(robot.cfg.max_steps[approach_skill().name]))
+    budget = Budget(int(robot.cfg.max_steps[call.skill]))
     try:
         tgt = Target.parse(call.target)
     except ValueError:

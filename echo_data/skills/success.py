@@ -11,8 +11,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from echo_data.scene.objects import object_size
+from echo_data.skill_table import Situation, carried_object, skill
+from echo_data.target import Target
 
 if TYPE_CHECKING:
+    from echo_data.episode import SkillCall
     from echo_data.world import World
 
 # ------------------------------------------------------------------ Pick / Place
@@ -77,39 +80,72 @@ NAV_SUCCESS_DIST = 1.5  # m from the target's interaction point (Habitat's crite
 NAV_SUCCESS_YAW = math.radians(15)  # base heading vs the bearing to the target
 
 
-def navigate_success(world: World, target: str, grid: Any = None, poses: dict[Any, Any] | None = None) -> bool:
-    """Base within NAV_SUCCESS_DIST of the target's interaction point and facing the target.
-
-    Facing: the base heading points at the target (object centre, swing-side door handle,
-    faucet lever, furniture centre) within NAV_SUCCESS_YAW. Doors count where they stand now.
-    `grid`: a NavGrid of the doors' current angles to reuse (the test is then cheap per step);
-    `poses`: a dict the caller keeps per episode, in which the interaction and target points are
-    kept per (target, door angles, grid) (both are functions of the plan and those alone).
-    """
+def _interaction(world: World, target: str, grid: Any, poses: dict[Any, Any] | None) -> tuple[Any, tuple[float, ...] | None]:
+    """The navigation grid at the doors' current angles (`grid` when given) and `target`'s
+    interaction pose and point (px, py, pyaw, tx, ty) with the doors where they stand, None when
+    no free pose exists. `poses`: a dict the caller keeps per episode, in which both are kept per
+    (target, door angles, grid) (they are functions of the plan and those alone)."""
     from echo_data.scene.nav import NavGrid, interaction_pose, target_point
 
     plan = world.plan
     angles = world.handles.door_angles()
     if grid is None:
         grid = NavGrid.from_plan(plan, robot_radius=world.nav.robot_radius, door_angles=angles)
-    x, y, yaw = world.robot.base_pose()
     key = (target, tuple(sorted(angles.items())), id(grid))
-    hit: tuple[float | None, float | None, float, float] | None = poses.get(key) if poses is not None else None
+    if poses is not None and key in poses:
+        return grid, poses[key]
+    try:
+        stand = interaction_pose(plan, target, door_angles=angles or None, grid=grid)
+        hit: tuple[float, ...] | None = (*stand, *target_point(plan, target, angles or None))
+    except ValueError:  # no free interaction pose: never a success, never a hand-over
+        hit = None
+    if poses is not None:
+        if len(poses) > 4096:  # a swinging door gives new angles every step
+            poses.clear()
+        poses[key] = hit
+    return grid, hit
+
+
+def navigate_success(world: World, target: str, grid: Any = None, poses: dict[Any, Any] | None = None) -> bool:
+    """Base within NAV_SUCCESS_DIST of the target's interaction point and facing the target.
+
+    Facing: the base heading points at the target (object centre, swing-side door handle,
+    faucet lever, furniture centre) within NAV_SUCCESS_YAW. Doors count where they stand now.
+    `grid`: a NavGrid of the doors' current angles to reuse (the test is then cheap per step);
+    `poses`: a dict the caller keeps per episode (see `_interaction`).
+    """
+    _, hit = _interaction(world, target, grid, poses)
     if hit is None:
-        try:
-            stand = interaction_pose(plan, target, door_angles=angles or None, grid=grid)
-            hit = (stand[0], stand[1], *target_point(plan, target, angles or None))
-        except ValueError:  # no free interaction pose: never a success
-            hit = (None, None, 0.0, 0.0)
-        if poses is not None:
-            if len(poses) > 4096:  # a swinging door gives new angles every step
-                poses.clear()
-            poses[key] = hit
-    if hit[0] is None or hit[1] is None:
         return False
-    px, py, tx, ty = hit[0], hit[1], hit[2], hit[3]
+    px, py, _, tx, ty = hit
+    x, y, yaw = world.robot.base_pose()
     heading_error = abs(math.remainder(math.atan2(ty - y, tx - x) - yaw, 2.0 * math.pi))
     return math.hypot(px - x, py - y) <= NAV_SUCCESS_DIST and heading_error <= NAV_SUCCESS_YAW
+
+
+def stance_offset(world: World, target: str, grid: Any = None, poses: dict[Any, Any] | None = None) -> tuple[float, float] | None:
+    """How far the base stands from `target`'s interaction pose: distance (m) and heading error
+    (rad, wrapped to [0, pi]) against the pose's heading; None when the target has no free pose."""
+    _, hit = _interaction(world, target, grid, poses)
+    if hit is None:
+        return None
+    x, y, yaw = world.robot.base_pose()
+    return math.hypot(hit[0] - x, hit[1] - y), abs(math.remainder(yaw - hit[2], 2.0 * math.pi))
+
+
+def handed_over(world: World, target: str, distance: float, heading: float, grid: Any = None,
+                poses: dict[Any, Any] | None = None) -> bool:
+    """The base inside a stance (`skill_table.HandOver`) of `target`: within `distance` m of
+    its interaction pose and `heading` rad of that pose's heading."""
+    off = stance_offset(world, target, grid, poses)
+    return off is not None and off[0] <= distance and off[1] <= heading
+
+
+def in_stance(world: World, call: SkillCall, at: Situation) -> bool:
+    """The base inside the stance of `call` (its skill's `stance` about its target's interaction
+    pose, doors where they stand now, `skill_table.HandOver`); False for a skill without one."""
+    st = skill(call.skill).stance
+    return st is not None and handed_over(world, call.target, st.distance, st.heading, grid=at.nav_grid(), poses=at.poses)
 
 
 # ------------------------------------------------------------------ OpenDoor / CloseSink
@@ -130,3 +166,28 @@ def sink_closed_success(world: World, i: int) -> bool:
     stream = world.handles.water[i]
     stream.update(angle)
     return angle <= faucet.closed_tolerance and not stream.flowing
+
+
+# ------------------------------------------------------------------ as the skill table calls them
+# `echo_data.skill_table` names these "module:function" (it imports nothing above the vocabulary).
+
+
+def navigated(world: World, call: SkillCall, at: Situation) -> bool:
+    return navigate_success(world, call.target, grid=at.nav_grid(), poses=at.poses)
+
+
+def picked(world: World, call: SkillCall, at: Situation) -> bool:
+    return pick_success(world, call.target)
+
+
+def placed(world: World, call: SkillCall, at: Situation) -> bool:
+    name = carried_object(at.spec, call)
+    return name is not None and place_success(world, name, Target.parse(call.target).index)
+
+
+def door_opened(world: World, call: SkillCall, at: Situation) -> bool:
+    return door_open_success(world, Target.parse(call.target).index)
+
+
+def sink_closed(world: World, call: SkillCall, at: Situation) -> bool:
+    return sink_closed_success(world, Target.parse(call.target).index)

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw
 
+from echo_data.target import Target
 from echo_data.viz import palette
 
 Point = tuple[float, float]
@@ -24,21 +25,34 @@ Point = tuple[float, float]
 
 def target_point(plan: Any, target: str) -> Point | None:
     """Where a chain call's target is on the plan: an object's position, a door's middle, a
-    faucet's pivot or a piece of furniture's centre (None if the plan has no such thing)."""
-    kind, _, index = target.partition(":")
+    faucet's pivot or a piece of furniture's centre (None if the plan has no such thing, or the
+    text is no target: `Target` reads the text, its one owner)."""
     try:
-        if kind == "door":
-            door = plan.doors[int(index)]
+        t = Target.parse(target)
+        if t.kind == "door":
+            door = plan.doors[t.index]
             edge = door.free_edge()
             return ((door.hinge[0] + edge[0]) / 2, (door.hinge[1] + edge[1]) / 2)
-        if kind == "faucet":
-            return tuple(plan.faucets[int(index)].pivot[:2])
-        if kind == "furniture":
-            return tuple(plan.furniture[int(index)].center)
+        if t.kind == "faucet":
+            return tuple(plan.faucets[t.index].pivot[:2])
+        if t.kind == "furniture":
+            return tuple(plan.furniture[t.index].center)
     except (IndexError, ValueError):
         return None
-    found = [o for o in plan.objects if o.name == target]
+    found = [o for o in plan.objects if o.name == t.name]
     return (found[0].position[0], found[0].position[1]) if found else None
+
+
+def episode_plan(manifest: dict[str, Any], scene_seed: int) -> Any:
+    """A stored episode's apartment, regenerated from the manifest's recipe and the episode's
+    scene seed (None if impossible: the map is still useful without walls)."""
+    try:
+        from echo_data.recipe import Recipe
+        from echo_data.scene.generate import generate_floorplan_from_seed
+
+        return generate_floorplan_from_seed(Recipe.model_validate(manifest["recipe"]), int(scene_seed))
+    except Exception:  # the map is still useful without walls
+        return None
 
 
 def event_fields(e: Any) -> tuple[str, tuple[float, float, float] | None]:

@@ -1,0 +1,97 @@
+"""The result tables of the studies' READMEs, rendered from their results JSON: each README holds
+a copy between two markers (`<!-- results: NAME ... -->` and `<!-- end of results: NAME -->`),
+which `python studies/results_tables.py` rewrites and tests/test_docs.py checks. (The paper
+table renders its own: studies/paper_table/rows.py.)"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Callable
+from typing import Any
+
+from runner import ROOT
+
+sys.path.insert(0, str(ROOT))
+from echo_data.evaluation.table import block, with_block  # noqa: E402
+
+STUDIES = ROOT / "studies"
+
+
+def interval(c: dict[str, Any] | None) -> str:
+    """A {successes, n, low, high} or {k, n, ci95} or {correct, n, ci95} cell as k/n [low, high]."""
+    if not c:
+        return "–"
+    k = c.get("successes", c.get("k", c.get("correct")))
+    lo, hi = (c["low"], c["high"]) if "low" in c else c["ci95"]
+    return f"{k}/{c['n']} [{lo:.2f}, {hi:.2f}]"
+
+
+def skills(doc: dict[str, Any]) -> str:
+    """A learner study's skills: alone (exact hand-over) and after a spread hand-over."""
+    lines = ["| skill | alone | after a hand-over |", "|---|---|---|"]
+    for s in doc["skills"]:
+        lines.append(f"| {s} | {interval(doc['skills'][s])} | {interval(doc.get('skills_handover', {}).get(s))} |")
+    return "\n".join(lines) + "\n"
+
+
+def navigate(doc: dict[str, Any]) -> str:
+    """Navigate from sound on the test split: overall and per setting, and its SPL."""
+    t = doc["test"]
+    lines = ["| test episodes | Navigate success |", "|---|---|", f"| all | {interval(t['navigate'])} |"]
+    lines += [f"| {s.replace('_', ' ')} | {interval(c)} |" for s, c in t["by_setting"].items()]
+    return "\n".join(lines) + f"\n\nMean SPL {t['spl']:.2f}.\n"
+
+
+def ablation(doc: dict[str, Any]) -> str:
+    """The Navigate ablation's rows: the learner's inputs, first and all Navigate successes, SPL."""
+    lines = ["| inputs | first Navigate | every Navigate | mean SPL |", "|---|---|---|---|"]
+    for r in doc["navigate"]:
+        spl = "–" if r.get("spl_mean") is None else f"{r['spl_mean']:.2f}"
+        lines.append(f"| {r['inputs']} | {interval(r['first_navigate'])} | {interval(r['all_navigate'])} | {spl} |")
+    return "\n".join(lines) + "\n"
+
+
+def planner(doc: dict[str, Any]) -> str:
+    """The planner rows on the test split: events in order, single and multi-event, and the exact chain."""
+    lines = ["| inputs | options | single event: events in order | multi-event: events in order | all: exact chain |", "|---|---|---|---|---|"]
+    for r in doc["rows"]:
+        t = r.get("test", {})
+        cells = [interval(t.get(g, {}).get(m)) for g, m in (("single_event", "events_in_order"), ("multi_event", "events_in_order"), ("all", "chain_exact"))]
+        lines.append(f"| {r['inputs']} | `{r.get('flags') or 'defaults'}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+Renderer = Callable[[dict[str, Any]], str]
+# (study, copy name, results file in the study's results/, renderer)
+COPIES: list[tuple[str, str, str, Renderer]] = [
+    ("learners", "privileged", "sanity_learners.json", skills),
+    ("learners", "cameras", "camera_learners.json", skills),
+    ("learners", "navigate", "navigate_from_sound.json", navigate),
+    ("navigation_ablation", "ablation", "ablation.json", ablation),
+    ("planner", "fresh", "planner_fresh.json", planner),
+]
+
+
+def markers(name: str, results: str) -> tuple[str, str]:
+    """The begin and end markers of copy `name` (rendered from `results`)."""
+    return f"<!-- results: {name}, rendered from results/{results} by studies/results_tables.py", f"<!-- end of results: {name} -->"
+
+
+def rendered(study: str, name: str, results: str, render: Renderer) -> tuple[str, str]:
+    """(what the README holds between the markers, what the JSON renders to)."""
+    doc = json.loads((STUDIES / study / "results" / results).read_text())
+    begin, end = markers(name, results)
+    return block((STUDIES / study / "README.md").read_text(), begin, end), render(doc)
+
+
+def main() -> None:
+    for study, name, results, render in COPIES:
+        readme = STUDIES / study / "README.md"
+        begin, end = markers(name, results)
+        doc = json.loads((STUDIES / study / "results" / results).read_text())
+        readme.write_text(with_block(readme.read_text(), begin, end, render(doc)))
+
+
+if __name__ == "__main__":
+    main()
