@@ -155,7 +155,13 @@ def preview(
 
         typer.echo(f"error: {write_failed('--out', out, e)}", err=True)
         raise typer.Exit(2) from None
-    typer.echo(json.dumps(summary, indent=2))
+    # one line: the whole spec is in episode.json
+    chain = summary["chain"]
+    assert isinstance(chain, list)
+    typer.echo(
+        f"{summary['setting']} seed {seed}: {' -> '.join(map(str, chain))} "
+        f"{'succeeded' if summary['success'] else 'failed'} in {summary['steps']} steps (the whole episode: {out / 'episode.json'})"
+    )
     typer.echo(f"wrote {', '.join(sorted(p.name for p in out.iterdir() if not p.name.startswith('.')))} to {out}")
 
 

@@ -19,6 +19,7 @@
 # reader for ledataset (scripts/install_cpu_torchvision.sh says how and why).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+source scripts/pip_expected.sh
 VENV=${ECHO_LEROBOT_VENV:-.venv-lerobot}
 PIP=("$VENV/bin/pip" install -q --disable-pip-version-check)
 if [ ! -x "$VENV/bin/python" ] || ! "$VENV/bin/python" -c "import ledataset, torch, lerobot_doctor" 2>/dev/null; then
@@ -30,7 +31,7 @@ if ! "$VENV/bin/python" -c "import lerobot.policies.act.modeling_act, lerobot.po
   CONSTRAINTS=$(mktemp)
   "$VENV/bin/pip" freeze --exclude-editable | grep -v -i -E "^(lerobot|torchvision)==" > "$CONSTRAINTS"
   "${PIP[@]}" --no-deps "lerobot==0.4.4"
-  "${PIP[@]}" -c "$CONSTRAINTS" "draccus==0.10.0" "einops>=0.8,<0.9" "diffusers>=0.27.2,<0.36" "accelerate>=1.10,<2" \
+  pip_expected "$VENV/bin/python" "lerobot 0.4.4 is installed around its torch<2.11, torchvision<0.26 and hardware pins, above" -- -c "$CONSTRAINTS" "draccus==0.10.0" "einops>=0.8,<0.9" "diffusers>=0.27.2,<0.36" "accelerate>=1.10,<2" \
     "pyserial>=3.5,<4" "gymnasium>=1.1.1,<2" "termcolor>=2.4,<4" "setuptools>=71,<81"
   rm -f "$CONSTRAINTS"
 fi

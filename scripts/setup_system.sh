@@ -28,4 +28,6 @@ export DEBIAN_FRONTEND=noninteractive
 apt-get update -qq
 apt-get install -y -qq -t bookworm-backports mesa-vulkan-drivers libvulkan1 >/dev/null
 apt-get install -y -qq libsndfile1 >/dev/null || true
+# FFmpeg 5.1's shared libraries: torchcodec (HF datasets' audio decoder, scripts/setup.sh) loads them.
+apt-get install -y -qq --no-install-recommends libavcodec59 libavformat59 libavutil57 libswresample4 libswscale6 libavfilter8 libavdevice59 >/dev/null
 echo "setup_system.sh: Mesa $(dpkg-query -W -f='${Version}' mesa-vulkan-drivers) installed"

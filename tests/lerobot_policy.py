@@ -2,13 +2,17 @@
 `echo-data export --format lerobot` folder, the way `lerobot-train` builds it.
 
     python lerobot_policy.py EXPORT_ROOT {act,diffusion} STEPS
+    python lerobot_policy.py EXPORT_ROOT diffusion params
 
 LeRobot's own dataset metadata types the features (`make_policy` -> `dataset_to_policy_features`,
 then the config's `validate_features`), LeRobot's processors normalise with the export's
 meta/stats.json, LeRobot's dataset serves the train split's frames with the policy's
 `delta_timestamps`, and the policy takes STEPS Adam steps on CPU. Prints one JSON line: the
-policy's input and output features (key -> type), the losses and the episodes it read. Small
-model sizes keep the steps to seconds; nothing is downloaded (no pretrained backbone).
+policy's input and output features (key -> type), the losses, the episodes it read and the mean
+absolute gradient that reached the audio input (`observation.environment_state`) at each step.
+Small model sizes keep the steps to seconds; nothing is downloaded (no pretrained backbone).
+`params` builds the stock (full-size) config with and without the audio input and prints both
+parameter counts.
 """
 
 from __future__ import annotations
@@ -17,8 +21,10 @@ import json
 import sys
 
 import torch
+from lerobot.configs.types import FeatureType
 from lerobot.datasets.factory import resolve_delta_timestamps
 from lerobot.datasets.lerobot_dataset import LeRobotDataset, LeRobotDatasetMetadata
+from lerobot.datasets.utils import dataset_to_policy_features
 from lerobot.policies.factory import make_policy, make_policy_config, make_pre_post_processors
 
 SMALL = {
@@ -27,6 +33,23 @@ SMALL = {
     "diffusion": {"n_obs_steps": 2, "horizon": 8, "n_action_steps": 4, "drop_n_last_frames": 3, "down_dims": (32, 64),
                   "diffusion_step_embed_dim": 32, "spatial_softmax_num_keypoints": 8, "n_groups": 4, "num_train_timesteps": 10},
 }
+
+
+ENV = "observation.environment_state"
+
+
+def params(root: str, kind: str) -> None:
+    """Parameter counts of the stock `kind` policy with and without the audio input."""
+    meta = LeRobotDatasetMetadata("echo-data/export", root=root)
+    counts = {}
+    for name, drop in (("with_audio", ()), ("without_audio", (ENV,))):
+        cfg = make_policy_config(kind, device="cpu")
+        cfg.input_features = {k: f for k, f in dataset_to_policy_features(meta.features).items() if f.type is not FeatureType.ACTION and k not in drop}
+        cfg.output_features = {k: f for k, f in dataset_to_policy_features(meta.features).items() if f.type is FeatureType.ACTION}
+        policy = make_policy(cfg, ds_meta=meta)
+        counts[name] = sum(p.numel() for p in policy.parameters())
+        del policy
+    print(json.dumps(counts))
 
 
 def main(root: str, kind: str, steps: int) -> None:
@@ -41,13 +64,17 @@ def main(root: str, kind: str, steps: int) -> None:
     opt = torch.optim.Adam(policy.parameters(), lr=1e-4)
     policy.train()
     losses: list[float] = []
+    audio_grad: list[float] = []
     seen: set[int] = set()
     while len(losses) < steps:
         for batch in loader:
             seen.update(int(e) for e in batch["episode_index"].flatten())
-            loss, _ = policy.forward(pre(batch))
+            inputs = pre(batch)
+            inputs[ENV].requires_grad_(True)  # after normalisation: what the policy itself is given
+            loss, _ = policy.forward(inputs)
             opt.zero_grad()
             loss.backward()
+            audio_grad.append(float(inputs[ENV].grad.abs().mean()))
             opt.step()
             losses.append(float(loss.detach()))
             if len(losses) == steps:
@@ -56,6 +83,7 @@ def main(root: str, kind: str, steps: int) -> None:
         "inputs": {k: str(f.type.name) for k, f in cfg.input_features.items()},
         "outputs": {k: str(f.type.name) for k, f in cfg.output_features.items()},
         "losses": losses,
+        "audio_grad": audio_grad,
         "episodes_seen": sorted(seen),
         "train_episodes": [lo, hi],
     }
@@ -63,4 +91,7 @@ def main(root: str, kind: str, steps: int) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2], int(sys.argv[3]))
+    if sys.argv[3] == "params":
+        params(sys.argv[1], sys.argv[2])
+    else:
+        main(sys.argv[1], sys.argv[2], int(sys.argv[3]))

@@ -74,6 +74,8 @@ def test_preview_writes_pictures_and_sound(tmp_path: Path) -> None:
     out = tmp_path / "pv"
     res = runner.invoke(app, ["preview", str(small_recipe(tmp_path, "object_relocation.yaml")), "--seed", "4", "--out", str(out)])
     assert res.exit_code == 0, res.output
+    lines = res.stdout.strip().splitlines()
+    assert len(lines) == 2 and "seed 4: Navigate(" in lines[0] and lines[1].startswith("wrote ")  # a summary line, not the spec
     for name in ("episode.json", "topdown.png", "head_rgb.png", "frames.png", "heard.wav", "spectrogram.png", "acoustic_map.png"):
         assert (out / name).is_file(), name
     from echo_data.dataset.written import MARKER, all_files
@@ -94,7 +96,7 @@ def test_preview_writes_pictures_and_sound(tmp_path: Path) -> None:
 
     from echo_data.recipe import load_recipe
 
-    steps = int(re.search(r'"steps": (\d+)', res.output).group(1))
+    steps = int(re.search(r" in (\d+) steps ", res.output).group(1))
     every = 2 * load_recipe(small_recipe(tmp_path, "object_relocation.yaml")).robot.control_hz
     n_frames = -(-steps // every)
     sheet = Image.open(out / "frames.png")

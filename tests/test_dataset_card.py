@@ -101,3 +101,24 @@ def test_audio_config_plays_the_episode_wavs(ds: Path, tmp_path: Path) -> None:
     cells[0]["bytes"] = cells[0]["bytes"][:-2]
     pq.write_table(table.set_column(2, "audio", pa.array(cells, table.schema.field("audio").type)), bad / "meta" / "audio" / "test.parquet")
     assert any("meta/audio/test.parquet" in p and "differs" in p for p in validate(bad))
+
+
+def test_audio_config_decodes_a_row(ds: Path) -> None:
+    """A row of the `audio` config decodes through `datasets` itself (its Audio feature decodes
+    with torchcodec and FFmpeg, which scripts/setup.sh and setup_system.sh install), to the
+    episode WAV's samples at its rate."""
+    import importlib.util
+    import os
+
+    import datasets
+    import numpy as np
+    import soundfile
+
+    if importlib.util.find_spec("torchcodec") is None and not os.environ.get("CI"):
+        pytest.skip("torchcodec not installed (bash scripts/setup.sh)")
+    d = datasets.load_dataset(str(ds), "audio", split="train")
+    row = d[0]
+    samples = row["audio"].get_all_samples()  # what datasets hands a user: a decoder, read whole
+    wav, rate = soundfile.read(ds / f"audio/train/{row['episode_id']}.wav", dtype="float32", always_2d=True)
+    assert samples.sample_rate == rate and tuple(samples.data.shape) == (2, len(wav))
+    np.testing.assert_allclose(samples.data.numpy().T, wav, atol=1e-6)

@@ -111,7 +111,7 @@ def test_cut_build_is_a_complete_dataset(builds: tuple[Path, Path], tmp_path: Pa
     res = runner.invoke(app, ["export", str(cut), "--format", "lerobot", "--out", str(le)])
     assert res.exit_code == 0, res.output
     eps = pq.read_table(le / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
-    assert [(e["length"], e["truncated"]) for e in eps] == [(N, True), (N, True)]
+    assert [(e["length"], e["truncated"], e["split"]) for e in eps] == [(N, True, "train")]  # the train split (lerobot-train reads a whole folder)
     res = runner.invoke(app, ["info", str(cut)])
     assert res.exit_code == 0, res.output
 

@@ -34,3 +34,35 @@ def test_step_without_a_build_is_a_no_op() -> None:
     ep.begin(10)
     ep.step(5)
     ep.end()
+
+
+def test_build_bar_shows_the_runs_average_rate_and_keeps_its_width() -> None:
+    """The live bar moves by fractions of an episode every second; its rate and ETA stay the
+    run's average (tqdm's moving average once showed 463 s/ep for a 19 s build), and a long
+    postfix leaves the bar its width."""
+    import io
+    import re
+    import time
+
+    from echo_data.app.build import BAR_WIDTH, build_bar
+
+    out = io.StringIO()
+    bar = build_bar(10, 0, "quickstart", disable=False, file=out)
+    bar.mininterval = 0
+    start = time.monotonic()
+    for _ in range(20):
+        time.sleep(0.02)
+        bar.update(0.01)  # a running episode's share
+    bar.update(0.8)  # the episode finishes
+    for _ in range(5):
+        time.sleep(0.02)
+        bar.update(0.002)
+    bar.set_postfix_str("2 sampling (scene, acoustics); success 100%, 41.2 steps/s, the whole recipe in ~3 min " * 2)
+    elapsed = time.monotonic() - start
+    line = out.getvalue().split("\r")[-1]
+    bar.close()
+    shown = re.search(r"([\d.]+)(s/ep|ep/s)", line)
+    assert shown is not None, line
+    s_per_ep = float(shown.group(1)) if shown.group(2) == "s/ep" else 1 / float(shown.group(1))
+    assert 0.5 * elapsed < s_per_ep < 2.0 * elapsed, line  # ~1 episode done in `elapsed` seconds
+    assert re.search(r"%\|[^|]{" + str(BAR_WIDTH) + r"}\|", line), line  # the bar keeps its characters

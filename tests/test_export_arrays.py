@@ -64,6 +64,11 @@ def test_robomimic_sequence_dataset_reads_the_export(ds: Path, tmp_path: Path) -
     assert r.exit_code == 0, r.output
     rows = _rows(ds)
     with h5py.File(out, "r") as f:
+        clipped_line = f"{f['data'].attrs['actions_clipped']} action values outside the train split's range clipped to [-1, 1]"
+        assert clipped_line in r.output  # export says it, not only the file's attributes
+        depth_range = json.loads(f["data"].attrs["depth_range_m"])["head_depth"]
+        stats = json.loads((ds / "meta" / "stats.json").read_text())["observation.images.head_depth"]
+        assert depth_range == np.ceil(stats["max"][0] / 0.5) * 0.5  # the train split's farthest depth: no train pixel clips
         assert [n.decode() for n in f["mask/train"][:]] == ["demo_0", "demo_1", "demo_2"] and len(f["mask/test"]) == 2
         assert f["data"].attrs["total"] == len(rows) and json.loads(f["data"].attrs["env_args"])["env_name"] == "EchoData"
         d0 = f["data/demo_0"]
@@ -100,7 +105,11 @@ def test_robomimic_sequence_dataset_reads_the_export(ds: Path, tmp_path: Path) -
         np.testing.assert_array_equal(item["obs"]["spectrogram"][0], np.array(rows[i]["observation.audio.spectrogram"], np.float32))
         # images as stored (robomimic's ObsUtils.process_obs makes them channel-first floats for its models)
         np.testing.assert_array_equal(item["obs"]["head_rgb"][0], _png(rows[i]["observation.images.head_rgb"]))
-        np.testing.assert_array_equal(item["obs"]["head_depth"][0][..., 0], _png(rows[i]["observation.images.head_depth"]))
+        mm = item["obs"]["head_depth"][0][..., 0].astype(np.float64) * depth_range * 1000.0  # the stored fraction of the range
+        np.testing.assert_allclose(mm, _png(rows[i]["observation.images.head_depth"]), atol=0.01)
+        # robomimic's own observation processing (its `depth` modality: /1, clip to [0, 1], channel first) keeps the picture
+        seen = obs_utils.process_obs(item["obs"]["head_depth"][0], obs_key="head_depth")
+        assert seen.shape[0] == 1 and np.ptp(seen) > 0.05 and seen.min() >= 0.0 and seen.max() <= 1.0
     again = CliRunner().invoke(app, ["export", str(ds), "--format", "robomimic", "--out", str(out)])
     assert again.exit_code == 2 and "already exists" in again.output
 
@@ -141,6 +150,11 @@ def test_zarr_replay_buffer_reads_back(ds: Path, tmp_path: Path) -> None:
     assert r.exit_code == 0, r.output
     rows = _rows(ds)
     root = zarr.open_group(str(out), mode="r")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # zarr warns about a file it does not know (the export's marker once was one)
+        assert {name for name, _ in root.members(max_depth=None)} >= {"data", "meta", "data/action", "meta/episode_ends"}
     ends = root["meta/episode_ends"][:]
     lengths = [sum(1 for x in rows if (x["split"], x["episode_index"]) == key) for key in dict.fromkeys((x["split"], x["episode_index"]) for x in rows)]
     assert ends.tolist() == np.cumsum(lengths).tolist() and root["meta/episode_split"][:].tolist() == [0, 0, 0, 2, 2]
@@ -172,5 +186,5 @@ def test_zarr_per_split_holds_only_its_split(ds: Path, tmp_path: Path) -> None:
         assert set(root["meta/episode_split"][:].tolist()) == {0 if split == "train" else 2}
         assert {e["split"] for e in root.attrs["episodes"]} == {split}
         np.testing.assert_array_equal(root["data/action"][:], np.array([x["action"] for x in mine], np.float32))
-    bad = CliRunner().invoke(app, ["export", str(ds), "--format", "lerobot", "--out", str(tmp_path / "l"), "--split", "train"])
-    assert bad.exit_code == 2 and not (tmp_path / "l").exists()
+    bad = CliRunner().invoke(app, ["export", str(ds), "--format", "lerobot", "--out", str(tmp_path / "l"), "--split", "val"])
+    assert bad.exit_code == 2 and "--split val" in bad.output and not (tmp_path / "l").exists()  # a split the dataset lacks

@@ -28,7 +28,7 @@ from support.lerobot_env import HERE, VENV_PYTHON, lerobot_env, run_lerobot
 from typer.testing import CliRunner
 
 from echo_data.cli import app
-from echo_data.dataset.lerobot import depth_image
+from echo_data.dataset.lerobot import ENV_STATE_MAX, audio_pool, depth_image, environment_state
 from echo_data.records import PRIVILEGED_COLUMNS
 
 
@@ -37,10 +37,10 @@ def ds(synth_dataset: Callable[[dict[str, int]], Path]) -> Path:
     return synth_dataset({"train": 4, "test": 2})
 
 
-def _echo_rows(ds: Path) -> list[dict]:
-    """echo-data's own rows in LeRobot's episode order (train, then test)."""
+def _echo_rows(ds: Path, splits: tuple[str, ...] = ("train",)) -> list[dict]:
+    """echo-data's own rows of `splits` in the export's episode order (the default export holds the train split)."""
     rows = []
-    for split in ("train", "test"):
+    for split in splits:
         for f in sorted((ds / "data").glob(f"{split}-*.parquet")):
             rows += [dict(r, split=split) for r in pq.read_table(f).to_pylist()]
     return rows
@@ -51,18 +51,25 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
     r = CliRunner().invoke(app, ["export", str(ds), "--format", "lerobot", "--out", str(out)])
     assert r.exit_code == 0, r.output
     info = json.loads((out / "meta" / "info.json").read_text())
-    assert info["codebase_version"] == "v3.0" and info["splits"] == {"train": "0:4", "test": "4:6"}
+    assert info["codebase_version"] == "v3.0" and info["splits"] == {"train": "0:4"}  # no test episode for lerobot-train to read
     assert (out / "data" / "chunk-000" / "file-000.parquet").is_file() and info["video_path"] is None
     assert info["features"]["observation.images.head_depth"]["shape"] == [16, 24, 3]  # 8-bit depth x3: one shape for every camera
     data = pq.read_schema(out / "data" / "chunk-000" / "file-000.parquet")
     assert list(info["features"]) == data.names  # listed in column order
-    # policy-facing names: one action feature, the spectrogram as the environment state, the rest under extra.
+    # policy-facing names: one action feature, the pooled spectrogram as the environment state, the rest under extra.
     assert [k for k in info["features"] if k.startswith("action")] == ["action"]
-    assert info["features"]["observation.environment_state"]["shape"] == [65 * 26 * 2]
+    env = info["echo_data"]["environment_state"]
+    assert env["from"] == "observation.audio.spectrogram" and env["pool"] == list(audio_pool((65, 26, 2)))
+    n_env = info["features"]["observation.environment_state"]["shape"][0]
+    assert 200 < n_env <= ENV_STATE_MAX and n_env == len(env["mean"]) == len(env["std"])
+    # per-value statistics as LeRobot's compute_episode_stats makes them, the environment state standardised on train
+    stats = json.loads((out / "meta" / "stats.json").read_text())
+    assert len(stats["observation.environment_state"]["mean"]) == n_env and len(stats["extra.observation.audio.spectrogram"]["std"]) == 65 * 26 * 2
+    assert abs(np.mean(stats["observation.environment_state"]["mean"])) < 1e-3 and 0.3 < np.mean(stats["observation.environment_state"]["std"]) <= 1.0 + 1e-3
     assert {k for k in info["features"] if k.startswith("observation.")} == {
         "observation.state", "observation.environment_state", *(c for c in info["features"] if c.startswith("observation.images."))}
     assert info["echo_data"]["renamed"] == {
-        "extra.action.executed": "action.executed", "observation.environment_state": "observation.audio.spectrogram",
+        "extra.action.executed": "action.executed", "extra.observation.audio.spectrogram": "observation.audio.spectrogram",
         "extra.observation.audio.mel": "observation.audio.mel",
         "extra.action.ee": "action.ee", "extra.action.ee.executed": "action.ee.executed",
         **{"extra." + c: c for c in PRIVILEGED_COLUMNS}}
@@ -70,7 +77,7 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
         assert info["features"]["extra." + c]["info"] == {"privileged": True}
     assert info["echo_data"]["cameras"]["head"]["K"][0][2] == 12.0
     eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
-    assert [e["episode_index"] for e in eps] == list(range(6))
+    assert [e["episode_index"] for e in eps] == list(range(4)) and {e["split"] for e in eps} == {"train"}
     assert eps[1]["dataset_from_index"] == eps[0]["dataset_to_index"] and eps[-1]["dataset_to_index"] == info["total_frames"]
     assert all((out / e["audio_path"]).is_file() for e in eps)
     # per-episode statistics as LeRobot writes them, from that episode's own frames
@@ -79,14 +86,9 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
     np.testing.assert_allclose(eps[0]["stats/observation.state/max"], first.max(axis=0), rtol=1e-6)
     np.testing.assert_allclose(eps[0]["stats/observation.state/mean"], first.mean(axis=0), rtol=1e-5)
     assert eps[0]["stats/index/count"] == [eps[0]["length"]] and np.shape(eps[0]["stats/observation.images.head_rgb/mean"]) == (3, 1, 1)
-    # a data file holds one split's episodes
-    by_file: dict[int, set[str]] = {}
-    for e in eps:
-        by_file.setdefault(e["data/file_index"], set()).add(e["split"])
-    assert all(len(s) == 1 for s in by_file.values()) and len(by_file) == 2
     card = (out / "README.md").read_text()
-    assert yaml.safe_load(card.split("---\n")[1])["configs"][0]["data_files"] == "data/*/*.parquet" and "## Features" in card
-    assert "across the whole export" in card and "within its split" not in card
+    assert yaml.safe_load(card.split("---\n")[1])["configs"][0]["data_files"] == [{"split": "train", "path": "data/*/*.parquet"}] and "## Features" in card
+    assert "holds the train split only" in card and "within its split" not in card
     # the export's card describes the export, not the source folder it came from
     assert "Parquet (this folder)" not in card and "rebuilds these bytes" not in card and "16-bit PNG" not in card
     assert "| `extra.action.executed` |" in card and "not a policy input or output" in card and "@article{gardner1995kemar" in card
@@ -94,10 +96,17 @@ def test_export_layout_and_bad_input(ds: Path, tmp_path: Path) -> None:
     assert "manifest.json's recipe" not in card and "the dataset's manifest.json" not in card
     # the Hub viewer's playable audio: one Audio table per split, in the export's episode numbering
     configs = yaml.safe_load(card.split("---\n")[1])["configs"]
-    assert configs[1] == {"config_name": "audio", "data_files": [{"split": s, "path": f"meta/audio/{s}.parquet"} for s in ("train", "test")]}
-    heard = pq.read_table(out / "meta" / "audio" / "test.parquet")
-    assert heard.column("episode_index").to_pylist() == [4, 5] and heard.column("episode_id").to_pylist() == [e["episode_id"] for e in eps[4:]]
-    assert heard.column("audio")[0].as_py()["bytes"] == (out / eps[4]["audio_path"]).read_bytes()
+    assert configs[1] == {"config_name": "audio", "data_files": [{"split": "train", "path": "meta/audio/train.parquet"}]}
+    # the test split in a folder of its own, numbered from 0, its audio standardised with the train split's statistics
+    test = tmp_path / "le-test"
+    assert CliRunner().invoke(app, ["export", str(ds), "--out", str(test), "--split", "test"]).exit_code == 0
+    tinfo = json.loads((test / "meta" / "info.json").read_text())
+    assert tinfo["splits"] == {"test": "0:2"} and tinfo["echo_data"]["environment_state"] == env
+    teps = pq.read_table(test / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
+    heard = pq.read_table(test / "meta" / "audio" / "test.parquet")
+    assert heard.column("episode_index").to_pylist() == [0, 1] and heard.column("episode_id").to_pylist() == [e["episode_id"] for e in teps]
+    assert heard.column("episode_id").to_pylist() == ["test-000000", "test-000001"]
+    assert heard.column("audio")[0].as_py()["bytes"] == (test / teps[0]["audio_path"]).read_bytes()
     assert json.loads(heard.schema.metadata[b"huggingface"])["info"]["features"]["audio"] == {"_type": "Audio"}
     again = CliRunner().invoke(app, ["export", str(ds), "--out", str(out)])
     assert again.exit_code == 2 and "already exists" in again.output
@@ -121,15 +130,16 @@ def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path, monkeypatch:
     got = json.loads(p.stdout.strip().splitlines()[-1])
     frames = np.load(npz)
     rows = _echo_rows(ds)
-    assert got["len"] == len(rows) and got["num_episodes"] == 6 and got["video_keys"] == []
-    assert got["splits"] == {"train": "0:4", "test": "4:6"}
+    assert got["len"] == len(rows) and got["num_episodes"] == 4 and got["video_keys"] == []
+    assert got["splits"] == {"train": "0:4"}
     assert got["train_episodes"] == [0, 1, 2, 3] and got["train_len"] == sum(r["split"] == "train" for r in rows)
     assert "observation.images.head_depth" in got["stats_keys"]
     assert frames["index"].tolist() == list(range(len(rows)))
     ids = [e["episode_id"] for e in got["episodes"]]
     eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
     assert sorted({e["data/file_index"] for e in eps}) == list(range(n_files))
-    assert ids == [f"train-{i:06d}" for i in range(4)] + [f"test-{i:06d}" for i in range(2)]
+    assert ids == [f"train-{i:06d}" for i in range(4)]
+    recipe = info["echo_data"]["environment_state"]
     np.testing.assert_array_equal(frames["window.observation.state"][0], [rows[0]["observation.state"], rows[1]["observation.state"]])
     np.testing.assert_array_equal(frames["window.action"][0], [rows[k]["action"] for k in (1, 2, 3)])
     assert not frames["window.pad"][0].any()
@@ -140,8 +150,10 @@ def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path, monkeypatch:
         assert frames["timestamp"][i] == np.float32(row["timestamp"])
         for col in ("action", "observation.state", "camera_pose.head", "camera_pose.wrist"):
             np.testing.assert_array_equal(frames[col][i], np.array(row[col], np.float32))
-        for name, col in (("observation.environment_state", "observation.audio.spectrogram"), ("extra.observation.audio.mel", "observation.audio.mel")):
+        for name, col in (("extra.observation.audio.spectrogram", "observation.audio.spectrogram"), ("extra.observation.audio.mel", "observation.audio.mel")):
             np.testing.assert_array_equal(frames[name][i], np.array(row[col], np.float32).ravel())
+        spec = np.array(row["observation.audio.spectrogram"], np.float32)[None]
+        np.testing.assert_allclose(frames["observation.environment_state"][i], environment_state(spec, recipe)[0], rtol=1e-5, atol=1e-5)
         np.testing.assert_array_equal(frames["extra.action.executed"][i], np.array(row["action.executed"], np.float32))
         assert frames["skill_success"][i].tolist() == row["skill_success"] and bool(frames["done"][i]) == row["done"]
         assert int(frames["audio_offset"][i]) == row["audio_offset"] and got["strings"]["audio_path"][i] == row["audio_path"]
@@ -197,7 +209,7 @@ def test_video_export_decodes_and_lerobot_tools_accept_it(ds: Path, tmp_path: Pa
     )
     p = run_lerobot(["-c", code, str(out), str(twin), str(merged)], tmp_path)
     assert p.returncode == 0, p.stderr[-3000:]
-    assert p.stdout.split()[-5:] == [str(2 * len(rows)), "12", "(3,", "16,", "24)"]
+    assert p.stdout.split()[-5:] == [str(2 * len(rows)), "8", "(3,", "16,", "24)"]
     doctor = VENV_PYTHON.parent / "lerobot-doctor"
     p = subprocess.run([str(doctor), "check", str(out), "--json"], capture_output=True, text=True, env=lerobot_env(tmp_path), timeout=300)
     report = json.loads(p.stdout[p.stdout.index("{") :])
@@ -229,3 +241,52 @@ def test_stock_policy_trains_on_the_export(policy: str, tmp_path: Path) -> None:
     assert not any(k.startswith("extra.") for k in got["inputs"])
     assert len(got["losses"]) == 3 and all(np.isfinite(got["losses"]))
     assert set(got["episodes_seen"]) <= set(range(*got["train_episodes"]))  # train frames only
+    assert all(g > 0 for g in got["audio_grad"]), got["audio_grad"]  # the audio input reaches the loss
+
+
+def test_diffusion_audio_costs_few_parameters(tmp_path: Path) -> None:
+    """Stock Diffusion (its full-size default config) with the audio input has at most 1.2x the
+    parameters it has without: the environment state feeds every FiLM layer, so its width counts."""
+    from support.synth import build_synth
+
+    from echo_data.recipe import CameraConfig, RobotConfig
+
+    lerobot_env(tmp_path)
+    same = RobotConfig(head_camera=CameraConfig(width=24, height=16), wrist_camera=CameraConfig(width=24, height=16, rgb=False))
+    ds = build_synth(tmp_path / "synth", {"train": 1}, robot=same)
+    out = tmp_path / "le"
+    assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out)]).exit_code == 0
+    p = run_lerobot([str(HERE / "lerobot_policy.py"), str(out), "diffusion", "params"], tmp_path)
+    assert p.returncode == 0, p.stderr[-3000:]
+    got = json.loads(p.stdout.strip().splitlines()[-1])
+    assert got["with_audio"] > got["without_audio"] and got["with_audio"] <= 1.2 * got["without_audio"], got
+
+
+def test_episode_stats_match_lerobots_compute_episode_stats(ds: Path, tmp_path: Path) -> None:
+    """The export's per-episode statistics (meta/episodes `stats/*`) are what LeRobot's own
+    `compute_episode_stats` makes of the same frames, for every numeric non-camera feature:
+    min, max, mean, std and count per value. Quantiles are approximations on both sides (LeRobot's
+    a running histogram, ours merged sketches; on a 20-frame episode they differ by up to ~12 % of
+    a value's range) and are only checked to be ordered."""
+    out = tmp_path / "le"
+    assert CliRunner().invoke(app, ["export", str(ds), "--out", str(out)]).exit_code == 0
+    code = (
+        "import json, sys, numpy as np, pyarrow.parquet as pq\n"
+        "from lerobot.datasets.compute_stats import compute_episode_stats\n"
+        "root = sys.argv[1]; info = json.load(open(root + '/meta/info.json'))\n"
+        "rows = pq.read_table(root + '/data/chunk-000/file-000.parquet').to_pydict()\n"
+        "ep = np.asarray(rows['episode_index']) == 0\n"
+        "feats = {k: f for k, f in info['features'].items() if f['dtype'] not in ('image', 'video', 'string')}\n"
+        "data = {k: np.asarray(rows[k], dtype=np.float64)[ep].reshape(int(ep.sum()), -1) for k in feats}\n"
+        "stats = compute_episode_stats(data, feats)\n"
+        "print(json.dumps({k: {s: np.asarray(v).tolist() for s, v in st.items()} for k, st in stats.items()}))\n"
+    )
+    p = run_lerobot(["-c", code, str(out)], tmp_path)
+    assert p.returncode == 0, p.stderr[-3000:]
+    theirs = json.loads(p.stdout.strip().splitlines()[-1])
+    ours = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()[0]
+    assert "observation.environment_state" in theirs and "extra.observation.audio.spectrogram" in theirs
+    for k, st in theirs.items():
+        for s in ("min", "max", "mean", "std", "count"):
+            np.testing.assert_allclose(ours[f"stats/{k}/{s}"], st[s], rtol=1e-4, atol=1e-6, err_msg=f"{k} {s}")
+        assert np.all(np.diff([ours[f"stats/{k}/{q}"] for q in ("min", "q01", "q10", "q50", "q90", "q99", "max")], axis=0) >= -1e-9), k

@@ -40,7 +40,7 @@ def _code(name: str) -> str:
 
 
 def test_all_four_examples_are_there() -> None:
-    assert set(EXAMPLES) == {"datasets", "torch", "lerobot", "robomimic", "zarr", "llamafactory"}
+    assert set(EXAMPLES) == {"datasets", "torch", "lerobot", "lerobot_train", "robomimic", "zarr", "llamafactory"}
 
 
 def test_the_readme_shows_three_of_them_as_the_docs_do() -> None:
@@ -82,6 +82,27 @@ def test_lerobot_example_runs(workdir: Path, tmp_path: Path) -> None:
     code = _code("lerobot") + "\nassert train.num_episodes == 3 and frame['action'].shape == (12,) and len(next(iter(loader))['index']) > 0\nprint('ok')\n"
     p = run_lerobot(["-c", code], tmp_path, cwd=workdir)
     assert p.returncode == 0 and p.stdout.strip().endswith("ok"), p.stderr[-2000:]
+
+
+def test_lerobot_train_command_runs_offline_on_the_train_split(workdir: Path, tmp_path: Path) -> None:
+    """The `lerobot-train` command of docs/loading.md as written, but for 2 steps: it trains offline (no
+    ImageNet download: an empty torch hub cache) and reads no test episode."""
+    import shlex
+    import subprocess
+
+    from support.lerobot_env import VENV_PYTHON, lerobot_env
+
+    r = CliRunner().invoke(app, ["export", str(workdir / "out" / "quickstart"), "--out", str(workdir / "out" / "quickstart-lerobot"), "--overwrite"])
+    assert r.exit_code == 0, r.output
+    argv = shlex.split(EXAMPLES["lerobot_train"].replace("\\\n", " "))
+    assert argv[0] == ".venv-lerobot/bin/lerobot-train" and sum(a.startswith("--steps=") for a in argv) == 1
+    argv = [str(VENV_PYTHON.parent / "lerobot-train")] + ["--steps=2" if a.startswith("--steps=") else a for a in argv[1:]]
+    env = lerobot_env(tmp_path) | {"TORCH_HOME": str(tmp_path / "torch"), "OMP_NUM_THREADS": "1"}
+    p = subprocess.run(argv, capture_output=True, text=True, env=env, timeout=600, cwd=workdir)
+    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-3000:]
+    log = p.stdout + p.stderr
+    assert "dataset.num_episodes=3" in log and "End of training" in log  # the 3 train episodes; the test one is not in the folder
+    assert (workdir / "outputs" / "act-quickstart" / "checkpoints").is_dir()
 
 
 def test_llamafactory_config_finds_the_planner_data(workdir: Path) -> None:

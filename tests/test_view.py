@@ -44,7 +44,7 @@ def test_view_writes_video_with_binaural_sound(ds: Path, tmp_path: Path) -> None
     assert p["video_frames"] == ep["n_steps"] and p["fps"] == 10.0
     assert p["audio_channels"] == 2 and p["audio_rate"] == 16000
     assert p["duration_s"] == pytest.approx(ep["n_steps"] / 10, abs=0.05)
-    assert (p["width"], p["height"]) == (1024, 468)
+    assert (p["width"], p["height"]) == (1024, 484)
 
 
 def test_view_bad_episode_is_exit_2_and_writes_nothing(ds: Path, tmp_path: Path) -> None:
@@ -102,7 +102,7 @@ def test_frame_titles_depth_bars_in_metres_wrist_panel_and_map_key() -> None:
     rgb = np.full((16, 24, 3), 200, np.uint8)
     with_wrist = video.frame(rgb, depth, [(0.5, 0.5)], 0.0, 0, "caption", wrist_depth_m=np.full((16, 16), 6.0))
     without = video.frame(rgb, depth, [(0.5, 0.5)], 0.0, 0, "caption")
-    assert with_wrist.shape == (HEIGHT, WIDTH, 3) == (468, 1024, 3)
+    assert with_wrist.shape == (HEIGHT, WIDTH, 3) == (484, 1024, 3)
     mid = PANEL_TOP + PANEL // 2
     assert not without[PANEL_TOP:KEY_TOP, 2 * PANEL : 3 * PANEL].any()  # no wrist depth: an empty panel
     lut = colour_lut("turbo")
@@ -196,7 +196,7 @@ def test_sources_fall_silent_when_resolved_and_ride_in_the_hand() -> None:
 
 
 def test_wrist_depth_has_its_own_scale_and_the_strip_its_axes() -> None:
-    from echo_data.viz.frames import SPEC_AXIS_W, SPEC_TOP, WRIST_DEPTH_RANGE_M
+    from echo_data.viz.frames import DB_KEY, SPEC_AXIS_W, SPEC_HEAD_TOP, SPEC_TOP, WRIST_DEPTH_RANGE_M
 
     topdown = TopDownMap(None, [], size=PANEL, extent=[(0.0, 0.0), (4.0, 4.0)])
     video = EpisodeFrames(topdown, np.zeros((16_000, 2), np.float32), 16_000)
@@ -207,9 +207,16 @@ def test_wrist_depth_has_its_own_scale_and_the_strip_its_axes() -> None:
     assert tuple(frame[mid, 2 * PANEL + PANEL // 2]) == tuple(lut[int(1.0 / WRIST_DEPTH_RANGE_M * 255)])  # 1 m mid-scale, not dark
     axis = frame[SPEC_TOP:CAPTION_TOP, :SPEC_AXIS_W]
     assert (axis.min(axis=2) > 128).sum() > 40  # L / R letters, kHz ticks and labels in white
-    key = frame[SPEC_TOP + 4 : SPEC_TOP + 12, WIDTH - 150 : WIDTH - 50]
+    key = frame[SPEC_HEAD_TOP + 4 : SPEC_HEAD_TOP + 12, DB_KEY[0] : DB_KEY[1]]
     magma = colour_lut("magma")
     assert tuple(key[2, 0]) == tuple(magma[0]) and tuple(key[2, -1]) == tuple(magma[255])  # the dB key, -80 .. 0 dB
+    # the title and the key sit in the strip's header: the strip itself is the spectrogram only (silent here: black)
+    from echo_data.viz.frames import SPEC_AHEAD, SPEC_H, SPEC_SECONDS
+    from echo_data.viz.spectrogram import scrolling_strip
+
+    strip = scrolling_strip(video.picture, video.cols_per_s, 0.0, WIDTH, SPEC_H, SPEC_SECONDS, SPEC_AHEAD)
+    assert DB_KEY[1] < WIDTH and np.array_equal(frame[SPEC_TOP:CAPTION_TOP, SPEC_AXIS_W:], strip[:, SPEC_AXIS_W:])
+    assert (frame[SPEC_HEAD_TOP:SPEC_TOP, SPEC_AXIS_W:].min(axis=2) > 128).sum() > 100  # the title is in the header
 
 
 def test_topdown_picture_has_legend_and_chain_targets(tmp_path: Path) -> None:
@@ -231,3 +238,33 @@ def test_topdown_picture_has_legend_and_chain_targets(tmp_path: Path) -> None:
     assert target_point(plan, "furniture:1") == tuple(plan.furniture[1].center) and target_point(plan, "door:99") is None
     map_h = TopDownMap(plan, events, px_per_m=80.0, labels=True).height
     assert a.shape[0] > map_h + 16 and (a[map_h + 16 :] != np.asarray(palette.BACKGROUND)).any(axis=2).sum() > 100  # the legend rows
+
+
+def test_frame_text_keeps_its_spaces() -> None:
+    """The frame's font draws a space wide enough to part words (PIL's built-in one ran
+    "dB above" into "dBabove"): a space is at least a third of an "a"."""
+    from echo_data.viz.frames import FONT
+
+    assert FONT.getlength(" ") >= FONT.getlength("a") / 3 and FONT.getlength(" ") >= 3
+
+
+def test_topdown_room_label_stays_readable_over_the_start_ring() -> None:
+    """Room names are drawn last on a backing: a start ring at a room's centre (where its name
+    is) no longer crosses the name."""
+    from PIL import ImageDraw as Draw
+
+    from echo_data.recipe import load_recipe
+    from echo_data.scene.generate import generate_floorplan_from_seed
+    from echo_data.viz import palette
+
+    plan = generate_floorplan_from_seed(load_recipe(Path(__file__).parents[1] / "recipes" / "quickstart.yaml"), 3)
+    room = plan.rooms[0]
+    cx, cy = room.rect.center
+    m = TopDownMap(plan, [], px_per_m=100, labels=True)
+    img = m.draw((), start=(cx, cy, 0.0))
+    from PIL import Image
+
+    left, top, right, bottom = (int(v) for v in Draw.Draw(Image.new("RGB", (1, 1))).textbbox(m.px(cx, cy), f"{room.kind} {room.index}", anchor="mm"))
+    inside = img[top:bottom, left:right].reshape(-1, 3)
+    assert (inside.max(axis=1) < 160).sum() > 10  # the name is there (grey text, antialiased)
+    assert not (inside == palette.ROBOT).all(axis=1).any()  # and the ring does not cross it

@@ -127,6 +127,22 @@ def _prepare(
 # ---------------------------------------------------------------- parent side
 
 
+BAR_WIDTH = 20  # characters of the bar itself: the postfix (success, rates, sampling) never squeezes it
+
+
+def build_bar(total: int, reused: int, name: str, disable: bool | None, file: Any = None) -> Any:
+    """The build's tqdm bar over episodes. Its rate and ETA are the run's average
+    (smoothing=0): the live bar moves by fractions of an episode every second, and tqdm's default
+    moving average over those steps showed `463.49s/ep` and 30 minutes left for a 19 s build.
+    `disable` None: no bar when stderr is no terminal (logs, pipes)."""
+    from tqdm.auto import tqdm
+
+    return tqdm(
+        total=total, initial=reused, unit="ep", desc=f"build {name}", dynamic_ncols=True, smoothing=0, file=file,
+        disable=disable, bar_format="{l_bar}{bar:" + str(BAR_WIDTH) + "}| {n:.1f}/{total_fmt} [{elapsed}<{remaining}, {rate_fmt}{postfix}]",
+    )
+
+
 class _LiveBar:
     """The build's bar: finished episodes plus the share done of the running ones (read from the
     workers' progress slots every second by a thread, so the bar and its ETA, which is over this
@@ -326,8 +342,6 @@ def _build_locked(
         ex = make_executor(executor, workers, init_job, (job, slots, counter), address)
     except ExecutorError as e:
         raise OutputError(str(e)) from None
-    from tqdm.auto import tqdm
-
     bar = None
     try:
         manifest = _prepare(out, recipe, limit, layout, mode, workers, executor, only)
@@ -346,11 +360,7 @@ def _build_locked(
             for i in p.indices
             if not writer.stored(split, i)
         )
-        bar = tqdm(
-            total=total, initial=reused, unit="ep", desc=f"build {recipe.name}", dynamic_ncols=True,
-            disable=None if progress else True,  # None: none when stderr is no terminal (logs, pipes)
-            bar_format="{l_bar}{bar}| {n:.1f}/{total_fmt} [{elapsed}<{remaining}, {rate_fmt}{postfix}]",
-        )
+        bar = build_bar(total, reused, recipe.name, None if progress else True)
         rate = _Rate(sum(split_sizes(recipe, None).values()) - reused, total - reused)
         attempts = successes = 0
         with _LiveBar(bar, slots, rate) as live:

@@ -130,7 +130,7 @@ def export_cmd(
     out: Annotated[Path, typer.Option("--out", "-o", help="Export: a folder (lerobot, zarr) or an .hdf5 file (robomimic).")],
     fmt: Annotated[str, typer.Option("--format", help=f"Target format: {', '.join(EXPORT_FORMATS)} (LeRobot v3.0, robomimic HDF5, Diffusion Policy Zarr).")] = "lerobot",
     video: Annotated[list[str] | None, typer.Option("--video", help="lerobot: store this camera as an MP4 video feature (rgb), a keyframe every 2 frames.")] = None,
-    split: Annotated[str | None, typer.Option("--split", help="robomimic, zarr: export this split only (train, val, test): Diffusion Policy draws validation from every episode it is given.")] = None,
+    split: Annotated[str | None, typer.Option("--split", help="Export this split only (train, val, test; lerobot: default train, as lerobot-train reads every episode of a folder): Diffusion Policy draws validation from every episode it is given.")] = None,
     next_obs: Annotated[bool, typer.Option("--next-obs", help="robomimic: also write next_obs/ (offline RL needs it; BC does not).")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing export.")] = False,
 ) -> None:
@@ -145,8 +145,6 @@ def export_cmd(
         raise _fail(f"--format {fmt}: unknown format (use {', '.join(EXPORT_FORMATS)})", 2)
     if video and fmt != "lerobot":
         raise _fail(f"--video: only the lerobot format stores videos, not {fmt}", 2)
-    if split is not None and fmt == "lerobot":
-        raise _fail("--split: the lerobot export keeps every split (info.json `splits`; one split per data file)", 2)
     if next_obs and fmt != "robomimic":
         raise _fail(f"--next-obs: only the robomimic format has next_obs, not {fmt}", 2)
     module, name = EXPORT_FORMATS[fmt]
@@ -163,6 +161,8 @@ def export_cmd(
     except OSError as e:
         raise _fail(write_failed("--out", out, e), 2) from None
     typer.echo(f"{out}: {fmt} {info['codebase_version']}, {info['total_episodes']} episodes, {info['total_frames']} frames, splits {info['splits']}")
+    for note in info.get("notes", []):  # what a user must know about the written numbers (e.g. clipped actions)
+        typer.echo(note)
 
 
 def view_cmd(

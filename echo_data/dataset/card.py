@@ -375,7 +375,8 @@ def write_card(out: Path) -> Path:
 
 # How the LeRobot export numbers and reshapes what the dataset's card describes per split.
 EXPORT_NOTES = {
-    "episode_index": "episode number across the whole export (train first, then val, test: `splits` in meta/info.json gives each split's range)",
+    "episode_index": "episode number within the export (it holds one split: `splits` in meta/info.json)",
+    "observation.environment_state": "the spectrogram (else the log-mel) mean-pooled to at most 512 values and standardised per value with the train split's mean and std (meta/info.json `echo_data.environment_state` holds both and the pooling)",
     "index": "frame number across the whole export",
     SPECTROGRAM: "SoundSpaces-style log1p magnitude STFT of the last 1 s, flattened row-major from (frequency, time, ear)",
     MEL: "log-mel spectrogram of the last 1 s, flattened row-major from (frequency, time, ear)",
@@ -400,13 +401,14 @@ def export_card(info: dict[str, Any], src_card: Path, folder: Path) -> str:
     card's sections that hold for the export too (counts, sounds, how it was made, success, uses,
     limits), their pointers to files only the source has made to say so."""
     ed = info["echo_data"]
-    front = {
+    front: dict[str, Any] = {
         "license": LICENSE,
         "task_categories": ["robotics"],
         "annotations_creators": ["machine-generated"],
         "tags": ["LeRobot", "echo-data", "binaural-audio"],
         "size_categories": [size_category(info["total_frames"])],
-        "configs": [{"config_name": "default", "data_files": "data/*/*.parquet"}, *audio_config(folder, list(info["splits"]))],
+        # one split per export (echo_data.dataset.lerobot): its data files are that split's
+        "configs": [{"config_name": "default", "data_files": [{"split": sp, "path": "data/*/*.parquet"} for sp in info["splits"]]}, *audio_config(folder, list(info["splits"]))],
     }
     body = src_card.read_text().split("---\n", 2)[-1] if src_card.is_file() else ""
     own = ("Features", "Loading", "Links", "Citation", "Cameras")  # written here for the export
@@ -414,24 +416,21 @@ def export_card(info: dict[str, Any], src_card: Path, folder: Path) -> str:
     feats = info["features"]
     renamed = ed.get("renamed", {})
     lines = [
-        "---",
-        yaml.safe_dump(front, sort_keys=False).rstrip(),
-        "---",
-        "",
         f"# LeRobot {info['codebase_version']} export of echo-data {ed['source']}",
         "",
         f"{info['total_episodes']} episodes, {info['total_frames']} frames at {info['fps']} Hz, written by `echo-data export "
-        "--format lerobot` from the echo-data dataset named above (Parquet shards there, LeRobot's layout here). Episodes "
-        f"are numbered across the whole export, train first: `splits` {info['splits']} are episode ranges, so "
-        "`LeRobotDataset(repo_id, root=..., episodes=list(range(*map(int, info['splits']['train'].split(':')))))` is the train split; "
-        "a data file never holds two splits. `index` counts frames across the export. The episode WAVs are under audio/ "
+        "--format lerobot` from the echo-data dataset named above (Parquet shards there, LeRobot's layout here). It holds "
+        f"the {' and '.join(info['splits'])} split only (`splits` {info['splits']}): `lerobot-train` and `LeRobotDataset` read every "
+        "episode of a folder, so each split is exported to a folder of its own (`--split test` for the test split). "
+        "`index` counts frames across the export. The episode WAVs are under audio/ "
         "(`audio_path`), and once more as a Parquet `Audio` column per split in meta/audio/ (the `audio` config: "
         "episode_id, the export's episode_index and the WAV, which the Hub's viewer plays).",
         "",
         "## Features",
         "",
         "LeRobot's policies type a feature by its name: cameras (`observation.images.*`), `observation.state`, "
-        "`observation.environment_state` (here the audio spectrogram) and `action` are what stock ACT and Diffusion use; "
+        "`observation.environment_state` (here the audio spectrogram pooled to at most 512 values and standardised with "
+        "the train split's per-value mean and std, `echo_data.environment_state` in meta/info.json) and `action` are what stock ACT and Diffusion use; "
         "`extra.*` features are never a policy's input or output (strip `extra.` for echo-data's column name).",
         "",
         "| feature | dtype | shape | meaning |",
@@ -469,7 +468,11 @@ def export_card(info: dict[str, Any], src_card: Path, folder: Path) -> str:
         *["## " + sec.rstrip() + "\n" for sec in kept],
         *links_and_citation(ed["source"], export=True),
     ]
-    return "\n".join(lines)
+    # the front matter through huggingface_hub's card classes (what the Hub reads them with)
+    from huggingface_hub import DatasetCard, DatasetCardData
+
+    card = DatasetCard("---\n" + DatasetCardData(**front).to_yaml() + "\n---\n\n" + "\n".join(lines))
+    return str(card.content)
 
 
 def _source_pointers(section: str) -> str:

@@ -7,6 +7,7 @@ keep their (T, F, time, ear) shape; every other fixed-size column becomes (T, ..
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +23,24 @@ from echo_data.dataset.schema import StepLayout
 from echo_data.episode import SPLIT_KEYS
 
 STRING_COLUMNS = ("setting", "skill", "audio_path")
+DEPTH_STEP_M = 0.5  # depth ranges are rounded up to this
+
+
+def depth_ranges(src: Path, layout: StepLayout, stat: str = "q99") -> dict[str, float]:
+    """Per depth camera, the metres an export maps to its top value (255 in LeRobot's 8-bit
+    images, 1.0 in robomimic's float depth): the source's train-split `stat` of depth
+    (meta/stats.json, metres; its maximum where the quantile is not stored) rounded up to
+    DEPTH_STEP_M. LeRobot's 8-bit images use the 99th percentile: the maximum would spend the 256
+    levels on a few far pixels (the wrist camera sees 9 m across a room now and then but mostly
+    works within 3.5 m); robomimic's float32 depth uses the maximum, so no train pixel clips."""
+    stats = json.loads((src / "meta" / "stats.json").read_text())
+    out = {}
+    for col, (kind, _, _) in layout.images.items():
+        if kind == "depth":
+            st = stats.get(col, {})
+            top = max(st.get(stat) or st.get("max") or [0.0])
+            out[col] = max(DEPTH_STEP_M, float(np.ceil(top / DEPTH_STEP_M) * DEPTH_STEP_M))
+    return out
 
 
 class ExportError(ValueError):

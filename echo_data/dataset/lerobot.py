@@ -9,6 +9,10 @@ it selects episodes). Episodes are numbered across the whole export (train first
 test), `index` counts frames over the whole export, and the echo-data splits become LeRobot's
 `splits` ("start:end" episode ranges).
 
+One split per export, train unless `split=` names another: LeRobot's readers (`lerobot-train`,
+`LeRobotDataset` without `episodes=`) take every episode in the folder, so a folder that held the
+test split would train on it. Evaluate on `--split test` written to a folder of its own.
+
 Policy-ready names. LeRobot's policies type a feature by its name (`lerobot.datasets.utils.
 dataset_to_policy_features`): dtype image/video -> a camera, `observation.environment_state` ->
 the environment state, any other `observation*` -> a state input, any `action*` -> an action
@@ -18,11 +22,16 @@ exported by one rule for its kind (`lerobot_name`):
 
 - `action` stays `action`, the only action feature; every other `action.*` column (what was
   executed, the end-effector form) becomes `extra.action.*`.
-- The audio feature the project's learners use (the SoundSpaces spectrogram of the last second,
-  else the log-mel) becomes `observation.environment_state` (flattened), which ACT and Diffusion
-  read with no config change; the other audio column and every privileged column
-  (`observation.privileged.*`, what only the simulator knows) become `extra.<echo-data name>`.
-  Stripping `extra.` gives back echo-data's column name.
+- `observation.environment_state`, which ACT and Diffusion read with no config change, is a
+  compact, standardised copy of the audio feature the project's learners use (the SoundSpaces
+  spectrogram of the last second, else the log-mel): mean-pooled over (frequency, time) blocks to
+  at most `ENV_STATE_MAX` values a step (Diffusion feeds it to every FiLM layer: the full 3,380
+  values made ~40 % of its parameters), then standardised per value with the train split's mean
+  and std (`ENV_STATE_MIN_STD` floors a std), because the stock configs' normalisation mapping
+  has no entry for the environment state and passes it raw (the spectrogram's values are ~0.01).
+  `info.json` `echo_data.environment_state` holds the pooling, the mean and the std. The full audio
+  columns and every privileged column (`observation.privileged.*`, what only the simulator knows)
+  become `extra.<echo-data name>`. Stripping `extra.` gives back echo-data's column name.
 - Cameras keep their names. RGB is an 8-bit RGB image (PNG in the rows, or an H.264 video with
   `video=("rgb",)`, a keyframe every `VIDEO_GOP` frames). Depth is an 8-bit grey image repeated
   over three channels, 0..`range_m` mapped linearly to 0..255 (the range per camera is the train
@@ -36,6 +45,7 @@ the episode WAVs are copied to `audio/{split}/{episode_id}.wav` (the path the ro
 to the export root). Array features are flattened to one vector (LeRobot's tools turn features of
 more than one dimension into `datasets` Array2D/3D columns that pandas cannot concatenate, which
 breaks `aggregate_datasets`); the original shapes are in `info.json` `echo_data.audio.shapes`.
+Statistics are per value (per channel for cameras), as LeRobot's `compute_episode_stats` makes them.
 
 A data file holds the episodes of one split only (a new file starts at each split), so a reader
 that loads whole files for a selection of episodes never pulls in another split's frames.
@@ -55,7 +65,15 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from echo_data.dataset.episode_arrays import ExportError, check_out_folder, check_source, column_values, decode_images
+from echo_data.dataset.episode_arrays import (
+    ExportError,
+    check_out_folder,
+    check_source,
+    column_values,
+    decode_images,
+    depth_ranges,
+    export_splits,
+)
 from echo_data.dataset.reader import episodes_table, split_shards
 from echo_data.dataset.schema import (
     ACTION,
@@ -76,7 +94,6 @@ from echo_data.dataset.shards import conform
 from echo_data.dataset.stats import episode_feature_values, finalize, merge, summarize
 from echo_data.dataset.storage import atomic_write_bytes, canonical_json, fsync_dir
 from echo_data.dataset.written import mark_export, replace_folder
-from echo_data.episode import SPLIT_KEYS
 from echo_data.recipe import SETTINGS
 from echo_data.records import ACTION_NAMES, EE_ACTION_NAMES, PRIVILEGED_PREFIX, STATE_NAMES
 
@@ -93,8 +110,9 @@ VIDEO_CAMERAS = {"rgb": IMAGE_COLUMNS["head_rgb"]}  # --video choices -> the col
 VIDEO_GOP: int | None = 2  # frames between keyframes: random access decodes at most one extra frame (LeRobot's own choice)
 ENV_STATE = "observation.environment_state"  # LeRobot's environment-state key (ACT, Diffusion read it)
 EXTRA_PREFIX = "extra."  # carried, never a policy input or output (see the module docstring)
-AUDIO_FOR_POLICY = (SPECTROGRAM, MEL)  # the first present becomes ENV_STATE
-DEPTH_STEP_M = 0.5  # depth image ranges are rounded up to this
+AUDIO_FOR_POLICY = (SPECTROGRAM, MEL)  # the first present is pooled into ENV_STATE
+ENV_STATE_MAX = 512  # values a step in ENV_STATE (module docstring)
+ENV_STATE_MIN_STD = 0.1  # a value's std is floored at this fraction of the mean std over values
 # The natural-language task of each setting (LeRobot's `task`; index = echo-data's task_index).
 TASKS = {
     "object_relocation": "Find the sounding object, pick it up and put it where it belongs.",
@@ -119,32 +137,65 @@ def _names(col: str) -> list[str] | None:
 
 
 def policy_audio(layout: StepLayout) -> str | None:
-    """The audio column exported as `observation.environment_state` (None: no audio stored)."""
+    """The audio column pooled into `observation.environment_state` (None: no audio stored)."""
     return next((c for c in AUDIO_FOR_POLICY if c in layout.arrays), None)
+
+
+def audio_pool(shape: tuple[int, ...], limit: int = ENV_STATE_MAX) -> tuple[int, int]:
+    """(frequency, time) block sizes that bring an (F, time, ear) array to at most `limit` values:
+    the longer pooled side grows first, so neither axis is averaged away."""
+    f, t, ears = shape
+    pf = pt = 1
+    while -(-f // pf) * -(-t // pt) * ears > limit:
+        if -(-f // pf) >= -(-t // pt):
+            pf += 1
+        else:
+            pt += 1
+    return pf, pt
+
+
+def pooled_audio(x: np.ndarray, pool: tuple[int, int]) -> np.ndarray:
+    """(T, F, time, ear) -> (T, ceil(F/pf) * ceil(time/pt) * ear) float32: block means (a block
+    at an edge averages the values it has), flattened row-major."""
+    pf, pt = pool
+    y = np.add.reduceat(np.add.reduceat(x.astype(np.float64), np.arange(0, x.shape[1], pf), axis=1), np.arange(0, x.shape[2], pt), axis=2)
+    nf = np.diff(np.append(np.arange(0, x.shape[1], pf), x.shape[1]))
+    nt = np.diff(np.append(np.arange(0, x.shape[2], pt), x.shape[2]))
+    y /= (nf[:, None] * nt[None, :])[None, :, :, None]
+    return y.reshape(len(x), -1).astype(np.float32)
+
+
+def audio_standardisation(src: Path, manifest: dict[str, Any], col: str, shape: tuple[int, ...]) -> dict[str, Any]:
+    """ENV_STATE's recipe: the pooling of `col` and the per-value mean and (floored) std of the
+    pooled values over the train split's frames (every frame when there is no train split)."""
+    pool = audio_pool(shape)
+    splits = ["train"] if "train" in manifest["splits"] else list(manifest["splits"])
+    parts = []
+    for shard in (sh for sp in splits for sh in split_shards(manifest, sp)):
+        column = pq.read_table(src / shard["file"], columns=[col]).column(col)
+        parts.append(pooled_audio(column_values(column, len(column)).reshape(len(column), *shape), pool).astype(np.float64))
+    values = np.concatenate(parts)
+    mean, std = values.mean(axis=0), values.std(axis=0)
+    std = np.maximum(std, ENV_STATE_MIN_STD * float(std.mean()) or 1.0)
+    return {
+        "from": col, "shape": list(shape), "pool": list(pool), "split": splits[0] if len(splits) == 1 else "all",
+        "mean": mean.astype(np.float32).tolist(), "std": std.astype(np.float32).tolist(),
+        "decode": "pooled = value * std + mean; pooled.reshape(ceil(F / pool[0]), ceil(time / pool[1]), ear) are block means of `from`",
+    }
+
+
+def environment_state(x: np.ndarray, recipe: dict[str, Any]) -> np.ndarray:
+    """(T, F, time, ear) audio -> (T, n) ENV_STATE values, as `recipe` (audio_standardisation) says."""
+    pool = (int(recipe["pool"][0]), int(recipe["pool"][1]))
+    mean, std = np.asarray(recipe["mean"], np.float32), np.asarray(recipe["std"], np.float32)
+    return ((pooled_audio(x, pool) - mean) / std).astype(np.float32)
 
 
 def lerobot_name(col: str, layout: StepLayout) -> str:
     """The LeRobot feature name of an echo-data column: one rule per kind (module docstring)."""
-    if col == policy_audio(layout):
-        return ENV_STATE
     if col.startswith(ACTION + ".") or col.startswith(PRIVILEGED_PREFIX) or col in layout.arrays:
         return EXTRA_PREFIX + col
     return col
-
-
-def depth_ranges(src: Path, layout: StepLayout) -> dict[str, float]:
-    """Per depth camera, the metres that map to 255 in its 8-bit image: the source's train-split
-    99th-percentile depth (meta/stats.json, metres; its maximum where no quantile is stored)
-    rounded up to DEPTH_STEP_M. The maximum would spend the 256 levels on a few far pixels: the
-    wrist camera sees 9 m across a room now and then but mostly works within 3.5 m."""
-    stats = json.loads((src / "meta" / "stats.json").read_text())
-    out = {}
-    for col, (kind, _, _) in layout.images.items():
-        if kind == "depth":
-            st = stats.get(col, {})
-            top = max(st.get("q99") or st.get("max") or [0.0])
-            out[col] = max(DEPTH_STEP_M, float(np.ceil(top / DEPTH_STEP_M) * DEPTH_STEP_M))
-    return out
 
 
 def depth_image(mm: np.ndarray, range_m: float) -> np.ndarray:
@@ -165,10 +216,11 @@ def _png_cells(frames: np.ndarray) -> pa.Array:
     return pa.array(cells, type=IMAGE_TYPE)
 
 
-def lerobot_features(layout: StepLayout, video: tuple[str, ...] = ()) -> dict[str, dict[str, Any]]:
+def lerobot_features(layout: StepLayout, video: tuple[str, ...] = (), env_state: int = 0) -> dict[str, dict[str, Any]]:
     """meta/info.json `features`: every step column with dtype, shape and names, in the export's
     column order (video features last: they are not data columns), derived from the step
-    schema's Hugging Face features (so new columns export too)."""
+    schema's Hugging Face features (so new columns export too), then ENV_STATE (`env_state`
+    values; 0: none)."""
     videos = {VIDEO_CAMERAS[v] for v in video}
     feats: dict[str, dict[str, Any]] = {}
     moved: dict[str, dict[str, Any]] = {}
@@ -199,10 +251,12 @@ def lerobot_features(layout: StepLayout, video: tuple[str, ...] = ()) -> dict[st
             feats[name] = {"dtype": "image", "shape": [h, w, 3], "names": ["height", "width", "channels"], "info": {"format": "PNG", "unit": unit}}
         else:  # LeRobot features have fixed shapes
             raise ExportError(f"column {col!r} ({kind} without a fixed length) has no LeRobot feature")
+    if env_state:
+        feats[ENV_STATE] = {"dtype": "float32", "shape": [env_state], "names": None}
     return {**feats, **moved}
 
 
-def _hf_features(layout: StepLayout, video: tuple[str, ...]) -> dict[str, Any]:
+def _hf_features(layout: StepLayout, video: tuple[str, ...], env_state: int) -> dict[str, Any]:
     """The `huggingface` schema metadata of the export's data files (what `datasets` reads)."""
     videos = {VIDEO_CAMERAS[v] for v in video}
     out: dict[str, Any] = {}
@@ -214,6 +268,8 @@ def _hf_features(layout: StepLayout, video: tuple[str, ...]) -> dict[str, Any]:
         elif _single(f):  # LeRobot reads a feature of shape (1,) as one value per frame
             f = dict(f["feature"])
         out[lerobot_name(col, layout)] = f
+    if env_state:
+        out[ENV_STATE] = {"feature": {"dtype": "float32", "_type": "Value"}, "length": env_state, "_type": "List"}
     return out
 
 
@@ -222,9 +278,12 @@ def _single(f: dict[str, Any]) -> bool:
     return f.get("_type") == "List" and f.get("length") == 1
 
 
-def _export_rows(rows: pa.Table, layout: StepLayout, video: tuple[str, ...], hf: dict[str, Any], depth: dict[str, np.ndarray]) -> pa.Table:
+def _export_rows(
+    rows: pa.Table, layout: StepLayout, video: tuple[str, ...], hf: dict[str, Any], depth: dict[str, np.ndarray], env: np.ndarray | None
+) -> pa.Table:
     """Step rows of one episode in the export's columns (named by `lerobot_name`): arrays
-    flattened, depth as its 8-bit images (`depth`, by column), video cameras dropped."""
+    flattened, depth as its 8-bit images (`depth`, by column), video cameras dropped, then the
+    ENV_STATE values `env` (None: none)."""
     videos = {VIDEO_CAMERAS[v] for v in video}
     arrays, fields = [], []
     for col in rows.column_names:
@@ -240,17 +299,20 @@ def _export_rows(rows: pa.Table, layout: StepLayout, video: tuple[str, ...], hf:
             data = data.flatten()  # as `_hf_features` declares it: one value per frame
         arrays.append(data)
         fields.append(pa.field(lerobot_name(col, layout), data.type))
+    if env is not None:
+        arrays.append(pa.FixedSizeListArray.from_arrays(pa.array(env.ravel()), env.shape[1]))
+        fields.append(pa.field(ENV_STATE, arrays[-1].type))
     schema = pa.schema(fields, metadata={"huggingface": json.dumps({"info": {"features": hf}})})
     return pa.Table.from_arrays(arrays, schema=schema)
 
 
 def episode_summaries(
-    rows: pa.Table, layout: StepLayout, features: dict[str, dict[str, Any]], depth: dict[str, np.ndarray]
+    rows: pa.Table, layout: StepLayout, features: dict[str, dict[str, Any]], depth: dict[str, np.ndarray], env: np.ndarray | None
 ) -> dict[str, dict[str, Any]]:
     """Mergeable summaries (echo_data.dataset.stats) of one episode's numeric features, by export
     name, in LeRobot's units: every camera per channel in [0, 1] (as its 8-bit images decode;
-    `depth` holds the depth images), vectors per element, flattened arrays as one value over all
-    bins."""
+    `depth` holds the depth images), vectors and flattened arrays per element (as LeRobot's
+    `compute_episode_stats` does), ENV_STATE (`env`) per value."""
     n = rows.num_rows
     out: dict[str, dict[str, Any]] = {}
     for col in rows.column_names:
@@ -261,11 +323,11 @@ def episode_summaries(
         if col in layout.images:
             pixels = depth[col] if col in depth else decode_images(rows.column(col))
             values = episode_feature_values(np.zeros((n, 0)), np.zeros((n, 0)), {col: ("rgb", pixels)}, {})[col]
-        elif col in layout.arrays:
-            values = column_values(rows.column(col), n).reshape(-1, 1)
         else:
             values = column_values(rows.column(col), n).astype(np.float64).reshape(n, -1)
         out[name] = summarize(values, n)
+    if env is not None:
+        out[ENV_STATE] = summarize(env, n)
     return out
 
 
@@ -296,12 +358,14 @@ def _data_files(
     video: tuple[str, ...],
     features: dict[str, dict[str, Any]],
     ranges: dict[str, float],
+    splits_out: list[str],
+    env_recipe: dict[str, Any] | None,
     progress: Callable[[int], None] = lambda n: None,
 ) -> tuple[list[dict[str, Any]], dict[str, str], dict[str, dict[str, Any]]]:
-    """Step rows regrouped into LeRobot data files under `dst` (each written as soon as it is
-    full, so memory holds one file's rows), one record per episode, the splits, and the merged
-    summaries of the train episodes (meta/stats.json, as echo-data's own stats: train only)."""
-    hf = _hf_features(layout, video)
+    """Step rows of the splits `splits_out` regrouped into LeRobot data files under `dst` (each
+    written as soon as it is full, so memory holds one file's rows), one record per episode, the
+    splits, and the merged summaries of the exported episodes (meta/stats.json)."""
+    hf = _hf_features(layout, video, len(env_recipe["mean"]) if env_recipe else 0)
     n_files = 0
     pending: list[pa.Table] = []
     pending_bytes = 0
@@ -310,7 +374,6 @@ def _data_files(
     train: list[dict[str, dict[str, Any]]] = []
     ep_meta = {(r["split"], r["episode_index"]): r for r in episodes_table(src).to_pylist()}
     n_ep = n_rows = 0
-    stats_splits = [s for s in manifest["splits"] if s == "train"] or list(manifest["splits"])
 
     def close() -> None:
         nonlocal pending, pending_bytes, n_files
@@ -319,7 +382,7 @@ def _data_files(
             _write_parquet(path, pa.concat_tables(pending), ROW_GROUP_ROWS)
             pending, pending_bytes, n_files = [], 0, n_files + 1
 
-    for split in sorted(manifest["splits"], key=SPLIT_KEYS.__getitem__):
+    for split in splits_out:
         close()  # a data file never holds two splits
         first_ep = n_ep
         for shard in split_shards(manifest, split):
@@ -334,10 +397,13 @@ def _data_files(
                     i = rows.schema.get_field_index(col)
                     rows = rows.set_column(i, col, pa.array(values.astype(np.int64)))
                 depth = {col: depth_image(decode_images(rows.column(col)), r) for col, r in ranges.items()}
-                summaries = episode_summaries(rows, layout, features, depth)
-                if split in stats_splits:
-                    train.append(summaries)
-                out_rows = _export_rows(rows, layout, video, hf, depth)
+                env = None
+                if env_recipe is not None:
+                    col, shape = env_recipe["from"], tuple(env_recipe["shape"])
+                    env = environment_state(column_values(rows.column(col), rows.num_rows).reshape(rows.num_rows, *shape), env_recipe)
+                summaries = episode_summaries(rows, layout, features, depth, env)
+                train.append(summaries)
+                out_rows = _export_rows(rows, layout, video, hf, depth, env)
                 if pending and pending_bytes + out_rows.nbytes > DATA_FILES_SIZE_IN_MB * 2**20:
                     close()
                 pending.append(out_rows)
@@ -390,9 +456,15 @@ def _write_parquet(path: Path, table: pa.Table, row_group: int) -> None:
 
 
 def export_lerobot(
-    src: str | Path, out: str | Path, overwrite: bool = False, video: tuple[str, ...] = (), progress: Callable[[int], None] = lambda n: None
+    src: str | Path,
+    out: str | Path,
+    overwrite: bool = False,
+    video: tuple[str, ...] = (),
+    split: str | None = None,
+    progress: Callable[[int], None] = lambda n: None,
 ) -> dict[str, Any]:
-    """Write the LeRobot v3.0 dataset of the echo-data dataset `src` to `out`; return meta/info.json.
+    """Write the LeRobot v3.0 dataset of the split `split` (default train) of the echo-data
+    dataset `src` to `out`; return meta/info.json.
 
     `video` names cameras stored as MP4 video features (only "rgb": head RGB); `progress(1)` is
     called after each episode. Everything is
@@ -404,6 +476,9 @@ def export_lerobot(
         raise ExportError("the LeRobot export needs pandas: pip install pandas") from None
     src, out = Path(src), Path(out)
     manifest = check_source(src)
+    if split is None and "train" not in manifest["splits"]:
+        raise ExportError(f"{src} has no train split: name the split to export with --split ({', '.join(manifest['splits'])})")
+    splits_out = export_splits(manifest, split or "train")
     check_out_folder(src, out, overwrite, KIND)
     layout = StepLayout.from_dict(manifest["layout"])
     for v in video:
@@ -414,13 +489,15 @@ def export_lerobot(
         _, h, w = layout.images[VIDEO_CAMERAS[v]]
         if h % 2 or w % 2:
             raise ExportError(f"--video {v}: {w} x {h} images; H.264 in yuv420p needs even sides")
-    features = lerobot_features(layout, video)
+    audio_col = policy_audio(layout)
+    env_recipe = audio_standardisation(src, manifest, audio_col, layout.arrays[audio_col]) if audio_col else None
+    features = lerobot_features(layout, video, len(env_recipe["mean"]) if env_recipe else 0)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
     shutil.rmtree(tmp, ignore_errors=True)
     try:
         ranges = depth_ranges(src, layout)
-        episodes, splits, merged = _data_files(src, tmp, manifest, layout, video, features, ranges, progress)
+        episodes, splits, merged = _data_files(src, tmp, manifest, layout, video, features, ranges, splits_out, env_recipe, progress)
         _write_parquet(tmp / EPISODES_PATH.format(chunk_index=0, file_index=0), pa.Table.from_pylist(episodes), 4096)
         tasks = pd.DataFrame({"task_index": np.arange(len(SETTINGS), dtype=np.int64)}, index=pd.Index([TASKS[s] for s in SETTINGS], name="task"))
         (tmp / "meta").mkdir(parents=True, exist_ok=True)
@@ -448,7 +525,7 @@ def export_lerobot(
                 "cameras": src_info.get("cameras", {}),
                 # LeRobot name -> echo-data column, for every column whose name changed
                 "renamed": {n: c for c in layout.hf_features() if (n := lerobot_name(c, layout)) != c},
-                "environment_state": policy_audio(layout),
+                "environment_state": env_recipe,
                 "depth_images": {
                     col: {"range_m": r, "decode": "metres = pixel / 255 * range_m (any channel; 255 = range_m or farther, 0 = nothing hit or nearer than half a step)"}
                     for col, r in ranges.items()
@@ -462,7 +539,7 @@ def export_lerobot(
                     "shapes": {lerobot_name(col, layout): list(shape) for col, shape in layout.arrays.items()},
                     "flattened": "row-major (frequency, time, ear): reshape a frame's vector to `shapes`",
                 },
-                "stats_split": "train" if "train" in manifest["splits"] else "all",
+                "stats_split": splits_out[0],
                 "cameras_as": (f"head RGB as H.264 video, a keyframe every {VIDEO_GOP} frames; " if video else "")
                 + "depth as 8-bit 3-channel PNG images (every camera one shape, as Diffusion requires); exact millimetres in the echo-data dataset",
             },

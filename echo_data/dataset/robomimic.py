@@ -8,7 +8,11 @@ robomimic (and LIBERO, ManiSkill's demo tools) read demonstrations as
 echo-data's val split is `mask/valid` and its test split `mask/test` (never train or tune on it).
 
 Observations (`obs/`): `state` (25), `head_rgb` (H, W, 3) uint8, `head_depth` / `wrist_depth`
-(H, W, 1) uint16 millimetres, `spectrogram` and `mel` of the last second (F, time, ear),
+(H, W, 1) float32 depth as a fraction of the camera's range (`metres = value * range`, the range
+by key in the `data` attribute `depth_range_m` (JSON): the train split's farthest depth rounded up
+to 0.5 m; not an attribute of each depth dataset, because an attribute write that fails on a
+full disk crashes h5py at close, see `_KeepsFirstWriteError`): robomimic's `depth` modality divides by 1 and
+clips to [0, 1], so millimetres would reach its models as a constant 1.0. `spectrogram` and `mel` of the last second (F, time, ear),
 `camera_pose_head` / `camera_pose_wrist` (4, 4). Large observations are chunked one frame per
 chunk: robomimic reads one random step at a time, and a chunk holding a whole trajectory made each
 read decompress all of it. `next_obs/<key>` (only with `next_obs=True`: robomimic's BC and
@@ -21,7 +25,7 @@ attribute `source_dataset`.
 Actions: robomimic's models squash their outputs to [-1, 1] and its `get_dataset_info` refuses
 anything outside, so `actions` are echo-data's `action` mapped per dimension from the train
 split's [min, max] (the source's meta/stats.json) to [-1, 1], clipped there (a val/test step
-outside the train range; the count is `data` attribute `actions_clipped`). `data` attribute
+outside the train range; the count is `data` attribute `actions_clipped`, and `export` prints it). `data` attribute
 `action_normalization` (JSON) holds `low`, `high`, the names and the inverse
 `action = low + (actions + 1) / 2 * (high - low)`; a dimension the train split never moves
 (high == low) maps to 0. `split=` writes one split only (its own file; masks name its demos).
@@ -37,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from echo_data.dataset.episode_arrays import EpisodeArrays, check_out_file, check_source, export_splits, iter_episodes
+from echo_data.dataset.episode_arrays import EpisodeArrays, check_out_file, check_source, depth_ranges, export_splits, iter_episodes
 from echo_data.dataset.episode_arrays import ExportError as ExportError  # the CLI catches `module.ExportError`
 from echo_data.dataset.schema import ACTION, ACTION_EE, CAMERA_POSES, IMAGE_COLUMNS, MEL, SPECTROGRAM, STATE, StepLayout
 from echo_data.records import ACTION_NAMES, PRIVILEGED_COLUMNS, PRIVILEGED_PREFIX
@@ -60,13 +64,14 @@ COMPRESSION = "lzf"  # fast, built into h5py: images and spectrograms compress, 
 CHUNK_FRAMES = 1  # frames per HDF5 chunk of a large observation (robomimic reads one random frame at a time)
 
 
-def _obs(ep: EpisodeArrays) -> dict[str, np.ndarray]:
+def _obs(ep: EpisodeArrays, depth_range_m: dict[str, float]) -> dict[str, np.ndarray]:
+    """robomimic observation key -> (T, ...) array; depth as a fraction of its range (module docstring)."""
     out = {}
     for col, key in OBS_KEYS.items():
         if col in ep.columns:
             x = ep.columns[col]
-            if col in (IMAGE_COLUMNS["head_depth"], IMAGE_COLUMNS["wrist_depth"]):
-                x = x[..., None]  # robomimic's depth modality is (H, W, 1)
+            if col in depth_range_m:  # robomimic's depth modality is (H, W, 1) in [0, 1]
+                x = (x.astype(np.float32) / np.float32(1000.0 * depth_range_m[col]))[..., None]
             elif col in CAMERA_POSES.values():
                 x = x.reshape(len(x), 4, 4)
             out[key] = x
@@ -87,7 +92,7 @@ def normalize_actions(a: np.ndarray, low: np.ndarray, high: np.ndarray) -> tuple
     return np.clip(x, -1.0, 1.0).astype(np.float32), clipped
 
 
-def _write_demo(data: Any, name: str, ep: EpisodeArrays, actions: np.ndarray, next_obs: bool) -> None:
+def _write_demo(data: Any, name: str, ep: EpisodeArrays, actions: np.ndarray, next_obs: bool, depth_range_m: dict[str, float]) -> None:
     import h5py
 
     g = data.create_group(name)
@@ -101,7 +106,7 @@ def _write_demo(data: Any, name: str, ep: EpisodeArrays, actions: np.ndarray, ne
     g.create_dataset("dones", data=ep.columns["done"].astype(np.int64))
     obs = g.create_group("obs")
     nxt = g.create_group("next_obs") if next_obs else None
-    for key, x in _obs(ep).items():
+    for key, x in _obs(ep, depth_range_m).items():
         big = x[0].size > 64
         d = obs.create_dataset(key, data=x, chunks=(min(CHUNK_FRAMES, n), *x.shape[1:]) if big else None, compression=COMPRESSION if big else None)
         if nxt is None:
@@ -189,6 +194,7 @@ def export_robomimic(
     check_out_file(src, out, overwrite)
     layout = StepLayout.from_dict(manifest["layout"])
     low, high = action_range(src)
+    depth_range_m = depth_ranges(src, layout, "max")
     clipped = 0
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
@@ -202,7 +208,7 @@ def export_robomimic(
                 for i, ep in enumerate(iter_episodes(src, manifest, splits)):
                     actions, n_clipped = normalize_actions(ep.columns[ACTION].astype(np.float64), low, high)
                     clipped += n_clipped
-                    _write_demo(data, f"demo_{i}", ep, actions, next_obs)
+                    _write_demo(data, f"demo_{i}", ep, actions, next_obs, depth_range_m)
                     guard.check()  # a full disk stops the export at the demo it fills
                     masks.setdefault(MASKS[ep.split], []).append(f"demo_{i}")
                     total += ep.length
@@ -219,6 +225,7 @@ def export_robomimic(
                         "inverse": "action = low + (actions + 1) / 2 * (high - low); dimensions with high == low are stored as 0",
                     }),
                     actions_clipped=clipped,
+                    depth_range_m=json.dumps({OBS_KEYS[col]: r for col, r in depth_range_m.items()}),
                     splits=json.dumps(splits),
                 )
                 mask = f.create_group("mask")
@@ -229,4 +236,8 @@ def export_robomimic(
     finally:
         if tmp.exists():
             tmp.unlink()
-    return {"codebase_version": "robomimic HDF5", "total_episodes": sum(len(v) for v in masks.values()), "total_frames": total, "splits": {k: len(v) for k, v in masks.items()}}
+    return {
+        "codebase_version": "robomimic HDF5", "total_episodes": sum(len(v) for v in masks.values()), "total_frames": total,
+        "splits": {k: len(v) for k, v in masks.items()},
+        "notes": [f"{clipped} action values outside the train split's range clipped to [-1, 1] (data attribute actions_clipped)"],
+    }

@@ -3,7 +3,9 @@
 Users keep datasets and exports next to their other work; a `--overwrite` aimed at the wrong
 folder (a thesis, the parent of the dataset being exported) must delete nothing. So every folder
 echo-data writes carries a marker, `.echo-data.json` (kind, format, echo-data version; an export's
-marker also lists every file the export wrote), and `--overwrite` first lists what it would
+marker also lists every file the export wrote; a Zarr export keeps the same record under the key
+`echo-data` of its root `.zattrs`, since zarr warns about any other file it finds in a group),
+and `--overwrite` first lists what it would
 delete: a folder without the marker, or holding any file that is not on the list, is refused
 whole (one line, nothing touched). Only then are the listed files unlinked one by one and the
 folders they leave empty removed.
@@ -33,6 +35,8 @@ from typing import Any
 from echo_data.dataset.storage import atomic_write_json
 
 MARKER = ".echo-data.json"
+ZATTRS = ".zattrs"  # a Zarr format 2 group's attributes: where a Zarr export's marker lives
+ZATTRS_KEY = "echo-data"
 DATASET = "dataset"
 _TMP = re.compile(r"^\.(?P<name>.+)\.tmp-\d+$")  # storage.tmp_path's siblings
 
@@ -41,15 +45,20 @@ class NotWrittenByUs(ValueError):
     """A folder `--overwrite` would delete holds something echo-data did not write: one line."""
 
 
-def write_marker(folder: Path, kind: str, fmt: str, files: Iterable[str] | None = None) -> None:
+def write_marker(folder: Path, kind: str, fmt: str, files: Iterable[str] | None = None, zarr: bool = False) -> None:
     """Mark `folder` as echo-data's `kind` output in format `fmt`; `files`: every file written
-    there (relative, '/'-separated), for outputs whose names no manifest implies."""
+    there (relative, '/'-separated), for outputs whose names no manifest implies; `zarr`: in the
+    root group's attributes (module docstring)."""
     from echo_data.dataset.manifest import versions  # the installed version, as the manifest records it
 
     record: dict[str, Any] = {"kind": kind, "format": fmt, "version": versions()["echo-data"]}
     if files is not None:
         record["files"] = sorted(files)
-    atomic_write_json(folder / MARKER, record)
+    if zarr:
+        attrs = json.loads((folder / ZATTRS).read_text()) if (folder / ZATTRS).is_file() else {}
+        atomic_write_json(folder / ZATTRS, {**attrs, ZATTRS_KEY: record})
+    else:
+        atomic_write_json(folder / MARKER, record)
 
 
 def read_marker(folder: Path) -> dict[str, Any] | None:
@@ -57,7 +66,11 @@ def read_marker(folder: Path) -> dict[str, Any] | None:
     try:
         data = json.loads((folder / MARKER).read_bytes().decode("utf-8"))
     except (OSError, ValueError):
-        return None
+        try:
+            attrs = json.loads((folder / ZATTRS).read_bytes().decode("utf-8"))
+        except (OSError, ValueError):
+            return None
+        data = attrs.get(ZATTRS_KEY) if isinstance(attrs, dict) else None
     return data if isinstance(data, dict) and isinstance(data.get("kind"), str) else None
 
 
@@ -157,9 +170,11 @@ def replace_folder(tmp: Path, out: Path, kind: str, known: Callable[[str], bool]
         os.replace(tmp, out)
 
 
-def mark_export(tmp: Path, kind: str, fmt: str) -> None:
-    """Write the marker of an export built in `tmp`, listing every file in it."""
-    write_marker(tmp, kind, fmt, [f for f in all_files(tmp) if f != MARKER])
+def mark_export(tmp: Path, kind: str, fmt: str, zarr: bool = False) -> None:
+    """Write the marker of an export built in `tmp`, listing every file in it (`zarr`: in its
+    root `.zattrs`, which the list then names too)."""
+    files = [f for f in all_files(tmp) if f != MARKER]
+    write_marker(tmp, kind, fmt, sorted({*files, ZATTRS}) if zarr else files, zarr=zarr)
 
 
 def dataset_file_test(manifest: dict[str, Any]) -> Callable[[str], bool]:

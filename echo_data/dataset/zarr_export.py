@@ -123,7 +123,7 @@ def export_zarr(
                 "privileged": [OBS_KEYS[c] for c in PRIVILEGED_COLUMNS],  # simulator-only observations
             }
         )
-        mark_export(tmp, KIND, FORMAT)
+        mark_export(tmp, KIND, FORMAT, zarr=True)  # in .zattrs: zarr lists the tree without a warning
         replace_folder(tmp, out, KIND)
     finally:
         _remove(tmp)

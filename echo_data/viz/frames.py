@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from PIL import Image, ImageDraw
+from PIL import Image, ImageDraw, ImageFont
 
 from echo_data.viz.spectrogram import DB_RANGE, GAP_ROWS, scrolling_strip, spectrogram_picture
 from echo_data.viz.topdown import Point, TopDownMap
@@ -22,11 +22,13 @@ PANEL = 256  # side of the image and map panels (pixels)
 TITLES = ("head RGB", "head depth", "wrist depth", "top-down plan")
 TITLE_H = 16  # panel titles above the panels
 KEY_H = 32  # depth colour bars and the map legend below them
+SPEC_HEAD_H = 16  # the strip's title and dB colour key, above it (drawn over it they hid the sound)
 SPEC_H = 128  # spectrogram strip height
 CAPTION_H = 36  # caption and sound level, one line each
-WIDTH, HEIGHT = len(TITLES) * PANEL, TITLE_H + PANEL + KEY_H + SPEC_H + CAPTION_H
+WIDTH, HEIGHT = len(TITLES) * PANEL, TITLE_H + PANEL + KEY_H + SPEC_HEAD_H + SPEC_H + CAPTION_H
 PANEL_TOP, KEY_TOP = TITLE_H, TITLE_H + PANEL
-SPEC_TOP = KEY_TOP + KEY_H
+SPEC_HEAD_TOP = KEY_TOP + KEY_H
+SPEC_TOP = SPEC_HEAD_TOP + SPEC_HEAD_H
 CAPTION_TOP = SPEC_TOP + SPEC_H
 WHITE = (255, 255, 255)
 SPEC_SECONDS = 4.0  # spectrogram history shown left of the cursor
@@ -34,6 +36,19 @@ SPEC_AHEAD = 1.0  # and ahead of it
 DEPTH_RANGE_M = 6.0  # head depth colour scale: 0 m .. this (rooms are a few metres across)
 WRIST_DEPTH_RANGE_M = 2.0  # wrist depth colour scale: the gripper works within reach
 SPEC_AXIS_W = 34  # left margin of the spectrogram strip for its L / R labels and kHz ticks
+DB_KEY = (WIDTH - 250, WIDTH - 150)  # x range of the dB colour key in the strip's header
+FONT_SIZE = 11
+
+
+def frame_font() -> ImageFont.FreeTypeFont | ImageFont.ImageFont:
+    """DejaVu Sans (matplotlib ships it): PIL's built-in font draws spaces so narrow that words
+    ran together ("dBabove", "1 sahead"); the built-in one where the file cannot be found."""
+    import matplotlib.font_manager as fm
+
+    try:
+        return ImageFont.truetype(fm.findfont("DejaVu Sans", fallback_to_default=False), FONT_SIZE)
+    except (OSError, ValueError):
+        return ImageFont.load_default()
 
 
 def fit_panel(img: np.ndarray) -> np.ndarray:
@@ -91,15 +106,14 @@ def _spectrogram_axes(d: ImageDraw.ImageDraw, rows: int, fs: int) -> None:
             d.line([(SPEC_AXIS_W - 4, y), (SPEC_AXIS_W - 1, y)], fill=WHITE)
             if khz < top_khz:  # the top label would run into the ear above (or the key row)
                 d.text((SPEC_AXIS_W - 5, y), str(khz), fill=WHITE, anchor="rm")
-    d.text((SPEC_AXIS_W - 5, SPEC_TOP + 2), f"{top_khz:g}", fill=WHITE, anchor="ra")  # the top of the axis, once
+    d.text((SPEC_AXIS_W - 5, SPEC_TOP), f"{top_khz:g}", fill=WHITE, anchor="ra")  # the top of the axis, once
     d.text((12, CAPTION_TOP - 2), "kHz", fill=WHITE, anchor="mb")
     lut = colour_lut("magma")
-    left, right, y = WIDTH - 150, WIDTH - 50, SPEC_TOP + 5
+    (left, right), y = DB_KEY, SPEC_HEAD_TOP + 5
     for px in range(left, right):
         d.line([(px, y), (px, y + 6)], fill=tuple(int(c) for c in lut[round((px - left) / (right - left - 1) * 255)]))
-    d.text((left - 3, y + 3), f"-{DB_RANGE:g}", fill=WHITE, anchor="rm")
-    d.text((right + 3, y + 3), "0 dB", fill=WHITE, anchor="lm")
-    d.text(((left + right) / 2, y + 8), "re loudest bin", fill=WHITE, anchor="ma")
+    d.text((left - 4, y + 3), f"-{DB_RANGE:g}", fill=WHITE, anchor="rm")
+    d.text((right + 4, y + 3), "0 dB re loudest bin", fill=WHITE, anchor="lm")
 
 
 def _map_key(d: ImageDraw.ImageDraw, topdown: TopDownMap, x0: int) -> None:
@@ -108,7 +122,7 @@ def _map_key(d: ImageDraw.ImageDraw, topdown: TopDownMap, x0: int) -> None:
 
     bar = topdown.scale  # pixels per metre of the map panel
     d.line([(x0 + 8, KEY_TOP + 22), (x0 + 8 + bar, KEY_TOP + 22)], fill=WHITE, width=3)
-    d.text((x0 + 14 + bar, KEY_TOP + 17), "1 m", fill=WHITE)
+    d.text((x0 + 14 + bar, KEY_TOP + 21), "1 m", fill=WHITE, anchor="ls")  # on its baseline: clear of the bar's row
     entries = [("robot", palette.ROBOT, True)] + [(c, palette.source(c), True) for c in dict.fromkeys(c for c, _ in topdown.events)] + [("silenced", palette.SILENT, False)]
     x: float = x0 + 8
     y = KEY_TOP + 4
@@ -119,6 +133,9 @@ def _map_key(d: ImageDraw.ImageDraw, topdown: TopDownMap, x0: int) -> None:
         d.ellipse([x, y + 1, x + 8, y + 9], fill=colour if filled else None, outline=colour if not filled else (0, 0, 0), width=2 if not filled else 1)
         d.text((x + 11, y), name, fill=WHITE)
         x += width
+
+
+FONT = frame_font()
 
 
 class EpisodeFrames:
@@ -159,6 +176,7 @@ class EpisodeFrames:
         canvas[SPEC_TOP:CAPTION_TOP] = scrolling_strip(self.picture, self.cols_per_s, sample / self.fs, WIDTH, SPEC_H, SPEC_SECONDS, SPEC_AHEAD)
         img = Image.fromarray(canvas)
         d = ImageDraw.Draw(img)
+        d.font = FONT
         for i, (title, panel) in enumerate(zip(TITLES, panels)):
             d.text((i * PANEL + 8, 3), title if panel is not None else f"{title} (not stored)", fill=WHITE)
         for i, range_m in ((1, DEPTH_RANGE_M), (2, WRIST_DEPTH_RANGE_M)):
@@ -166,7 +184,7 @@ class EpisodeFrames:
                 _depth_key(d, i * PANEL, range_m)
         _map_key(d, self.map, 3 * PANEL)
         _spectrogram_axes(d, self.picture.shape[0], self.fs)
-        d.text((SPEC_AXIS_W + 6, SPEC_TOP + 3), f"binaural spectrogram, left ear (L) above right (R), {SPEC_SECONDS:g} s back to {SPEC_AHEAD:g} s ahead of the cursor", fill=WHITE)
+        d.text((SPEC_AXIS_W + 6, SPEC_HEAD_TOP + 2), f"binaural spectrogram, left ear (L) above right (R), {SPEC_SECONDS:g} s back to {SPEC_AHEAD:g} s ahead of the cursor", fill=WHITE)
         d.text((8, CAPTION_TOP + 6), caption, fill=WHITE)
         d.text((8, CAPTION_TOP + 21), self.sound_note, fill=WHITE)
         return np.asarray(img)

@@ -167,9 +167,7 @@ class TopDownMap:
                 x, y = self.px(o.position[0], o.position[1])
                 s = self._r(0.05, 2.0)
                 d.ellipse([x - s, y - s, x + s, y + s], fill=palette.SILENT)
-        if self.labels:
-            for r in plan.rooms:
-                d.text(self.px(*r.rect.center), f"{r.kind} {r.index}", fill=palette.TEXT, anchor="mm")
+        if self.labels:  # room names are drawn last, in `draw`: the start ring and the path covered them
             for f in plan.furniture:
                 d.text(self.px(*f.center), "sink" if f.kind == "sink_cabinet" else f.kind, fill=palette.OUTLINE, anchor="mm")
 
@@ -214,13 +212,14 @@ class TopDownMap:
         d = ImageDraw.Draw(img)
         s = self._r(0.14, 4.0)
         places: dict[Point, list[str]] = {}  # one square per place, naming every call there in chain order
+        target_labels: list[tuple[Point, str, tuple[int, int, int], str]] = []
         for k, (label, p) in enumerate(targets):
             places.setdefault((round(p[0], 2), round(p[1], 2)), []).append(f"{k + 1} {label}")
         for (tx, ty), names in places.items():
             x, y = self.px(tx, ty)
             q = self._r(0.12, 5.0)
             d.rectangle([x - q, y - q, x + q, y + q], outline=palette.TARGET, width=2)
-            d.text((x + q + 3, y + q + 1), ", ".join(names), fill=palette.TARGET)
+            target_labels.append(((x + q + 3, y + q + 1), ", ".join(names), palette.TARGET, "la"))
         carried = moved or {}
         for e, (category, src) in enumerate(self.events):
             if src is not None and e not in carried:
@@ -241,6 +240,11 @@ class TopDownMap:
             d.line([(x, y), self.px(end[0] + 0.5 * math.cos(yaw), end[1] + 0.5 * math.sin(yaw))], fill=(0, 0, 0), width=2)
         for e, (mx, my) in carried.items():  # moved (in the hand, or where it was put down): over the robot
             self._source(d, self.px(mx, my), self.events[e][0], sounding is None or sounding[e], s * 0.8)
+        rooms = [(self.px(*r.rect.center), f"{r.kind} {r.index}", palette.TEXT, "mm") for r in self.plan.rooms] if self.labels and self.plan is not None else []
+        for at, text, colour, anchor in [*rooms, *target_labels]:  # on top, on a backing: never hidden by a mark or the furniture under it
+            left, top, right, bottom = d.textbbox(at, text, anchor=anchor)
+            d.rectangle([left - 1, top - 1, right + 1, bottom + 1], fill=palette.BACKGROUND)
+            d.text(at, text, fill=colour, anchor=anchor)
         return np.asarray(img)
 
     @staticmethod
