@@ -24,6 +24,15 @@ def _fail(message: str) -> typer.Exit:
     return typer.Exit(2)
 
 
+def _as_command(command: Any, params: list[inspect.Parameter], name: str, doc: str) -> Any:
+    """`command` as typer reads a command: the generated options as its signature, its name and help."""
+    command.__signature__ = inspect.Signature(params)
+    command.__annotations__ = {p.name: p.annotation for p in params}
+    command.__doc__ = doc
+    command.__name__ = name
+    return command
+
+
 def _errors() -> tuple[type[Exception], ...]:
     from echo_data.dataset.manifest import ManifestError
     from echo_data.dataset.validate import DamagedDataset
@@ -188,11 +197,7 @@ def _make_train_command(name: str) -> Callable[..., None]:
             raise _fail(write_failed("--out", folder, e)) from None
         typer.echo(json.dumps(summary, indent=1))
 
-    command.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
-    command.__annotations__ = {p.name: p.annotation for p in params}
-    command.__doc__ = f"{algo.summary} Clones one skill from the dataset's step rows; the run folder loads as a policy."
-    command.__name__ = f"train_{name}"
-    return command
+    return _as_command(command, params, f"train_{name}", f"{algo.summary} Clones one skill from the dataset's step rows; the run folder loads as a policy.")
 
 
 def register_algorithms() -> None:
@@ -244,12 +249,8 @@ def _make_planner_command() -> Callable[..., None]:
             raise _fail(write_failed("--out", folder, e)) from None
         typer.echo(json.dumps(report, indent=1))
 
-    command.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
-    command.__annotations__ = {p.name: p.annotation for p in params}
-    command.__doc__ = ("Train the planner on the train split, choosing on validation; prints and saves eval.json. "
-                       "The test split is not read: `echo-data evaluate-planner RUN` scores it.")
-    command.__name__ = "train_planner"
-    return command
+    return _as_command(command, params, "train_planner", ("Train the planner on the train split, choosing on validation; prints and saves eval.json. "
+                       "The test split is not read: `echo-data evaluate-planner RUN` scores it."))
 
 
 train_app.command("planner")(_make_planner_command())
