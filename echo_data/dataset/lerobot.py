@@ -32,8 +32,9 @@ exported by one rule for its kind (`lerobot_name`):
   `info.json` `echo_data.environment_state` holds the pooling, the mean and the std. The full audio
   columns and every privileged column (`observation.privileged.*`, what only the simulator knows)
   become `extra.<echo-data name>`. Stripping `extra.` gives back echo-data's column name.
-- Cameras keep their names. RGB is an 8-bit RGB image (PNG in the rows, or an H.264 video with
-  `video=("rgb",)`, a keyframe every `VIDEO_GOP` frames). Depth is an 8-bit grey image repeated
+- Cameras keep their names. RGB is an 8-bit RGB image (PNG in the rows, or with `video=("rgb",)`
+  a video encoded as LeRobot's own recorder encodes one: `VIDEO_ENCODING`, AV1, a keyframe every 2
+  frames). Depth is an 8-bit grey image repeated
   over three channels, 0..`range_m` mapped linearly to 0..255 (the range per camera is the train
   split's 99th-percentile depth rounded up to 0.5 m, so the farthest 1 % saturate at 255 and the
   rest keep fine steps; in `info.json` `echo_data.depth_images`):
@@ -94,6 +95,7 @@ from echo_data.dataset.shards import conform
 from echo_data.dataset.stats import episode_feature_values, finalize, merge, summarize
 from echo_data.dataset.storage import atomic_write_bytes, canonical_json, fsync_dir
 from echo_data.dataset.written import mark_export, replace_folder
+from echo_data.media import LEROBOT_VIDEO, VideoEncoding
 from echo_data.recipe import SETTINGS
 from echo_data.records import ACTION_NAMES, EE_ACTION_NAMES, PRIVILEGED_PREFIX, STATE_NAMES
 
@@ -107,7 +109,7 @@ VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.m
 EPISODES_PATH = "meta/episodes/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 ROBOT_TYPE = "echo_data_fetchlike"
 VIDEO_CAMERAS = {"rgb": IMAGE_COLUMNS["head_rgb"]}  # --video choices -> the column stored as MP4
-VIDEO_GOP: int | None = 2  # frames between keyframes: random access decodes at most one extra frame (LeRobot's own choice)
+VIDEO_ENCODING: VideoEncoding = LEROBOT_VIDEO  # codec, pixel format, GOP, quality: LeRobot's encoder's (echo_data.media)
 ENV_STATE = "observation.environment_state"  # LeRobot's environment-state key (ACT, Diffusion read it)
 EXTRA_PREFIX = "extra."  # carried, never a policy input or output (see the module docstring)
 AUDIO_FOR_POLICY = (SPECTROGRAM, MEL)  # the first present is pooled into ENV_STATE
@@ -242,7 +244,7 @@ def lerobot_features(layout: StepLayout, video: tuple[str, ...] = (), env_state:
                     "shape": [h, w, 3],
                     "names": ["height", "width", "channels"],
                     "info": {
-                        "video.height": h, "video.width": w, "video.codec": "h264", "video.pix_fmt": "yuv420p",
+                        "video.height": h, "video.width": w, "video.codec": VIDEO_ENCODING.codec, "video.pix_fmt": VIDEO_ENCODING.pix_fmt,
                         "video.is_depth_map": False, "video.fps": layout.fps, "video.channels": 3, "has_audio": False,
                     },
                 }
@@ -344,10 +346,15 @@ def _flat_stats(stats: dict[str, dict[str, Any]]) -> dict[str, Any]:
     return {f"stats/{k}/{s}": v for k, st in stats.items() for s, v in st.items()}
 
 
+def _options(enc: VideoEncoding) -> str:
+    """An encoding's options as `name=value` words (`g` is the keyframe interval)."""
+    return " ".join(f"{k}={v}" for k, v in sorted(enc.options.items()))
+
+
 def _write_video(path: Path, rows: pa.Table, col: str, fps: float) -> None:
     from echo_data.media import write_mp4
 
-    write_mp4(path, (f for f in decode_images(rows.column(col))), fps, gop=VIDEO_GOP)
+    write_mp4(path, (f for f in decode_images(rows.column(col))), fps, encoding=VIDEO_ENCODING)
 
 
 def _data_files(
@@ -488,7 +495,7 @@ def export_lerobot(
             raise ExportError(f"--video {v}: {src} has no {VIDEO_CAMERAS[v]} column")
         _, h, w = layout.images[VIDEO_CAMERAS[v]]
         if h % 2 or w % 2:
-            raise ExportError(f"--video {v}: {w} x {h} images; H.264 in yuv420p needs even sides")
+            raise ExportError(f"--video {v}: {w} x {h} images; video in {VIDEO_ENCODING.pix_fmt} needs even sides")
     audio_col = policy_audio(layout)
     env_recipe = audio_standardisation(src, manifest, audio_col, layout.arrays[audio_col]) if audio_col else None
     features = lerobot_features(layout, video, len(env_recipe["mean"]) if env_recipe else 0)
@@ -540,7 +547,7 @@ def export_lerobot(
                     "flattened": "row-major (frequency, time, ear): reshape a frame's vector to `shapes`",
                 },
                 "stats_split": splits_out[0],
-                "cameras_as": (f"head RGB as H.264 video, a keyframe every {VIDEO_GOP} frames; " if video else "")
+                "cameras_as": (f"head RGB as {VIDEO_ENCODING.codec} video ({VIDEO_ENCODING.encoder}, {_options(VIDEO_ENCODING)}), as LeRobot encodes; " if video else "")
                 + "depth as 8-bit 3-channel PNG images (every camera one shape, as Diffusion requires); exact millimetres in the echo-data dataset",
             },
         }
