@@ -153,6 +153,53 @@ def write_mp4(
             tmp.unlink()
 
 
+class ClipJoiner:
+    """One MP4 at `path` made of separately encoded clips placed back to back by stream copy (no
+    re-encoding, as FFmpeg's concat demuxer joins files): each clip keeps its own first keyframe,
+    so a clip decodes alone from its start time. Clips must share codec, size and frame rate (one
+    `VideoEncoding`, one fps). The caller owns atomicity (the LeRobot export writes into a
+    temporary folder)."""
+
+    def __init__(self, path: Path) -> None:
+        import av
+
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._out = av.open(str(self.path), mode="w", format="mp4")
+        self._stream: Any = None
+        self._offset = 0  # in the clips' time base
+        self._time_base: Fraction | None = None
+        self.bytes = 0  # the clips' sizes added up (the joined file is about this big)
+
+    def append(self, clip: Path) -> tuple[float, float]:
+        """Add the video of `clip` at the end; return its (start, end) in seconds in the joined file."""
+        import av
+
+        with av.open(str(clip)) as src:
+            s = src.streams.video[0]
+            if self._stream is None:
+                self._stream, self._time_base = self._out.add_stream_from_template(s, opaque=True), s.time_base
+            elif s.time_base != self._time_base:
+                raise ValueError(f"{clip}: time base {s.time_base}, the joined clips have {self._time_base}")
+            if s.duration is None or s.time_base is None:
+                raise ValueError(f"{clip}: the video stream states no duration")
+            for packet in src.demux(s):
+                if packet.dts is None:  # the demuxer's end-of-stream marker
+                    continue
+                packet.pts = None if packet.pts is None else packet.pts + self._offset
+                packet.dts += self._offset
+                packet.stream = self._stream
+                self._out.mux(packet)
+            start = self._offset
+            self._offset += int(s.duration)
+            tb = s.time_base
+        self.bytes += Path(clip).stat().st_size
+        return float(start * tb), float(self._offset * tb)
+
+    def close(self) -> None:
+        self._out.close()
+
+
 def probe_mp4(path: Path) -> dict:
     """What a player sees in `path`: frame count, size, rate, duration and the audio's layout."""
     import av

@@ -170,7 +170,10 @@ def test_lerobot_dataset_loads_the_export(ds: Path, tmp_path: Path, monkeypatch:
 
 def test_video_export_decodes_and_lerobot_tools_accept_it(ds: Path, tmp_path: Path) -> None:
     """--video rgb: head RGB as an MP4 that LeRobotDataset decodes (close to the PNG frames:
-    AV1 is lossy), described in info.json as LeRobot's `get_video_info` reads it, depth still exact PNG; LeRobot's aggregate_datasets merges two exports and
+    AV1 is lossy), described in info.json as LeRobot's `get_video_info` reads it; the episodes share
+    one MP4 as LeRobot v3.0 lays them out (back to back, each from a keyframe at its from_timestamp),
+    and every frame LeRobotDataset decodes, episode 2's included, is the source frame of its row
+    (nearest of all the export's frames); depth still exact PNG; LeRobot's aggregate_datasets merges two exports and
     lerobot-doctor reports no failure."""
     out = tmp_path / "lev"
     r = CliRunner().invoke(app, ["export", str(ds), "--out", str(out), "--video", "rgb"])
@@ -188,16 +191,26 @@ def test_video_export_decodes_and_lerobot_tools_accept_it(ds: Path, tmp_path: Pa
     frames = np.load(npz)
     rows = _echo_rows(ds)
     pngs = np.stack([np.asarray(Image.open(io.BytesIO(r["observation.images.head_rgb"]["bytes"]))).transpose(2, 0, 1) / 255.0 for r in rows])
+    key = "observation.images.head_rgb"
+    assert sorted(f.relative_to(out).as_posix() for f in (out / "videos").rglob("*") if f.is_file()) == [f"videos/{key}/chunk-000/file-000.mp4"]
+    eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
+    fps = info["fps"]
+    ends = np.cumsum([e["length"] for e in eps]) / fps
+    assert [e[f"videos/{key}/file_index"] for e in eps] == [0] * len(eps)
+    np.testing.assert_allclose([e[f"videos/{key}/from_timestamp"] for e in eps], np.concatenate([[0.0], ends[:-1]]), atol=1e-9)
+    np.testing.assert_allclose([e[f"videos/{key}/to_timestamp"] for e in eps], ends, atol=1e-9)
+    assert eps[2]["dataset_from_index"] > 0 and eps[2][f"videos/{key}/from_timestamp"] > 0  # episode 2 sits inside the shared file
+    for i in range(len(rows)):
+        err = np.abs(frames[key][i][None] - pngs).mean(axis=(1, 2, 3))
+        assert int(np.argmin(err)) == i and err[i] < 0.25, (i, err[i], err.min())  # the right frame (AV1 is lossy on noise)
     for i, row in enumerate(rows):
-        same_episode = [k for k, r in enumerate(rows) if (r["split"], r["episode_index"]) == (row["split"], row["episode_index"])]
-        err = [np.abs(frames["observation.images.head_rgb"][i] - pngs[k]).mean() for k in same_episode]
-        assert same_episode[int(np.argmin(err))] == i and min(err) < 0.25, err  # the right frame (AV1 is lossy on noise)
         mm = np.asarray(Image.open(io.BytesIO(row["observation.images.head_depth"]["bytes"])))
         rng = info["echo_data"]["depth_images"]["observation.images.head_depth"]["range_m"]
         np.testing.assert_allclose(frames["observation.images.head_depth"][i], depth_image(mm[None], rng)[0].transpose(2, 0, 1) / 255.0, rtol=1e-6)
-    with av.open(str(out / "videos" / "observation.images.head_rgb" / "chunk-000" / "file-000.mp4")) as c:
+    with av.open(str(out / "videos" / key / "chunk-000" / "file-000.mp4")) as c:
         keys = [f.key_frame for f in c.decode(video=0)]
-    assert all(keys[k] or keys[k - 1] for k in range(1, len(keys))), keys  # a keyframe at least every 2 frames
+    assert len(keys) == len(rows) and all(keys[k] or keys[k - 1] for k in range(1, len(keys))), keys  # a keyframe at least every 2 frames
+    assert all(keys[e["dataset_from_index"]] for e in eps)  # and at each episode's first frame
     twin = tmp_path / "lev2"
     shutil.copytree(out, twin)
     merged = tmp_path / "merged"
@@ -358,3 +371,20 @@ def test_video_encoding_is_lerobots(tmp_path: Path) -> None:
     print(f"mean |decoded - source| (8-bit levels): ours {err_ours:.2f}, LeRobot's {err_theirs:.2f}, ours read by LeRobot {np.abs(got - src).mean():.2f}")
     assert np.abs(got - _decoded(ours)).max() <= 1.0  # LeRobot's decoder sees the frames we encoded (float rounding aside)
     assert np.abs(got - src).mean() < 6.0  # within 2.4 % of full scale: AV1 at crf 30 with half-resolution chroma
+
+
+def test_video_file_size_limit_starts_a_new_file(ds: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """An episode that would bring the open video file to `VIDEO_FILES_SIZE_IN_MB` starts the next
+    file (chunk/file index of its record) at time 0, as LeRobot's recorder does."""
+    from echo_data.dataset import lerobot
+
+    monkeypatch.setattr(lerobot, "VIDEO_FILES_SIZE_IN_MB", 1e-6)  # every episode is over the limit
+    out = tmp_path / "small"
+    fps = lerobot.export_lerobot(ds, out, video=("rgb",))["fps"]
+    key = "observation.images.head_rgb"
+    eps = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
+    assert [e[f"videos/{key}/file_index"] for e in eps] == list(range(len(eps))) and len(eps) == 4
+    for e in eps:
+        assert e[f"videos/{key}/from_timestamp"] == 0.0 and e[f"videos/{key}/to_timestamp"] == pytest.approx(e["length"] / fps)
+        with av.open(str(out / lerobot.VIDEO_PATH.format(video_key=key, chunk_index=0, file_index=e[f"videos/{key}/file_index"]))) as c:
+            assert sum(1 for _ in c.decode(video=0)) == e["length"]

@@ -34,7 +34,8 @@ exported by one rule for its kind (`lerobot_name`):
   become `extra.<echo-data name>`. Stripping `extra.` gives back echo-data's column name.
 - Cameras keep their names. RGB is an 8-bit RGB image (PNG in the rows, or with `video=("rgb",)`
   a video encoded as LeRobot's own recorder encodes one: `VIDEO_ENCODING`, AV1, a keyframe every 2
-  frames). Depth is an 8-bit grey image repeated
+  frames; episodes share MP4 files, each at its `from_timestamp`..`to_timestamp`, as LeRobot v3.0
+  keeps them). Depth is an 8-bit grey image repeated
   over three channels, 0..`range_m` mapped linearly to 0..255 (the range per camera is the train
   split's 99th-percentile depth rounded up to 0.5 m, so the farthest 1 % saturate at 255 and the
   rest keep fine steps; in `info.json` `echo_data.depth_images`):
@@ -95,7 +96,7 @@ from echo_data.dataset.shards import conform
 from echo_data.dataset.stats import episode_feature_values, finalize, merge, summarize
 from echo_data.dataset.storage import atomic_write_bytes, canonical_json, fsync_dir
 from echo_data.dataset.written import mark_export, replace_folder
-from echo_data.media import LEROBOT_VIDEO, VideoEncoding
+from echo_data.media import LEROBOT_VIDEO, ClipJoiner, VideoEncoding, write_mp4
 from echo_data.recipe import SETTINGS
 from echo_data.records import ACTION_NAMES, EE_ACTION_NAMES, PRIVILEGED_PREFIX, STATE_NAMES
 
@@ -103,7 +104,7 @@ CODEBASE_VERSION = "v3.0"
 KIND = "lerobot export"  # the folder marker's kind (echo_data.dataset.written)
 CHUNKS_SIZE = 1000  # files per chunk folder (LeRobot's default)
 DATA_FILES_SIZE_IN_MB = 100  # a data file is closed once its rows reach this size
-VIDEO_FILES_SIZE_IN_MB = 200  # LeRobot's default (one MP4 per episode here stays far below it)
+VIDEO_FILES_SIZE_IN_MB = 200  # a video file takes episodes until the next would bring it to this size (LeRobot's default)
 DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
 EPISODES_PATH = "meta/episodes/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
@@ -351,10 +352,40 @@ def _options(enc: VideoEncoding) -> str:
     return " ".join(f"{k}={v}" for k, v in sorted(enc.options.items()))
 
 
-def _write_video(path: Path, rows: pa.Table, col: str, fps: float) -> None:
-    from echo_data.media import write_mp4
+class _VideoFiles:
+    """The MP4 files of one video feature, laid out as LeRobot v3.0's recorder lays them out: each
+    episode encoded alone (so it starts on a keyframe), then appended by stream copy to the open
+    file at the file's running end time (its `from_timestamp`); a new file starts when the episode
+    would bring the open one to `VIDEO_FILES_SIZE_IN_MB`, and at each new split."""
 
-    write_mp4(path, (f for f in decode_images(rows.column(col))), fps, encoding=VIDEO_ENCODING)
+    def __init__(self, dst: Path, key: str, fps: float) -> None:
+        self.dst, self.key, self.fps = dst, key, fps
+        self.n_files = 0
+        self.joiner: ClipJoiner | None = None
+
+    def add(self, rows: pa.Table) -> dict[str, Any]:
+        """Encode the episode `rows` into the open file; return its `videos/{key}/*` record fields."""
+        clip = self.dst / "videos" / f".episode-{self.key}.mp4"
+        try:
+            write_mp4(clip, (f for f in decode_images(rows.column(self.key))), self.fps, encoding=VIDEO_ENCODING)
+            if self.joiner is not None and self.joiner.bytes + clip.stat().st_size >= VIDEO_FILES_SIZE_IN_MB * 2**20:
+                self.close()
+            k = self.n_files
+            if self.joiner is None:
+                self.joiner = ClipJoiner(self.dst / VIDEO_PATH.format(video_key=self.key, chunk_index=k // CHUNKS_SIZE, file_index=k % CHUNKS_SIZE))
+            start, end = self.joiner.append(clip)
+        finally:
+            clip.unlink(missing_ok=True)
+        return {
+            f"videos/{self.key}/chunk_index": k // CHUNKS_SIZE, f"videos/{self.key}/file_index": k % CHUNKS_SIZE,
+            f"videos/{self.key}/from_timestamp": start, f"videos/{self.key}/to_timestamp": end,
+        }
+
+    def close(self) -> None:
+        """Finish the open file; the next episode starts a new one."""
+        if self.joiner is not None:
+            self.joiner.close()
+            self.joiner, self.n_files = None, self.n_files + 1
 
 
 def _data_files(
@@ -382,6 +413,8 @@ def _data_files(
     ep_meta = {(r["split"], r["episode_index"]): r for r in episodes_table(src).to_pylist()}
     n_ep = n_rows = 0
 
+    videos = [_VideoFiles(dst, VIDEO_CAMERAS[v], layout.fps) for v in video]
+
     def close() -> None:
         nonlocal pending, pending_bytes, n_files
         if pending:
@@ -390,7 +423,9 @@ def _data_files(
             pending, pending_bytes, n_files = [], 0, n_files + 1
 
     for split in splits_out:
-        close()  # a data file never holds two splits
+        close()  # a data file never holds two splits, nor does a video file
+        for vf in videos:
+            vf.close()
         first_ep = n_ep
         for shard in split_shards(manifest, split):
             table = conform(pq.read_table(src / shard["file"]), layout.schema())
@@ -425,13 +460,8 @@ def _data_files(
                     "dataset_from_index": n_rows,
                     "dataset_to_index": n_rows + length,
                 }
-                for v in video:  # one MP4 per episode: file index = episode index
-                    key = VIDEO_CAMERAS[v]
-                    _write_video(dst / VIDEO_PATH.format(video_key=key, chunk_index=n_ep // CHUNKS_SIZE, file_index=n_ep % CHUNKS_SIZE), rows, key, layout.fps)
-                    record.update({
-                        f"videos/{key}/chunk_index": n_ep // CHUNKS_SIZE, f"videos/{key}/file_index": n_ep % CHUNKS_SIZE,
-                        f"videos/{key}/from_timestamp": 0.0, f"videos/{key}/to_timestamp": length / layout.fps,
-                    })
+                for vf in videos:
+                    record.update(vf.add(rows))
                 record.update({
                     "meta/episodes/chunk_index": 0,
                     "meta/episodes/file_index": 0,
@@ -453,6 +483,8 @@ def _data_files(
                 progress(1)
         splits[split] = f"{first_ep}:{n_ep}"
     close()
+    for vf in videos:
+        vf.close()
     merged = {k: merge([t[k] for t in train]) for k in train[0]} if train else {}
     return episodes, splits, merged
 
