@@ -10,7 +10,7 @@ robomimic's SequenceDataset samples (state, spectrogram, head RGB and depth of o
 from the export with one frame per HDF5 chunk against the same export chunked by whole
 trajectory (the earlier layout), in ms per sample; and LeRobot's LeRobotDataset random samples
 per second (in the LeRobot environment, `benchmarks/lerobot_read.py`) from the `--video rgb`
-export with a keyframe every 2 frames against libx264's default GOP and against the PNG export.
+export with a keyframe every 2 frames against the encoder's default GOP and against the PNG export.
 The 1-minute load average is printed before and after (the machine is shared).
 
 Usage:  python benchmarks/bench_export.py DATASET [--repeat 2] [--formats lerobot,lerobot-video,robomimic,zarr] [--reads 200]
@@ -20,6 +20,7 @@ Usage:  python benchmarks/bench_export.py DATASET [--repeat 2] [--formats lerobo
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import shutil
@@ -34,6 +35,7 @@ from echo_data.dataset import lerobot, robomimic
 from echo_data.dataset.lerobot import export_lerobot
 from echo_data.dataset.robomimic import export_robomimic
 from echo_data.dataset.zarr_export import export_zarr
+from echo_data.media import LEROBOT_VIDEO
 
 LEROBOT_PYTHON = Path(os.environ.get("ECHO_LEROBOT_PYTHON", Path(__file__).resolve().parents[1] / ".venv-lerobot" / "bin" / "python"))
 
@@ -108,9 +110,9 @@ def read_side(src: Path, n: int) -> None:
         ms = {k: _robomimic_ms(t / f"{k}.hdf5", n) for k in ("frame", "trajectory")}
         print(f"robomimic sample  per-frame chunks {ms['frame']:7.2f} ms  per-trajectory chunks {ms['trajectory']:7.2f} ms  x{ms['trajectory'] / ms['frame']:.1f} faster")
         export_lerobot(src, t / "gop2", video=("rgb",))
-        lerobot.VIDEO_GOP = None  # libx264's default keyframe interval
+        lerobot.VIDEO_ENCODING = dataclasses.replace(LEROBOT_VIDEO, options={k: v for k, v in LEROBOT_VIDEO.options.items() if k != "g"})  # the encoder's default keyframe interval
         export_lerobot(src, t / "gopdefault", video=("rgb",))
-        lerobot.VIDEO_GOP = 2
+        lerobot.VIDEO_ENCODING = LEROBOT_VIDEO
         export_lerobot(src, t / "png")
         if not LEROBOT_PYTHON.is_file():
             print(f"LeRobot read: no LeRobot environment at {LEROBOT_PYTHON} (bash scripts/setup_lerobot.sh)")

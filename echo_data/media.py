@@ -1,9 +1,10 @@
 """MP4 files with picture and binaural sound, for people to watch what happened in an episode.
 
-One encoder for the whole project (`echo-data view`, `echo-data evaluate --video`). PyAV is used
-because its wheels carry FFmpeg: no system codec and nothing downloaded. Video is H.264 in yuv420p
-(what every standard player opens), sound is stereo AAC with channel 0 = left, as in the dataset's
-WAVs. The file appears under its name only once it is complete (written to a temporary name in the
+One encoder for the whole project (`echo-data view`, `echo-data evaluate --video`, the LeRobot
+export's `--video`). PyAV is used because its wheels carry FFmpeg: no system codec and nothing
+downloaded. Two settings (`VideoEncoding`): `PLAYER_VIDEO`, H.264 in yuv420p (what every standard
+player opens), and `LEROBOT_VIDEO`, the settings LeRobot's own dataset recorder encodes with. Sound
+is stereo AAC with channel 0 = left, as in the dataset's WAVs. The file appears under its name only once it is complete (written to a temporary name in the
 same folder, then renamed), so a killed run never leaves a truncated video behind.
 """
 
@@ -11,7 +12,8 @@ from __future__ import annotations
 
 import functools
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -20,6 +22,29 @@ import numpy as np
 
 AUDIO_BITRATE = 128_000
 """AAC bit rate for the two channels (transparent enough for listening to cues)."""
+
+
+@dataclass(frozen=True)
+class VideoEncoding:
+    """How a video stream is encoded: FFmpeg's encoder, the pixel format, the encoder's options
+    (`g`: at most this many frames between keyframes), and the codec name readers report (PyAV's
+    `stream.codec.canonical_name`, which LeRobot stores as `video.codec`)."""
+
+    encoder: str
+    pix_fmt: str
+    options: Mapping[str, str]
+    codec: str
+
+
+PLAYER_VIDEO = VideoEncoding("libx264", "yuv420p", {"crf": "20", "preset": "veryfast"}, "h264")
+"""For people: H.264 opens in every standard player; libx264's default GOP (about 250 frames)."""
+
+LEROBOT_VIDEO = VideoEncoding("libsvtav1", "yuv420p", {"g": "2", "crf": "30", "preset": "12"}, "av1")
+"""For training loaders, as LeRobot 0.4.4's `encode_video_frames` encodes a recorded episode with
+its defaults (the ones `LeRobotDataset` passes): SVT-AV1 at constant quality 30, its fastest
+preset, a keyframe every 2 frames (a random frame decodes from at most one frame before it), no
+fast-decode tuning. tests/test_export_lerobot.py encodes the same frames with LeRobot's function
+and compares the streams."""
 
 
 @functools.lru_cache(maxsize=8)
@@ -38,7 +63,7 @@ def fit_nearest(img: np.ndarray, width: int, height: int) -> np.ndarray:
 
 
 def _even(n: int) -> int:
-    """H.264 in yuv420p needs even frame sides; frames are padded by one pixel where odd."""
+    """yuv420p (chroma at half resolution) needs even frame sides; frames are padded by one pixel where odd."""
     return n + (n % 2)
 
 
@@ -61,13 +86,11 @@ def write_mp4(
     fps: float,
     audio: np.ndarray | None = None,
     sample_rate: int = 16_000,
-    gop: int | None = None,
+    encoding: VideoEncoding = PLAYER_VIDEO,
 ) -> None:
-    """Encode RGB frames ((H, W, 3) uint8, all the same size) and optional stereo audio to `path`.
-
-    `gop`: at most this many frames between keyframes (None: libx264's default, about 250). A
-    training loader that seeks to random frames decodes from the keyframe before each one, so
-    datasets for training use a short GOP (LeRobot's own encoder uses 2).
+    """Encode RGB frames ((H, W, 3) uint8, all the same size) and optional stereo audio to `path`
+    with `encoding` (a training loader that seeks to random frames decodes from the keyframe
+    before each one, so datasets use `LEROBOT_VIDEO`'s short GOP).
 
     The audio is placed from time 0 alongside the first frame; a track longer or shorter than the
     video is kept as it is (players end at the longer stream).
@@ -80,7 +103,7 @@ def write_mp4(
     rate = Fraction(fps).limit_denominator(1000)
     try:
         with av.open(str(tmp), mode="w", format="mp4") as container:
-            vstream = None
+            vstream: av.VideoStream | None = None
             astream = None
             if audio is not None:
                 astream = container.add_stream("aac", rate=int(sample_rate))
@@ -92,10 +115,12 @@ def write_mp4(
                 if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
                     raise ValueError(f"frames must be (H, W, 3) uint8, got {img.shape} {img.dtype}")
                 if vstream is None:
-                    vstream = container.add_stream("libx264", rate=rate)
+                    new = container.add_stream(encoding.encoder, rate=rate, options=dict(encoding.options))
+                    if not isinstance(new, av.VideoStream):  # typed by the encoder's name; ours are video encoders
+                        raise ValueError(f"{encoding.encoder} is not a video encoder")
+                    vstream = new
                     vstream.width, vstream.height = _even(img.shape[1]), _even(img.shape[0])
-                    vstream.pix_fmt = "yuv420p"
-                    vstream.options = {"crf": "20", "preset": "veryfast", **({"g": str(gop)} if gop else {})}
+                    vstream.pix_fmt = encoding.pix_fmt
                 if img.shape[0] != vstream.height or img.shape[1] != vstream.width:
                     pad = np.zeros((vstream.height, vstream.width, 3), np.uint8)
                     h, w = min(img.shape[0], vstream.height), min(img.shape[1], vstream.width)
@@ -126,6 +151,53 @@ def write_mp4(
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+class ClipJoiner:
+    """One MP4 at `path` made of separately encoded clips placed back to back by stream copy (no
+    re-encoding, as FFmpeg's concat demuxer joins files): each clip keeps its own first keyframe,
+    so a clip decodes alone from its start time. Clips must share codec, size and frame rate (one
+    `VideoEncoding`, one fps). The caller owns atomicity (the LeRobot export writes into a
+    temporary folder)."""
+
+    def __init__(self, path: Path) -> None:
+        import av
+
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._out = av.open(str(self.path), mode="w", format="mp4")
+        self._stream: Any = None
+        self._offset = 0  # in the clips' time base
+        self._time_base: Fraction | None = None
+        self.bytes = 0  # the clips' sizes added up (the joined file is about this big)
+
+    def append(self, clip: Path) -> tuple[float, float]:
+        """Add the video of `clip` at the end; return its (start, end) in seconds in the joined file."""
+        import av
+
+        with av.open(str(clip)) as src:
+            s = src.streams.video[0]
+            if self._stream is None:
+                self._stream, self._time_base = self._out.add_stream_from_template(s, opaque=True), s.time_base
+            elif s.time_base != self._time_base:
+                raise ValueError(f"{clip}: time base {s.time_base}, the joined clips have {self._time_base}")
+            if s.duration is None or s.time_base is None:
+                raise ValueError(f"{clip}: the video stream states no duration")
+            for packet in src.demux(s):
+                if packet.dts is None:  # the demuxer's end-of-stream marker
+                    continue
+                packet.pts = None if packet.pts is None else packet.pts + self._offset
+                packet.dts += self._offset
+                packet.stream = self._stream
+                self._out.mux(packet)
+            start = self._offset
+            self._offset += int(s.duration)
+            tb = s.time_base
+        self.bytes += Path(clip).stat().st_size
+        return float(start * tb), float(self._offset * tb)
+
+    def close(self) -> None:
+        self._out.close()
 
 
 def probe_mp4(path: Path) -> dict:

@@ -382,7 +382,7 @@ EXPORT_NOTES = {
     MEL: "log-mel spectrogram of the last 1 s, flattened row-major from (frequency, time, ear)",
     IMAGE_COLUMNS["head_depth"]: "head camera depth, 8-bit x 3 channels (Cameras below gives metres per step)",
     IMAGE_COLUMNS["wrist_depth"]: "wrist camera depth, 8-bit x 3 channels (Cameras below gives metres per step)",
-    IMAGE_COLUMNS["head_rgb"]: "head camera colour (PNG image, or H.264 video with `--video rgb`, a keyframe every 2 frames)",
+    IMAGE_COLUMNS["head_rgb"]: "head camera colour (PNG image, or with `--video rgb` AV1 video as LeRobot encodes it, a keyframe every 2 frames)",
 }
 # lerobot-doctor's warnings on an export, and why they are expected.
 DOCTOR_NOTES = [

@@ -32,8 +32,10 @@ exported by one rule for its kind (`lerobot_name`):
   `info.json` `echo_data.environment_state` holds the pooling, the mean and the std. The full audio
   columns and every privileged column (`observation.privileged.*`, what only the simulator knows)
   become `extra.<echo-data name>`. Stripping `extra.` gives back echo-data's column name.
-- Cameras keep their names. RGB is an 8-bit RGB image (PNG in the rows, or an H.264 video with
-  `video=("rgb",)`, a keyframe every `VIDEO_GOP` frames). Depth is an 8-bit grey image repeated
+- Cameras keep their names. RGB is an 8-bit RGB image (PNG in the rows, or with `video=("rgb",)`
+  a video encoded as LeRobot's own recorder encodes one: `VIDEO_ENCODING`, AV1, a keyframe every 2
+  frames; episodes share MP4 files, each at its `from_timestamp`..`to_timestamp`, as LeRobot v3.0
+  keeps them). Depth is an 8-bit grey image repeated
   over three channels, 0..`range_m` mapped linearly to 0..255 (the range per camera is the train
   split's 99th-percentile depth rounded up to 0.5 m, so the farthest 1 % saturate at 255 and the
   rest keep fine steps; in `info.json` `echo_data.depth_images`):
@@ -94,6 +96,7 @@ from echo_data.dataset.shards import conform
 from echo_data.dataset.stats import episode_feature_values, finalize, merge, summarize
 from echo_data.dataset.storage import atomic_write_bytes, canonical_json, fsync_dir
 from echo_data.dataset.written import mark_export, replace_folder
+from echo_data.media import LEROBOT_VIDEO, ClipJoiner, VideoEncoding, write_mp4
 from echo_data.recipe import SETTINGS
 from echo_data.records import ACTION_NAMES, EE_ACTION_NAMES, PRIVILEGED_PREFIX, STATE_NAMES
 
@@ -101,13 +104,13 @@ CODEBASE_VERSION = "v3.0"
 KIND = "lerobot export"  # the folder marker's kind (echo_data.dataset.written)
 CHUNKS_SIZE = 1000  # files per chunk folder (LeRobot's default)
 DATA_FILES_SIZE_IN_MB = 100  # a data file is closed once its rows reach this size
-VIDEO_FILES_SIZE_IN_MB = 200  # LeRobot's default (one MP4 per episode here stays far below it)
+VIDEO_FILES_SIZE_IN_MB = 200  # a video file takes episodes until the next would bring it to this size (LeRobot's default)
 DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
 EPISODES_PATH = "meta/episodes/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 ROBOT_TYPE = "echo_data_fetchlike"
 VIDEO_CAMERAS = {"rgb": IMAGE_COLUMNS["head_rgb"]}  # --video choices -> the column stored as MP4
-VIDEO_GOP: int | None = 2  # frames between keyframes: random access decodes at most one extra frame (LeRobot's own choice)
+VIDEO_ENCODING: VideoEncoding = LEROBOT_VIDEO  # codec, pixel format, GOP, quality: LeRobot's encoder's (echo_data.media)
 ENV_STATE = "observation.environment_state"  # LeRobot's environment-state key (ACT, Diffusion read it)
 EXTRA_PREFIX = "extra."  # carried, never a policy input or output (see the module docstring)
 AUDIO_FOR_POLICY = (SPECTROGRAM, MEL)  # the first present is pooled into ENV_STATE
@@ -242,7 +245,7 @@ def lerobot_features(layout: StepLayout, video: tuple[str, ...] = (), env_state:
                     "shape": [h, w, 3],
                     "names": ["height", "width", "channels"],
                     "info": {
-                        "video.height": h, "video.width": w, "video.codec": "h264", "video.pix_fmt": "yuv420p",
+                        "video.height": h, "video.width": w, "video.codec": VIDEO_ENCODING.codec, "video.pix_fmt": VIDEO_ENCODING.pix_fmt,
                         "video.is_depth_map": False, "video.fps": layout.fps, "video.channels": 3, "has_audio": False,
                     },
                 }
@@ -344,10 +347,45 @@ def _flat_stats(stats: dict[str, dict[str, Any]]) -> dict[str, Any]:
     return {f"stats/{k}/{s}": v for k, st in stats.items() for s, v in st.items()}
 
 
-def _write_video(path: Path, rows: pa.Table, col: str, fps: float) -> None:
-    from echo_data.media import write_mp4
+def _options(enc: VideoEncoding) -> str:
+    """An encoding's options as `name=value` words (`g` is the keyframe interval)."""
+    return " ".join(f"{k}={v}" for k, v in sorted(enc.options.items()))
 
-    write_mp4(path, (f for f in decode_images(rows.column(col))), fps, gop=VIDEO_GOP)
+
+class _VideoFiles:
+    """The MP4 files of one video feature, laid out as LeRobot v3.0's recorder lays them out: each
+    episode encoded alone (so it starts on a keyframe), then appended by stream copy to the open
+    file at the file's running end time (its `from_timestamp`); a new file starts when the episode
+    would bring the open one to `VIDEO_FILES_SIZE_IN_MB`, and at each new split."""
+
+    def __init__(self, dst: Path, key: str, fps: float) -> None:
+        self.dst, self.key, self.fps = dst, key, fps
+        self.n_files = 0
+        self.joiner: ClipJoiner | None = None
+
+    def add(self, rows: pa.Table) -> dict[str, Any]:
+        """Encode the episode `rows` into the open file; return its `videos/{key}/*` record fields."""
+        clip = self.dst / "videos" / f".episode-{self.key}.mp4"
+        try:
+            write_mp4(clip, (f for f in decode_images(rows.column(self.key))), self.fps, encoding=VIDEO_ENCODING)
+            if self.joiner is not None and self.joiner.bytes + clip.stat().st_size >= VIDEO_FILES_SIZE_IN_MB * 2**20:
+                self.close()
+            k = self.n_files
+            if self.joiner is None:
+                self.joiner = ClipJoiner(self.dst / VIDEO_PATH.format(video_key=self.key, chunk_index=k // CHUNKS_SIZE, file_index=k % CHUNKS_SIZE))
+            start, end = self.joiner.append(clip)
+        finally:
+            clip.unlink(missing_ok=True)
+        return {
+            f"videos/{self.key}/chunk_index": k // CHUNKS_SIZE, f"videos/{self.key}/file_index": k % CHUNKS_SIZE,
+            f"videos/{self.key}/from_timestamp": start, f"videos/{self.key}/to_timestamp": end,
+        }
+
+    def close(self) -> None:
+        """Finish the open file; the next episode starts a new one."""
+        if self.joiner is not None:
+            self.joiner.close()
+            self.joiner, self.n_files = None, self.n_files + 1
 
 
 def _data_files(
@@ -375,6 +413,8 @@ def _data_files(
     ep_meta = {(r["split"], r["episode_index"]): r for r in episodes_table(src).to_pylist()}
     n_ep = n_rows = 0
 
+    videos = [_VideoFiles(dst, VIDEO_CAMERAS[v], layout.fps) for v in video]
+
     def close() -> None:
         nonlocal pending, pending_bytes, n_files
         if pending:
@@ -383,7 +423,9 @@ def _data_files(
             pending, pending_bytes, n_files = [], 0, n_files + 1
 
     for split in splits_out:
-        close()  # a data file never holds two splits
+        close()  # a data file never holds two splits, nor does a video file
+        for vf in videos:
+            vf.close()
         first_ep = n_ep
         for shard in split_shards(manifest, split):
             table = conform(pq.read_table(src / shard["file"]), layout.schema())
@@ -418,13 +460,8 @@ def _data_files(
                     "dataset_from_index": n_rows,
                     "dataset_to_index": n_rows + length,
                 }
-                for v in video:  # one MP4 per episode: file index = episode index
-                    key = VIDEO_CAMERAS[v]
-                    _write_video(dst / VIDEO_PATH.format(video_key=key, chunk_index=n_ep // CHUNKS_SIZE, file_index=n_ep % CHUNKS_SIZE), rows, key, layout.fps)
-                    record.update({
-                        f"videos/{key}/chunk_index": n_ep // CHUNKS_SIZE, f"videos/{key}/file_index": n_ep % CHUNKS_SIZE,
-                        f"videos/{key}/from_timestamp": 0.0, f"videos/{key}/to_timestamp": length / layout.fps,
-                    })
+                for vf in videos:
+                    record.update(vf.add(rows))
                 record.update({
                     "meta/episodes/chunk_index": 0,
                     "meta/episodes/file_index": 0,
@@ -446,6 +483,8 @@ def _data_files(
                 progress(1)
         splits[split] = f"{first_ep}:{n_ep}"
     close()
+    for vf in videos:
+        vf.close()
     merged = {k: merge([t[k] for t in train]) for k in train[0]} if train else {}
     return episodes, splits, merged
 
@@ -488,7 +527,7 @@ def export_lerobot(
             raise ExportError(f"--video {v}: {src} has no {VIDEO_CAMERAS[v]} column")
         _, h, w = layout.images[VIDEO_CAMERAS[v]]
         if h % 2 or w % 2:
-            raise ExportError(f"--video {v}: {w} x {h} images; H.264 in yuv420p needs even sides")
+            raise ExportError(f"--video {v}: {w} x {h} images; video in {VIDEO_ENCODING.pix_fmt} needs even sides")
     audio_col = policy_audio(layout)
     env_recipe = audio_standardisation(src, manifest, audio_col, layout.arrays[audio_col]) if audio_col else None
     features = lerobot_features(layout, video, len(env_recipe["mean"]) if env_recipe else 0)
@@ -540,7 +579,7 @@ def export_lerobot(
                     "flattened": "row-major (frequency, time, ear): reshape a frame's vector to `shapes`",
                 },
                 "stats_split": splits_out[0],
-                "cameras_as": (f"head RGB as H.264 video, a keyframe every {VIDEO_GOP} frames; " if video else "")
+                "cameras_as": (f"head RGB as {VIDEO_ENCODING.codec} video ({VIDEO_ENCODING.encoder}, {_options(VIDEO_ENCODING)}), as LeRobot encodes; " if video else "")
                 + "depth as 8-bit 3-channel PNG images (every camera one shape, as Diffusion requires); exact millimetres in the echo-data dataset",
             },
         }
