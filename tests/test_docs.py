@@ -8,10 +8,12 @@ package pointing at neither studies/ nor benchmarks/. The docs build itself (`mk
 from __future__ import annotations
 
 import importlib.util
+import json
 import re
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -104,8 +106,6 @@ def test_every_recipe_resolves_as_it_did_before_the_studies_moved() -> None:
     """Recipes moved into studies/<name>/recipes/ with their `extends:` paths rewritten: each still
     resolves to the recipe it was (content hashes taken before the move; a dataset built from it
     is byte for byte the one before)."""
-    import json
-
     from echo_data.recipe import load_recipe
 
     expected = json.loads((ROOT / "tests" / "data" / "recipe_content_hashes.json").read_text())
@@ -124,3 +124,93 @@ def test_the_study_readmes_result_tables_are_their_json_rendered() -> None:
     for study, name, results, render in results_tables.COPIES:
         held, fresh = results_tables.rendered(study, name, results, render)
         assert held == fresh, f"studies/{study}/README.md, {name}: python studies/results_tables.py"
+
+
+# --- measured figures quoted in the docs pages, checked against the results JSON that holds them --------
+# (page, quoted text, results JSON, the figures the quote must show in order: a function of the JSON).
+# The study READMEs render theirs (studies/results_tables.py); a page's prose quotes, and this holds
+# the quote to the JSON. A figure no JSON holds has no place on a page (docs/speed.md says where it ran).
+
+def _pct(v: float) -> str:
+    return f"{round(100 * v)} %"
+
+
+def _row(doc: dict, metric: str, split: str = "test", env: str = "room") -> float:
+    """studies/spatial_cues' table: the `env` value of the row named `metric`."""
+    return next(r[env]["value"] for r in doc["table"] if r["metric"] == metric and r["split"] == split)
+
+
+def _kn(c: dict) -> str:
+    return f"{c.get('successes', c.get('k'))}/{c.get('attempts', c.get('n'))}"
+
+
+def _nums(line: str) -> list[str]:
+    """The decimals of a benchmark's printed line, as printed."""
+    return re.findall(r"\d+\.\d+", line)
+
+
+def _vec(doc: dict, n: int) -> list[str]:
+    """One N of the GPU bench_vec run: async steps/s, share, stragglers' bound; the bare floor's steps/s, share."""
+    lines = doc["env"]["bench_vec"]["lines"]
+    env = next(ln for ln in lines if re.match(rf"N =\s+{n} async", ln))
+    floor = next(ln for ln in lines if re.search(rf"; {n} processes", ln))
+    steps, _, share, bound = _nums(env)[:4]
+    fsteps, fshare = _nums(floor)[1:3]
+    return [steps, share, bound, fsteps, fshare]
+
+
+_CUES, _DIST = "studies/spatial_cues/results/spatial_cues.json", "distances"
+FIGURES: list[tuple[str, str, str, Any]] = [
+    ("docs/acoustics.md", "95 % of the benchmark's line-of-sight steps lie beyond r_c", _CUES,
+     lambda d: [_pct(d[_DIST]["share_beyond_critical_distance"])]),
+    ("docs/acoustics.md", "distance 1.62 m, median r_c 0.66 m, median direct-to-reverberant ratio −8.7 dB", _CUES,
+     lambda d: [f"{d[_DIST]['median_distance_m']:.2f}", f"{d[_DIST]['median_critical_distance_m']:.2f}",
+                f"{d[_DIST]['median_direct_to_reverberant_db']:.1f}".replace("-", "−")]),
+    ("docs/acoustics.md", "agrees with the source's side 0.73 at 1–2 r_c, 0.70 at 2–3 r_c, 0.58 beyond 3 r_c", _CUES,
+     lambda d: [f"{b['plain_ild_agreement']:.2f}" for b in d[_DIST]["plain_ild_by_distance"][1:4]]),
+    ("docs/acoustics.md", "spread of 3.3 dB measured beyond 3 r_c) predicts 0.65, 0.56 and 0.51–0.53", _CUES,
+     lambda d: [f"{d[_DIST]['diffuse_model_ild_agreement']['reverberant_ild_spread_db']:.1f}",
+                *(f"{b['diffuse_model']:.2f}" for b in (d[_DIST]["plain_ild_by_distance"][i] for i in (1, 2, 4, 3)))]),
+    ("docs/acoustics.md", "at 1405 line-of-sight steps", _CUES, lambda d: [str(d[_DIST]["los_steps"])]),
+    ("docs/acoustics.md", "23 % of those steps fall into a gap of the sound", _CUES, lambda d: [_pct(d[_DIST]["share_los_steps_source_silent"])]),
+    ("docs/acoustics.md", "the ILD agrees at 0.51 in the rooms and 0.52 in the free field; where the source is audible "
+     "the free field agrees at 1.00 and the rooms at 0.69", _CUES,
+     lambda d: [f"{_row(d, m, 'train+test', e):.2f}" for m, e in (
+         ("ILD sign = source side, line of sight, source silent in the step's 100 ms (a gap)", "room"),
+         ("ILD sign = source side, line of sight, source silent in the step's 100 ms (a gap)", "free"),
+         ("ILD sign = source side, line of sight, source audible in the step's 100 ms", "free"),
+         ("ILD sign = source side, line of sight, source audible in the step's 100 ms", "room"))]),
+    ("docs/acoustics.md", "onset-weighted ILD agrees with the source's side at 0.93 of line-of-sight steps, the ITD at 0.80; "
+     "the coherence-selected ones at 0.71 and 0.77", _CUES,
+     lambda d: [f"{_row(d, f'{c} {w}, 1s: sign = source side, line of sight'):.2f}"
+                for w in ("onset-weighted", "coherence-selected") for c in ("ILD", "ITD")]),
+    ("docs/acoustics.md", "tells left from right at 0.89 of line-of-sight test steps", _CUES,
+     lambda d: [f"{_row(d, 'left/right classifier on test steps, line of sight, mirror-symmetric (onset3 features, C = 0.01, chosen on train validation)'):.2f}"]),
+    ("docs/manipulation_experts.md", "| experts_object_relocation | off | 100 | 99 | Pick 100/100, Place 99/100", "studies/experts/results/pick_place_experts.json",
+     lambda d: [str(d["trial"]["episodes"]), str(d["trial"]["successes"]), _kn(d["trial"]["skills"]["Pick"]), _kn(d["trial"]["skills"]["Place"])]),
+    ("docs/manipulation_experts.md", "`door_sink_experts_200.json`) | off | 200 | 200 | OpenDoor 98/98, CloseSink 102/102",
+     "studies/experts/results/door_sink_experts_200.json",
+     lambda d: [str(d["trial"]["episodes"]), str(round(d["trial"]["episodes"] * d["trial"]["success_rate"])),
+                _kn(d["trial"]["skills"]["OpenDoor"]), _kn(d["trial"]["skills"]["CloseSink"])]),
+    ("docs/manipulation_experts.md", "The object in some camera: 90 % of Pick rows (head 86 %, wrist 60 %)", "studies/experts/results/pick_place_experts.json",
+     lambda d: [_pct(d["figures"]["visible_pick"][k]) for k in ("some_camera", "head", "wrist")]),
+    ("docs/learners.md", "CloseSink 20/20 against 12/20 with 31 demonstrations, OpenDoor 1/10 against 3/10", "studies/learners/results/door_sink_val.json",
+     lambda d: [_kn(d["runs"][r][s]) for s in ("CloseSink", "OpenDoor") for r in ("300 episodes", "60 episodes")]),
+    *(("docs/vector_envs.md", q, "benchmarks/results/gpu_figures.json", lambda d, n=n: _vec(d, n))
+      for n, q in ((1, "| 1 | 89.8 | 0.84 | 1.00 | 400.6 | 1.04 |"), (4, "| 4 | 233.1 | 0.55 | 0.67 | 567.4 | 0.37 |"),
+                   (8, "| 8 | 297.2 | 0.35 | 0.54 | 558.9 | 0.18 |"), (14, "| 14 | 312.3 (285.5 with `ECHO_DATA_PREFETCH=0`) | 0.21 | 0.45 | 505.8 | **0.09** |"))),
+    ("docs/vector_envs.md", "9.90 ms a step = 1.69x its path floor (5.86 ms), 11.09 ms with the audio in the caller's thread",
+     "benchmarks/results/gpu_figures.json",
+     lambda d: [*_nums(d["env"]["bench_env"]["lines"][3])[:2], _nums(d["env"]["bench_env"]["lines"][1])[0],
+                _nums(d["env"]["bench_env_listener_off"]["lines"][2])[0]]),
+]
+
+
+@pytest.mark.parametrize("page, quote, results, figures", FIGURES, ids=[f"{p.split('/')[-1]}:{q[:40]}" for p, q, *_ in FIGURES])
+def test_a_figure_quoted_in_the_docs_is_its_results_json(page: str, quote: str, results: str, figures: Any) -> None:
+    text = " ".join((ROOT / page).read_text().split())  # a quote may wrap across lines
+    assert quote in text, f"{page}: the quote is gone; update FIGURES with the page"
+    rest = quote
+    for figure in figures(json.loads((ROOT / results).read_text())):
+        assert figure in rest, f"{page}: {quote!r} does not show {figure} ({results})"
+        rest = rest[rest.index(figure) + len(figure):]
