@@ -159,7 +159,14 @@ def _vec(doc: dict, n: int) -> list[str]:
     return [steps, share, bound, fsteps, fshare]
 
 
+def _trial(run: dict, *skills: str) -> list[str]:
+    """An `echo-data trial --json` run as a table row: episodes, chains completed, each skill's k/n."""
+    done = run.get("successes", round(run["episodes"] * run["success_rate"]))
+    return [str(run["episodes"]), str(done), *(_kn(run["skills"][s]) for s in skills)]
+
+
 _CUES, _DIST = "studies/spatial_cues/results/spatial_cues.json", "distances"
+_EXPERTS, _NOISE = "studies/experts/results/pick_place_experts.json", "studies/experts/results/expert_noise.json"
 FIGURES: list[tuple[str, str, str, Any]] = [
     ("docs/acoustics.md", "95 % of the benchmark's line-of-sight steps lie beyond r_c", _CUES,
      lambda d: [_pct(d[_DIST]["share_beyond_critical_distance"])]),
@@ -186,14 +193,36 @@ FIGURES: list[tuple[str, str, str, Any]] = [
                 for w in ("onset-weighted", "coherence-selected") for c in ("ILD", "ITD")]),
     ("docs/acoustics.md", "tells left from right at 0.89 of line-of-sight test steps", _CUES,
      lambda d: [f"{_row(d, 'left/right classifier on test steps, line of sight, mirror-symmetric (onset3 features, C = 0.01, chosen on train validation)'):.2f}"]),
-    ("docs/manipulation_experts.md", "| experts_object_relocation | off | 100 | 99 | Pick 100/100, Place 99/100", "studies/experts/results/pick_place_experts.json",
-     lambda d: [str(d["trial"]["episodes"]), str(d["trial"]["successes"]), _kn(d["trial"]["skills"]["Pick"]), _kn(d["trial"]["skills"]["Place"])]),
+    *(("docs/manipulation_experts.md", q, _EXPERTS, lambda d, i=i, sk=sk: _trial(d["chains_noise_off"][i], *sk)) for q, i, sk in (
+        ("| experts_object_relocation | off | 100 | 99 | Pick 100/100, Place 99/100", 0, ("Pick", "Place")),
+        ("| experts_state_transition | off | 50 | 50 | OpenDoor 21/21, CloseSink 29/29", 1, ("OpenDoor", "CloseSink")),
+        ("| experts_multi_event | off | 30 | 30 | Pick 30/30, Place 30/30, OpenDoor 14/14, CloseSink 16/16", 2, ("Pick", "Place", "OpenDoor", "CloseSink")))),
     ("docs/manipulation_experts.md", "`door_sink_experts_200.json`) | off | 200 | 200 | OpenDoor 98/98, CloseSink 102/102",
-     "studies/experts/results/door_sink_experts_200.json",
-     lambda d: [str(d["trial"]["episodes"]), str(round(d["trial"]["episodes"] * d["trial"]["success_rate"])),
-                _kn(d["trial"]["skills"]["OpenDoor"]), _kn(d["trial"]["skills"]["CloseSink"])]),
-    ("docs/manipulation_experts.md", "The object in some camera: 90 % of Pick rows (head 86 %, wrist 60 %)", "studies/experts/results/pick_place_experts.json",
-     lambda d: [_pct(d["figures"]["visible_pick"][k]) for k in ("some_camera", "head", "wrist")]),
+     "studies/experts/results/door_sink_experts_200.json", lambda d: _trial(d["trial"], "OpenDoor", "CloseSink")),
+    *(("docs/manipulation_experts.md", q, _NOISE, lambda d, i=i, sk=sk: _trial(d["perturbation"]["runs"][i], *sk)) for q, i, sk in (
+        ("| experts_object_relocation_perturbed | 0.5 cm / 1° | 60 | 58 | Pick 59/60, Place 58/59", 0, ("Pick", "Place")),
+        ("| experts_state_transition_perturbed | 0.5 cm / 1° | 60 | 60 | OpenDoor 28/28, CloseSink 32/32", 1, ("OpenDoor", "CloseSink")),
+        ("| experts_multi_event_perturbed | 0.5 cm / 1° | 30 | 30 | Pick 30/30, Place 30/30, OpenDoor 14/14, CloseSink 16/16", 2,
+         ("Pick", "Place", "OpenDoor", "CloseSink")),
+        ("| recipes/sanity_pick_place (handover 1.0) | 0.5 cm / 1° | 40 | 37 | Pick 39/40, Place 37/39", 3, ("Pick", "Place")),
+        ("| recipes/sanity_door_sink (handover 1.0) | 0.5 cm / 1° | 40 | 40 | OpenDoor 20/20, CloseSink 20/20", 4, ("OpenDoor", "CloseSink")))),
+    ("docs/manipulation_experts.md", "Before: Pick 3 of 10 at 0.5 cm / 1°", _NOISE,
+     lambda d: [f"{d['perturbation']['before']['Pick']['successes']} of {d['perturbation']['before']['Pick']['attempts']}"]),
+    ("docs/manipulation_experts.md", "Navigate 100/100, Pick 100/100, Place 92/100", _EXPERTS,
+     lambda d: [_kn(d["trial_before_release_fix"]["skills"][s]) for s in ("Navigate", "Pick", "Place")]),
+    ("docs/manipulation_experts.md", "Pick 30/30, Place after it 28/30", _EXPERTS, lambda d: [_kn(d["handover"][s]) for s in ("Pick", "Place")]),
+    ("docs/manipulation_experts.md", "Rows per Pick segment (10 episodes): 143 on average, of which 5 base, 27 untuck (the only "
+     "object-independent phase, 19 %) and 110 after it (77 %)", _EXPERTS,
+     lambda d: [str(d["figures"]["episodes"]), *(f"{d['figures']['pick_rows_per_segment'][k]:.0f}" for k in ("rows", "base", "untuck")),
+                _pct(d["figures"]["pick_rows_per_segment"]["untuck"] / d["figures"]["pick_rows_per_segment"]["rows"]),
+                f"{d['figures']['pick_rows_per_segment']['object']:.0f}", _pct(d["figures"]["pick_object_share"])]),
+    ("docs/manipulation_experts.md", "The object in some camera: 90 % of Pick rows (head 86 %, wrist 60 %); 100 % once the jaws have "
+     "closed and in every Place row (wrist 100 %). The rows without it are contiguous, 49-69 rows", _EXPERTS,
+     lambda d: [*(_pct(d["figures"]["visible_pick"][k]) for k in ("some_camera", "head", "wrist")),
+                _pct(d["figures"]["visible_pick_object_phase_closed"]["some_camera"]), _pct(d["figures"]["visible_place"]["wrist"]),
+                f"{min(map(int, d['figures']['unseen_rows_before_close']))}-{max(map(int, d['figures']['unseen_rows_before_close']))}"]),
+    ("docs/manipulation_experts.md", "0.00 rad at the end of the untuck, 0.55 rad at the hover, 0.54 rad at the grasp", _EXPERTS,
+     lambda d: [f"{d['figures']['joint_spread_rad'][k]:.2f}" for k in ("untuck_end", "hover", "grasp")]),
     ("docs/learners.md", "CloseSink 20/20 against 12/20 with 31 demonstrations, OpenDoor 1/10 against 3/10", "studies/learners/results/door_sink_val.json",
      lambda d: [_kn(d["runs"][r][s]) for s in ("CloseSink", "OpenDoor") for r in ("300 episodes", "60 episodes")]),
     *(("docs/vector_envs.md", q, "benchmarks/results/gpu_figures.json", lambda d, n=n: _vec(d, n))
