@@ -165,7 +165,14 @@ def _trial(run: dict, *skills: str) -> list[str]:
     return [str(run["episodes"]), str(done), *(_kn(run["skills"][s]) for s in skills)]
 
 
+def _first(folder: str, name: str, inputs: str) -> str:
+    """The navigation ablation's first-Navigate k/n of the row `inputs` in results/`name`."""
+    doc = json.loads((ROOT / folder / name).read_text())
+    return _kn(next(r for r in doc["navigate"] if r["inputs"] == inputs)["first_navigate"])
+
+
 _CUES, _DIST = "studies/spatial_cues/results/spatial_cues.json", "distances"
+_ABL = "studies/navigation_ablation/results"  # a folder: its entries read the files they name
 _EXPERTS, _NOISE = "studies/experts/results/pick_place_experts.json", "studies/experts/results/expert_noise.json"
 FIGURES: list[tuple[str, str, str, Any]] = [
     ("docs/acoustics.md", "95 % of the benchmark's line-of-sight steps lie beyond r_c", _CUES,
@@ -225,6 +232,17 @@ FIGURES: list[tuple[str, str, str, Any]] = [
      lambda d: [f"{d['figures']['joint_spread_rad'][k]:.2f}" for k in ("untuck_end", "hover", "grasp")]),
     ("docs/learners.md", "CloseSink 20/20 against 12/20 with 31 demonstrations, OpenDoor 1/10 against 3/10", "studies/learners/results/door_sink_val.json",
      lambda d: [_kn(d["runs"][r][s]) for s in ("CloseSink", "OpenDoor") for r in ("300 episodes", "60 episodes")]),
+    ("docs/learners.md", "delta + DART 3/20, absolute + DART 1/20, delta without noise 0/20, delta + GRU 0/20, delta + head RGB 0/20",
+     "studies/learners/results/pick_val.json", lambda d: [_kn(r["pick_success_val"]) for r in d["runs"]]),
+    ("docs/learners.md", "audio, state 18/54 stored → 29/54 level + ILD; audio, depth, state 32/54 → 39/54", _ABL,
+     lambda d: [_first(d, "ablation.json", "audio,state"), _first(d, "ablation_ild.json", "audio,state"),
+                _first(d, "ablation.json", "audio,depth,state"), _first(d, "ablation_ild.json", "audio,depth,state")]),
+    ("docs/learners.md", "(audio, state: first Navigate 29/54 with level + ILD audio, 18/54 with the stored spectrogram, "
+     "against 5/54 without audio; audio, depth, state 39/54", _ABL,
+     lambda d: [_first(d, "ablation_ild.json", "audio,state"), _first(d, "ablation.json", "audio,state"),
+                _first(d, "ablation.json", "state"), _first(d, "ablation_ild.json", "audio,depth,state")]),
+    ("docs/learners.md", "DAgger on `state, target` took Navigate from 6/16 to 13/16", _ABL,
+     lambda d: [_first(d, "ablation_small.json", "state,target"), _first(d, "ablation_small_dagger.json", "state,target")]),
     *(("docs/vector_envs.md", q, "benchmarks/results/gpu_figures.json", lambda d, n=n: _vec(d, n))
       for n, q in ((1, "| 1 | 89.8 | 0.84 | 1.00 | 400.6 | 1.04 |"), (4, "| 4 | 233.1 | 0.55 | 0.67 | 567.4 | 0.37 |"),
                    (8, "| 8 | 297.2 | 0.35 | 0.54 | 558.9 | 0.18 |"), (14, "| 14 | 312.3 (285.5 with `ECHO_DATA_PREFETCH=0`) | 0.21 | 0.45 | 505.8 | **0.09** |"))),
@@ -240,6 +258,7 @@ def test_a_figure_quoted_in_the_docs_is_its_results_json(page: str, quote: str, 
     text = " ".join((ROOT / page).read_text().split())  # a quote may wrap across lines
     assert quote in text, f"{page}: the quote is gone; update FIGURES with the page"
     rest = quote
-    for figure in figures(json.loads((ROOT / results).read_text())):
+    source = ROOT / results
+    for figure in figures(str(source.relative_to(ROOT)) if source.is_dir() else json.loads(source.read_text())):
         assert figure in rest, f"{page}: {quote!r} does not show {figure} ({results})"
         rest = rest[rest.index(figure) + len(figure):]
