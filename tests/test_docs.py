@@ -171,8 +171,16 @@ def _first(folder: str, name: str, inputs: str) -> str:
     return _kn(next(r for r in doc["navigate"] if r["inputs"] == inputs)["first_navigate"])
 
 
+def _shortfall(doc: dict, row: str, setting: str, quartiles: bool = False) -> list[str]:
+    """The paper table's navigate_shortfall of a chain row: its median (or quartiles) in m and its episodes."""
+    short = doc["rows"][row][setting]["metrics"]["navigate_shortfall"]
+    shown = short["quartiles_m"][1:2] + (short["quartiles_m"] if quartiles else [])
+    return [*(f"{q:.2f}".replace("-", "−") for q in shown), str(short["n"])]
+
+
 _CUES, _DIST = "studies/spatial_cues/results/spatial_cues.json", "distances"
 _ABL = "studies/navigation_ablation/results"  # a folder: its entries read the files they name
+_PAPER = "studies/paper_table/results/paper_table.json"
 _EXPERTS, _NOISE = "studies/experts/results/pick_place_experts.json", "studies/experts/results/expert_noise.json"
 FIGURES: list[tuple[str, str, str, Any]] = [
     ("docs/acoustics.md", "95 % of the benchmark's line-of-sight steps lie beyond r_c", _CUES,
@@ -243,6 +251,19 @@ FIGURES: list[tuple[str, str, str, Any]] = [
                 _first(d, "ablation.json", "state"), _first(d, "ablation_ild.json", "audio,depth,state")]),
     ("docs/learners.md", "DAgger on `state, target` took Navigate from 6/16 to 13/16", _ABL,
      lambda d: [_first(d, "ablation_small.json", "state,target"), _first(d, "ablation_small_dagger.json", "state,target")]),
+    ("docs/learners.md", "object relocation, the experts 0.03 m (50 episodes), the learned Navigate given the target position "
+     "(`oracle planner + learned skills*`) 1.31 m short (quartiles −0.06, 1.31, 1.44 m; 37 episodes), the learned Navigate from "
+     "sound (`oracle planner + learned skills`) 0.28 m short (27 episodes), ending anywhere in the region. State transition: "
+     "experts 0.03 m, Navigate* 1.42 m short (45), from sound 0.72 m short (38)", _PAPER,
+     lambda d: [*_shortfall(d, "oracle planner + scripted experts", "object_relocation"),
+                *_shortfall(d, "oracle planner + learned skills*", "object_relocation", quartiles=True),
+                *_shortfall(d, "oracle planner + learned skills", "object_relocation"),
+                _shortfall(d, "oracle planner + scripted experts", "state_transition")[0],
+                *_shortfall(d, "oracle planner + learned skills*", "state_transition"),
+                *_shortfall(d, "oracle planner + learned skills", "state_transition")]),
+    ("docs/learners.md", "succeeds in 0 of 27 handovers from the learned Navigate and 0 of 37 from Navigate*", _PAPER,
+     lambda d: [_kn(d["rows"][r]["object_relocation"]["skills"]["Pick"]).replace("/", " of ")
+                for r in ("oracle planner + learned skills", "oracle planner + learned skills*")]),
     *(("docs/vector_envs.md", q, "benchmarks/results/gpu_figures.json", lambda d, n=n: _vec(d, n))
       for n, q in ((1, "| 1 | 89.8 | 0.84 | 1.00 | 400.6 | 1.04 |"), (4, "| 4 | 233.1 | 0.55 | 0.67 | 567.4 | 0.37 |"),
                    (8, "| 8 | 297.2 | 0.35 | 0.54 | 558.9 | 0.18 |"), (14, "| 14 | 312.3 (285.5 with `ECHO_DATA_PREFETCH=0`) | 0.21 | 0.45 | 505.8 | **0.09** |"))),
