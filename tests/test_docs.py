@@ -197,6 +197,17 @@ def _gpu_vec(doc: dict) -> list[str]:
             f"{float(rows[14][0]) / float(rows[14][3]):.2f}"]
 
 
+def _determinism_price(doc: dict) -> list[str]:
+    """learners.md's price of deterministic kernels: ACT's strict against default samples/s on the GPU, the
+    whole Pick's optimiser steps at the strict pace (minutes), and the whole CPU run (minutes)."""
+    t = doc["training"]
+    full = {r["id"]: r["result"]["full"] for r in t["runs"]}
+    strict, default = full["act_strict"], full["act_default_kernels"]
+    gpu_min = t["whole_skill_steps"] * strict["train_seconds"] / strict["steps"] / 60
+    cpu_s = float(re.search(r"([\d,]+) s in all", t["cpu_here"]["whole_pick_run"]).group(1).replace(",", ""))
+    return [f"{default['samples_per_second'] / strict['samples_per_second']:.0f}", f"{gpu_min:.0f}", f"{cpu_s / 60:.0f}"]
+
+
 _CUES, _DIST = "studies/spatial_cues/results/spatial_cues.json", "distances"
 _ABL = "studies/navigation_ablation/results"  # a folder: its entries read the files they name
 _GPU = "benchmarks/results/gpu_figures.json"
@@ -262,6 +273,8 @@ FIGURES: list[tuple[str, str, str, Any]] = [
      lambda d: [{7: "seven"}.get(d["trial_before_release_fix"]["failures"]["Place: not on goal"], "?"), str(d["trial_before_release_fix"]["episodes"])]),
     ("docs/manipulation_experts.md", "the seven episodes placed, and 0 falls in 100", _EXPERTS,
      lambda d: [str(d["chains_noise_off"][0]["failures"].get("Place: not on goal", 0)), str(d["chains_noise_off"][0]["episodes"])]),
+    ("docs/learners.md", "deterministic kernel is 5× slower than torch's default (`benchmarks/results/gpu_figures.json`); the whole Pick "
+     "optimisation still takes about 3 minutes there against 25 on one CPU core", _GPU, _determinism_price),
     ("docs/learners.md", "CloseSink 20/20 against 12/20 with 31 demonstrations, OpenDoor 1/10 against 3/10", "studies/learners/results/door_sink_val.json",
      lambda d: [_kn(d["runs"][r][s]) for s in ("CloseSink", "OpenDoor") for r in ("300 episodes", "60 episodes")]),
     ("docs/learners.md", "delta + DART 3/20, absolute + DART 1/20, delta without noise 0/20, delta + GRU 0/20, delta + head RGB 0/20",
