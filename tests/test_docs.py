@@ -135,9 +135,14 @@ def _pct(v: float) -> str:
     return f"{round(100 * v)} %"
 
 
+def _cell(doc: dict, metric: str, split: str = "test") -> dict:
+    """studies/spatial_cues' table: the row named `metric` on `split` ({room, free}: {value, n})."""
+    return next(r for r in doc["table"] if r["metric"] == metric and r["split"] == split)
+
+
 def _row(doc: dict, metric: str, split: str = "test", env: str = "room") -> float:
     """studies/spatial_cues' table: the `env` value of the row named `metric`."""
-    return next(r[env]["value"] for r in doc["table"] if r["metric"] == metric and r["split"] == split)
+    return _cell(doc, metric, split)[env]["value"]
 
 
 def _kn(c: dict) -> str:
@@ -213,6 +218,59 @@ _ABL = "studies/navigation_ablation/results"  # a folder: its entries read the f
 _GPU = "benchmarks/results/gpu_figures.json"
 _PAPER = "studies/paper_table/results/paper_table.json"
 _EXPERTS, _NOISE = "studies/experts/results/pick_place_experts.json", "studies/experts/results/expert_noise.json"
+# docs/environment.md's two spatial-cue tables: (the row as the page prints it, the JSON's metric, its split)
+_CUE_ROWS: list[tuple[str, str, str]] = [
+    ('| ILD sign = source side, line of sight | 0.65 (n=1405) | 0.89 (n=1405) | ≥ 0.85 |',
+     'ILD sign = source side, line of sight', 'train+test'),
+    ('| … within the critical distance r_c | 0.69 (n=71) | 0.80 (n=71) | |',
+     'ILD sign = source side, line of sight, within the critical distance', 'train+test'),
+    ('| … beyond r_c | 0.65 (n=1334) | 0.89 (n=1334) | |',
+     'ILD sign = source side, line of sight, beyond the critical distance', 'train+test'),
+    ("| … source audible in the step's 100 ms | 0.69 (n=1080) | 1.00 (n=1080) | |",
+     "ILD sign = source side, line of sight, source audible in the step's 100 ms", 'train+test'),
+    ("| … source silent in the step's 100 ms (a gap in the sound) | 0.51 (n=325) | 0.52 (n=325) | |",
+     "ILD sign = source side, line of sight, source silent in the step's 100 ms (a gap)", 'train+test'),
+    ('| ILD sign = doorway side, behind a wall | 0.65 (n=99) | 0.93 (n=99) | ≥ 0.75 |',
+     'ILD sign = doorway side, behind a wall', 'train+test'),
+    ('| ITD sign = source side, line of sight | 0.67 (n=802) | 0.89 (n=813) | ≥ 0.85 |',
+     'ITD sign = source side, line of sight', 'train+test'),
+    ("| … source audible in the step's 100 ms | 0.68 (n=706) | 0.91 (n=771) | |",
+     "ITD sign = source side, line of sight, source audible in the step's 100 ms", 'train+test'),
+    ('| ITD sign = doorway side, behind a wall | 0.52 (n=66) | 0.95 (n=64) | ≥ 0.75 |',
+     'ITD sign = doorway side, behind a wall', 'train+test'),
+    ('| median level rise over Navigate (dB) | 7.85 (n=40) | 13.32 (n=40) | ≥ 8 |',
+     'median level rise over Navigate (dB)', 'train+test'),
+    ('| left/right classifier (spectrogram L−R, as before), test steps | 0.71 (n=873) | 0.97 (n=873) | ≥ 0.85 |',
+     'left/right classifier on test spectrograms (spectrogram L−R, C = 0.05, as before)', 'test'),
+    ('| ILD plain 100 ms, line of sight | 0.70 (n=558) | 0.90 (n=558) | ≥ 0.85 |',
+     'ILD plain 100 ms: sign = source side, line of sight', 'test'),
+    ('| ILD coherence-selected (c0 0.98, 1.5–8 kHz), 1 s, line of sight | 0.71 (n=558) | 0.97 (n=558) | ≥ 0.85 |',
+     'ILD coherence-selected, 1s: sign = source side, line of sight', 'test'),
+    ('| **ILD onset-weighted (rise > 6 dB), 1 s, line of sight** | **0.93 (n=558)** | 0.99 (n=558) | ≥ 0.85 |',
+     'ILD onset-weighted, 1s: sign = source side, line of sight', 'test'),
+    ('| ITD plain 100 ms, line of sight | 0.67 (n=362) | 0.90 (n=374) | ≥ 0.85 |',
+     'ITD plain 100 ms: sign = source side, line of sight', 'test'),
+    ('| ITD coherence-selected (c0 0.99, 0.3–1.5 kHz), 1 s, line of sight | 0.77 (n=558) | 0.86 (n=558) | ≥ 0.85 |',
+     'ITD coherence-selected, 1s: sign = source side, line of sight', 'test'),
+    ('| ITD onset-weighted (rise > 1 dB), 1 s, line of sight | 0.80 (n=558) | 0.93 (n=558) | ≥ 0.85 |',
+     'ITD onset-weighted, 1s: sign = source side, line of sight', 'test'),
+    ('| ILD plain 100 ms, doorway side behind a wall | 0.75 (n=60) | 0.92 (n=60) | ≥ 0.75 |',
+     'ILD plain 100 ms: sign = doorway side, behind a wall', 'test'),
+    ('| ILD onset-weighted, 1 s, doorway side behind a wall | 0.72 (n=60) | 0.95 (n=60) | ≥ 0.75 |',
+     'ILD onset-weighted, 1s: sign = doorway side, behind a wall', 'test'),
+    ('| ITD onset-weighted, 1 s, doorway side behind a wall | 0.45 (n=60) | 0.93 (n=60) | ≥ 0.75 |',
+     'ITD onset-weighted, 1s: sign = doorway side, behind a wall', 'test'),
+    ('| left/right classifier, mirror-symmetric, onset-weighted log-mel ILDs (C 0.01), all test steps | 0.75 (n=873) | 0.97 (n=873) | ≥ 0.85 |',
+     'left/right classifier on test steps, mirror-symmetric (onset3 features, C = 0.01, chosen on train validation)', 'test'),
+    ('| … line-of-sight test steps | **0.89 (n=558)** | 0.96 (n=558) | |',
+     'left/right classifier on test steps, line of sight, mirror-symmetric (onset3 features, C = 0.01, chosen on train validation)', 'test'),
+    ('| … behind a wall, against the doorway side | **0.88 (n=60)** | 0.95 (n=60) | ≥ 0.75 |',
+     'left/right classifier on test steps behind a wall = doorway side, mirror-symmetric (onset3 features, C = 0.01)', 'test'),
+    ('| … behind a wall, against the source side | 0.50 (n=315) | 0.98 (n=315) | |',
+     'left/right classifier on test steps, behind a wall, mirror-symmetric (onset3 features, C = 0.01, chosen on train validation)', 'test'),
+]
+
+
 FIGURES: list[tuple[str, str, str, Any]] = [
     ("docs/acoustics.md", "95 % of the benchmark's line-of-sight steps lie beyond r_c", _CUES,
      lambda d: [_pct(d[_DIST]["share_beyond_critical_distance"])]),
@@ -269,6 +327,8 @@ FIGURES: list[tuple[str, str, str, Any]] = [
                 f"{min(map(int, d['figures']['unseen_rows_before_close']))}-{max(map(int, d['figures']['unseen_rows_before_close']))}"]),
     ("docs/manipulation_experts.md", "0.00 rad at the end of the untuck, 0.55 rad at the hover, 0.54 rad at the grasp", _EXPERTS,
      lambda d: [f"{d['figures']['joint_spread_rad'][k]:.2f}" for k in ("untuck_end", "hover", "grasp")]),
+    *(("docs/environment.md", row, _CUES, lambda d, m=m, sp=sp: [x for env in ("room", "free") for x in (
+        f"{_cell(d, m, sp)[env]['value']:.2f}", str(_cell(d, m, sp)[env]["n"]))]) for row, m, sp in _CUE_ROWS),
     ("docs/manipulation_experts.md", "(all seven \"not on goal\" failures of the 100-episode trial)", _EXPERTS,
      lambda d: [{7: "seven"}.get(d["trial_before_release_fix"]["failures"]["Place: not on goal"], "?"), str(d["trial_before_release_fix"]["episodes"])]),
     ("docs/manipulation_experts.md", "the seven episodes placed, and 0 falls in 100", _EXPERTS,
