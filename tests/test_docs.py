@@ -433,6 +433,8 @@ FIGURES: list[tuple[str, str, str, Any]] = [
     ("docs/SIMULATION_NOTES.md", "OpenDoor 149/149 = 1.00 [0.975, 1.00] from the interaction pose and 149/149 from hand-over starts drawn anywhere "
      "in Navigate's success region (at most 247 of its 300 steps, for a start 1.4 m away but 5 m round a wall); CloseSink 151/151 and 151/151 "
      "(at most 144 of 200 steps)", "studies/experts/results", _door_sink),
+    ("docs/SIMULATION_NOTES.md", "on the right take mirrored paths (1.2 rad apart)", "studies/experts/results/door_sink_experts_interaction.json",
+     lambda d: [f"{d['skills']['OpenDoor']['spread']['path_gap_median']:.1f}"]),
     ("docs/manipulation_experts.md", "(all seven \"not on goal\" failures of the 100-episode trial)", _EXPERTS,
      lambda d: [{7: "seven"}.get(d["trial_before_release_fix"]["failures"]["Place: not on goal"], "?"), str(d["trial_before_release_fix"]["episodes"])]),
     ("docs/manipulation_experts.md", "the seven episodes placed, and 0 falls in 100", _EXPERTS,
