@@ -130,7 +130,7 @@ def test_the_study_readmes_result_tables_are_their_json_rendered() -> None:
 # --- measured figures quoted in the docs pages, checked against the results JSON that holds them --------
 # (page, quoted text, results JSON, the figures the quote must show in order: a function of the JSON).
 # The study READMEs render theirs (studies/results_tables.py); a page's prose quotes, and this holds
-# the quote to the JSON. A figure no JSON holds has no place on a page (docs/speed.md says where it ran).
+# the quote to the JSON. A measured figure no JSON holds is not quoted on a page (reworded without it).
 
 def _pct(v: float) -> str:
     return f"{round(100 * v)} %"
