@@ -15,6 +15,8 @@ Usage (build ~10 min with 2 workers; each row 4-15 min on one core):
 Fresh training voices (`studies/planner/recipes/planner_fresh.yaml`, docs/learners.md):
   python studies/planner/planner_table.py --recipe studies/planner/recipes/planner_fresh.yaml --data out/planner_fresh --runs runs/planner_fresh \
       --out studies/planner/results/planner_fresh.json --rows "audio|--select accuracy --epochs 20" "audio|--select accuracy --augment --epochs 20"
+A tiny run (2 episodes per split, a few steps; the test's):
+  python studies/planner/planner_table.py --limit 2 --rows "audio|--epochs 1 --max-steps 2" --data D --runs R --out J
 `--reuse` collects run folders whose eval.json was written by the same arguments instead of
 training them again (and scores them on the test split where their test.json is missing).
 """
@@ -65,6 +67,7 @@ def main() -> None:
     ap.add_argument("--recipe", default=str(Path(__file__).with_name("recipes") / "planner_audio.yaml"))
     ap.add_argument("--data", default=str(ROOT / "data" / "planner_audio"), help="dataset folder (built unless complete)")
     ap.add_argument("--runs", default=str(ROOT / "runs" / "planner"))
+    ap.add_argument("--limit", type=int, default=None, help="build a prefix: N episodes per split (the tiny path: tests/test_study_tiny.py)")
     ap.add_argument("--rows", nargs="*", default=list(ROWS), help='"INPUTS" or "INPUTS|FLAGS" per row')
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--reuse", action="store_true", help="collect run folders whose eval.json has the same arguments")
@@ -76,7 +79,8 @@ def main() -> None:
     doc: dict = {"recipe": _rel(a.recipe), "data": _rel(data), "commit": commit(), "commands": [], "rows": []}
     manifest = data / "manifest.json"
     if not (manifest.is_file() and json.loads(manifest.read_text()).get("complete")):
-        build = ["build", a.recipe, "--out", str(data), "--workers", str(a.workers), "--no-progress", "--resume" if data.exists() else "--overwrite"]
+        build = ["build", a.recipe, "--out", str(data), "--workers", str(a.workers), "--no-progress", "--resume" if data.exists() else "--overwrite",
+                 *(["--limit", str(a.limit)] if a.limit else [])]
         doc["commands"].append("echo-data " + " ".join(build))
         doc["build_seconds"] = round(cli(*build)[1], 1)
     for row in a.rows:

@@ -1,0 +1,98 @@
+"""Each study's README command reproduces its JSON: the driver's tiny path (a few episodes, a few
+training steps) runs into a temporary folder and writes a JSON of the committed one's shape, which
+the README's result table renders from. (The paper table's and the learner studies' tiny paths are
+tests/test_table.py's and tests/test_sanity_learners.py's; studies without a results JSON say
+why in their README.)"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+needs_torch = pytest.mark.skipif(importlib.util.find_spec("torch") is None, reason="the learners need torch")
+needs_mplib = pytest.mark.skipif(importlib.util.find_spec("mplib") is None, reason="the carry search needs mplib")
+
+
+def _run(driver: str, *args: str, timeout: int = 900) -> str:
+    """`python studies/DRIVER ARGS` from the checkout, as the README runs it; its stdout."""
+    r = subprocess.run([sys.executable, str(ROOT / "studies" / driver), *args], cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+    assert r.returncode == 0, r.stderr[-3000:]
+    return r.stdout
+
+
+def _committed(study: str, name: str) -> dict[str, Any]:
+    return json.loads((ROOT / "studies" / study / "results" / name).read_text())
+
+
+def _renderer(name: str) -> Any:
+    """studies/results_tables.py's renderer `name` (the README table's)."""
+    sys.path.insert(0, str(ROOT / "studies"))
+    try:
+        import results_tables
+    finally:
+        sys.path.remove(str(ROOT / "studies"))
+    return getattr(results_tables, name)
+
+
+def test_handover_drives_tiny_writes_the_table_the_readme_renders(tmp_path: Path) -> None:
+    out = tmp_path / "drives.json"
+    _run("handover/drives.py", "--episodes", "1", "--settings", "state_transition", "--out", str(out))
+    doc, held = json.loads(out.read_text()), _committed("handover", "drives.json")
+    assert set(doc) == set(held) and set(doc["starts"]) == set(held["starts"])
+    assert doc["episodes_per_setting"] == 1 and doc["settings"] == ["state_transition"]
+    for run in doc["starts"].values():  # one state-transition episode: one door or sink segment from each start
+        assert len(run["segments"]) == 1 and set(run["skills"]) <= {"OpenDoor", "CloseSink"} and len(run["skills"]) == 1
+    table = _renderer("drives")(doc)
+    assert "| exact pose |" in table and "1 test episodes of each of state_transition" in table
+
+
+def test_expert_noise_tiny_writes_the_runs_the_committed_json_holds(tmp_path: Path) -> None:
+    out = tmp_path / "expert_noise.json"
+    _run("experts/expert_noise.py", "--recipes", "recipes/state_transition.yaml", "--levels", "0", "-n", "1", "--workers", "1", "--out", str(out))
+    doc, held = json.loads(out.read_text()), _committed("experts", "expert_noise.json")
+    assert set(doc) <= set(held) and {"commit", "n", "command", "runs"} <= set(doc)
+    (run,) = doc["runs"]
+    assert set(run) == set(held["runs"][0]) and run["episodes"] == 1 and run["action_noise"] == 0.0
+    assert 0 <= run["successes"] <= 1 and run["wilson95"][0] <= run["success_rate"] <= run["wilson95"][1]
+
+
+@needs_mplib
+def test_carry_search_tiny_reports_what_it_reached() -> None:
+    """The carry search writes no JSON: its result is a constant of the code (README)."""
+    text = _run("carry_search/carry_search.py", "-n", "20")
+    assert "hand-down configurations reached from READY" in text and "clear the head view" in text
+
+
+@needs_torch
+@pytest.mark.slow
+def test_navigation_ablation_tiny_writes_the_rows_the_readme_renders(tmp_path: Path) -> None:
+    out = tmp_path / "ablation.json"
+    _run("navigation_ablation/ablation.py", "--limit", "2", "--episodes", "1", "--rows", "state", "--no-planner", "--epochs", "1",
+         "--workers", "1", "--data", str(tmp_path / "data"), "--runs", str(tmp_path / "runs"), "--out", str(out))
+    doc, held = json.loads(out.read_text()), _committed("navigation_ablation", "ablation.json")
+    assert set(held) - {"build_seconds"} <= set(doc) and doc["limit"] == 2
+    (row,) = doc["navigate"]
+    assert set(held["navigate"][0]) <= set(row) and row["inputs"] == "state" and row["episodes"] == 1
+    assert row["first_navigate"]["n"] <= 1 and (tmp_path / "ablation-nav-state.json").is_file()
+    assert "| state |" in _renderer("ablation")(doc)
+
+
+@needs_torch
+@pytest.mark.slow
+def test_planner_tiny_writes_the_rows_the_readme_renders(tmp_path: Path) -> None:
+    out = tmp_path / "planner.json"
+    _run("planner/planner_table.py", "--limit", "2", "--rows", "audio|--epochs 1 --max-steps 2", "--workers", "1",
+         "--data", str(tmp_path / "data"), "--runs", str(tmp_path / "runs"), "--out", str(out))
+    doc, held = json.loads(out.read_text()), _committed("planner", "planner_fresh.json")
+    assert set(held) <= set(doc) and doc["commands"][0].startswith("echo-data build") and "--limit 2" in doc["commands"][0]
+    (row,) = doc["rows"]
+    assert set(held["rows"][0]) <= set(row) and row["inputs"] == "audio" and row["flags"] == "--epochs 1 --max-steps 2"
+    assert {"single_event", "multi_event", "all"} <= set(row["test"])
+    assert "| audio | `--epochs 1 --max-steps 2` |" in _renderer("planner")(doc)
