@@ -14,10 +14,15 @@ from echo_data.recipe import RecipeError, load_recipe, recipe_from_mapping
 RECIPES = Path(__file__).resolve().parents[1] / "recipes"
 
 
-@pytest.mark.parametrize("name", ["quickstart", "object_relocation", "state_transition", "multi_event", "stmm_1_9k", "planner_audio", "planner_fresh"])
-def test_shipped_recipes_load(name: str) -> None:
-    r = load_recipe(RECIPES / f"{name}.yaml")
-    assert r.name == name
+SHIPPED = [p for p in (*sorted(RECIPES.glob("*.yaml")), *sorted(RECIPES.parent.glob("studies/*/recipes/*.yaml")))
+           if p.name != "base.yaml"]  # base.yaml: the defaults the others extend, no episodes of its own
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: str(p.relative_to(RECIPES.parent)))
+def test_shipped_recipes_load(path: Path) -> None:
+    """Every recipe users start from (recipes/) and every study's: each loads, named after its file."""
+    r = load_recipe(path)
+    assert r.name == path.stem
     assert sum(r.splits.values()) > 0
 
 
