@@ -72,6 +72,16 @@ def drives(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + f"\n\n{doc['episodes_per_setting']} test episodes of each of {', '.join(doc['settings'])}; commit {doc['commit'][:7]}.\n"
 
 
+def drive_ends(doc: dict[str, Any]) -> str:
+    """A learned Navigate ended two ways: the paper's success, the hand-over, the chains after it."""
+    lines = ["| a learned Navigate ends | Navigate success (1.5 m) | ended in the stance | chains completed (experts after it) | median distance to the pose (m) |",
+             "|---|---|---|---|---|"]
+    for end, r in doc["drive_ends"].items():
+        lines.append(f"| {'at its success test' if end == 'success' else 'at the hand-over'} | {interval(r['navigate_success'])} | "
+                     f"{interval(r['navigate_handover'])} | {interval(r['skill_completion'])} | {r['median_goal_distance_m']:.2f} |")
+    return "\n".join(lines) + f"\n\nOne training (seed {doc['training']['seed']}), 100 test episodes; commit {doc['commit']}.\n"
+
+
 Renderer = Callable[[dict[str, Any]], str]
 # (study, copy name, results file in the study's results/, renderer)
 COPIES: list[tuple[str, str, str, Renderer]] = [
@@ -81,6 +91,7 @@ COPIES: list[tuple[str, str, str, Renderer]] = [
     ("navigation_ablation", "ablation", "ablation.json", ablation),
     ("planner", "fresh", "planner_fresh.json", planner),
     ("handover", "drives", "drives.json", drives),
+    ("handover", "drive_ends", "navigate_drive_end.json", drive_ends),
 ]
 
 
