@@ -26,7 +26,8 @@ def on_pre_build(config: Any) -> None:
 
 def study_page(readme: Path) -> str:
     """A study's README as a site page: links into the repository resolve from docs/."""
-    return readme.read_text().replace("](../../docs/", "](../")
+    text = readme.read_text().replace("](../../docs/", "](../")
+    return re.sub(r"\]\(\.\./(\w+)/README\.md\)", r"](\1.md)", text)  # another study's README: its page beside this one
 
 
 def studies_page(readme: Path) -> str:
