@@ -55,7 +55,6 @@ that loads whole files for a selection of episodes never pulls in another split'
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import shutil
@@ -76,6 +75,18 @@ from echo_data.dataset.episode_arrays import (
     depth_ranges,
     export_splits,
 )
+from echo_data.dataset.lerobot_audio import (  # noqa: F401 (names the export's users import from here)
+    AUDIO_FOR_POLICY,
+    ENV_STATE,
+    ENV_STATE_MAX,
+    ENV_STATE_MIN_STD,
+    audio_pool,
+    audio_standardisation,
+    environment_state,
+    policy_audio,
+    pooled_audio,
+)
+from echo_data.dataset.lerobot_media import VideoFiles, VideoLayout, depth_image, options, png_cells
 from echo_data.dataset.reader import episodes_table, split_shards
 from echo_data.dataset.schema import (
     ACTION,
@@ -83,11 +94,8 @@ from echo_data.dataset.schema import (
     CAMERA_POSES,
     CHAIN_SLOTS,
     IMAGE_COLUMNS,
-    IMAGE_TYPE,
-    MEL,
     PARQUET_COMPRESSION,
     ROW_GROUP_ROWS,
-    SPECTROGRAM,
     STATE,
     StepLayout,
     is_privileged,
@@ -96,7 +104,7 @@ from echo_data.dataset.shards import conform
 from echo_data.dataset.stats import episode_feature_values, finalize, merge, summarize
 from echo_data.dataset.storage import atomic_write_bytes, canonical_json, fsync_dir
 from echo_data.dataset.written import mark_export, replace_folder
-from echo_data.media import LEROBOT_VIDEO, ClipJoiner, VideoEncoding, write_mp4
+from echo_data.media import LEROBOT_VIDEO, VideoEncoding
 from echo_data.recipe import SETTINGS
 from echo_data.records import ACTION_NAMES, EE_ACTION_NAMES, PRIVILEGED_PREFIX, STATE_NAMES
 
@@ -109,13 +117,9 @@ DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
 EPISODES_PATH = "meta/episodes/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 ROBOT_TYPE = "echo_data_fetchlike"
+EXTRA_PREFIX = "extra."  # carried, never a policy input or output (see the module docstring)
 VIDEO_CAMERAS = {"rgb": IMAGE_COLUMNS["head_rgb"]}  # --video choices -> the column stored as MP4
 VIDEO_ENCODING: VideoEncoding = LEROBOT_VIDEO  # codec, pixel format, GOP, quality: LeRobot's encoder's (echo_data.media)
-ENV_STATE = "observation.environment_state"  # LeRobot's environment-state key (ACT, Diffusion read it)
-EXTRA_PREFIX = "extra."  # carried, never a policy input or output (see the module docstring)
-AUDIO_FOR_POLICY = (SPECTROGRAM, MEL)  # the first present is pooled into ENV_STATE
-ENV_STATE_MAX = 512  # values a step in ENV_STATE (module docstring)
-ENV_STATE_MIN_STD = 0.1  # a value's std is floored at this fraction of the mean std over values
 # The natural-language task of each setting (LeRobot's `task`; index = echo-data's task_index).
 TASKS = {
     "object_relocation": "Find the sounding object, pick it up and put it where it belongs.",
@@ -139,84 +143,11 @@ def _names(col: str) -> list[str] | None:
     return None
 
 
-def policy_audio(layout: StepLayout) -> str | None:
-    """The audio column pooled into `observation.environment_state` (None: no audio stored)."""
-    return next((c for c in AUDIO_FOR_POLICY if c in layout.arrays), None)
-
-
-def audio_pool(shape: tuple[int, ...], limit: int = ENV_STATE_MAX) -> tuple[int, int]:
-    """(frequency, time) block sizes that bring an (F, time, ear) array to at most `limit` values:
-    the longer pooled side grows first, so neither axis is averaged away."""
-    f, t, ears = shape
-    pf = pt = 1
-    while -(-f // pf) * -(-t // pt) * ears > limit:
-        if -(-f // pf) >= -(-t // pt):
-            pf += 1
-        else:
-            pt += 1
-    return pf, pt
-
-
-def pooled_audio(x: np.ndarray, pool: tuple[int, int]) -> np.ndarray:
-    """(T, F, time, ear) -> (T, ceil(F/pf) * ceil(time/pt) * ear) float32: block means (a block
-    at an edge averages the values it has), flattened row-major."""
-    pf, pt = pool
-    y = np.add.reduceat(np.add.reduceat(x.astype(np.float64), np.arange(0, x.shape[1], pf), axis=1), np.arange(0, x.shape[2], pt), axis=2)
-    nf = np.diff(np.append(np.arange(0, x.shape[1], pf), x.shape[1]))
-    nt = np.diff(np.append(np.arange(0, x.shape[2], pt), x.shape[2]))
-    y /= (nf[:, None] * nt[None, :])[None, :, :, None]
-    return y.reshape(len(x), -1).astype(np.float32)
-
-
-def audio_standardisation(src: Path, manifest: dict[str, Any], col: str, shape: tuple[int, ...]) -> dict[str, Any]:
-    """ENV_STATE's recipe: the pooling of `col` and the per-value mean and (floored) std of the
-    pooled values over the train split's frames (every frame when there is no train split)."""
-    pool = audio_pool(shape)
-    splits = ["train"] if "train" in manifest["splits"] else list(manifest["splits"])
-    parts = []
-    for shard in (sh for sp in splits for sh in split_shards(manifest, sp)):
-        column = pq.read_table(src / shard["file"], columns=[col]).column(col)
-        parts.append(pooled_audio(column_values(column, len(column)).reshape(len(column), *shape), pool).astype(np.float64))
-    values = np.concatenate(parts)
-    mean, std = values.mean(axis=0), values.std(axis=0)
-    std = np.maximum(std, ENV_STATE_MIN_STD * float(std.mean()) or 1.0)
-    return {
-        "from": col, "shape": list(shape), "pool": list(pool), "split": splits[0] if len(splits) == 1 else "all",
-        "mean": mean.astype(np.float32).tolist(), "std": std.astype(np.float32).tolist(),
-        "decode": "pooled = value * std + mean; pooled.reshape(ceil(F / pool[0]), ceil(time / pool[1]), ear) are block means of `from`",
-    }
-
-
-def environment_state(x: np.ndarray, recipe: dict[str, Any]) -> np.ndarray:
-    """(T, F, time, ear) audio -> (T, n) ENV_STATE values, as `recipe` (audio_standardisation) says."""
-    pool = (int(recipe["pool"][0]), int(recipe["pool"][1]))
-    mean, std = np.asarray(recipe["mean"], np.float32), np.asarray(recipe["std"], np.float32)
-    return ((pooled_audio(x, pool) - mean) / std).astype(np.float32)
-
-
 def lerobot_name(col: str, layout: StepLayout) -> str:
     """The LeRobot feature name of an echo-data column: one rule per kind (module docstring)."""
     if col.startswith(ACTION + ".") or col.startswith(PRIVILEGED_PREFIX) or col in layout.arrays:
         return EXTRA_PREFIX + col
     return col
-
-
-def depth_image(mm: np.ndarray, range_m: float) -> np.ndarray:
-    """(T, H, W) uint16 millimetres -> (T, H, W, 3) uint8: 0..range_m linear to 0..255, clipped."""
-    v = np.clip(np.rint(mm.astype(np.float64) * (255.0 / (range_m * 1000.0))), 0, 255).astype(np.uint8)
-    return np.repeat(v[..., None], 3, axis=-1)
-
-
-def _png_cells(frames: np.ndarray) -> pa.Array:
-    """(T, H, W, 3) uint8 -> an Image-struct column of PNG bytes."""
-    from PIL import Image
-
-    cells = []
-    for f in frames:
-        buf = io.BytesIO()
-        Image.fromarray(f).save(buf, format="PNG", compress_level=1)
-        cells.append({"bytes": buf.getvalue(), "path": None})
-    return pa.array(cells, type=IMAGE_TYPE)
 
 
 def lerobot_features(layout: StepLayout, video: tuple[str, ...] = (), env_state: int = 0) -> dict[str, dict[str, Any]]:
@@ -297,7 +228,7 @@ def _export_rows(
             flat = column_values(rows.column(col), rows.num_rows).astype(np.float32).ravel()
             data = pa.FixedSizeListArray.from_arrays(pa.array(flat), int(np.prod(layout.arrays[col])))
         elif col in depth:
-            data = _png_cells(depth[col])
+            data = png_cells(depth[col])
         elif pa.types.is_fixed_size_list(data.type) and data.type.list_size == 1:
             data = data.flatten()  # as `_hf_features` declares it: one value per frame
         arrays.append(data)
@@ -347,47 +278,6 @@ def _flat_stats(stats: dict[str, dict[str, Any]]) -> dict[str, Any]:
     return {f"stats/{k}/{s}": v for k, st in stats.items() for s, v in st.items()}
 
 
-def _options(enc: VideoEncoding) -> str:
-    """An encoding's options as `name=value` words (`g` is the keyframe interval)."""
-    return " ".join(f"{k}={v}" for k, v in sorted(enc.options.items()))
-
-
-class _VideoFiles:
-    """The MP4 files of one video feature, laid out as LeRobot v3.0's recorder lays them out: each
-    episode encoded alone (so it starts on a keyframe), then appended by stream copy to the open
-    file at the file's running end time (its `from_timestamp`); a new file starts when the episode
-    would bring the open one to `VIDEO_FILES_SIZE_IN_MB`, and at each new split."""
-
-    def __init__(self, dst: Path, key: str, fps: float) -> None:
-        self.dst, self.key, self.fps = dst, key, fps
-        self.n_files = 0
-        self.joiner: ClipJoiner | None = None
-
-    def add(self, rows: pa.Table) -> dict[str, Any]:
-        """Encode the episode `rows` into the open file; return its `videos/{key}/*` record fields."""
-        clip = self.dst / "videos" / f".episode-{self.key}.mp4"
-        try:
-            write_mp4(clip, (f for f in decode_images(rows.column(self.key))), self.fps, encoding=VIDEO_ENCODING)
-            if self.joiner is not None and self.joiner.bytes + clip.stat().st_size >= VIDEO_FILES_SIZE_IN_MB * 2**20:
-                self.close()
-            k = self.n_files
-            if self.joiner is None:
-                self.joiner = ClipJoiner(self.dst / VIDEO_PATH.format(video_key=self.key, chunk_index=k // CHUNKS_SIZE, file_index=k % CHUNKS_SIZE))
-            start, end = self.joiner.append(clip)
-        finally:
-            clip.unlink(missing_ok=True)
-        return {
-            f"videos/{self.key}/chunk_index": k // CHUNKS_SIZE, f"videos/{self.key}/file_index": k % CHUNKS_SIZE,
-            f"videos/{self.key}/from_timestamp": start, f"videos/{self.key}/to_timestamp": end,
-        }
-
-    def close(self) -> None:
-        """Finish the open file; the next episode starts a new one."""
-        if self.joiner is not None:
-            self.joiner.close()
-            self.joiner, self.n_files = None, self.n_files + 1
-
-
 def _data_files(
     src: Path,
     dst: Path,
@@ -413,7 +303,8 @@ def _data_files(
     ep_meta = {(r["split"], r["episode_index"]): r for r in episodes_table(src).to_pylist()}
     n_ep = n_rows = 0
 
-    videos = [_VideoFiles(dst, VIDEO_CAMERAS[v], layout.fps) for v in video]
+    files = VideoLayout(VIDEO_PATH, CHUNKS_SIZE, VIDEO_FILES_SIZE_IN_MB, VIDEO_ENCODING)  # read now: a caller may have changed them
+    videos = [VideoFiles(dst, VIDEO_CAMERAS[v], layout.fps, files) for v in video]
 
     def close() -> None:
         nonlocal pending, pending_bytes, n_files
@@ -494,6 +385,37 @@ def _write_parquet(path: Path, table: pa.Table, row_group: int) -> None:
     pq.write_table(table, path, compression=PARQUET_COMPRESSION, row_group_size=row_group, store_schema=True)
 
 
+def _provenance(manifest: dict[str, Any], src: Path, layout: StepLayout, ranges: dict[str, float], env_recipe: dict[str, Any] | None,
+                stats_split: str, video: tuple[str, ...]) -> dict[str, Any]:
+    """info.json's `echo_data` block: where the export came from and how to read what LeRobot's
+    format does not say (renamed columns, the environment state, depth, audio, the cameras)."""
+    return {
+                    "source": manifest["name"],
+                    "recipe_hash": manifest["recipe_hash"],
+                    "format": manifest["format"],
+                    "cameras": json.loads((src / "meta" / "info.json").read_text()).get("cameras", {}),
+                    # LeRobot name -> echo-data column, for every column whose name changed
+                    "renamed": {n: c for c in layout.hf_features() if (n := lerobot_name(c, layout)) != c},
+                    "environment_state": env_recipe,
+                    "depth_images": {
+                        col: {"range_m": r, "decode": "metres = pixel / 255 * range_m (any channel; 255 = range_m or farther, 0 = nothing hit or nearer than half a step)"}
+                        for col, r in ranges.items()
+                    },
+                    "audio": {
+                        "sample_rate": layout.sample_rate,
+                        "channels": 2,
+                        "channel_0": "left",
+                        "path": "audio/{split}/{episode_id}.wav (each row's audio_path; episode records' audio_path)",
+                        "offset": "audio_offset: the sample at which the row's observation was taken",
+                        "shapes": {lerobot_name(col, layout): list(shape) for col, shape in layout.arrays.items()},
+                        "flattened": "row-major (frequency, time, ear): reshape a frame's vector to `shapes`",
+                    },
+                    "stats_split": stats_split,
+                    "cameras_as": (f"head RGB as {VIDEO_ENCODING.codec} video ({VIDEO_ENCODING.encoder}, {options(VIDEO_ENCODING)}), as LeRobot encodes; " if video else "")
+                    + "depth as 8-bit 3-channel PNG images (every camera one shape, as Diffusion requires); exact millimetres in the echo-data dataset",
+                }
+
+
 def export_lerobot(
     src: str | Path,
     out: str | Path,
@@ -542,7 +464,6 @@ def export_lerobot(
         (tmp / "meta").mkdir(parents=True, exist_ok=True)
         tasks.to_parquet(tmp / "meta" / "tasks.parquet")
         atomic_write_bytes(tmp / "meta" / "stats.json", canonical_json({k: lerobot_stats(s, features[k]) for k, s in merged.items()}))
-        src_info = json.loads((src / "meta" / "info.json").read_text())
         info = {
             "codebase_version": CODEBASE_VERSION,
             "robot_type": ROBOT_TYPE,
@@ -557,31 +478,7 @@ def export_lerobot(
             "data_path": DATA_PATH,
             "video_path": VIDEO_PATH if video else None,
             "features": features,
-            "echo_data": {
-                "source": manifest["name"],
-                "recipe_hash": manifest["recipe_hash"],
-                "format": manifest["format"],
-                "cameras": src_info.get("cameras", {}),
-                # LeRobot name -> echo-data column, for every column whose name changed
-                "renamed": {n: c for c in layout.hf_features() if (n := lerobot_name(c, layout)) != c},
-                "environment_state": env_recipe,
-                "depth_images": {
-                    col: {"range_m": r, "decode": "metres = pixel / 255 * range_m (any channel; 255 = range_m or farther, 0 = nothing hit or nearer than half a step)"}
-                    for col, r in ranges.items()
-                },
-                "audio": {
-                    "sample_rate": layout.sample_rate,
-                    "channels": 2,
-                    "channel_0": "left",
-                    "path": "audio/{split}/{episode_id}.wav (each row's audio_path; episode records' audio_path)",
-                    "offset": "audio_offset: the sample at which the row's observation was taken",
-                    "shapes": {lerobot_name(col, layout): list(shape) for col, shape in layout.arrays.items()},
-                    "flattened": "row-major (frequency, time, ear): reshape a frame's vector to `shapes`",
-                },
-                "stats_split": splits_out[0],
-                "cameras_as": (f"head RGB as {VIDEO_ENCODING.codec} video ({VIDEO_ENCODING.encoder}, {_options(VIDEO_ENCODING)}), as LeRobot encodes; " if video else "")
-                + "depth as 8-bit 3-channel PNG images (every camera one shape, as Diffusion requires); exact millimetres in the echo-data dataset",
-            },
+            "echo_data": _provenance(manifest, src, layout, ranges, env_recipe, splits_out[0], video),
         }
         # column order, not sorted: LeRobot builds its Arrow schema from this order
         atomic_write_bytes(tmp / "meta" / "info.json", (json.dumps(info, indent=4) + "\n").encode())
