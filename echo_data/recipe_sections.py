@@ -69,6 +69,14 @@ def _check_range(v: tuple[float, float], name: str = "range") -> tuple[float, fl
     return v
 
 
+def _within(v: Any, name: str, lo: float, hi: float, unit: str = "") -> Any:
+    """A [low, high] range whose ends lie inside [lo, hi] (`unit` is said after the bounds)."""
+    _check_range(v)
+    if v[0] < lo or v[1] > hi:
+        raise ValueError(f"{name} must lie within [{lo:g}, {hi:g}]{unit}, got {list(v)}")
+    return v
+
+
 class SceneConfig(_Strict):
     """Procedural apartment sampler."""
 
@@ -116,17 +124,12 @@ class SceneConfig(_Strict):
     @field_validator("rooms")
     @classmethod
     def _rooms(cls, v: tuple[int, int]) -> tuple[int, int]:
-        _check_range(v)
-        if v[0] < 2 or v[1] > 6:
-            raise ValueError(f"rooms must lie within [2, 6], got {list(v)}")
-        return v
+        return _within(v, "rooms", 2, 6)
 
     @field_validator("room_size")
     @classmethod
     def _room_size(cls, v: tuple[float, float]) -> tuple[float, float]:
-        _check_range(v)
-        if v[0] < 2.5 or v[1] > 12.0:
-            raise ValueError(f"room_size must lie within [2.5, 12] m, got {list(v)}")
+        _within(v, "room_size", 2.5, 12.0, " m")
         if v[1] - v[0] < MIN_ROOM_SIZE_SPAN:  # the layouts draw sides strictly inside the range (scene/layouts.py)
             raise ValueError(f"room_size must span at least {MIN_ROOM_SIZE_SPAN} m (high - low), got {list(v)}")
         return v
@@ -134,10 +137,7 @@ class SceneConfig(_Strict):
     @field_validator("furniture_per_room")
     @classmethod
     def _fpr(cls, v: tuple[int, int]) -> tuple[int, int]:
-        _check_range(v)
-        if v[0] < 0 or v[1] > 6:
-            raise ValueError(f"furniture_per_room must lie within [0, 6], got {list(v)}")
-        return v
+        return _within(v, "furniture_per_room", 0, 6)
 
 
 class ObjectsConfig(_Strict):
@@ -153,10 +153,7 @@ class ObjectsConfig(_Strict):
     @field_validator("distractors")
     @classmethod
     def _d(cls, v: tuple[int, int]) -> tuple[int, int]:
-        _check_range(v)
-        if v[0] < 0 or v[1] > 12:
-            raise ValueError(f"distractors must lie within [0, 12], got {list(v)}")
-        return v
+        return _within(v, "distractors", 0, 12)
 
     @field_validator("targets", "distractor_shapes")
     @classmethod
