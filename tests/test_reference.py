@@ -72,7 +72,7 @@ def test_a_reference_learner_holds_its_weights_config_recipe_and_sums(trained: P
     assert sorted(p.name for p in folder.iterdir()) == sorted([runs.WEIGHTS, runs.CONFIG, runs.POLICY, runs.AGENT, reference.RECIPE, reference.SUMS])
     refs = ReferenceSet.load(shipped)
     entry = refs.learners["nav"]
-    assert refs.skills == {"Navigate": "nav"} and refs.planner is None
+    assert refs.skills == {"Navigate": ["nav"]} and refs.planner is None
     assert entry["weights_sha256"] == runs.file_sha256(folder / runs.WEIGHTS)
     config = json.loads((folder / runs.CONFIG).read_text())
     assert config["dataset"] == "synth" and config["inputs"] == ["wrist_depth", "state"]  # no path of this machine
@@ -247,7 +247,7 @@ def test_a_variant_ships_beside_the_serving_learner_and_is_asked_for_by_name(tra
     monkeypatch.setattr(reference, "FP16_TOLERANCE", 0.0)  # other weights than the serving learner's
     variant = reference.add(trained, "nav-exact", root, serve=False)
     refs = ReferenceSet.load(root)
-    assert refs.skills == {"Navigate": "nav"} and refs.of("Navigate") == ["nav", "nav-exact"]
+    assert refs.skills == {"Navigate": ["nav"]} and refs.of("Navigate") == ["nav", "nav-exact"]
     assert refs.shipped("Navigate") == {refs.weights_sha256("Navigate"), variant["weights_sha256"]} and len(refs.shipped("Navigate")) == 2
     monkeypatch.setenv(reference.ENV, str(root))
     policy = load_policy(("Navigate=reference:nav-exact", "oracle"))
@@ -267,3 +267,36 @@ def test_a_variant_ships_beside_the_serving_learner_and_is_asked_for_by_name(tra
                        ("reference:nav-exact", "give SKILL=reference:nav-exact")):
         with pytest.raises(AgentLoadError, match=says):
             load_policy((spec, "oracle") if "=" in spec else spec)
+
+
+def test_a_skill_served_by_several_seeds_is_evaluated_over_them(trained: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`reference add --join`: another training seed serves the skill beside the first, and
+    `--policy reference` shares the episodes out over the seeds the set ships (evaluation.seeds)."""
+    from echo_data.evaluation.seeds import SeedSpecError, shipped_seeds, split_members
+
+    root = tmp_path / "set"
+    reference.add(trained, "nav-s0", root)
+    monkeypatch.setattr(reference, "FP16_TOLERANCE", 0.0)  # other weights: the second seed's stand-in is the fp32 copy
+    res = runner.invoke(app, ["reference", "add", str(trained), "--name", "nav-s1", "--to", str(root), "--join"])
+    assert res.exit_code == 0, res.output
+    refs = ReferenceSet.load(root)
+    assert refs.skills == {"Navigate": ["nav-s0", "nav-s1"]} and refs.weights_sha256("Navigate") == refs.learners["nav-s0"]["weights_sha256"]
+    res = runner.invoke(app, ["reference", "list", "--to", str(root)])
+    assert res.exit_code == 0 and "nav-s0+nav-s1" in res.output, res.output
+    monkeypatch.setenv(reference.ENV, str(root))
+    assert shipped_seeds(("Navigate=reference", "oracle")) == ["oracle", "Navigate=reference:nav-s0+reference:nav-s1"]
+    assert shipped_seeds("oracle") == "oracle" and shipped_seeds(("Navigate=runs/a", "oracle")) == ("Navigate=runs/a", "oracle")
+    fallback = split_members("reference")
+    assert len(fallback) == 2 and all("reference" in m for m in fallback)
+    assert [m for m in fallback[1] if m.startswith("Navigate=")] == ["Navigate=reference:nav-s1"]
+    with pytest.raises(SeedSpecError, match="lists 3 runs"):  # the shipped seeds line up with a user's list or say why not
+        split_members(("Navigate=reference", "Pick=a+b+c"))
+    res = runner.invoke(app, ["reference", "add", str(trained), "--name", "nav-v", "--to", str(root), "--variant", "--join"])
+    assert res.exit_code == 2 and "--join" in res.output and not (root / "nav-v").exists()
+    before = (root / reference.MANIFEST).read_bytes()
+    doc = json.loads(before)
+    doc["learners"]["nav-s1"]["algo"] = "act"
+    (root / reference.MANIFEST).write_text(json.dumps(doc))
+    with pytest.raises(reference.ReferenceError, match="one command"):  # a seed of another command does not join
+        reference.add(trained, "nav-s2", root, join=True)
+    assert not (root / "nav-s2").exists()

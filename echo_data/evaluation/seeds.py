@@ -24,9 +24,38 @@ class SeedSpecError(ValueError):
     """A `--policy` list whose per-seed runs do not line up (one line)."""
 
 
+def shipped_seeds(policy: str | Sequence[str]) -> str | Sequence[str]:
+    """`policy` with each skill that the shipped reference set serves by several training seeds
+    and that `policy` gives to `reference` (by name, or as the fallback) written as their list
+    (`SKILL=reference:A+reference:B+...`): `--policy reference` is then measured over the seeds
+    the set ships, like any `+` list. Unchanged when no target is `reference`."""
+    from echo_data.agents.compose import PolicySpecError, is_composite, parse_specs
+    from echo_data.learn.reference import NAME, ReferenceError, ReferenceSet
+
+    specs = [policy] if isinstance(policy, str) else list(policy)
+    if NAME not in (s.rpartition("=")[2].strip() for s in specs):
+        return policy
+    try:
+        by_skill, fallback = parse_specs(specs) if is_composite(policy) or specs == [NAME] else ({}, specs[0])
+        refs = ReferenceSet.load()
+    except (PolicySpecError, ReferenceError) as e:
+        raise SeedSpecError(str(e)) from None
+    from echo_data.skills import EXPERTS
+
+    asked = {s: t for s, t in by_skill.items() if t == NAME} | ({s: NAME for s in EXPERTS if s not in by_skill} if fallback == NAME else {})
+    several = {s: refs.served(s) for s in asked if len(refs.served(s)) > 1}
+    if not several:
+        return policy
+    out = [s for s in specs if s.partition("=")[0].strip() not in several]
+    out += [f"{s}={MEMBER_SEPARATOR.join(f'{NAME}:{n}' for n in names)}" for s, names in several.items()]
+    return out
+
+
 def split_members(policy: str | Sequence[str]) -> list[str | tuple[str, ...]]:
     """The policy argument of each member (one per training seed); one member when no target
-    lists several runs. Every target that lists several must list the same number."""
+    lists several runs. Every target that lists several must list the same number. A skill the
+    reference set serves by several seeds counts as such a list (`shipped_seeds`)."""
+    policy = shipped_seeds(policy)
     specs = [policy] if isinstance(policy, str) else list(policy)
     counts = {}
     for s in specs:

@@ -3,7 +3,9 @@ reproduced with no training (`echo-data evaluate RECIPE --policy reference --pla
 
 The reference set is a folder (the package's `echo_data/reference/`, or `$ECHO_DATA_REFERENCE`):
 
-  manifest.json          {"format", "learners": {NAME: {...}}, "skills": {SKILL: NAME}, "planner": NAME | null}
+  manifest.json          {"format", "learners": {NAME: {...}}, "skills": {SKILL: [NAME, ...]}, "planner": NAME | null}
+                         (a skill is served by one learner per training seed of one command:
+                         `--policy reference` shares the episodes out over them, evaluation.seeds)
   NAME/
     weights.safetensors  the run's best weights: fp16 where the round trip leaves every action of
                          the check (its dataset's steps) within FP16_TOLERANCE std, fp32 elsewhere
@@ -67,7 +69,7 @@ class ReferenceSet:
 
     root: Path
     learners: dict[str, dict[str, Any]] = field(default_factory=dict)
-    skills: dict[str, str] = field(default_factory=dict)
+    skills: dict[str, list[str]] = field(default_factory=dict)  # skill -> its serving learners, one per training seed
     planner: str | None = None
 
     @classmethod
@@ -80,10 +82,13 @@ class ReferenceSet:
             doc = json.loads(path.read_text())
             if doc.get("format") != FORMAT:
                 raise ReferenceError(f"{path}: format {doc.get('format')!r} is not {FORMAT}")
-            learners, skills, planner = dict(doc["learners"]), dict(doc["skills"]), doc["planner"]
+            learners, planner = dict(doc["learners"]), doc["planner"]
+            skills = {k: [v] if isinstance(v, str) else [str(n) for n in v] for k, v in dict(doc["skills"]).items()}
         except (ValueError, KeyError, TypeError, AttributeError) as e:
             raise ReferenceError(f"{path}: not a reference manifest ({type(e).__name__}: {e})".splitlines()[0]) from None
-        for served in [*skills.values(), *([planner] if planner else [])]:
+        if any(not names for names in skills.values()):
+            raise ReferenceError(f"{path}: skills: a skill served by no learner")
+        for served in [*(n for names in skills.values() for n in names), *([planner] if planner else [])]:
             if served not in learners:
                 raise ReferenceError(f"{path}: serves {served!r}, which learners does not list")
         return cls(root, learners, skills, planner)
@@ -93,10 +98,10 @@ class ReferenceSet:
 
     def learner(self, skill: str | None, name: str | None = None) -> Path:
         """The checked folder of learner `name`, which must act as `skill` (None: the planner);
-        without a name, the one serving `skill`."""
+        without a name, the one serving `skill` (its first training seed)."""
         what = "planner" if skill is None else f"learner for skill {skill}"
         if name is None:
-            name = self.planner if skill is None else self.skills.get(skill)
+            name = self.planner if skill is None else next(iter(self.served(skill)), None)
             if name is None:
                 raise ReferenceError(f"the reference set {self.root / MANIFEST} ships no {what} (echo-data reference add RUN --name NAME adds one)")
         elif name not in self.learners:
@@ -111,15 +116,33 @@ class ReferenceSet:
         """Every listed learner that acts as `skill` (None: every planner), served or not."""
         return [n for n, e in self.learners.items() if (e.get("kind") == "planner" if skill is None else e.get("skill") == skill)]
 
+    def served(self, skill: str) -> list[str]:
+        """The learners serving `skill`, one per training seed ([] if unserved)."""
+        return list(self.skills.get(skill, []))
+
     def weights_sha256(self, skill: str | None) -> str | None:
-        """The SHA-256 of the weights serving `skill` (None: the planner); None if unserved."""
-        name = self.planner if skill is None else self.skills.get(skill)
+        """The SHA-256 of the weights serving `skill` (None: the planner; a skill served by several
+        seeds: the first's); None if unserved."""
+        name = self.planner if skill is None else next(iter(self.served(skill)), None)
         return None if name is None else str(self.learners[name]["weights_sha256"])
 
     def shipped(self, skill: str | None) -> set[str]:
         """The SHA-256 of every shipped learner's weights for `skill` (None: the planners): a
         row's variant (a magic-grasp Pick, a starred Place) is shipped without serving its skill."""
         return {str(self.learners[n]["weights_sha256"]) for n in self.of(skill)}
+
+
+def _check_seed_of(refs: ReferenceSet, skill: str, name: str, entry: Mapping[str, Any]) -> None:
+    """A learner joining `skill`'s seeds is the same command: the same algorithm, inputs and
+    training dataset as the learners serving it."""
+    for other in refs.served(skill):
+        if other == name:
+            continue
+        have = refs.learners[other]
+        for key in ("algo", "inputs", "dataset"):
+            if have.get(key) != entry.get(key):
+                raise ReferenceError(f"--join: {name}'s {key} {entry.get(key)!r} differs from {other}'s {have.get(key)!r}: "
+                                     f"the seeds serving {skill} are trainings of one command")
 
 
 def _sha256(data: bytes) -> str:
@@ -277,10 +300,12 @@ def fp16_weights(run: Path, kind: str, dataset: Path) -> tuple[dict[str, Any], d
     return stored, report
 
 
-def add(run: Path, name: str, root: Path | None = None, dataset: Path | None = None, overwrite: bool = False, serve: bool = True) -> dict[str, Any]:
+def add(run: Path, name: str, root: Path | None = None, dataset: Path | None = None, overwrite: bool = False, serve: bool = True,
+        join: bool = False) -> dict[str, Any]:
     """Make reference learner `name` from the run folder `run` (its best weights) in the set at
     `root` and, with `serve`, let it serve its skill (or be the planner; else it is a variant,
-    `reference:NAME`); returns its manifest entry. The folder is written beside and renamed in,
+    `reference:NAME`); `join`: it serves its skill beside the learners already serving it (another
+    training seed of their command) instead of replacing them; returns its manifest entry. The folder is written beside and renamed in,
     then the manifest: a failure leaves the set as it was."""
     import yaml
     from safetensors.torch import save
@@ -315,6 +340,10 @@ def add(run: Path, name: str, root: Path | None = None, dataset: Path | None = N
     if others + entry["bytes"] > BUDGET_BYTES:
         raise ReferenceError(f"{name}: {entry['bytes'] / 2**20:.1f} MB of weights would take the set past its {BUDGET_BYTES // 2**20} MB budget "
                              f"({others / 2**20:.1f} MB shipped)")
+    if join and (kind != "policy" or not serve):
+        raise ReferenceError(f"--join: only a skill learner that serves its skill joins the seeds serving it ({name} is {'a variant' if serve is False else kind})")
+    if join:
+        _check_seed_of(refs, str(skill), name, entry)
     root.mkdir(parents=True, exist_ok=True)
     tmp = root / f".{name}.partial"
     shutil.rmtree(tmp, ignore_errors=True)
@@ -327,12 +356,13 @@ def add(run: Path, name: str, root: Path | None = None, dataset: Path | None = N
         target.rename(old)
     tmp.rename(target)
     shutil.rmtree(old, ignore_errors=True)
-    refs.skills = {k: v for k, v in refs.skills.items() if v != name}  # a replaced learner serves only what it now is
+    refs.skills = {k: [n for n in v if n != name] for k, v in refs.skills.items()}  # a replaced learner serves only what it now is
+    refs.skills = {k: v for k, v in refs.skills.items() if v}
     refs.planner = None if refs.planner == name else refs.planner
     refs.learners[name] = entry
     if serve and kind == "planner":
         refs.planner = name
     elif serve:
-        refs.skills[str(skill)] = name
+        refs.skills[str(skill)] = [*(refs.served(str(skill)) if join else []), name]
     atomic_write_bytes(root / MANIFEST, canonical_json(refs.to_dict()))
     return {"name": name, **entry}

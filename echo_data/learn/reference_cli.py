@@ -24,6 +24,7 @@ def add_cmd(
     to: Path | None = typer.Option(None, "--to", help="The reference set (default: $ECHO_DATA_REFERENCE, else the package's echo_data/reference)."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace a learner of the same name."),
     serve: bool = typer.Option(True, "--serve/--variant", help="Serve its skill (or be the planner), or ship it as a variant: --policy SKILL=reference:NAME."),
+    join: bool = typer.Option(False, "--join", help="Serve its skill beside the learners already serving it: another training seed of their command (--policy reference shares the episodes out over the seeds)."),
 ) -> None:
     """Convert RUN's best weights to safetensors (fp16 where its actions do not change), copy its
     config and data recipe, record their SHA-256, and let it serve its skill (or be the planner)."""
@@ -31,7 +32,7 @@ def add_cmd(
     from echo_data.learn.runs import RunError
 
     try:
-        entry = add(run, name, _root(to), data, overwrite, serve)
+        entry = add(run, name, _root(to), data, overwrite, serve, join)
     except (ReferenceError, RunError) as e:
         typer.echo(f"error: {e}", err=True)
         raise typer.Exit(2) from None
@@ -52,8 +53,9 @@ def list_cmd(to: Path | None = typer.Option(None, "--to", help="The reference se
 
     for who in [*EXPERTS, "planner"]:
         skill = None if who == "planner" else who
-        served = refs.planner if skill is None else refs.skills.get(who)
-        names = [n for n in refs.of(skill) if n != served]
-        line = f"{who:<10} {served or '-'}" + (f"  sha256 {refs.weights_sha256(skill)}" if served else "")
+        served = ([refs.planner] if refs.planner else []) if skill is None else refs.served(who)
+        names = [n for n in refs.of(skill) if n not in served]
+        shas = [str(refs.learners[n]["weights_sha256"])[:12] for n in served]
+        line = f"{who:<10} {'+'.join(served) or '-'}" + (f"  sha256 {' '.join(shas)}" if served else "")
         typer.echo(line + (f"  variants: {', '.join(names)}" if names else ""))
     typer.echo(f"weights: {shipped_bytes(refs.root) / 2**20:.2f} MB")
