@@ -322,7 +322,8 @@ def markdown(doc: dict[str, Any], rows: dict[str, Row], order: tuple[str, ...]) 
         notes.append("§ stale: measured with weights that are not the shipped reference learners' (echo_data/reference/manifest.json); re-measure it.")
     if any(r.grasp == "magic" for r in rows.values()):
         notes.append("paper-comparable: Habitat's grasp (`robot.grasp: magic`, the one the paper's skills use) instead of "
-                     "ours (finger friction alone), Pick and Place cloned from demonstrations with that grasp; starred, the drives are "
+                     "ours (finger friction alone), Pick, Place and OpenDoor (on the door's handle bar) cloned from demonstrations with that grasp "
+                     "(each entry's command names the learners it ran); starred, the drives are "
                      f"given the target position as in the paper's Oracle*. \"{NOT_MEASURED}\": a row the table defines and has "
                      "not run yet.")
     return "\n".join(head) + "\n\n" + "\n".join(prog) + "\n\n" + "\n".join(alone) + "\n" + "".join(f"\n{n}\n" for n in notes)
