@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 
 from echo_data import seeds
-from echo_data.scene.floorplan import FloorPlan, Vec3
+from echo_data.categories import source_level_db
+from echo_data.floorplan import FloorPlan, Vec3
 
 SPLIT_KEYS = {"train": 0, "val": 1, "test": 2}
 
@@ -64,7 +65,7 @@ class SoundEvent:
     target: str  # object name ("phone_0"), "door:<i>" or "faucet:<i>"
     source: Vec3  # where the sound comes from (object centre, doorbell button, faucet spout)
     priority: int  # 0 is resolved first
-    level_db: float | None = None  # source level, dB SPL at 1 m; None: drawn by the spec (acoustics.levels.source_level_db)
+    level_db: float | None = None  # source level, dB SPL at 1 m; None: drawn by the spec (categories.source_level_db)
 
 
 @dataclass(frozen=True)
@@ -91,8 +92,6 @@ class EpisodeSpec:
 
     def __post_init__(self) -> None:
         # Every event carries its source level: the one drawn from (plan seed, event) unless given.
-        from echo_data.acoustics.levels import source_level_db
-
         if any(ev.level_db is None for ev in self.events):
             events = tuple(
                 ev if ev.level_db is not None else dataclasses.replace(ev, level_db=source_level_db(ev.category, self.plan.seed, e))

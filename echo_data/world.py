@@ -35,9 +35,9 @@ import numpy as np
 import sapien
 
 from echo_data.episode import EpisodeSpec
+from echo_data.floorplan import FloorPlan
 from echo_data.recipe import Recipe
 from echo_data.robot.robot import Robot
-from echo_data.scene.floorplan import FloorPlan
 
 if TYPE_CHECKING:
     from echo_data.robot.planner import ArmPlanner

@@ -199,6 +199,24 @@ def test_shipped_kemar_table():
     np.testing.assert_array_equal(h.hrir(math.pi / 2, 0.0), h.table[k])
 
 
+
+def test_kemar_diffuse_field_average_is_flat_after_equalisation():
+    """The shipped responses hold the measuring loudspeaker's low-frequency fall; once diffuse-field
+    equalised on load, their average over directions and ears is flat (docs/acoustics.md): within
+    1.5 dB of its mean in every third-octave band from 250 Hz to 6.3 kHz."""
+    def third_octaves(table: np.ndarray) -> np.ndarray:
+        n = 4096
+        power = (np.abs(np.fft.rfft(table.astype(np.float64), n, axis=1)) ** 2).mean(axis=(0, 2))
+        f = np.fft.rfftfreq(n, 1.0 / FS)
+        return np.array([10 * np.log10(power[(f >= fc * 2 ** (-1 / 6)) & (f <= fc * 2 ** (1 / 6))].mean())
+                         for fc in 1000.0 * 2.0 ** (np.arange(-6, 9) / 3)])  # 250 Hz .. 6.3 kHz
+
+    with np.load(KEMAR_NPZ) as z:
+        raw = third_octaves(z["hrir"])
+    flat = third_octaves(Hrtf.load("kemar", FS).table)
+    assert raw.max() - raw.min() > 15.0  # the loudspeaker's fall is there before equalisation
+    assert np.abs(flat - flat.mean()).max() < 1.5
+
 @pytest.mark.parametrize("kind", KINDS)
 def test_other_sample_rates_keep_the_itd(kind):
     fs = 48000

@@ -22,8 +22,8 @@ from support.room_plans import H, T, band_t30, row_plan
 from echo_data.acoustics.room import AcousticScene, omni_rir
 from echo_data.acoustics.survey import room_t30s
 from echo_data.acoustics.types import SPEED_OF_SOUND
+from echo_data.floorplan import Furnishing, Furniture, Rect
 from echo_data.recipe import AcousticsConfig, load_recipe
-from echo_data.scene.floorplan import Furnishing, Furniture, Rect
 
 RECIPE = "recipes/object_relocation.yaml"
 FURNISHED = ("living", "bedroom", "study", "hall")

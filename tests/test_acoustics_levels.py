@@ -11,16 +11,15 @@ from echo_data.acoustics.binaural import binaural_irs
 from echo_data.acoustics.hrtf import Hrtf
 from echo_data.acoustics.levels import (
     P_REF,
-    SOURCE_LEVELS_DB,
     ClippingError,
     full_scale_pa,
     level_db,
     pascal_gain,
-    source_level_db,
     to_full_scale,
 )
 from echo_data.acoustics.noise import NoiseFloor, a_weighting_db
 from echo_data.acoustics.types import SPEED_OF_SOUND, AcousticResponse, Arrival
+from echo_data.categories import SOURCE_LEVELS_DB, source_level_db
 from echo_data.sounds.library import SoundLibrary
 
 FS = 16000

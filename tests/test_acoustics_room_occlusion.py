@@ -11,8 +11,8 @@ from support.room_plans import row_plan
 
 from echo_data.acoustics.room import AcousticScene, omni_rir
 from echo_data.acoustics.types import SPEED_OF_SOUND
+from echo_data.floorplan import Furniture
 from echo_data.recipe import AcousticsConfig
-from echo_data.scene.floorplan import Furniture
 
 FS = 16000
 CFG = AcousticsConfig()

@@ -203,7 +203,7 @@ def test_generated_apartment_with_room_model():
 
 def test_grid_points_stay_in_the_heads_room():
     """A wall on a grid line: heads on either side share (ix, iy) but never a receiver."""
-    from echo_data.scene.floorplan import Rect
+    from echo_data.floorplan import Rect
 
     class Plan:
         rooms = (SimpleNamespace(index=0, rect=Rect(0.0, 0.0, 3.0, 3.0)), SimpleNamespace(index=1, rect=Rect(3.0, 0.0, 6.0, 3.0)))

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import sapien
 
+from echo_data.floorplan import Door
 from echo_data.scene.articulated import DOOR_FLOOR_GAP, DOOR_MASS, build_door
 from echo_data.scene.door_handle import HANDLE_EDGE_OFFSET, door_handle_world
-from echo_data.scene.floorplan import Door
 
 _SCENES: list[sapien.Scene] = []  # a scene must outlive its articulations (dangling links segfault)
 
@@ -158,7 +158,7 @@ def test_generated_doors_swing_their_full_range_without_jamming(seed: int) -> No
 def test_door_open_success_needs_threshold_and_rest() -> None:
     from types import SimpleNamespace
 
-    from echo_data.scene.floorplan import FloorPlan
+    from echo_data.floorplan import FloorPlan
     from echo_data.skills.success import door_open_success
 
     door = dataclasses.replace(make_door(angle=0.0), index=0)  # plan.doors[i].index == i

@@ -15,7 +15,7 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "echo_data"
 # What the format library may build on: its own modules and the layers below it.
-DATASET_MAY_IMPORT = ("dataset", "skill_table", "recipe", "recipe_sections", "recipe_yaml", "records", "episode", "target", "seeds", "protocols", "pcm", "camera", "categories", "media", "acoustics")
+DATASET_MAY_IMPORT = ("dataset", "skill_table", "recipe", "recipe_sections", "recipe_yaml", "records", "episode", "floorplan", "target", "seeds", "protocols", "pcm", "camera", "categories", "media", "acoustics")
 # Who may use the application package: the command line, the app itself, and the commands
 # that run episodes through its worker pool or its pipeline.
 APP_USERS = ("cli", "app", "evaluation", "preview")
@@ -76,7 +76,7 @@ def test_only_commands_use_the_app_package() -> None:
 # The layers of docs/ARCHITECTURE.md, bottom first: a module belongs to the first entry naming
 # its longest dotted prefix below `echo_data` (so `learn.cli` is a command, `learn.fit` application).
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("vocabulary", ("", "recipe", "records", "episode", "target", "targets", "seeds", "protocols", "outputs", "pcm",
+    ("vocabulary", ("", "recipe", "records", "episode", "floorplan", "target", "targets", "seeds", "protocols", "outputs", "pcm",
                     "media", "camera", "categories", "skill_table", "recipe_sections", "recipe_yaml")),
     ("simulation", ("world", "robot", "scene", "acoustics", "sounds")),
     ("format", ("dataset",)),

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from support.nav_plans import two_room_plan
 
-from echo_data.scene.floorplan import Furniture
+from echo_data.floorplan import Furniture
 from echo_data.scene.nav import NavGrid, handle_xy, interaction_pose, target_point
 
 R = 0.32

@@ -8,9 +8,9 @@ import math
 from support.nav_plans import two_room_plan
 
 from echo_data.episode import EpisodeSpec, SkillCall
+from echo_data.floorplan import FloorPlan, Furniture, Rect
 from echo_data.recipe import ExpertsConfig, Recipe, RobotConfig
 from echo_data.records import EE_ACTION_DIM
-from echo_data.scene.floorplan import FloorPlan, Furniture, Rect
 from echo_data.scene.nav import NavGrid, interaction_pose, target_point
 from echo_data.skills import navigate as nav_skill
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from support.nav_plans import two_room_plan
 
-from echo_data.scene.floorplan import FloorPlan
+from echo_data.floorplan import FloorPlan
 
 
 def test_plan_round_trips_and_door_closes_its_doorway() -> None:

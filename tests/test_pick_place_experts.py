@@ -11,9 +11,9 @@ import pytest
 import sapien
 
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
+from echo_data.floorplan import FloorPlan, Furniture, PlacedObject, Rect, Room, WallSegment
 from echo_data.recipe import Recipe
 from echo_data.records import EE_ACTION_DIM, SkillOutcome
-from echo_data.scene.floorplan import FloorPlan, Furniture, PlacedObject, Rect, Room, WallSegment
 from echo_data.scene.objects import object_size
 from echo_data.skills.pick import TORSO_UP, pick
 from echo_data.skills.place import place

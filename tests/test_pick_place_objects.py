@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import sapien
 
+from echo_data.floorplan import PlacedObject
 from echo_data.robot.robot import GRIPPER_OPEN
 from echo_data.scene.bodies import build_object
-from echo_data.scene.floorplan import PlacedObject
 from echo_data.scene.objects import (
     CATEGORIES,
     MAX_TARGET_GRASP_WIDTH,

@@ -10,8 +10,8 @@ import pyroomacoustics as pra
 import pytest
 from scipy import ndimage
 
+from echo_data.floorplan import FloorPlan, Rect
 from echo_data.recipe import Recipe
-from echo_data.scene.floorplan import FloorPlan, Rect
 from echo_data.scene.furniture import EDGE_MARGIN, FRONT_REACH, front_zone, object_radius
 from echo_data.scene.generate import generate_floorplan
 from echo_data.scene.layouts import HALL_WIDTH

@@ -13,8 +13,8 @@ from rows_layout_digests import FIXTURE, RECIPES, ROOT, as_before, compute
 
 from echo_data.acoustics.room import AcousticScene
 from echo_data.acoustics.types import SPEED_OF_SOUND
+from echo_data.floorplan import FloorPlan
 from echo_data.recipe import AcousticsConfig, Recipe, RecipeError, load_recipe
-from echo_data.scene.floorplan import FloorPlan
 from echo_data.scene.generate import generate_floorplan_from_seed
 from echo_data.scene.layouts import HALL_WIDTH, L_STEP, OPEN_MIN_SHARED
 from echo_data.scene.nav import NavGrid

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PLAN_SIDE = ("floorplan", "layouts", "structure", "furniture", "soft_furnishings", "generate", "surfaces", "objects", "nav", "door_handle", "draw")
+PLAN_SIDE = ("layouts", "structure", "furniture", "soft_furnishings", "generate", "surfaces", "objects", "nav", "door_handle", "draw")
 
 PROBE = f"""
 import sys

@@ -9,9 +9,9 @@ import pickle
 
 import pytest
 
+from echo_data.floorplan import Furniture
 from echo_data.recipe import RELOCATION_CATEGORIES, Recipe
 from echo_data.scene.draw import region_free, sink_frontal_region
-from echo_data.scene.floorplan import Furniture
 from echo_data.scene.nav import NavGrid, interaction_pose
 from echo_data.scene.sampling import SETTLE_MAX_SHIFT, SamplingError, sample_episode, settle_shift
 from echo_data.sounds.library import SoundLibrary

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from support.experts import assert_folded, handover_gap, make_spec, offset_start, rollout, rollout_ee, two_room_plan
 
+from echo_data.floorplan import Faucet, FloorPlan, Furniture
 from echo_data.recipe import Recipe
-from echo_data.scene.floorplan import Faucet, FloorPlan, Furniture
 
 
 def sink_on_north_wall(plan: FloorPlan, angle: float) -> FloorPlan:

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import sapien
 
+from echo_data.floorplan import Faucet, Furniture
 from echo_data.scene.articulated import STATIC_CLEARANCE, WaterStream, build_faucet, lever_tip_world
-from echo_data.scene.floorplan import Faucet, Furniture
 
 _SCENES: list[sapien.Scene] = []  # a scene must outlive its articulations (dangling links segfault)
 
@@ -161,7 +161,7 @@ def test_generated_faucet_sweeps_its_range_clear_of_cabinet_and_walls(seed: int)
 def test_sink_closed_success_needs_lever_closed_and_water_off() -> None:
     from types import SimpleNamespace
 
-    from echo_data.scene.floorplan import FloorPlan
+    from echo_data.floorplan import FloorPlan
     from echo_data.skills.success import sink_closed_success
 
     faucet = make_faucet(angle=1.2)

@@ -63,6 +63,47 @@ def test_expert_noise_tiny_writes_the_runs_the_committed_json_holds(tmp_path: Pa
     assert 0 <= run["successes"] <= 1 and run["wilson95"][0] <= run["success_rate"] <= run["wilson95"][1]
 
 
+
+def test_door_sink_experts_tiny_writes_the_figures_the_committed_json_holds(tmp_path: Path) -> None:
+    out = tmp_path / "door_sink.json"
+    _run("experts/door_sink_experts.py", "recipes/state_transition.yaml", "-n", "1", "--start", "handover", "--json", str(out))
+    doc, held = json.loads(out.read_text()), _committed("experts", "door_sink_experts_handover.json")
+    assert set(doc) == set(held) and doc["command"].endswith("recipes/state_transition.yaml -n 1 --start handover")
+    (skill,) = doc["skills"]  # train episode 0 of state transition: one door or one sink
+    figures = doc["skills"][skill]
+    assert skill in held["skills"] and set(figures) == set(held["skills"][skill])
+    assert figures["n"] + figures["skipped"] == 1 and figures["successes"] <= figures["n"] and 0 < figures["steps_max"] <= 300
+
+
+def test_handover_starts_tiny_writes_the_runs_the_committed_json_holds(tmp_path: Path) -> None:
+    out = tmp_path / "handover_starts.json"
+    _run("experts/handover_starts.py", "--recipes", "recipes/state_transition.yaml", "--levels", "1.0", "-n", "1", "--out", str(out))
+    doc, held = json.loads(out.read_text()), _committed("experts", "handover_starts.json")
+    assert set(doc) == set(held)
+    (run,) = doc["runs"]
+    assert set(run) == set(held["runs"][0]) and run["n"] == 1 and run["handover_noise"] == 1.0 and run["successes"] <= 1
+    if run["successes"]:  # where the drive stopped: within Navigate's 1.5 m region, facing within 15 degrees
+        assert len(run["distance_m_quartiles"]) == 3 and max(run["distance_m_quartiles"]) <= 1.5
+        assert max(run["heading_error_deg_quartiles"]) <= 15.0
+
+
+def test_pick_handover_tiny_prints_the_counts_the_committed_json_holds() -> None:
+    last = _run("experts/pick_handover.py", "recipes/object_relocation.yaml", "-n", "1").strip().splitlines()[-1]
+    counts, held = json.loads(last), _committed("experts", "pick_place_experts.json")["handover"]
+    assert set(counts) == set(held) - {"command"} and all(set(counts[s]) == set(held[s]) for s in counts)
+    assert counts["Pick"]["n"] <= 1 and counts["Place"]["n"] <= counts["Pick"]["successes"]
+
+
+def test_pick_place_figures_tiny_writes_the_figures_the_committed_json_holds(tmp_path: Path) -> None:
+    """One object-relocation episode with both cameras (what a learner sees of the object)."""
+    out = tmp_path / "figures.json"
+    _run("experts/pick_place_figures.py", "recipes/object_relocation.yaml", "-n", "1", "--json", str(out))
+    doc, held = json.loads(out.read_text()), _committed("experts", "pick_place_experts.json")["figures"]
+    assert set(doc) == set(held) - {"command"} and doc["episodes"] == 1  # the committed one adds the command it ran
+    rows = doc["pick_rows_per_segment"]
+    assert set(rows) == set(held["pick_rows_per_segment"]) and rows["rows"] == rows["base"] + rows["untuck"] + rows["object"] > 0
+    assert all(0.0 <= doc["visible_pick"][k] <= 1.0 for k in ("some_camera", "head", "wrist"))
+
 @needs_mplib
 def test_carry_search_tiny_reports_what_it_reached() -> None:
     """The carry search writes no JSON: its result is a constant of the code (README)."""

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from echo_data.floorplan import FloorPlan
 from echo_data.recipe import Recipe
-from echo_data.scene.floorplan import FloorPlan
 from echo_data.scene.generate import generate_floorplan
 from echo_data.viz import palette
 from echo_data.viz.frames import HEIGHT, PANEL, WIDTH, EpisodeFrames

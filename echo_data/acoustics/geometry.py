@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from echo_data.acoustics.types import SPEED_OF_SOUND
-from echo_data.scene.floorplan import FloorPlan, Room
+from echo_data.floorplan import FloorPlan, Room
 
 # A door leaf within this angle of closed counts as a closed door (it seals its doorway).
 CLOSED_DOOR_ANGLE = math.radians(6.0)

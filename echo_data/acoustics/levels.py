@@ -5,15 +5,8 @@ gain 1 (1/r spreading, diffuse-field normalised HRIRs), so a dry signal scaled t
 1 m yields ear signals in pascals. A source's level is its maximum RMS over 125 ms windows
 (the F time weighting of a sound level meter, unweighted), in dB re 20 µPa at 1 m.
 
-Source levels (dB SPL at 1 m; a level is drawn uniformly in the range per event):
-- phone: 65–78. Purdue University's noise-level chart (the table most sound-level guides
-  reproduce) lists a ringing telephone at 80 dB; a smartphone ringtone at full volume is of
-  that order close to the phone, some dB less at 1 m.
-- alarm: 65–80, the alarm-clock range of the same chart.
-- furby: 60–75. ASTM F963 caps the sound of table-top toys at 85 dB(A) at 50 cm, i.e. at most
-  79 dB at 1 m; a talking toy's speech sits below the cap.
-- doorbell: 70–85 (our estimate: a chime must be heard through a home, above the alarm range).
-- sink: 50–65 (our estimate: water from a tap into a sink, quieter than signalling devices).
+Source levels (dB SPL at 1 m, drawn per event): `echo_data.categories.SOURCE_LEVELS_DB`, with their
+basis; `EpisodeSpec` carries each event's draw.
 
 Full scale: a WAV sample of ±1 is ±`full_scale_db_spl` (default 120 dB SPL, i.e. 20 Pa peak);
 the loudest source at 30 cm peaks well below it. A track that would still exceed full scale
@@ -22,34 +15,15 @@ is an error (`ClippingError`), never clipped silently.
 
 from __future__ import annotations
 
-import hashlib
 import math
 
 import numpy as np
 
+from echo_data.categories import SOURCE_LEVELS_DB
 from echo_data.pcm import ClippingError  # one error for "would clip", owned by pcm
 
 P_REF = 20e-6  # Pa, 0 dB SPL
 LEVEL_WINDOW_S = 0.125  # F time weighting
-
-SOURCE_LEVELS_DB: dict[str, tuple[float, float]] = {
-    "phone": (65.0, 78.0),
-    "alarm": (65.0, 80.0),
-    "furby": (60.0, 75.0),
-    "doorbell": (70.0, 85.0),
-    "sink": (50.0, 65.0),
-}
-
-
-def source_level_db(category: str, seed: int, event: int) -> float:
-    """The level (dB SPL at 1 m) of event `event` of the episode with plan seed `seed`: uniform in
-    the category's range, a pure function of its arguments."""
-    if category not in SOURCE_LEVELS_DB:
-        raise ValueError(f"no source level for sound category {category!r} (known: {sorted(SOURCE_LEVELS_DB)})")
-    lo, hi = SOURCE_LEVELS_DB[category]
-    h = hashlib.blake2b(f"{int(seed)}:{int(event)}:{category}".encode(), digest_size=8).digest()
-    u = int.from_bytes(h, "little") / 2.0**64
-    return lo + u * (hi - lo)
 
 
 def level_db(x: np.ndarray, fs: int, periodic: bool = True) -> float:

@@ -56,8 +56,8 @@ from echo_data.acoustics.ism import BoxLattice, ImagePaths, segment_losses
 from echo_data.acoustics.materials import BANDS, absorption, air_absorption, reflection_amplitude
 from echo_data.acoustics.tail import NoiseBank, RoomAcoustics, scattered_share
 from echo_data.acoustics.types import SPEED_OF_SOUND, AcousticResponse, ApertureTail, Arrival
+from echo_data.floorplan import FloorPlan
 from echo_data.recipe import AcousticsConfig
-from echo_data.scene.floorplan import FloorPlan
 
 __all__ = ["AcousticScene", "omni_rir"]  # omni_rir: rendered in acoustics.arrivals, long imported from here
 Vec3 = tuple[float, float, float]

@@ -45,7 +45,7 @@ from echo_data import seeds
 from echo_data.acoustics.geometry import RoomBox
 from echo_data.acoustics.materials import BANDS, absorption, air_absorption, per_floor_area
 from echo_data.acoustics.types import SPEED_OF_SOUND
-from echo_data.scene.floorplan import FloorPlan
+from echo_data.floorplan import FloorPlan
 
 _LN10 = math.log(10.0)
 

@@ -1,6 +1,6 @@
 """SAPIEN articulations for the floor plan's hinged doors and sink faucets, and the water stream.
 
-Conventions (the `Door` / `Faucet` docstrings in `echo_data.scene.floorplan`):
+Conventions (the `Door` / `Faucet` docstrings in `echo_data.floorplan`):
 - a door is a leaf on a vertical revolute hinge at `Door.hinge`; joint 0 is the hinge angle
   q >= 0 and the leaf's yaw is `closed_yaw + open_sign * q`, so `Door.free_edge(q)` is where
   the leaf's free edge is in the world;
@@ -20,8 +20,8 @@ import math
 import numpy as np
 import sapien
 
+from echo_data.floorplan import Door, Faucet, Furniture
 from echo_data.scene.door_handle import HANDLE_BAR, HANDLE_POST, HANDLE_STANDOFF, door_handle_local
-from echo_data.scene.floorplan import Door, Faucet, Furniture
 
 # Door leaf: door opening was measured with a ≈22 kg leaf (docs/SIMULATION_NOTES.md#door-opening).
 DOOR_MASS = 22.0  # kg

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import sapien
 
+from echo_data.floorplan import PlacedObject
 from echo_data.scene import meshes, textures
-from echo_data.scene.floorplan import PlacedObject
 from echo_data.scene.objects import CATEGORIES, MODELS, Part, instance_look, object_mass, part_volume, scaled_part
 
 # Objects are grippy (rubber/plastic); the robot's finger pads are 2.0 (docs/SIMULATION_NOTES.md#grasping).

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 
 import sapien
 
+from echo_data.floorplan import FloorPlan, Furniture, Rect, Room
 from echo_data.recipe import Recipe
 from echo_data.scene import meshes, textures
 from echo_data.scene.articulated import (
@@ -23,7 +24,6 @@ from echo_data.scene.articulated import (
     has_render,
 )
 from echo_data.scene.bodies import build_object
-from echo_data.scene.floorplan import FloorPlan, Furniture, Rect, Room
 from echo_data.scene.surfaces import Look, furniture_look, surface_look
 
 FLOOR_THICKNESS = 0.1

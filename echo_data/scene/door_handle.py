@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from echo_data.scene.floorplan import Door
+from echo_data.floorplan import Door
 
 HANDLE_EDGE_OFFSET = 0.08  # m from the free edge to the bar's axis
 HANDLE_STANDOFF = 0.06  # m from the leaf face to the bar's axis

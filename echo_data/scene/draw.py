@@ -19,9 +19,9 @@ from scipy import ndimage
 
 from echo_data.categories import RELOCATION_CATEGORIES, STATE_CATEGORIES
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, episode_id, fresh_sound_seed
+from echo_data.floorplan import FloorPlan, Rect, Vec3
 from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
-from echo_data.scene.floorplan import FloorPlan, Rect, Vec3
 from echo_data.scene.furniture import front_zone, place_object
 from echo_data.scene.generate import generate_floorplan
 from echo_data.scene.nav import NavGrid, interaction_pose

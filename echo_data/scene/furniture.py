@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from echo_data.scene.floorplan import (
+from echo_data.floorplan import (
     Doorway,
     Faucet,
     FloorPlan,

@@ -22,13 +22,13 @@ import dataclasses
 import numpy as np
 
 from echo_data import seeds
-from echo_data.recipe import Recipe
-from echo_data.scene.floorplan import (
+from echo_data.floorplan import (
     Door,
     FloorPlan,
     Furniture,
     Room,
 )
+from echo_data.recipe import Recipe
 from echo_data.scene.furniture import (
     FURNITURE_SPECS,
     ROOM_FURNITURE,

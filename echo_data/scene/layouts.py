@@ -1,7 +1,7 @@
 """Apartment layout families: which axis-aligned rectangles make the rooms, and which of them
 form one space.
 
-The plan model stays a set of axis-aligned rectangles (`echo_data.scene.floorplan`), because the
+The plan model stays a set of axis-aligned rectangles (`echo_data.floorplan`), because the
 acoustics model every rectangle as a shoebox joined to its neighbours through openings. A room
 that is not a rectangle — an L-shaped living room, an open-plan kitchen/living room — is two
 rectangles of one space joined by a wide opening (`Layout.joins`): a doorway without a door,
@@ -39,8 +39,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from echo_data.floorplan import Rect
 from echo_data.recipe import Recipe
-from echo_data.scene.floorplan import Rect
 
 HALL_WIDTH = (1.0, 1.4)  # m, wall centre to wall centre (sources above)
 L_STEP = 1.0  # m, at least this difference in width between the two parts of an L

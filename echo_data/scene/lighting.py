@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from echo_data import seeds
-from echo_data.scene.floorplan import FloorPlan
+from echo_data.floorplan import FloorPlan
 
 if TYPE_CHECKING:
     import sapien

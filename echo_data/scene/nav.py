@@ -16,8 +16,8 @@ import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
+from echo_data.floorplan import Door, FloorPlan, Furniture, Rect
 from echo_data.scene.door_handle import HANDLE_BAR, handle_xy
-from echo_data.scene.floorplan import Door, FloorPlan, Furniture, Rect
 from echo_data.target import Target
 
 # Extra clearance (m) the planner prefers beyond the robot radius: paths keep it where they

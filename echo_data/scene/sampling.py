@@ -15,12 +15,12 @@ import numpy as np
 import sapien
 
 from echo_data.episode import EpisodeSpec, attempt_draws
+from echo_data.floorplan import FloorPlan
 from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.scene.bodies import build_object
 from echo_data.scene.build import build_statics
 from echo_data.scene.draw import Reject, SamplingError, draw_episode
-from echo_data.scene.floorplan import FloorPlan
 
 SETTLE_SECONDS = 0.5
 SETTLE_MAX_SHIFT = 0.01  # m

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from echo_data.scene.floorplan import (
+from echo_data.floorplan import (
     Doorway,
     Furnishing,
     Furniture,

@@ -13,14 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from echo_data.recipe import Recipe
-from echo_data.scene.floorplan import (
+from echo_data.floorplan import (
     Door,
     Doorway,
     Rect,
     Room,
     WallSegment,
 )
+from echo_data.recipe import Recipe
 from echo_data.scene.layouts import Layout, opening_span
 
 _EPS = 1e-6

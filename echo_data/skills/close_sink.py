@@ -36,11 +36,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from echo_data.floorplan import Faucet, Furniture
 from echo_data.records import SkillOutcome
 from echo_data.robot.ee_control import base_frame
 from echo_data.robot.robot import READY_GROUP
 from echo_data.scene.articulated import LEVER_SECTION
-from echo_data.scene.floorplan import Faucet, Furniture
 from echo_data.skills.reach_servo import CONTACT, TRANSIT, TUCK_TURN, Pose2, Steps, approach, arm_reaches, drive, retreat, to_ready
 from echo_data.skills.servo import ee_command, in_base, servo, step_towards, tuck
 from echo_data.skills.success import sink_closed_success

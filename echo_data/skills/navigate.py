@@ -32,7 +32,7 @@ from echo_data.skills.success import NAV_SUCCESS_YAW, navigate_success
 
 if TYPE_CHECKING:
     from echo_data.episode import EpisodeSpec, SkillCall
-    from echo_data.scene.floorplan import FloorPlan
+    from echo_data.floorplan import FloorPlan
     from echo_data.world import World
 
 # Speed limits and ramps (Fetch's base: ≈1 m/s top speed; slower keeps tracking tight).

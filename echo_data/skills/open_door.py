@@ -43,9 +43,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from echo_data.floorplan import Door
 from echo_data.records import SkillOutcome
 from echo_data.scene.door_handle import door_handle_world
-from echo_data.scene.floorplan import Door
 from echo_data.skills.reach_servo import CONTACT, TRANSIT, TUCK_TURN, Pose2, Steps, approach, arm_reaches, retreat, to_ready, wrap
 from echo_data.skills.servo import SLOW_SPEED, ee_command, grip, measured_tcp, servo, step_towards, tuck
 from echo_data.skills.success import DOOR_REST_QVEL, door_open_success

@@ -9,8 +9,8 @@ import math
 import numpy as np
 
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent
+from echo_data.floorplan import Door, Doorway, Faucet, FloorPlan, Furniture, Rect, Room, WallSegment
 from echo_data.records import EE_ACTION_DIM
-from echo_data.scene.floorplan import Door, Doorway, Faucet, FloorPlan, Furniture, Rect, Room, WallSegment
 
 T = 0.1  # wall thickness
 

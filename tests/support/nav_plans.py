@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from echo_data.scene.floorplan import (
+from echo_data.floorplan import (
     Door,
     Doorway,
     Faucet,

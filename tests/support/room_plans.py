@@ -8,7 +8,7 @@ import math
 import numpy as np
 from scipy import signal
 
-from echo_data.scene.floorplan import Door, Doorway, FloorPlan, Furniture, Rect, Room, WallSegment
+from echo_data.floorplan import Door, Doorway, FloorPlan, Furniture, Rect, Room, WallSegment
 
 FS = 16000  # sample rate of the responses band_t30 reads
 T = 0.1  # wall thickness

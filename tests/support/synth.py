@@ -15,10 +15,10 @@ import numpy as np
 
 from echo_data.acoustics.features import step_features
 from echo_data.episode import EpisodeSpec, SkillCall, SoundEvent, episode_seed
+from echo_data.floorplan import FloorPlan, Furniture, PlacedObject, Rect, Room
 from echo_data.pcm import as_written
 from echo_data.recipe import CameraConfig, OutputsConfig, Recipe, RobotConfig
 from echo_data.records import ACTION_DIM, EE_ACTION_DIM, PRIVILEGED_COLUMNS, STATE_DIM, EpisodeResult, SkillOutcome, StepRecord
-from echo_data.scene.floorplan import FloorPlan, Furniture, PlacedObject, Rect, Room
 
 
 class SamplingError(RuntimeError):
