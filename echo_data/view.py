@@ -19,8 +19,7 @@ import numpy as np
 
 from echo_data.camera import DEPTH_UNIT_M
 from echo_data.dataset.encode import decode_png
-from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.reader import EpisodeError, episode_rows
+from echo_data.dataset.reader import EpisodeError, episode_audio, episode_rows, read_manifest
 from echo_data.dataset.schema import IMAGE_COLUMNS, STATE
 from echo_data.records import STATE_NAMES
 from echo_data.viz.frames import PANEL, EpisodeFrames
@@ -36,18 +35,16 @@ ViewError = EpisodeError
 
 def render_episode_video(root: str | Path, index: int, out: str | Path, split: str = "train") -> dict[str, Any]:
     """Write the MP4 of episode `index` of `split`; return its summary (frames, seconds, path)."""
-    import soundfile as sf
-
     from echo_data.media import write_mp4
 
     root, out = Path(root), Path(out)
-    manifest = load_manifest(root)
+    manifest = read_manifest(root)
     ep, rows = episode_rows(root, split, index)
     rgb_col, depth_col, wrist_col = IMAGE_COLUMNS["head_rgb"], IMAGE_COLUMNS["head_depth"], IMAGE_COLUMNS["wrist_depth"]
     if not rows or rgb_col not in rows[0]:
         raise ViewError(f"{root}: {split} episode {index} has no {rgb_col} column to show")
     fps = int(manifest["layout"]["fps"])
-    audio, sr = sf.read(root / ep["audio_path"], dtype="float32", always_2d=True)
+    audio, sr = episode_audio(root, ep)
     first = int(rows[0]["audio_offset"])
     hop = sr // fps
     track = audio[first : first + len(rows) * hop]

@@ -57,13 +57,14 @@ def build_cmd(
 
 def validate_cmd(path: Annotated[Path, typer.Argument(help="Dataset directory (out/<name>).")]) -> None:
     """Check every shard, WAV, index and metadata file of a dataset against its manifest."""
-    from echo_data.dataset.manifest import ManifestError, load_manifest
+    from echo_data.dataset.manifest import ManifestError
+    from echo_data.dataset.reader import is_dataset, read_manifest
     from echo_data.dataset.validate import validate
 
-    if not (path / "manifest.json").is_file():
+    if not is_dataset(path):
         raise _fail(f"{path}: not an echo-data dataset (no manifest.json)", 2)
     try:  # a manifest that cannot be read is bad input (one line, exit 2), as a missing one is
-        load_manifest(path)
+        read_manifest(path)
     except ManifestError as e:
         raise _fail(str(e), 2) from None
     with _episode_bar(path, "validate", unit="shard") as bar:
@@ -111,10 +112,11 @@ def _episode_bar(path: Path, desc: str, split: str | None = None, unit: str = "e
     (or of its `split`), counted by its manifest; a bar without a total when it cannot be read."""
     from tqdm.auto import tqdm
 
-    from echo_data.dataset.manifest import ManifestError, load_manifest
+    from echo_data.dataset.manifest import ManifestError
+    from echo_data.dataset.reader import read_manifest
 
     try:
-        m = load_manifest(path)
+        m = read_manifest(path)
     except ManifestError:
         m = {}
     if unit == "shard":

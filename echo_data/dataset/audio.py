@@ -21,7 +21,7 @@ def binaural_window(root: str | Path, row: Mapping[str, Any], seconds: float = 1
 
     `row` is a step row (dict from `datasets`, `StepDataset` or pyarrow) with `audio_path`,
     `audio_sample_rate` and `audio_offset`."""
-    import soundfile as sf
+    from echo_data.dataset.reader import audio_samples
 
     def scalar(v: Any) -> Any:
         return v.item() if hasattr(v, "item") else v
@@ -31,16 +31,7 @@ def binaural_window(root: str | Path, row: Mapping[str, Any], seconds: float = 1
     n = int(round(seconds * sr))
     if n <= 0:
         raise ValueError(f"seconds must be positive, got {seconds}")
-    path = Path(root) / str(scalar(row["audio_path"]))
-    with sf.SoundFile(path) as f:
-        if f.samplerate != sr:
-            raise ValueError(f"{path}: sample rate {f.samplerate}, the step row says {sr}")
-        lo, hi = max(offset - n, 0), min(offset, f.frames)
-        out = np.zeros((n, f.channels), dtype=np.float32)
-        if hi > lo:
-            f.seek(lo)
-            out[n - (offset - lo) : n - (offset - hi)] = f.read(hi - lo, dtype="float32", always_2d=True)
-    return out
+    return audio_samples(root, str(scalar(row["audio_path"])), offset - n, offset, sr)
 
 
 # The episode WAVs once more as a Parquet `Audio` column per split: the dataset card's `audio`

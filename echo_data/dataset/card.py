@@ -14,8 +14,7 @@ from typing import Any
 
 import yaml
 
-from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.reader import episodes_table
+from echo_data.dataset.reader import episodes_table, read_manifest
 from echo_data.dataset.schema import (
     ACTION_EE,
     ACTION_EE_EXECUTED,
@@ -88,7 +87,7 @@ def _shape(feature: dict[str, Any]) -> str:
 def card_text(out: Path) -> str:
     """The card of the complete dataset at `out` (front matter + Markdown body). Long because it is
     one document's template, read top to bottom like the card it writes."""
-    m = load_manifest(out)
+    m = read_manifest(out)
     info = json.loads((out / "meta" / "info.json").read_text())
     episodes = episodes_table(out, ["split", "events"]).to_pylist()
     counts = m["counts"]

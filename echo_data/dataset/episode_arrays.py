@@ -15,10 +15,9 @@ from typing import Any
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
 
-from echo_data.dataset.manifest import ManifestError, load_manifest
-from echo_data.dataset.reader import episodes_table, split_shards
+from echo_data.dataset.manifest import ManifestError
+from echo_data.dataset.reader import DatasetMeta, StepReader, episodes_table, read_manifest
 from echo_data.dataset.schema import StepLayout
 from echo_data.episode import SPLIT_KEYS
 
@@ -62,7 +61,7 @@ class EpisodeArrays:
 def check_source(src: Path) -> dict[str, Any]:
     """The manifest of a complete dataset, or ExportError naming what is wrong."""
     try:
-        manifest = load_manifest(src)
+        manifest = read_manifest(src)
     except ManifestError as e:
         raise ExportError(str(e)) from None
     if not manifest.get("complete"):
@@ -148,24 +147,19 @@ def export_splits(manifest: dict[str, Any], split: str | None) -> list[str]:
 
 def iter_episodes(src: Path, manifest: dict[str, Any], splits: list[str] | None = None) -> Iterator[EpisodeArrays]:
     """Every stored episode of `splits` (default: all), train first (then val, test), in episode
-    order within a split."""
-    layout = StepLayout.from_dict(manifest["layout"])
+    order within a split (`reader.StepReader.episodes`: one shard in memory at a time)."""
+    meta = DatasetMeta.from_manifest(src, manifest)
     records = {(r["split"], r["episode_index"]): r for r in episodes_table(src).to_pylist()}
     for split in splits if splits is not None else export_splits(manifest, None):
-        for shard in split_shards(manifest, split):
-            table = pq.read_table(src / shard["file"])
-            ep = table.column("episode_index").to_numpy()
-            bounds = np.flatnonzero(np.diff(ep)) + 1
-            for lo, hi in zip(np.concatenate([[0], bounds]), np.concatenate([bounds, [len(ep)]])):
-                rows = table.slice(int(lo), int(hi - lo))
-                n = rows.num_rows
-                cols: dict[str, np.ndarray] = {}
-                strings: dict[str, list[str]] = {}
-                for name in rows.column_names:
-                    if name in layout.images:
-                        cols[name] = decode_images(rows.column(name))
-                    elif name in STRING_COLUMNS or pa.types.is_string(rows.schema.field(name).type):
-                        strings[name] = rows.column(name).to_pylist()
-                    else:
-                        cols[name] = column_values(rows.column(name), n)
-                yield EpisodeArrays(split, records[(split, int(ep[lo]))], cols, strings)
+        for rows in StepReader(src, split, meta).episodes():
+            n = rows.num_rows
+            cols: dict[str, np.ndarray] = {}
+            strings: dict[str, list[str]] = {}
+            for name in rows.column_names:
+                if name in meta.layout.images:
+                    cols[name] = decode_images(rows.column(name))
+                elif name in STRING_COLUMNS or pa.types.is_string(rows.schema.field(name).type):
+                    strings[name] = rows.column(name).to_pylist()
+                else:
+                    cols[name] = column_values(rows.column(name), n)
+            yield EpisodeArrays(split, records[(split, int(rows.column("episode_index")[0].as_py()))], cols, strings)

@@ -5,8 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.reader import EPISODES, episode_records
+from echo_data.dataset.reader import episode_records, has_episode_records, read_manifest
 
 
 def info(out: Path) -> dict[str, Any]:
@@ -15,11 +14,11 @@ def info(out: Path) -> dict[str, Any]:
     Raises `ManifestError` when `out` is not a dataset.
     """
     out = Path(out)
-    m = load_manifest(out)
+    m = read_manifest(out)
     counts = m["counts"]
     sounds: dict[str, list[str]] = {}
     events: dict[str, dict[str, int]] = {}
-    if (out / EPISODES).is_file():
+    if has_episode_records(out):
         for row in episode_records(out, ["split", "events"]):
             for e in row["events"]:
                 sounds.setdefault(row["split"], [])

@@ -87,7 +87,7 @@ from echo_data.dataset.lerobot_audio import (  # noqa: F401 (names the export's 
     pooled_audio,
 )
 from echo_data.dataset.lerobot_media import VideoFiles, VideoLayout, depth_image, options, png_cells
-from echo_data.dataset.reader import episodes_table, split_shards
+from echo_data.dataset.reader import episode_spans, episodes_table, split_tables
 from echo_data.dataset.schema import (
     ACTION,
     ACTION_EXECUTED,
@@ -318,12 +318,11 @@ def _data_files(
         for vf in videos:
             vf.close()
         first_ep = n_ep
-        for shard in split_shards(manifest, split):
-            table = conform(pq.read_table(src / shard["file"]), layout.schema())
+        for stored in split_tables(src, manifest, split):
+            table = conform(stored, layout.schema())
             ep = table.column("episode_index").to_numpy()
-            bounds = np.flatnonzero(np.diff(ep)) + 1
-            for lo, hi in zip(np.concatenate([[0], bounds]), np.concatenate([bounds, [len(ep)]])):
-                rows = table.slice(int(lo), int(hi - lo))
+            for lo, hi in episode_spans(ep):
+                rows = table.slice(lo, hi - lo)
                 row = ep_meta[(split, int(ep[lo]))]
                 length = rows.num_rows
                 for col, values in (("episode_index", np.full(length, n_ep)), ("index", np.arange(n_rows, n_rows + length))):

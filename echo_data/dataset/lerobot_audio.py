@@ -10,10 +10,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow.parquet as pq
 
 from echo_data.dataset.episode_arrays import column_values
-from echo_data.dataset.reader import split_shards
+from echo_data.dataset.reader import split_tables
 from echo_data.dataset.schema import MEL, SPECTROGRAM, StepLayout
 
 ENV_STATE = "observation.environment_state"  # LeRobot's environment-state key (ACT, Diffusion read it)
@@ -57,8 +56,8 @@ def audio_standardisation(src: Path, manifest: dict[str, Any], col: str, shape: 
     pool = audio_pool(shape)
     splits = ["train"] if "train" in manifest["splits"] else list(manifest["splits"])
     parts = []
-    for shard in (sh for sp in splits for sh in split_shards(manifest, sp)):
-        column = pq.read_table(src / shard["file"], columns=[col]).column(col)
+    for table in (t for sp in splits for t in split_tables(src, manifest, sp, [col])):
+        column = table.column(col)
         parts.append(pooled_audio(column_values(column, len(column)).reshape(len(column), *shape), pool).astype(np.float64))
     values = np.concatenate(parts)
     mean, std = values.mean(axis=0), values.std(axis=0)

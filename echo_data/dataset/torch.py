@@ -11,17 +11,15 @@ float tensors (RGB (3, H, W) in [0, 1], depth (1, H, W) in metres), spectrograms
 
 from __future__ import annotations
 
-import os
 from collections import OrderedDict
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow.parquet as pq
 
-from echo_data.dataset.manifest import load_manifest
-from echo_data.dataset.schema import ACTION, CHAIN_SLOTS, POSE_DIM, SKILL_STOP, STATE, VECTOR_COLUMNS, StepLayout, column_to_numpy
+from echo_data.dataset.reader import DatasetMeta, StepReader, episode_spans
+from echo_data.dataset.schema import ACTION, CHAIN_SLOTS, POSE_DIM, SKILL_STOP, STATE, VECTOR_COLUMNS, column_to_numpy
 from echo_data.records import PRIVILEGED_COLUMNS
 
 _INDEX_COLUMNS = ["episode_index", "frame_index", "setting", "skill"]
@@ -53,55 +51,37 @@ def _torch() -> Any:
     return torch
 
 
-class _Shards:
-    """The shards of one split and lazy, per-process access to their rows."""
+class _Shards(StepReader):
+    """The shards of one split (the one reader, `dataset.reader.StepReader`) and, per process,
+    their decoded row groups in the loaders' form."""
 
     def __init__(self, root: Path, split: str) -> None:
-        from echo_data.dataset.reader import DatasetMeta
-
-        meta = DatasetMeta.of(root)  # the one reader's metadata: manifest, layout, the split's files
+        super().__init__(root, split)
         self.root = root
-        self.layout = meta.layout
-        self.files = meta.files(split)
+        self.layout = self.meta.layout
         self.all_columns = [f.name for f in self.layout.schema()]
         if self.files:  # a dataset built before a column existed (e.g. action.executed) offers what it has
-            present = set(pq.read_schema(self.files[0]).names)
+            present = set(self.file_columns(0))
             self.all_columns = [c for c in self.all_columns if c in present]
-        self._pid: int | None = None
-        self._open: dict[int, tuple[pq.ParquetFile, np.ndarray]] = {}
         self._decoded: OrderedDict[tuple[int, int, tuple[str, ...]], dict[str, Any]] = OrderedDict()
         self.decoded_groups = DECODED_GROUPS
 
     def __getstate__(self) -> dict[str, Any]:
-        state = dict(self.__dict__)
-        state.update(_pid=None, _open={}, _decoded=OrderedDict())
+        state = super().__getstate__()
+        state.update(_decoded=OrderedDict())
         return state
+
+    def forked(self) -> None:
+        self._decoded = OrderedDict()  # a new DataLoader worker decodes its own groups
 
     def index_columns(self) -> list[dict[str, np.ndarray]]:
         """Small per-row columns of every shard (read once, in the constructor)."""
-        out = []
-        for f in self.files:
-            t = pq.read_table(f, columns=_INDEX_COLUMNS)
-            out.append({c: t.column(c).to_numpy(zero_copy_only=False) for c in _INDEX_COLUMNS})
-        return out
-
-    def _file(self, shard: int) -> tuple[pq.ParquetFile, np.ndarray]:
-        if self._pid != os.getpid():  # a new DataLoader worker: never reuse the parent's handles
-            self._pid, self._open, self._decoded = os.getpid(), {}, OrderedDict()
-        if shard not in self._open:
-            pf = pq.ParquetFile(self.files[shard])
-            sizes = [pf.metadata.row_group(i).num_rows for i in range(pf.num_row_groups)]
-            self._open[shard] = (pf, np.concatenate([[0], np.cumsum(sizes)]))
-        return self._open[shard]
-
-    def group_starts(self, shard: int) -> np.ndarray:
-        """First shard-local row of each row group, plus the row count at the end."""
-        return self._file(shard)[1]
+        return [{c: t.column(c).to_numpy(zero_copy_only=False) for c in _INDEX_COLUMNS} for t in self.index_tables(_INDEX_COLUMNS)]
 
     def decoded_group(self, shard: int, group: int, columns: Sequence[str]) -> dict[str, Any]:
         """One row group decoded, cached per process: RGB as a uint8 tensor (n, H, W, 3), depth as
         float32 metres (n, 1, H, W), other columns as numpy in their item dtype, strings as lists."""
-        self._file(shard)  # resets the caches in a new worker process
+        self.group_starts(shard)  # resets the caches in a new worker process
         key = (shard, group, tuple(columns))
         hit = self._decoded.get(key)
         if hit is not None:
@@ -110,7 +90,7 @@ class _Shards:
         from echo_data.dataset.encode import decode_pngs
 
         torch = _torch()
-        table = self._open[shard][0].read_row_group(group, columns=list(columns))
+        table = self.row_group(shard, group, columns)
         out: dict[str, Any] = {}
         for col in columns:
             arr = table.column(col)
@@ -314,11 +294,7 @@ class SequenceDataset:
         first_parts: list[np.ndarray] = []
         last_parts: list[np.ndarray] = []
         for i, cols in enumerate(self.shards.index_columns()):
-            ep = cols["episode_index"]
-            bounds = np.flatnonzero(np.diff(ep)) + 1
-            starts = np.concatenate([[0], bounds])
-            ends = np.concatenate([bounds, [len(ep)]])
-            for s, e in zip(starts, ends):
+            for s, e in episode_spans(cols["episode_index"]):
                 keep = np.ones(e - s, dtype=bool)
                 if setting is not None:
                     keep &= cols["setting"][s:e] == setting
@@ -371,7 +347,7 @@ class Normalize:
             raise ValueError(f"mode must be mean_std or min_max, got {mode!r}")
         torch = _torch()
         stats = json.loads((Path(root) / "meta" / "stats.json").read_text())
-        layout = StepLayout.from_dict(load_manifest(Path(root))["layout"])
+        layout = DatasetMeta.of(root).layout
         self.mode = mode
         self.params: dict[str, tuple[Any, Any]] = {}
         for col, st in stats.items():

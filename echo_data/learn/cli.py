@@ -46,13 +46,14 @@ def _errors() -> tuple[type[Exception], ...]:
 def _check(dataset: Path, folder: Path) -> None:
     """Before any training: the run folder can be written, lies apart from the dataset, and the
     dataset's files are whole."""
+    from echo_data.dataset.reader import is_dataset
     from echo_data.dataset.validate import check_whole
     from echo_data.dataset.written import apart_problem
     from echo_data.learn.runs import RunError
     from echo_data.targets import check_folder
 
     check_folder(folder, "--out")
-    if (dataset / "manifest.json").is_file():  # no dataset at all: training's own message says so
+    if is_dataset(dataset):  # no dataset at all: training's own message says so
         why = apart_problem(dataset, folder, "training dataset")
         if why:
             raise RunError(why)

@@ -17,13 +17,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow.parquet as pq
 
-from echo_data.dataset.encode import decode_pngs
-from echo_data.dataset.reader import DatasetMeta, StepReader, episodes_table
-from echo_data.dataset.schema import ACTION, IMAGE_COLUMNS, SKILL_STOP, STATE, StepLayout, column_to_numpy
+from echo_data.dataset.reader import StepReader, episodes_table
+from echo_data.dataset.schema import ACTION, IMAGE_COLUMNS, SKILL_STOP, STATE
 from echo_data.learn.features import FeatureError, FeatureSpec, canonical, kind_index, prepare
-from echo_data.records import STATE_DIM
 
 ROWS_PER_DECODE = 256  # rows decoded at once: memory stays bounded by this many frames
 
@@ -44,33 +41,6 @@ class SkillRows:
         return len(self.episodes)
 
 
-@dataclass(frozen=True)
-class Shards:
-    """A split's shard files and the step layout (from the manifest)."""
-
-    files: list[Path]
-    layout: StepLayout
-
-    @staticmethod
-    def of(dataset: Path, split: str) -> Shards:
-        meta = DatasetMeta.of(dataset)
-        return Shards(meta.files(split), meta.layout)
-
-    def decode(self, table: Any, columns: list[str]) -> dict[str, np.ndarray]:
-        """Arrow rows -> {column: (rows, ...)} in the loaders' form, via the world's arrays."""
-        out: dict[str, np.ndarray] = {}
-        for col in columns:
-            if col in self.layout.images:
-                out[col] = loader_form(col, decode_pngs(table.column(col).to_pylist()))
-            elif col in self.layout.arrays:
-                out[col] = column_to_numpy(table.column(col), self.layout.arrays[col]).astype(np.float32)
-            elif col == STATE:
-                out[col] = column_to_numpy(table.column(col), (STATE_DIM,)).astype(np.float32)
-            else:
-                raise KeyError(f"unknown observation column {col!r}")
-        return out
-
-
 def loader_form(column: str, stored: np.ndarray) -> np.ndarray:
     """Stored pixels of many rows -> the loaders' form row by row (`features.canonical`)."""
     if column not in IMAGE_COLUMNS.values():
@@ -81,8 +51,8 @@ def loader_form(column: str, stored: np.ndarray) -> np.ndarray:
 def skills_in(dataset: Path, split: str) -> list[str]:
     """Skill names present in a split's step rows."""
     names: set[str] = set()
-    for f in Shards.of(dataset, split).files:
-        names.update(pq.read_table(f, columns=["skill"]).column("skill").unique().to_pylist())
+    for t in StepReader(dataset, split).index_tables(["skill"]):
+        names.update(t.column("skill").unique().to_pylist())
     return sorted(names)
 
 
@@ -167,38 +137,33 @@ def append_rows(rows: SkillRows, inputs: dict[str, Any], actions: np.ndarray) ->
 
 
 def prepare_rows(
-    pf: pq.ParquetFile,
-    shards: Shards,
-    keep: np.ndarray,
+    reader: StepReader,
+    rows: np.ndarray,
     spec: FeatureSpec,
     goals: np.ndarray | None = None,
     tick: Callable[[int], object] | None = None,
     kinds: np.ndarray | None = None,
 ) -> dict[str, Any]:
-    """Decode and prepare rows `keep` (sorted, shard-local) of one shard, one row group (64
-    rows) at a time so memory stays bounded; `goals` (rows of the shard, 3) feed "target",
-    `kinds` (rows of the shard: indices into `spec.kinds`) feed "kind"."""
+    """Decode and prepare split rows `rows` (sorted, global), one row group (64 rows) at a time
+    (`reader.batches`: each row group read once) so memory stays bounded; `goals` ((len(rows), 3))
+    feed "target", `kinds` (per row: indices into `spec.kinds`) feed "kind"."""
     import torch
 
-    sizes = [pf.metadata.row_group(g).num_rows for g in range(pf.num_row_groups)]
-    group_start = np.concatenate([[0], np.cumsum(sizes)])
-    group_of = np.searchsorted(group_start, keep, side="right") - 1
     parts: dict[str, list[Any]] = {}
-    for g in np.unique(group_of):
-        rows = keep[group_of == g]
-        table = pf.read_row_group(int(g), columns=spec.columns).take(rows - group_start[g])
-        goal = None if goals is None else torch.from_numpy(goals[rows])
-        kind = None if kinds is None else kinds[rows]
-        for k, v in prepare(shards.decode(table, spec.columns), spec, goal=goal, kind=kind).items():
+    for sel, table in reader.batches(rows, spec.columns):
+        goal = None if goals is None else torch.from_numpy(goals[sel])
+        kind = None if kinds is None else kinds[sel]
+        decoded = {c: loader_form(c, v) for c, v in reader.decode(table, spec.columns).items()}
+        for k, v in prepare(decoded, spec, goal=goal, kind=kind).items():
             parts.setdefault(k, []).append(v)
         if tick is not None:
-            tick(len(rows))
+            tick(len(sel))
     return {k: torch.cat(v) for k, v in parts.items()}
 
 
 def count_rows(dataset: Path, split: str, skill: str) -> int:
     """Rows of `skill` in `split` (cheap: reads one string column)."""
-    return sum(int((np.asarray(pq.read_table(f, columns=["skill"]).column("skill").to_pylist()) == skill).sum()) for f in Shards.of(dataset, split).files)
+    return sum(int((np.asarray(t.column("skill").to_pylist()) == skill).sum()) for t in StepReader(dataset, split).index_tables(["skill"]))
 
 
 def split_episodes(episodes: np.ndarray, fraction: float, seed: int) -> np.ndarray:

@@ -13,11 +13,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pyarrow.parquet as pq
+import pyarrow as pa
 
 from echo_data import seeds
-from echo_data.dataset.reader import episode_records
-from echo_data.learn.data import Shards, prepare_rows
+from echo_data.dataset.reader import StepReader, episode_records
+from echo_data.learn.data import prepare_rows
 from echo_data.learn.features import FeatureSpec
 
 if TYPE_CHECKING:
@@ -109,25 +109,17 @@ def subset(indices: list[int], n: int | None, seed: int) -> set[int]:
 def load_episodes(dataset: Path, split: str, spec: FeatureSpec, frames: int = 1, episodes: set[int] | None = None) -> Episodes:
     """Frames 0..frames-1 of every episode of `split` (or of `episodes`) while its first skill runs
     (no event is resolved before the first skill, a Navigate, ends), prepared with `features.prepare`."""
-    import torch
 
     meta = {r["episode_index"]: r for r in episode_rows(dataset, split) if episodes is None or r["episode_index"] in episodes}
-    shards = Shards.of(dataset, split)
-    parts: dict[str, list[Any]] = {}
-    index: list[int] = []
-    frame: list[int] = []
-    for f in shards.files:
-        pf = pq.ParquetFile(f)
-        t = pf.read(columns=["episode_index", "frame_index", "skill_index"])
-        fr = t.column("frame_index").to_numpy()
-        keep = np.flatnonzero((fr < frames) & (t.column("skill_index").to_numpy() == 0) & np.isin(t.column("episode_index").to_numpy(), list(meta)))
-        index += t.column("episode_index").to_numpy()[keep].tolist()
-        frame += fr[keep].tolist()
-        for k, v in prepare_rows(pf, shards, keep, spec).items():
-            parts.setdefault(k, []).append(v)
+    reader = StepReader(dataset, split)
+    t = pa.concat_tables(reader.index_tables(["episode_index", "frame_index", "skill_index"]))
+    ep, fr = t.column("episode_index").to_numpy(), t.column("frame_index").to_numpy()
+    keep = np.flatnonzero((fr < frames) & (t.column("skill_index").to_numpy() == 0) & np.isin(ep, list(meta)))
+    index, frame = ep[keep].tolist(), fr[keep].tolist()
+    inputs = prepare_rows(reader, keep, spec)
     rows = [meta[i] for i in index]
     return Episodes(
-        inputs={k: torch.cat(v) for k, v in parts.items()},
+        inputs=inputs,
         index=np.asarray(index),
         frame=np.asarray(frame),
         events=[[e["category"] for e in _ordered_events(r)] for r in rows],

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from echo_data.dataset.manifest import MANIFEST
-from echo_data.dataset.reader import dataset_manifest
+from echo_data.dataset.reader import dataset_manifest, is_dataset
 from echo_data.learn import runs
 from echo_data.learn.features import FeatureSpec
 from echo_data.learn.loop import setup_torch
@@ -45,7 +45,7 @@ def score_test(run: Path, dataset: Path | None = None) -> dict[str, Any]:
         raise runs.RunError(f"{run / runs.EVAL}: missing (training of {run} has not finished; `echo-data train planner ... --resume` finishes it)")
     cfg = PlannerConfig.from_dict(runs.read_json(run / runs.CONFIG))
     root = Path(cfg.dataset) if dataset is None else dataset
-    if not (root / MANIFEST).is_file():
+    if not is_dataset(root):
         raise runs.RunError(f"{root}: not an echo-data dataset (no {MANIFEST})" + ("; give the dataset the run was trained on: evaluate-planner RUN DATASET" if dataset is None else ""))
     dataset_manifest(root, "test", "to score (build the recipe whole into another folder, whose train split is the same, and give it: evaluate-planner RUN DATASET)")
     check_whole(root)

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from echo_data.dataset.reader import is_dataset, read_manifest
 from echo_data.dataset.storage import atomic_write_bytes, canonical_json
 from echo_data.learn import runs
 
@@ -239,7 +240,7 @@ def _probe(run: Path, kind: str, dataset: Path) -> Probe:
 
 def _splits(dataset: Path) -> list[str]:
     """The splits the check reads, in order: test (never trained on) first."""
-    splits = json.loads((dataset / "manifest.json").read_text()).get("splits", {})
+    splits = read_manifest(dataset).get("splits", {})
     return [s for s in ("test", "val", "train") if splits.get(s)]
 
 
@@ -324,9 +325,9 @@ def add(run: Path, name: str, root: Path | None = None, dataset: Path | None = N
         raise ReferenceError(f"{run / runs.POLICY}: kind {kind!r} is neither a skill policy nor a planner")
     config = runs.read_json(run / runs.CONFIG)
     data = Path(config["dataset"]) if dataset is None else dataset
-    if not (data / "manifest.json").is_file():
+    if not is_dataset(data):
         raise ReferenceError(f"{data}: not the dataset {run} was trained on (no manifest.json); give it with --data")
-    recipe = json.loads((data / "manifest.json").read_text())["recipe"]
+    recipe = read_manifest(data)["recipe"]
     stored, report = fp16_weights(run, kind, data)
     files = {runs.WEIGHTS: save(stored, metadata={"format": FORMAT}),
              runs.CONFIG: canonical_json(_portable(config)),

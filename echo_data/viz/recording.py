@@ -51,15 +51,14 @@ def write_recording(root: Path, index: int, target: Path, split: str = "train") 
 
     from echo_data.camera import depth_to_world
     from echo_data.dataset.encode import decode_png
-    from echo_data.dataset.manifest import load_manifest
-    from echo_data.dataset.reader import EpisodeError, episode_rows
+    from echo_data.dataset.reader import EpisodeError, episode_rows, read_manifest
     from echo_data.dataset.schema import ACTION, CAMERA_POSES, IMAGE_COLUMNS, SPECTROGRAM, STATE
     from echo_data.records import ACTION_NAMES, STATE_NAMES
     from echo_data.viz.topdown import TopDownMap, episode_plan
 
     root, target = Path(root), Path(target)
     check_rerun_target(target)
-    manifest = load_manifest(root)
+    manifest = read_manifest(root)
     ep, rows = episode_rows(root, split, index)
     if not rows:
         raise EpisodeError(f"{root}: {split} episode {index} has no steps")
