@@ -14,6 +14,7 @@ from typing import Any
 
 import yaml
 
+from echo_data.dataset import learner_stops
 from echo_data.dataset.manifest import load_manifest
 from echo_data.dataset.reader import episodes_table
 from echo_data.dataset.schema import (
@@ -187,6 +188,7 @@ def card_text(out: Path) -> str:
         *[f"- {k}: {v['successes']}/{v['attempts']}" for k, v in m["skills"].items()],
         "",
         *_truncation_lines(recipe, counts),
+        *learner_stops.card_lines(m),
         *USES,
         "## Known limits",
         "",
