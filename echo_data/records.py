@@ -7,7 +7,7 @@ the stats and the loaders agree on what each element means.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -136,6 +136,33 @@ class StepRecord:
 
 
 @dataclass
+class HandOverRecord:
+    """Where a chain entry's drive handed over (docs/handover.md): the stance it ends in (the
+    `skill_table.HandOver` of entry `index`, named by `handover_call`) and where the base stood
+    when the entry ended, against that target's interaction pose (doors as they stood then)."""
+
+    skill: str  # the skill whose stance it is
+    index: int  # that skill's chain entry (the next one for a Navigate, itself for Place)
+    distance: float  # the stance's radius (m)
+    heading: float  # the stance's heading tolerance (rad)
+    end: tuple[float, float, float]  # base x, y, yaw (world) when the entry ended
+    goal: tuple[float, float, float] | None  # the interaction pose (None: the target has no free one)
+    goal_distance: float | None  # m from `goal` (None without one)
+    heading_error: float | None  # rad from `goal`'s heading, wrapped to [0, pi]
+    inside: bool  # the environment's `handed_over` for the entry when it ended
+    # build --handover-from: True when the Navigate expert stopped at a learner's recorded end
+    # pose, False when that pose was no usable cell (it stopped at its own goal); None: none given
+    learner_stop: bool | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON-able record (the dataset's `outcomes[k].handover`, evaluate's `skills[k].handover`)."""
+        return {"skill": self.skill, "index": self.index, "distance": self.distance, "heading": self.heading,
+                "end": [float(v) for v in self.end], "goal": None if self.goal is None else [float(v) for v in self.goal],
+                "goal_distance": self.goal_distance, "heading_error": self.heading_error, "inside": bool(self.inside),
+                "learner_stop": self.learner_stop}
+
+
+@dataclass
 class SkillOutcome:
     """How one entry of the skill chain ended."""
 
@@ -144,6 +171,12 @@ class SkillOutcome:
     success: bool
     reason: str  # "" on success, else why it failed (e.g. "no IK solution", "timeout")
     steps: int
+    handover: HandOverRecord | None = None  # set by the runtime for an entry that hands over (skill_table.handover_call)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON-able record the dataset's `outcomes` and evaluate's `skills` hold."""
+        return {"skill": self.skill, "target": self.target, "success": bool(self.success), "reason": self.reason,
+                "steps": int(self.steps), "handover": None if self.handover is None else self.handover.to_dict()}
 
 
 @dataclass

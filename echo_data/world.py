@@ -99,6 +99,10 @@ class World:
     """The episode's arm motion planner, made on first use by `echo_data.skills.arm.arm_planner`."""
     closed: bool
     """`close()` has released the scene."""
+    handover_stops: dict[int, tuple[float, float, float] | None]
+    """Chain index -> the base pose the Navigate expert of that entry stops at instead of its own
+    goal (`build --handover-from`: a learner's recorded hand-over); the expert sets an entry to
+    None when its pose is no usable cell (and keeps its own goal). Empty: none given."""
 
     def __init__(self, spec: EpisodeSpec, recipe: Recipe, render: bool = True, builder: SceneBuilder | None = None) -> None:
         self.closed = False
@@ -132,6 +136,7 @@ class World:
         self.steps = 0
         # Where each object rests now (furniture index); Place updates it after a success.
         self.receptacles: dict[str, int] = {o.name: o.receptacle for o in self.plan.objects}
+        self.handover_stops = {}
 
     # ------------------------------------------------------------------ simulation
     def step(self, action: np.ndarray) -> None:

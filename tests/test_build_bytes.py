@@ -1,7 +1,9 @@
 """A refactor must not change a byte of what a build writes: the tiny quickstart (three test
 episodes, 32² cameras, the real pipeline) is built and every file it writes is compared with the
-digests recorded before issue 46's restructuring (`tests/data/tiny_quickstart_hashes.json`).
-The manifest is left out: it holds the build's timestamps (its shard and WAV sha256 are the
+digests recorded before issue 46's restructuring (`tests/data/tiny_quickstart_hashes.json`),
+re-recorded once when each chain entry's record gained its hand-over (`outcomes[k].handover`:
+meta/episodes.parquet, the shard's episode records and the card's byte counts changed, nothing
+else). The manifest is left out: it holds the build's timestamps (its shard and WAV sha256 are the
 files' own digests, compared here directly)."""
 
 from __future__ import annotations

@@ -48,7 +48,7 @@ import numpy as np
 
 from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.protocols import Planner, Policy, is_privileged
-from echo_data.records import ACTION_DIM, EE_ACTION_DIM, GOAL_POSE, PRIVILEGED_COLUMNS, SkillOutcome
+from echo_data.records import ACTION_DIM, EE_ACTION_DIM, GOAL_POSE, PRIVILEGED_COLUMNS, HandOverRecord, SkillOutcome
 
 if TYPE_CHECKING:
     from echo_data.envs.env import EchoDataEnv
@@ -182,6 +182,29 @@ def _handover(env: EchoDataEnv, goal: tuple[float, float, float] | None, arm_sta
     if goal is None:
         return {"arm_moved": moved}
     return {"goal_distance": math.hypot(x - goal[0], y - goal[1]), "heading_error": abs(wrap(yaw - goal[2])), "arm_moved": moved}
+
+
+def handover_record(env: EchoDataEnv, info: dict[str, Any], k: int) -> HandOverRecord | None:
+    """Where chain entry `k` ended against the stance it hands over to (`skill_table.handover_call`;
+    None when it hands over to none): the base pose now, that target's interaction pose with the
+    doors as they stand, and the environment's `handed_over` of the step that ended it."""
+    from echo_data.skill_table import SKILLS, handover_call
+    from echo_data.skills.navigate import goal_pose, wrap
+
+    chain = env.episode.chain
+    to = handover_call(chain, k)
+    stance = SKILLS[to.skill].stance if to is not None else None
+    if to is None or stance is None:
+        return None
+    end = env.world.robot.base_pose()
+    try:
+        goal: tuple[float, float, float] | None = goal_pose(env.world, to.target, env.nav_grid())
+    except ValueError:
+        goal = None
+    return HandOverRecord(
+        to.skill, k if to is chain[k] else k + 1, stance.distance, stance.heading, end, goal,
+        None if goal is None else math.hypot(end[0] - goal[0], end[1] - goal[1]), None if goal is None else abs(wrap(end[2] - goal[2])),
+        bool(info["skills"][k]["handed_over"]))
 
 
 # Observation keys the runtime adds for a policy that lists them (no env observation holds them).
@@ -343,7 +366,7 @@ def run_episode(
         if not ok and not reason:
             expert = getattr(policy, "outcome", None)
             reason = getattr(expert, "reason", "") or "success test false"
-        run.outcomes.append(SkillOutcome(call.skill, call.target, ok, "" if ok else reason, n))
+        run.outcomes.append(SkillOutcome(call.skill, call.target, ok, "" if ok else reason, n, handover_record(env, info, k)))
         if approach:
             run.navigate.append(NavigateRecord(k, ok, path, expert_len, **_handover(env, nav_goal, arm_start),
                                                handed_over=bool(info["skills"][k]["handed_over"])))

@@ -8,11 +8,12 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from echo_data.app import episode_progress
+from echo_data.app.handover_from import LearnerStops
 from echo_data.dataset.encode import EncodedEpisode
 from echo_data.dataset.schema import StepLayout
 from echo_data.episode import attempt_draws
@@ -33,6 +34,8 @@ class Job:
     layout: StepLayout
     generate: Generate
     make_library: Callable[[Recipe, Path], SoundLibrary] | None
+    # build --handover-from: a learner's hand-overs by (split, index) (`app.handover_from`)
+    learner: dict[tuple[str, int], LearnerStops] = field(default_factory=dict)
 
 
 @dataclass
@@ -98,6 +101,7 @@ def _attempt_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
     rejected: Counter[str] = Counter()
     skills: dict[str, list[int]] = {}
     budget = job.recipe.max_attempts_per_episode
+    learner = {"learner": job.learner[(split, index)]} if (split, index) in job.learner else {}
     for attempt in range(budget):
         draws = attempt_draws(job.recipe.seed, split, index, attempt, budget)
         # Until a spec names the draw it used, the attempt is known by its draws (a sampling
@@ -106,7 +110,7 @@ def _attempt_episode(task: tuple[str, int]) -> EncodedEpisode | FailedEpisode:
             "split": split, "index": index, "attempt": attempt, "draws": [draws[0][0], draws[-1][0] + 1], "seed": draws[0][1],
         }
         try:
-            result = job.generate(job.recipe, split, index, _LIBRARY, job.recipe_dir, attempt=attempt)
+            result = job.generate(job.recipe, split, index, _LIBRARY, job.recipe_dir, attempt=attempt, **learner)
         except ClippingError as e:  # the track is too loud to store: a calibration problem, never retried away
             return FailedEpisode(split, index, failures, f"cannot be stored: {one_line(str(e))}")
         except Exception as e:  # an attempt that crashed is recorded and retried, never half-written

@@ -24,6 +24,8 @@ from typing import Any, Literal
 from echo_data.app import episode_progress
 from echo_data.app.attempts import FailedEpisode, Generate, Job, default_library, init_job, one_line, run_task
 from echo_data.app.executors import ExecutorError, make_executor
+from echo_data.app.handover_from import HandoverRun, load_handover_run
+from echo_data.dataset import learner_stops
 from echo_data.dataset.lock import LOCK_NAME, BuildLock, BuildLockedError
 from echo_data.dataset.manifest import (
     ManifestError,
@@ -86,9 +88,11 @@ class BuildSummary:
 
 
 def _prepare(
-    out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, mode: str, workers: int, executor: str, only: Sequence[str] | None
+    out: Path, recipe: Recipe, limit: int | None, layout: StepLayout, mode: str, workers: int, executor: str, only: Sequence[str] | None,
+    handover: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """Create, refuse, replace or reopen the output according to `mode`; return its manifest."""
+    """Create, refuse, replace or reopen the output according to `mode`; return its manifest
+    (`handover`: the provenance of `--handover-from`, recorded as its `handover_from`)."""
     has_content = out.is_dir() and any(p.name != LOCK_NAME for p in out.iterdir())
     if has_content and mode == "new":
         raise OutputError(f"{out} already exists; use --resume to continue it or --overwrite to replace it")
@@ -106,6 +110,10 @@ def _prepare(
             raise OutputError(f"{out} was built with --limit {manifest.get('limit')}, not {limit}; pass the same --limit or --overwrite")
         if manifest.get("only_splits") != (None if only is None else list(plan_shards(recipe, limit, only))):
             raise OutputError(f"{out} was built with --split {manifest.get('only_splits') or 'all'}, not {only or 'all'}; pass the same --split or --overwrite")
+        was = (manifest.get(learner_stops.KEY) or {}).get("sha256")
+        if was != (handover or {}).get("sha256"):
+            raise OutputError(f"{out} was built with --handover-from {(manifest.get(learner_stops.KEY) or {}).get('file', 'none')} "
+                              f"(sha256 {str(was)[:12]}), not this one; pass the same file or --overwrite")
         if read_marker(out) is None:  # built before the marker existed
             write_marker(out, DATASET, FORMAT_VERSION)
         manifest["build"].update({"workers": workers, "executor": executor})
@@ -119,6 +127,8 @@ def _prepare(
         remove_written(out, files, keep=(LOCK_NAME,))  # all but the lock this build holds
     out.mkdir(parents=True, exist_ok=True)
     manifest = new_manifest(recipe, limit, layout, workers, executor, only)
+    if handover is not None:
+        manifest[learner_stops.KEY] = dict(handover)
     write_manifest(out, manifest)
     write_marker(out, DATASET, FORMAT_VERSION)  # after the manifest: a folder holding only a marker is never left
     return manifest
@@ -239,13 +249,15 @@ def build(
     make_library: Callable[[Recipe, Path], SoundLibrary] | None = None,
     address: str | None = None,
     only: Sequence[str] | None = None,
+    handover_from: Path | None = None,
 ) -> BuildSummary:
     """Build (or resume) the dataset of `recipe` in the directory `out`.
 
     `generate(recipe, split, index, library, recipe_dir, attempt=0) -> EpisodeResult` defaults
     to `echo_data.app.pipeline.generate_episode`; `make_library(recipe, recipe_dir)` defaults to the
     recipe's `SoundLibrary`; `address` is a Ray cluster's (with executor "ray"); `only` names the
-    splits to build (default: all). Raises
+    splits to build (default: all); `handover_from`: an `evaluate` run whose learner's hand-overs
+    the Navigate expert stops at (`echo_data.app.handover_from`). Raises
     `OutputError` (bad input, nothing written) or `BuildError`.
     """
     t0 = time.monotonic()
@@ -268,6 +280,7 @@ def build(
         raise OutputError("--address names a Ray cluster: use it with --executor ray")
     if only is not None and (not only or set(only) - set(recipe.splits)):
         raise OutputError(f"--split {','.join(only)}: the recipe's splits are {', '.join(recipe.splits)}")
+    run = load_handover_run(Path(handover_from), recipe) if handover_from is not None else None
     layout = StepLayout.from_recipe(recipe)
     plans = plan_shards(recipe, limit, only)
     gen = generate or _default_generate()
@@ -291,7 +304,7 @@ def build(
     except OSError as e:
         raise OutputError(f"{out}: cannot create the build lock ({e.strerror or e})") from None
     try:
-        return _build_locked(recipe, recipe_path, out, workers, limit, mode, executor, gen, progress, make_library, layout, plans, t0, address, only)
+        return _build_locked(recipe, recipe_path, out, workers, limit, mode, executor, gen, progress, make_library, layout, plans, t0, address, only, run)
     except OSError as e:
         if e.errno not in _OUTPUT_ERRNOS:
             raise
@@ -333,9 +346,10 @@ def _build_locked(
     t0: float,
     address: str | None,
     only: Sequence[str] | None,
+    run: HandoverRun | None = None,
 ) -> BuildSummary:
     """The build proper, run while this process holds the folder's build lock."""
-    job = Job(recipe, Path(recipe_path).resolve().parent, layout, gen, make_library)
+    job = Job(recipe, Path(recipe_path).resolve().parent, layout, gen, make_library, run.jobs() if run is not None else {})
     # Ray workers cannot share memory with us: their bar moves per finished episode only.
     slots, counter = episode_progress.make_slots(workers, get_context("spawn")) if executor == "local" and progress else (None, None)
     try:  # before anything is written: a cluster that cannot be joined is bad input
@@ -344,7 +358,7 @@ def _build_locked(
         raise OutputError(str(e)) from None
     bar = None
     try:
-        manifest = _prepare(out, recipe, limit, layout, mode, workers, executor, only)
+        manifest = _prepare(out, recipe, limit, layout, mode, workers, executor, only, run.provenance if run is not None else None)
         writer = DatasetWriter(out, recipe, layout, manifest, plans)
         writer.verify_shards()
         writer.remove_leftovers()

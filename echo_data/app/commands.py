@@ -30,6 +30,7 @@ def build_cmd(
     executor: Annotated[str, typer.Option("--executor", help="local (process pool) or ray.")] = "local",
     address: Annotated[str | None, typer.Option("--address", help="Ray cluster address (host:port, as `ray start --head` prints); with --executor ray.")] = None,
     progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Show a progress bar.")] = True,
+    handover_from: Annotated[Path | None, typer.Option("--handover-from", help="An `evaluate --split train --json RUN` output (or its journal): the Navigate expert stops where that learner's drives ended, so the next skill is taught from its hand-overs (docs/handover.md).")] = None,
 ) -> None:
     """Build the dataset of a recipe: Parquet + WAV shards, manifest, stats, planner export."""
     from echo_data.app.build import BuildError, OutputError, build
@@ -47,7 +48,7 @@ def build_cmd(
 
         workers = default_workers()
     try:
-        summary = build(r, recipe, out if out is not None else Path("out") / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress, address=address, only=split or None)  # type: ignore[arg-type]
+        summary = build(r, recipe, out if out is not None else Path("out") / r.name, workers=workers, limit=limit, mode=mode, executor=executor, progress=progress, address=address, only=split or None, handover_from=handover_from)  # type: ignore[arg-type]
     except OutputError as e:
         raise _fail(str(e), 2) from None
     except BuildError as e:

@@ -8,6 +8,7 @@ evaluates policies), so a dataset episode is exactly what the environment gives 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -21,16 +22,20 @@ from echo_data.records import EpisodeResult, StepRecord
 
 if TYPE_CHECKING:
     from echo_data.agents.dart import Demonstrator
+    from echo_data.app.handover_from import LearnerStops
     from echo_data.envs.env import EchoDataEnv
     from echo_data.sounds.library import SoundLibrary
 
 
-def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: SoundLibrary | None = None) -> EpisodeResult:
+def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: SoundLibrary | None = None,
+             handover_stops: Mapping[int, tuple[float, float, float]] | None = None) -> EpisodeResult:
     """Run `spec`'s chain with the scripted experts acting in the environment; record every step.
 
     `observe`: render the cameras. With a sound `library` the robot also hears (online audio,
     per-step features) and the result carries the finished episode track. The recipe's
     `outputs.max_frames` cuts the run after that many steps (`EpisodeResult.truncated_at`).
+    `handover_stops`: chain index -> the pose that entry's Navigate expert stops at (a learner's
+    hand-over, `World.handover_stops`); each such entry's hand-over record says whether it did.
     """
     from echo_data.agents.builtin import OraclePlanner
     from echo_data.agents.dart import Demonstrator
@@ -48,7 +53,12 @@ def simulate(spec: EpisodeSpec, recipe: Recipe, observe: bool = True, library: S
     episode_progress.begin(min(budget, recipe.outputs.max_frames or budget))
     try:
         obs, info = env.reset(options={"spec": spec})
+        env.world.handover_stops = dict(handover_stops or {})
         run = run_episode(env, obs, info, OraclePlanner(), policy, on_step=recorder, max_steps=recipe.outputs.max_frames)
+        for k, pose in env.world.handover_stops.items():  # the expert set an unusable pose to None
+            handover = run.outcomes[k].handover if k < len(run.outcomes) else None
+            if handover is not None:
+                handover.learner_stop = pose is not None
         if recorder.steps:  # the last stored step ends the episode
             recorder.steps[-1].done = True
             recorder.steps[-1].skill_success = done_flags(env)
@@ -167,8 +177,11 @@ def generate_episode(
     library: SoundLibrary,
     recipe_dir: Path | None = None,
     attempt: int = 0,
+    learner: LearnerStops | None = None,
 ) -> EpisodeResult:
     """Sample, simulate and hear one episode. `attempt` > 0 retries with fresh seeds after an expert failure.
+    `learner`: a learner's hand-overs in this episode (`build --handover-from`), used when the
+    sampled spec is the one it ran (same seed; a retry's fresh draw is built as usual).
 
     Raises `echo_data.scene.sampling.SamplingError` when no solvable episode is found within
     the recipe's attempt budget. An expert failure is returned (success False) with reasons; an
@@ -177,6 +190,7 @@ def generate_episode(
     from echo_data.scene.sampling import sample_episode
 
     spec, rejected = sample_episode(recipe, split, index, library, attempt=attempt)
-    result = simulate(spec, recipe, observe=True, library=library)
+    stops = learner.stops if learner is not None and learner.seed == spec.seed else None
+    result = simulate(spec, recipe, observe=True, library=library, handover_stops=stops)
     result.rejected = rejected
     return result

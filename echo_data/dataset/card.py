@@ -14,6 +14,7 @@ from typing import Any
 
 import yaml
 
+from echo_data.dataset import learner_stops
 from echo_data.dataset.reader import episodes_table, read_manifest
 from echo_data.dataset.schema import (
     ACTION_EE,
@@ -186,6 +187,7 @@ def card_text(out: Path) -> str:
         *[f"- {k}: {v['successes']}/{v['attempts']}" for k, v in m["skills"].items()],
         "",
         *_truncation_lines(recipe, counts),
+        *learner_stops.card_lines(m),
         *USES,
         "## Known limits",
         "",

@@ -330,10 +330,7 @@ def encode_episode(result: EpisodeResult, layout: StepLayout) -> EncodedEpisode:
     row = _spec_row(spec)
     row.update(
         {
-            "outcomes": [
-                {"skill": o.skill, "target": o.target, "success": bool(o.success), "reason": o.reason, "steps": int(o.steps)}
-                for o in result.outcomes
-            ],
+            "outcomes": [o.to_dict() for o in result.outcomes],
             "success": bool(result.success),
             "truncated_at": None if result.truncated_at is None else int(result.truncated_at),
             "n_steps": n,

@@ -279,6 +279,23 @@ def column_to_numpy(col: pa.ChunkedArray | pa.Array, shape: tuple[int, ...]) -> 
     return flat.reshape((-1, *shape))
 
 
+# One chain entry's hand-over (`records.HandOverRecord`, docs/handover.md).
+HANDOVER_FIELDS = pa.struct(
+    [
+        ("skill", pa.string()),
+        ("index", pa.int64()),
+        ("distance", pa.float64()),
+        ("heading", pa.float64()),
+        # (x, y, yaw); variable-size lists: a fixed-size list inside a null struct does not read back from Parquet
+        ("end", pa.list_(pa.float64())),
+        ("goal", pa.list_(pa.float64())),
+        ("goal_distance", pa.float64()),
+        ("heading_error", pa.float64()),
+        ("inside", pa.bool_()),
+        ("learner_stop", pa.bool_()),
+    ]
+)
+
 EPISODE_FIELDS = pa.schema(
     [
         pa.field("episode_index", pa.int64()),
@@ -321,6 +338,8 @@ EPISODE_FIELDS = pa.schema(
                         ("success", pa.bool_()),
                         ("reason", pa.string()),
                         ("steps", pa.int64()),
+                        # where the entry's drive handed over (records.HandOverRecord; null: it hands over to no stance)
+                        ("handover", HANDOVER_FIELDS),
                     ]
                 )
             ),

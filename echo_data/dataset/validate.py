@@ -22,6 +22,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from echo_data.dataset import learner_stops
 from echo_data.dataset import stats as stats_mod
 from echo_data.dataset.encode import planner_binaural_wav_bytes, planner_wav_bytes
 from echo_data.dataset.manifest import ManifestError, load_manifest, new_manifest, plan_shards, totals
@@ -310,6 +311,7 @@ def validate(out: Path, progress: Callable[[int], None] = lambda n: None) -> lis
         problems.append("the dataset holds no episodes")
     problems += _manifest_problems(manifest, recipe)
     problems += _meta_problems(out, recipe, all_rows)
+    problems += learner_stops.problems(manifest, all_rows)
     problems += _derived_problems(out, recipe, layout, manifest, all_rows)
     problems += _stray_problems(out, recipe, manifest, all_rows)
     problems += _audio_table_problems(out, all_rows)
@@ -355,6 +357,7 @@ def _manifest_problems(manifest: dict[str, Any], recipe: Recipe) -> list[str]:
     shard entries: an edited total no longer matches them. Keys the build never writes are
     named (a hand edit or another tool's: a reader would silently ignore them)."""
     known = set(new_manifest(recipe, manifest.get("limit"), StepLayout.from_recipe(recipe), 1, "local", manifest.get("only_splits"))) | set(totals([]))
+    known.add(learner_stops.KEY)  # built --handover-from RUN
     problems = [f"manifest.json: unknown key {k!r}" for k in sorted(set(manifest) - known)]
     try:
         want = totals(manifest.get("shards", []))

@@ -17,6 +17,7 @@ from typing import Any
 
 import pyarrow as pa
 
+from echo_data.dataset import learner_stops
 from echo_data.dataset import stats as stats_mod
 from echo_data.dataset.encode import EncodedEpisode
 from echo_data.dataset.manifest import ShardPlan, ShardPlans, write_manifest
@@ -167,6 +168,9 @@ class DatasetWriter:
         if self.recipe.outputs.planner_export:
             write_planner_export(self.out, self.recipe, rows)
         write_audio_tables(self.out, rows)
+        if learner_stops.KEY in self.manifest:  # built --handover-from: which episodes used it (before the card reads it)
+            self.manifest[learner_stops.KEY].update(learner_stops.summary(rows))
+            write_manifest(self.out, self.manifest)
         write_card(self.out)
         self.manifest["complete"] = True
         write_manifest(self.out, self.manifest)

@@ -102,7 +102,7 @@ def episode_record(run: Any, index: int) -> dict[str, Any]:
         "true_chain": run.true_chain,
         "planned_chain": run.planned_chain,
         "plan_correct": run.plan_correct,
-        "skills": [{"skill": o.skill, "target": o.target, "success": bool(o.success), "reason": o.reason, "steps": int(o.steps)} for o in run.outcomes],
+        "skills": [o.to_dict() for o in run.outcomes],  # with each hand-over's end pose (build --handover-from reads it)
         "skills_completed": run.skills_completed,
         "success": run.success,
         "steps": run.steps,

@@ -403,6 +403,27 @@ def _handover_rng(spec: EpisodeSpec, call: SkillCall) -> np.random.Generator:
     return derived_rng(HANDOVER, spec.seed, k)
 
 
+def _stop_pose(world: World, call: SkillCall, spec: EpisodeSpec, grid: NavGrid, exact: tuple[float, float, float]) -> tuple[float, float, float]:
+    """Where the Navigate expert of `call` stops: a learner's recorded hand-over when the build
+    gives one (`World.handover_stops`) and its cell is free (else the entry is set to None and
+    the exact pose kept), a draw from the next skill's stance with `experts.handover_noise`, or
+    the interaction pose `exact`."""
+    k = spec.chain.index(call) if spec is not None and call in spec.chain else None
+    stops = world.handover_stops
+    if k is not None and k in stops:
+        pose = stops[k]
+        if pose is not None and grid.is_free(pose[0], pose[1]):
+            return pose
+        stops[k] = None  # no usable cell (the base would collide there): the exact pose, counted by the build
+        return exact
+    noise = float(world.recipe.experts.handover_noise)
+    to = handover_call(spec.chain, k) if noise > 0.0 and k is not None else None
+    stance = skill_of(to.skill).stance if to is not None else None
+    if stance is None:
+        return exact
+    return handover_goal(world.plan, call.target, grid, exact, noise, _handover_rng(spec, call), stance, door_angles(world))
+
+
 def navigate(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.ndarray, None, SkillOutcome]:
     """The Navigate expert: drive to the interaction pose of `call.target` and face it (with
     `experts.handover_noise`, to a point of the next skill's stance drawn per episode instead)."""
@@ -414,11 +435,7 @@ def navigate(world: World, call: SkillCall, spec: EpisodeSpec) -> Generator[np.n
         goal = goal_pose(world, target, grid)
     except ValueError:
         return SkillOutcome(skill, target, False, "no_path", 0)
-    noise = float(world.recipe.experts.handover_noise)
-    to = handover_call(spec.chain, spec.chain.index(call)) if noise > 0.0 and spec is not None and call in spec.chain else None
-    stance = skill_of(to.skill).stance if to is not None else None
-    if stance is not None:
-        goal = handover_goal(world.plan, target, grid, goal, noise, _handover_rng(spec, call), stance, door_angles(world))
+    goal = _stop_pose(world, call, spec, grid, goal)
     result = yield from drive_to(world, goal, max_steps, grid=grid)
     if not result.success and not (result.reason == "timeout" and navigate_success(world, target)):
         # (out of steps but already within the success region counts: the criterion is the state)
