@@ -21,15 +21,18 @@ from support.torch_module import torch  # skips the module where the test extra 
 from typer.testing import CliRunner
 
 from echo_data.cli import app
-from echo_data.dataset.schema import ACTION
+from echo_data.dataset.schema import ACTION, STATE
 from echo_data.learn import runs
 from echo_data.learn.dagger import Rollouts, _Labels, collect
 from echo_data.learn.data import append_rows, load_skill_rows
 from echo_data.learn.features import feature_spec
 from echo_data.learn.fit import Units
 from echo_data.learn.policy import SkillPolicy
+from echo_data.records import ACTION_DIM
 
 runner = CliRunner()
+QUICK = Path(__file__).resolve().parent.parent / "recipes" / "quickstart.yaml"
+SINK_EPISODE = 1  # train episode 1 of quickstart: Navigate, CloseSink
 ROLL = ["--dagger", "1", "--dagger-episodes", "1", "--dagger-steps", "6"]
 SMALL = {"bc_rnn": ["--batch-size", "2"], "act": ["--chunk", "4", "--d-model", "32", "--heads", "2", "--layers", "1"]}
 
@@ -143,6 +146,38 @@ def test_stop_labels_hold_exactly_where_the_drive_hands_over(ds: Path, stop_run:
     assert done.stops[0] == 0 and done.stops[-1] == 1  # the drive ends in the next skill's stance ...
     assert sum(region) > sum(held)  # ... entered after the success region: the STOP is not the paper's 1.5 m test
     assert torch.is_tensor(done.inputs["state"]) and len(done.inputs["state"]) == len(held)
+
+
+def test_a_manipulation_stop_is_labelled_where_the_expert_has_nothing_left_to_do(stop_run: Path) -> None:
+    """CloseSink from where the experts' drive hands over, the labeller's own answers executed:
+    every state is stop 0 until the lever is closed and a fresh expert has nothing left to do; that
+    state is the one STOP row (the expert's last command as its action) and the rollout ends."""
+    from echo_data.agents.builtin import OraclePlanner, OracleSkills
+    from echo_data.agents.runtime import StopEpisode, run_episode
+    from echo_data.envs.env import EchoDataEnv
+
+    env = EchoDataEnv(QUICK, split="train", images=False, audio=False)
+    hook = _Labels(SkillPolicy.from_run(stop_run), ACTION, None, stop=True)  # its policy only prepares the state
+    closed: list[bool] = []
+    try:
+        spec = env.sample_spec("train", SINK_EPISODE)
+        k = next(j for j, c in enumerate(spec.chain) if c.skill == "CloseSink")
+        obs, info = env.reset(options={"spec": spec})
+        assert all(o.success for o in run_episode(env, obs, info, OraclePlanner(), OracleSkills(), skills=k).outcomes)
+        obs = {STATE: env.world.robot.state().astype(np.float32)}  # what the policy reads
+        env.agent_stops = True  # as the runtime sets it for a learner that STOPs: the skill ends only at its STOP
+        hook.start(k)
+        with pytest.raises(StopEpisode):
+            for _ in range(400):
+                closed.append(bool(env.success_flags[k]))
+                hook.record(env, obs, None, spec.chain[k])
+                obs, *_ = env.step(hook.labels[-1])
+    finally:
+        env.close()
+    done = hook.rollouts(ACTION_DIM, [])
+    assert len(done) == len(closed) > 10 and done.stops[:-1].sum() == 0 and done.stops[-1] == 1 and closed[-1]
+    np.testing.assert_array_equal(done.labels[-1], done.labels[-2])
+    assert sum(closed) > 1  # the lever was closed before the expert was done (it withdraws): success alone is no STOP
 
 
 def test_a_learner_that_stops_where_the_expert_goes_on_is_labelled_there(ds: Path, stop_run: Path, tmp_path: Path) -> None:
