@@ -107,9 +107,21 @@ def test_dagger_round_adds_each_rollout_as_a_segment(ds: Path, tmp_path: Path, a
 
 @pytest.fixture(scope="module")
 def stop_run(ds: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A BC-RNN with the STOP, DAgger'd one round (six rows)."""
     run = tmp_path_factory.mktemp("stop") / "rnn"
-    _train(ds, run, "bc_rnn", "--stop")
+    _train(ds, run, "bc_rnn", "--stop", *ROLL)
     return run
+
+
+def test_the_stop_weight_balances_every_training_row_dagger_rows_too(ds: Path, stop_run: Path) -> None:
+    from echo_data.learn.data import split_episodes
+
+    rows = _rows(ds, 1, stop=True)
+    kept = ~np.isin(rows.episodes, split_episodes(rows.episodes, 0.15, 0))  # the default validation share and seed
+    log = (stop_run / runs.DAGGER_LOG).read_text().splitlines()
+    added = dict(zip(log[0].split(","), log[1].split(","), strict=True))
+    n, last = int(kept.sum()) + int(added["rows_added"]), float(rows.actions[kept, 0, -1].sum()) + float(added["stop_rows_added"])
+    assert int(added["rows_added"]) == 6 and runs.read_json(stop_run / runs.CONFIG)["stop_weight"] == pytest.approx((n - last) / last)
 
 
 def test_stop_labels_hold_exactly_where_the_drive_hands_over(ds: Path, stop_run: Path) -> None:

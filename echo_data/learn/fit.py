@@ -193,9 +193,6 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
     if len(cfg.action_mean) < len(cfg.target_names):  # the dataset's statistics cover the action, not the STOP
         cfg.action_mean = [*cfg.action_mean, 0.0]
         cfg.action_std = [*cfg.action_std, 1.0]
-    if cfg.stop and not resume:  # the STOP's class balance over the training rows (`SkillConfig.binary_weights`)
-        last = float(rows.actions[kept, 0, -1].sum())  # position 0 of a window is never padded
-        cfg.stop_weight = float((kept.sum() - last) / last) if last else 1.0
     if binary:  # binary entries are classified, not regressed: kept as 0/1
         cfg.action_mean = [0.0 if i in binary else v for i, v in enumerate(cfg.action_mean)]
         cfg.action_std = [1.0 if i in binary else v for i, v in enumerate(cfg.action_std)]
@@ -204,6 +201,9 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
         acts, pad = extra.windows(cfg.window(), cfg.stop)
         rows = append_rows(rows, extra.inputs, acts, pad, extra.segments)
     is_val = np.isin(rows.episodes, val_eps)
+    if cfg.stop and not resume:  # the STOP's class balance over the training rows, DAgger's too (`SkillConfig.binary_weights`)
+        last = float(rows.actions[~is_val, 0, -1].sum())  # position 0 of a window is never padded
+        cfg.stop_weight = float(((~is_val).sum() - last) / last) if last else 1.0
     mean, std = np.asarray(cfg.action_mean, np.float32), np.asarray(cfg.action_std, np.float32)
     target = torch.from_numpy((rows.actions - mean) / std)
     valid = torch.from_numpy(~rows.action_pad).float()
