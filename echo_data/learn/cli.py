@@ -145,15 +145,14 @@ def _make_train_command(name: str) -> Callable[..., None]:
                           default=typer.Option(None, "--config", help="JSON or YAML file of option values (the command line wins).")),
         *_run_folder_options(f"runs/{name}-<skill>-<inputs>"),
     ]
-    if name == "bc":
-        params += [
-            inspect.Parameter("dagger", inspect.Parameter.KEYWORD_ONLY, annotation=int, default=typer.Option(
-                0, "--dagger", min=0, help="DAgger rounds after BC: roll the learner on train episodes (from where the experts hand its skill over), label every state with the expert, retrain. With --resume: start from the BC run in --out.")),
-            inspect.Parameter("dagger_episodes", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
-                None, "--dagger-episodes", min=1, help="Train episodes rolled per DAgger round (default 8).")),
-            inspect.Parameter("dagger_steps", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
-                None, "--dagger-steps", min=1, help="Learner steps per rollout (default: the skill's budget).")),
-        ]
+    params += [
+        inspect.Parameter("dagger", inspect.Parameter.KEYWORD_ONLY, annotation=int, default=typer.Option(
+            0, "--dagger", min=0, help="DAgger rounds after training: roll the learner on train episodes (from where the experts hand its skill over), label every state with the expert, retrain with each rollout as a segment. With --resume: start from the run in --out.")),
+        inspect.Parameter("dagger_episodes", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
+            None, "--dagger-episodes", min=1, help="Train episodes rolled per DAgger round (default 8).")),
+        inspect.Parameter("dagger_steps", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
+            None, "--dagger-steps", min=1, help="Learner steps per rollout (default: the skill's budget).")),
+    ]
 
     def command(**kw: Any) -> None:
         _need_torch()

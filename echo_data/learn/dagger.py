@@ -14,19 +14,38 @@ Every expert can be asked from any state a learner reaches:
 
 A rollout starts where the skill starts in the episode's chain: the chain's earlier skills are
 run by the experts (`agents.compose.SkillDispatch`), then the learner acts in its first call of
-the skill and every state it visits there is labelled (`run_episode`'s `on_step` hook), until its
-success test holds, its budget or `--dagger-steps` runs out, or the expert has nothing to do from
-there. Episodes whose chain lacks the skill are skipped. Labels are in the run's action column:
+the skill and every state it visits there is labelled (`run_episode`'s `on_step` hook), until it
+ends as evaluation ends it (below), its budget or `--dagger-steps` runs out, or the expert has
+nothing to do from there. Episodes whose chain lacks the skill are skipped. Labels are in the run's action column:
 `action.ee` as the expert commands it, or `action`, its joint form from the commanded state.
 
 Only train-split episodes of the dataset's recipe are rolled (indices below the train split's
 size in the dataset), never the test split. Rollouts act with the learner alone (beta = 0).
 Rows added by DAgger train only; validation stays on the expert's held-out episodes so the
 losses of rounds stay comparable.
+
+A rollout is kept as one segment, like a skill segment of the dataset: its rows in the order the
+learner visited them. So every learner takes DAgger rows the way it takes the dataset's: a
+recurrent one (BC-RNN) trains on the rollout as a whole segment, its state zero at the rollout's
+first row; a chunking one (ACT, Diffusion Policy, `bc --chunk k`) takes at row t the labels of
+rows t .. t+k-1 of the same rollout (the expert's action at each state the learner went on to
+visit; padding past the rollout's end masked), as the dataset's chunks take the expert's next
+actions; an observation history is clamped at the rollout's first row.
+
+The STOP (`--stop`): each row also says whether the expert would end the skill in that state:
+for a drive that hands over (Navigate before a skill acting on its target) the environment's
+`handed_over` for the chain entry (docs/handover.md), for any other drive its success test; for
+a manipulation skill its success test holds and the expert has nothing left to do (that state
+is added with the expert's last command as its action, as a dataset segment's last row carries
+it, and the rollout ends). A rollout goes on the way evaluation runs the learner: a drive that
+does not STOP past the paper's 1.5 m region until it hands over (`run_episode`'s default
+`drive_end`), a learner that STOPs until it STOPs (that state is labelled too: a STOP where the
+expert would go on is labelled 0) or its budget runs out.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -48,15 +67,37 @@ class DaggerError(runs.RunError):
 
 @dataclass
 class Rollouts:
-    """Labelled rows from learner rollouts (the `SkillRows` fields training appends)."""
+    """Labelled learner rollouts, each one segment (contiguous rows, in the order visited)."""
 
-    inputs: dict[str, Any]
-    actions: np.ndarray  # (n, 1, A): the expert's labels in the run's action column
-    success: list[bool]  # per rollout: the learner's success test at its end
+    inputs: dict[str, Any]  # the learner's prepared inputs at each state, leading dimension = rows
+    labels: np.ndarray  # (n, A): the expert's label of each state in the run's action column
+    stops: np.ndarray  # (n,) 1.0 where the expert would end the skill in that state (see the module docstring)
+    segments: np.ndarray  # (n,) the rollout each row belongs to, 0 .. rollouts-1, contiguous
+    success: list[bool]  # per rolled episode: the learner's success test at its end
     agreement: float  # mean |learner - expert| over the visited states (a drive: of (vx, wz))
 
     def __len__(self) -> int:
-        return len(self.actions)
+        return len(self.labels)
+
+    @property
+    def rollouts(self) -> int:
+        """Segments (rollouts with at least one labelled row)."""
+        return len(np.unique(self.segments))
+
+    def windows(self, chunk: int, stop: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Training targets as the dataset's windows: (n, chunk, A (+1 with `stop`)) the labels of
+        rows t .. t+chunk-1 of each row's own rollout, clamped at its last row, and (n, chunk) the
+        pad mask (True past the rollout's end; a padded STOP entry is 0, as the reader's)."""
+        rows = np.arange(len(self))
+        _, first, inverse, count = np.unique(self.segments, return_index=True, return_inverse=True, return_counts=True)
+        end = (first + count)[inverse]  # each row's rollout end (exclusive): rollouts are contiguous
+        at = rows[:, None] + np.arange(chunk)[None, :]
+        pad = at >= end[:, None]
+        at = np.minimum(at, end[:, None] - 1)
+        acts = self.labels[at]
+        if stop:
+            acts = np.concatenate([acts, (self.stops[at] * ~pad)[..., None]], axis=-1)
+        return acts.astype(np.float32), pad
 
 
 Label = Callable[[np.ndarray], "np.ndarray | None"]
@@ -88,52 +129,109 @@ def labeller(env: Any, call: Any, column: str) -> Label:
     return manipulate
 
 
+def drive_stops(env: Any, k: int) -> bool | None:
+    """Whether chain entry `k`, a drive, is where its expert would stop now: `handed_over` when
+    it hands over to a skill's stance, else its success test (what ends a learned drive in
+    `run_episode`); None for a skill that is no drive (its expert decides, `_Labels`)."""
+    from echo_data.skill_table import SKILLS, handover_call
+
+    chain = env.episode.chain
+    if SKILLS[chain[k].skill].role != "approach":
+        return None
+    return bool(env.handover_flags[k] if handover_call(chain, k) is not None else env.success_flags[k])
+
+
 class _Labels:
     """`run_episode`'s step hook: at each learner step of chain entry `k`, before the action, the
-    expert's label for the state and the learner's inputs; ends the episode when the labeller has
-    nothing more to say or `limit` states are labelled."""
+    expert's label for the state, its STOP and the learner's inputs; ends the episode when the
+    labeller has nothing more to say or `limit` states are labelled. `stop`: the learner STOPs
+    (`--stop`): the state a manipulation expert ends in is added as a STOP row."""
 
-    def __init__(self, policy: Any, column: str, limit: int | None) -> None:
-        self.policy, self.column, self.limit = policy, column, limit
+    def __init__(self, policy: Any, column: str, limit: int | None, stop: bool = False) -> None:
+        self.policy, self.column, self.limit, self.stop = policy, column, limit, stop
         self.parts: dict[str, list[Any]] = {}
         self.labels: list[np.ndarray] = []
+        self.stops: list[float] = []
+        self.segments: list[int] = []
         self.gaps: list[float] = []
         self.label: Label | None = None
         self.k = 0
         self.n = 0
+        self.rollout = -1
         self.last = np.zeros(3, dtype=np.float32)
 
     def start(self, k: int) -> None:
+        """A new rollout (segment) of chain entry `k`."""
         self.label, self.k, self.n, self.last = None, k, 0, np.zeros(3, dtype=np.float32)
+        self.rollout += 1
 
     def __call__(self, env: Any, obs: dict[str, Any], a: np.ndarray, k: int, call: Any, flags: tuple[bool, ...]) -> None:
+        if k == self.k:  # not the experts' skills before it
+            self.record(env, obs, a, call)
+
+    def record(self, env: Any, obs: dict[str, Any], a: np.ndarray | None, call: Any) -> None:
+        """Label the state now (`a`: the learner's action in it; None: the learner STOPped there)."""
         from echo_data.agents.runtime import StopEpisode
         from echo_data.skill_table import SKILLS
 
-        if k != self.k:  # the experts' skills before it
-            return
         if self.limit is not None and self.n >= self.limit:
             raise StopEpisode
         if self.label is None:  # at the skill's first step, before anything moved
             self.label = labeller(env, call, self.column)
         y = self.label(self.last)
-        if y is None:
+        stop = drive_stops(env, self.k)
+        if y is None:  # nothing to do from here: a manipulation expert that has ended adds its STOP row
+            if self.stop and stop is None and self.n and env.success_flags[self.k]:
+                self._add(obs, self.labels[-1], True)
             raise StopEpisode
+        self._add(obs, y, bool(stop))
+        if a is not None:
+            dims = [0, 2] if SKILLS[call.skill].role == "approach" else slice(None)  # a drive: its (vx, wz); else the whole action
+            self.gaps.append(float(np.abs(a[dims] - y[dims]).mean()))
+            self.last = a
+
+    def _add(self, obs: dict[str, Any], y: np.ndarray, stop: bool) -> None:
         for key, v in self.policy.inputs(obs).items():
             self.parts.setdefault(key, []).append(v)
         self.labels.append(y)
-        dims = [0, 2] if SKILLS[call.skill].role == "approach" else slice(None)  # a drive: its (vx, wz); else the whole action
-        self.gaps.append(float(np.abs(a[dims] - y[dims]).mean()))
-        self.last = a
+        self.stops.append(float(stop))
+        self.segments.append(self.rollout)
         self.n += 1
+
+    def rollouts(self, width: int, success: list[bool]) -> Rollouts:
+        """What was labelled, rollouts numbered 0.. in order (those without rows dropped)."""
+        import torch
+
+        _, segments = np.unique(np.asarray(self.segments, dtype=np.int64), return_inverse=True)
+        labels = np.stack(self.labels).astype(np.float32) if self.labels else np.zeros((0, width), np.float32)
+        return Rollouts({k: torch.cat(v) for k, v in self.parts.items()}, labels, np.asarray(self.stops, np.float32),
+                        segments.astype(np.int64), success, float(np.mean(self.gaps)) if self.gaps else math.nan)
+
+
+class _Stopping:
+    """A learner that STOPs, seen by `run_episode`: the state it STOPs in is labelled too (its
+    `act` returns None there, so the step hook never sees it); everything else is the learner's."""
+
+    def __init__(self, policy: Any, hook: _Labels, env: Any) -> None:
+        self.policy, self.hook, self.env = policy, hook, env
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.policy, name)
+
+    def act(self, obs: dict[str, Any]) -> np.ndarray | None:
+        from echo_data.agents.runtime import StopEpisode
+
+        a = self.policy.act(obs)
+        if a is None:
+            with contextlib.suppress(StopEpisode):  # the rollout ends here anyway
+                self.hook.record(self.env, obs, None, self.env.episode.chain[self.hook.k])
+        return a
 
 
 def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None = None) -> Rollouts:
     """Roll the policy in `run` on train episodes `episodes` (the experts up to its skill's first
     call in the chain, then the learner, through `run_episode`), label every state it visits;
-    `max_steps`: at most that many learner steps per rollout."""
-    import torch
-
+    `max_steps`: at most that many learner steps per rollout. Each rollout is one segment."""
     from echo_data.agents.builtin import OraclePlanner, OracleSkills
     from echo_data.agents.compose import SkillDispatch
     from echo_data.agents.runtime import run_episode
@@ -149,8 +247,8 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
     recipe, _ = dataset_recipe(dataset)
     images, audio = needs(policy)
     env = EchoDataEnv(recipe, split="train", images=images, audio=audio, action_mode=mode)
-    agent = SkillDispatch({policy.skill: policy}, OracleSkills())
-    hook = _Labels(policy, column, max_steps)
+    hook = _Labels(policy, column, max_steps, stop=policy.ends_itself)
+    agent = SkillDispatch({policy.skill: _Stopping(policy, hook, env) if policy.ends_itself else policy}, OracleSkills())
     success: list[bool] = []
     try:
         for i in episodes:
@@ -166,15 +264,12 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
                 continue
             obs, info = env.reset(options={"spec": spec})
             hook.start(k)
-            run_episode(env, obs, info, OraclePlanner(), agent, on_step=hook, skills=k + 1)
+            run_episode(env, obs, info, OraclePlanner(), agent, on_step=hook, skills=k + 1, drive_end="handover")  # as evaluate ends a drive
             success.append(bool(env.success_flags[k]))  # the learner's success test at its end
     finally:
         agent.close()
         env.close()
-    inputs = {k: torch.cat(v) for k, v in hook.parts.items()}
-    width = len(policy.config.action_names)
-    acts = np.stack(hook.labels)[:, None, :] if hook.labels else np.zeros((0, 1, width), np.float32)
-    return Rollouts(inputs, acts.astype(np.float32), success, float(np.mean(hook.gaps)) if hook.gaps else math.nan)
+    return hook.rollouts(len(policy.config.action_names), success)
 
 
 def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_steps: int | None, progress: bool,
@@ -189,32 +284,36 @@ def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_st
     if not skill(cfg.skill).labels_any_state:
         able = ", ".join(n for n, s in SKILLS.items() if s.labels_any_state)
         raise DaggerError(f"--dagger: only {able}'s expert can act from any state (not {cfg.skill!r}; see docs/learners.md)")
-    if cfg.window() != 1 or cfg.SEQUENCE:
-        raise DaggerError("--dagger: the expert labels one action per state: train bc with --chunk 1")
+    if cfg.action_form != "absolute":
+        raise DaggerError(f"--dagger: --action-form {cfg.action_form} is not labelled (a rollout keeps no states to take the change from); use absolute")
     _, n_train = dataset_recipe(Path(cfg.dataset))
     if episodes_per_round > n_train:
         raise DaggerError(f"--dagger-episodes {episodes_per_round}: the train split of {cfg.dataset} has {n_train} episodes")
     summary = train_bc(cfg, out, resume=resume, overwrite=not resume, progress=progress)
     agg: Rollouts | None = None
-    log = ["round,episodes,rows_added,rows_aggregated,learner_success,learner_expert_gap,best_val_loss"]
+    log = ["round,episodes,rows_added,rows_aggregated,learner_success,learner_expert_gap,best_val_loss,segments_added,segments_aggregated,stop_rows_added"]
     for r in range(1, rounds + 1):
         eps = [((r - 1) * episodes_per_round + j) % n_train for j in range(episodes_per_round)]
         new = collect(out, Path(cfg.dataset), eps, max_steps)
         agg = new if agg is None else _concat(agg, new)
         summary = train_bc(cfg, out, overwrite=True, progress=progress, extra=agg)
         rate = sum(new.success) / len(new.success) if new.success else math.nan
-        log.append(f"{r},{' '.join(map(str, eps))},{len(new)},{len(agg)},{rate:.4f},{new.agreement:.4f},{summary['best_val_loss']}")
+        log.append(f"{r},{' '.join(map(str, eps))},{len(new)},{len(agg)},{rate:.4f},{new.agreement:.4f},{summary['best_val_loss']},"
+                   f"{new.rollouts},{agg.rollouts},{int(new.stops.sum())}")
         runs.write_file(out, DAGGER_LOG, ("\n".join(log) + "\n").encode())
-    summary["dagger"] = {"rounds": rounds, "rows_aggregated": len(agg) if agg is not None else 0, "log": str(out / DAGGER_LOG)}
+    summary["dagger"] = {"rounds": rounds, "rows_aggregated": len(agg) if agg is not None else 0,
+                         "segments_aggregated": agg.rollouts if agg is not None else 0, "log": str(out / DAGGER_LOG)}
     return summary
 
 
 def _concat(a: Rollouts, b: Rollouts) -> Rollouts:
+    """Rollouts `a` then `b`, `b`'s segments numbered on after `a`'s."""
     import torch
 
     if not len(b):
         return a
     if not len(a):
         return b
-    return Rollouts({k: torch.cat([a.inputs[k], b.inputs[k]]) for k in a.inputs}, np.concatenate([a.actions, b.actions]),
-                    a.success + b.success, (a.agreement * len(a) + b.agreement * len(b)) / (len(a) + len(b)))
+    return Rollouts({k: torch.cat([a.inputs[k], b.inputs[k]]) for k in a.inputs}, np.concatenate([a.labels, b.labels]),
+                    np.concatenate([a.stops, b.stops]), np.concatenate([a.segments, b.segments + a.rollouts]), a.success + b.success,
+                    (a.agreement * len(a) + b.agreement * len(b)) / (len(a) + len(b)))

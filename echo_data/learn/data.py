@@ -119,20 +119,24 @@ def load_skill_rows(
     )
 
 
-def append_rows(rows: SkillRows, inputs: dict[str, Any], actions: np.ndarray) -> SkillRows:
-    """`rows` plus labelled rows from elsewhere (DAgger), as episode -1 so they never validate."""
+def append_rows(rows: SkillRows, inputs: dict[str, Any], actions: np.ndarray, pad: np.ndarray | None = None,
+                segments: np.ndarray | None = None) -> SkillRows:
+    """`rows` plus labelled rows from elsewhere (DAgger), as episode -1 so they never validate;
+    `segments` (0.., contiguous) makes them segments of their own, numbered after `rows`' (else -1:
+    rows without a segment), `pad` masks window entries past their segment's end."""
     import torch
 
     n, chunk = len(actions), rows.actions.shape[1]
     if chunk != actions.shape[1]:
         raise ValueError(f"appended rows carry {actions.shape[1]} actions per row, training {chunk}")
+    seg = np.full(n, -1, dtype=rows.segments.dtype) if segments is None else segments.astype(rows.segments.dtype) + int(rows.segments.max()) + 1
     return SkillRows(
         inputs={k: torch.cat([v, inputs[k]]) for k, v in rows.inputs.items()},
         actions=np.concatenate([rows.actions, actions.astype(np.float32)]),
-        action_pad=np.concatenate([rows.action_pad, np.zeros((n, chunk), dtype=bool)]),
+        action_pad=np.concatenate([rows.action_pad, np.zeros((n, chunk), dtype=bool) if pad is None else pad]),
         goals=np.concatenate([rows.goals, np.full((n, 3), np.nan, dtype=np.float32)]),
         episodes=np.concatenate([rows.episodes, np.full(n, -1, dtype=rows.episodes.dtype)]),
-        segments=np.concatenate([rows.segments, np.full(n, -1, dtype=rows.segments.dtype)]),
+        segments=np.concatenate([rows.segments, seg]),
     )
 
 

@@ -92,7 +92,7 @@ class Units:
             self.history = np.maximum(np.arange(len(rows))[:, None] + np.arange(1 - history, 1)[None, :], start[:, None])
         if sequence:
             if (rows.segments < 0).any():
-                raise runs.RunError("a recurrent model trains on whole segments: appended (DAgger) rows have none")
+                raise runs.RunError("a recurrent model trains on whole segments: appended rows without one cannot train it")
             ids, first, count = np.unique(rows.segments, return_index=True, return_counts=True)
             self.spans = {int(i): (int(f), int(c)) for i, f, c in zip(ids, first, count, strict=True)}
 
@@ -149,8 +149,8 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
     """Train (or continue) a skill run in `out`; returns the summary also printed by the CLI.
     Long because setup, resume, the epoch loop and the closing summary share one run's state.
 
-    `extra` (DAgger's labelled rollouts: `inputs`, `actions` (n, 1, A)) is appended to the
-    training rows, never to validation."""
+    `extra` (DAgger's labelled rollouts, `learn.dagger.Rollouts`: `inputs` and `windows(chunk, stop)`,
+    one segment per rollout) is appended to the training rows as segments, never to validation."""
     from tqdm import tqdm
 
     runs.check_out(out, resume, overwrite)
@@ -193,18 +193,17 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
     if len(cfg.action_mean) < len(cfg.target_names):  # the dataset's statistics cover the action, not the STOP
         cfg.action_mean = [*cfg.action_mean, 0.0]
         cfg.action_std = [*cfg.action_std, 1.0]
-    if cfg.stop and not resume:  # the STOP's class balance over the training rows (`SkillConfig.binary_weights`)
-        last = float(rows.actions[kept, 0, -1].sum())  # position 0 of a window is never padded
-        cfg.stop_weight = float((kept.sum() - last) / last) if last else 1.0
     if binary:  # binary entries are classified, not regressed: kept as 0/1
         cfg.action_mean = [0.0 if i in binary else v for i, v in enumerate(cfg.action_mean)]
         cfg.action_std = [1.0 if i in binary else v for i, v in enumerate(cfg.action_std)]
         rows.actions[..., binary] = (rows.actions[..., binary] > 0.5).astype(np.float32)
     if extra is not None and len(extra):
-        if cfg.stop:
-            raise runs.RunError("--stop does not take DAgger rows (their labels carry no stop)")
-        rows = append_rows(rows, extra.inputs, extra.actions)
+        acts, pad = extra.windows(cfg.window(), cfg.stop)
+        rows = append_rows(rows, extra.inputs, acts, pad, extra.segments)
     is_val = np.isin(rows.episodes, val_eps)
+    if cfg.stop and not resume:  # the STOP's class balance over the training rows, DAgger's too (`SkillConfig.binary_weights`)
+        last = float(rows.actions[~is_val, 0, -1].sum())  # position 0 of a window is never padded
+        cfg.stop_weight = float(((~is_val).sum() - last) / last) if last else 1.0
     mean, std = np.asarray(cfg.action_mean, np.float32), np.asarray(cfg.action_std, np.float32)
     target = torch.from_numpy((rows.actions - mean) / std)
     valid = torch.from_numpy(~rows.action_pad).float()
