@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from echo_data.app.build import default_library
+from echo_data.app.pipeline import render_episode_audio, simulate
 from echo_data.dataset.manifest import split_sizes
 from echo_data.pcm import FULL_SCALE, SCALE
-from echo_data.app.pipeline import render_episode_audio, simulate
 from echo_data.recipe import load_recipe
 from echo_data.scene.sampling import SamplingError, sample_episode
 
