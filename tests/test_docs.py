@@ -77,6 +77,64 @@ def test_the_recipes_page_counts_the_recipes_episodes() -> None:
         (path,) = [p for p in [ROOT / "recipes" / f"{name}.yaml", *(ROOT / "studies").glob(f"*/recipes/{name}.yaml")] if p.is_file()]
         assert load_recipe(path).splits == {"train": int(train), "test": int(test)}, f"docs/recipes.md: {name}"
 
+def _episodes(path: str, split: str = "train", setting: str | None = None) -> str:
+    """A study recipe's episodes of `split`, in all or in one `setting` of its composition."""
+    from echo_data.recipe import load_recipe
+
+    recipe = load_recipe(ROOT / path)
+    if setting is None:
+        return str(recipe.splits[split])
+    assert recipe.composition is not None, path
+    return str(recipe.composition[setting][split])
+
+
+_NAV, _PLANNER, _FRESH = "studies/paper_table/recipes/nav_audio.yaml", "studies/planner/recipes/planner_audio.yaml", "studies/planner/recipes/planner_fresh.yaml"
+_PICK, _DOOR = "studies/paper_table/recipes/cameras_pick_place.yaml", "studies/paper_table/recipes/cameras_door_sink.yaml"
+_BCNAV = "studies/navigation_ablation/recipes/bc_navigate.yaml"
+_OR, _ST, _ME = "object_relocation", "state_transition", "multi_event"
+_Count = list[tuple[str, str, str | None]]  # one figure: (recipe, split, setting or all), every one the same count
+
+
+def _each(path: str, split: str) -> _Count:
+    """One figure that is every setting's count ("480 per setting")."""
+    return [(path, split, s) for s in (_OR, _ST, _ME)]
+
+
+# (study README, quoted text, the episode counts it shows in order: each one the count of every recipe entry given)
+RECIPE_COUNTS: list[tuple[str, str, list[_Count]]] = [
+    ("navigation_ablation", "`studies/navigation_ablation/recipes/bc_navigate.yaml` (180 train / 54 test episodes",
+     [[(_BCNAV, "train", None)], [(_BCNAV, "test", None)]]),
+    ("navigation_ablation", "(`recipes/cameras_*.yaml`: 300 state-transition and 150 object-relocation training episodes",
+     [[(_DOOR, "train", _ST)], [(_PICK, "train", _OR)]]),
+    ("paper_table", "`studies/paper_table/recipes/nav_audio.yaml`: 600 train episodes (300 object relocation, 300 state transition)",
+     [[(_NAV, "train", None)], [(_NAV, "train", _OR)], [(_NAV, "train", _ST)]]),
+    ("paper_table", "`studies/paper_table/recipes/cameras_pick_place.yaml`: 150 object-relocation episodes", [[(_PICK, "train", _OR)]]),
+    ("paper_table", "`studies/planner/recipes/planner_fresh.yaml`: 300 train episodes", [[(_FRESH, "train", None)]]),
+    ("paper_table", "(`studies/paper_table/recipes/nav_audio_stop.yaml`: the same 600 training episodes as `nav_audio.yaml`",
+     [[("studies/paper_table/recipes/nav_audio_stop.yaml", "train", None), (_NAV, "train", None)]]),
+    ("learners", "`studies/paper_table/recipes/cameras_pick_place.yaml`'s 150 training episodes", [[(_PICK, "train", None)]]),
+    ("planner", "1440 train episodes (480 per setting) and 280 test episodes with test sounds only (80 object relocation, 80 state transition, 120 multi-event)",
+     [[(_PLANNER, "train", None)], _each(_PLANNER, "train"), [(_PLANNER, "test", None)], *([(_PLANNER, "test", s)] for s in (_OR, _ST, _ME))]),
+    ("planner", "and 100 train episodes per setting (300, not 1,440", [_each(_FRESH, "train"), [(_FRESH, "train", None)], [(_PLANNER, "train", None)]]),
+    ("planner", "(480 train episodes per setting, ~1,440 fresh-voice", [_each(_PLANNER, "train"), [(_PLANNER, "train", None)]]),
+]
+
+
+@pytest.mark.parametrize("study, quote, counts", RECIPE_COUNTS, ids=[f"{s}:{q[:40]}" for s, q, _ in RECIPE_COUNTS])
+def test_a_study_readme_counts_its_recipes_episodes(study: str, quote: str, counts: list[_Count]) -> None:
+    """A study README's dataset sizes are its recipes' splits and composition, shown in order (1,440 as 1440 too)."""
+    text = " ".join((ROOT / "studies" / study / "README.md").read_text().split())
+    assert quote in text, f"studies/{study}/README.md: the quote is gone; update RECIPE_COUNTS with the page"
+    rest = quote.replace(",", "")
+    for count in counts:
+        values = {_episodes(*entry) for entry in count}  # "the same 600", "480 per setting": one count
+        assert len(values) == 1, f"studies/{study}/README.md: {quote!r}: the recipes disagree ({count}: {values})"
+        (n,) = values
+        shown = re.search(rf"(?<!\d){n}(?!\d)", rest)
+        assert shown, f"studies/{study}/README.md: {quote!r} does not show {n} ({count})"
+        rest = rest[shown.end():]
+
+
 def test_the_package_points_into_neither_studies_nor_benchmarks() -> None:
     hits = [f"{p.relative_to(ROOT)}:{i}" for p in (ROOT / "echo_data").rglob("*.py")
             for i, line in enumerate(p.read_text().splitlines(), 1) if re.search(r"\b(studies|benchmarks)/", line)]
