@@ -673,7 +673,7 @@ FIGURES: list[tuple[str, str, str, Any]] = [
 ]
 
 
-@pytest.mark.parametrize("page, quote, results, figures", FIGURES, ids=[f"{p.split('/')[-1]}:{q[:40]}" for p, q, *_ in FIGURES])
+@pytest.mark.parametrize("page, quote, results, figures", FIGURES, ids=[f"{p.removesuffix('/README.md').split('/')[-1]}:{q[:40]}" for p, q, *_ in FIGURES])
 def test_a_figure_quoted_in_the_docs_is_its_results_json(page: str, quote: str, results: str, figures: Any) -> None:
     text = " ".join((ROOT / page).read_text().split())  # a quote may wrap across lines
     assert quote in text, f"{page}: the quote is gone; update FIGURES with the page"
