@@ -7,6 +7,7 @@ package pointing at neither studies/ nor benchmarks/. The docs build itself (`mk
 
 from __future__ import annotations
 
+import csv
 import importlib.util
 import json
 import re
@@ -76,6 +77,64 @@ def test_the_recipes_page_counts_the_recipes_episodes() -> None:
         (path,) = [p for p in [ROOT / "recipes" / f"{name}.yaml", *(ROOT / "studies").glob(f"*/recipes/{name}.yaml")] if p.is_file()]
         assert load_recipe(path).splits == {"train": int(train), "test": int(test)}, f"docs/recipes.md: {name}"
 
+def _episodes(path: str, split: str = "train", setting: str | None = None) -> str:
+    """A study recipe's episodes of `split`, in all or in one `setting` of its composition."""
+    from echo_data.recipe import load_recipe
+
+    recipe = load_recipe(ROOT / path)
+    if setting is None:
+        return str(recipe.splits[split])
+    assert recipe.composition is not None, path
+    return str(recipe.composition[setting][split])
+
+
+_NAV, _PLANNER, _FRESH = "studies/paper_table/recipes/nav_audio.yaml", "studies/planner/recipes/planner_audio.yaml", "studies/planner/recipes/planner_fresh.yaml"
+_PICK, _DOOR = "studies/paper_table/recipes/cameras_pick_place.yaml", "studies/paper_table/recipes/cameras_door_sink.yaml"
+_BCNAV = "studies/navigation_ablation/recipes/bc_navigate.yaml"
+_OR, _ST, _ME = "object_relocation", "state_transition", "multi_event"
+_Count = list[tuple[str, str, str | None]]  # one figure: (recipe, split, setting or all), every one the same count
+
+
+def _each(path: str, split: str) -> _Count:
+    """One figure that is every setting's count ("480 per setting")."""
+    return [(path, split, s) for s in (_OR, _ST, _ME)]
+
+
+# (study README, quoted text, the episode counts it shows in order: each one the count of every recipe entry given)
+RECIPE_COUNTS: list[tuple[str, str, list[_Count]]] = [
+    ("navigation_ablation", "`studies/navigation_ablation/recipes/bc_navigate.yaml` (180 train / 54 test episodes",
+     [[(_BCNAV, "train", None)], [(_BCNAV, "test", None)]]),
+    ("navigation_ablation", "(`recipes/cameras_*.yaml`: 300 state-transition and 150 object-relocation training episodes",
+     [[(_DOOR, "train", _ST)], [(_PICK, "train", _OR)]]),
+    ("paper_table", "`studies/paper_table/recipes/nav_audio.yaml`: 600 train episodes (300 object relocation, 300 state transition)",
+     [[(_NAV, "train", None)], [(_NAV, "train", _OR)], [(_NAV, "train", _ST)]]),
+    ("paper_table", "`studies/paper_table/recipes/cameras_pick_place.yaml`: 150 object-relocation episodes", [[(_PICK, "train", _OR)]]),
+    ("paper_table", "`studies/planner/recipes/planner_fresh.yaml`: 300 train episodes", [[(_FRESH, "train", None)]]),
+    ("paper_table", "(`studies/paper_table/recipes/nav_audio_stop.yaml`: the same 600 training episodes as `nav_audio.yaml`",
+     [[("studies/paper_table/recipes/nav_audio_stop.yaml", "train", None), (_NAV, "train", None)]]),
+    ("learners", "`studies/paper_table/recipes/cameras_pick_place.yaml`'s 150 training episodes", [[(_PICK, "train", None)]]),
+    ("planner", "1440 train episodes (480 per setting) and 280 test episodes with test sounds only (80 object relocation, 80 state transition, 120 multi-event)",
+     [[(_PLANNER, "train", None)], _each(_PLANNER, "train"), [(_PLANNER, "test", None)], *([(_PLANNER, "test", s)] for s in (_OR, _ST, _ME))]),
+    ("planner", "and 100 train episodes per setting (300, not 1,440", [_each(_FRESH, "train"), [(_FRESH, "train", None)], [(_PLANNER, "train", None)]]),
+    ("planner", "(480 train episodes per setting, ~1,440 fresh-voice", [_each(_PLANNER, "train"), [(_PLANNER, "train", None)]]),
+]
+
+
+@pytest.mark.parametrize("study, quote, counts", RECIPE_COUNTS, ids=[f"{s}:{q[:40]}" for s, q, _ in RECIPE_COUNTS])
+def test_a_study_readme_counts_its_recipes_episodes(study: str, quote: str, counts: list[_Count]) -> None:
+    """A study README's dataset sizes are its recipes' splits and composition, shown in order (1,440 as 1440 too)."""
+    text = " ".join((ROOT / "studies" / study / "README.md").read_text().split())
+    assert quote in text, f"studies/{study}/README.md: the quote is gone; update RECIPE_COUNTS with the page"
+    rest = quote.replace(",", "")
+    for count in counts:
+        values = {_episodes(*entry) for entry in count}  # "the same 600", "480 per setting": one count
+        assert len(values) == 1, f"studies/{study}/README.md: {quote!r}: the recipes disagree ({count}: {values})"
+        (n,) = values
+        shown = re.search(rf"(?<!\d){n}(?!\d)", rest)
+        assert shown, f"studies/{study}/README.md: {quote!r} does not show {n} ({count})"
+        rest = rest[shown.end():]
+
+
 def test_the_package_points_into_neither_studies_nor_benchmarks() -> None:
     hits = [f"{p.relative_to(ROOT)}:{i}" for p in (ROOT / "echo_data").rglob("*.py")
             for i, line in enumerate(p.read_text().splitlines(), 1) if re.search(r"\b(studies|benchmarks)/", line)]
@@ -138,10 +197,11 @@ def test_the_study_readmes_result_tables_are_their_json_rendered() -> None:
         assert held == fresh, f"studies/{study}/README.md, {name}: python studies/results_tables.py"
 
 
-# --- measured figures quoted in the docs pages, checked against the results JSON that holds them --------
-# (page, quoted text, results JSON, the figures the quote must show in order: a function of the JSON).
-# The study READMEs render theirs (studies/results_tables.py); a page's prose quotes, and this holds
-# the quote to the JSON. A measured figure no JSON holds is not quoted on a page (reworded without it).
+# --- measured figures quoted in the docs pages and the studies' prose, checked against the results that hold them
+# (page, quoted text, results JSON or folder, the figures the quote must show in order: a function of the JSON).
+# The study READMEs render their result tables (studies/results_tables.py); a page's prose quotes, and this
+# holds the quote to the JSON. A measured figure no JSON holds is not quoted on a docs page (reworded without
+# it); a study README may keep one it declares "not kept" (the last test).
 
 def _pct(v: float) -> str:
     return f"{round(100 * v)} %"
@@ -272,9 +332,76 @@ def _door_sink(folder: str) -> list[str]:
             _kn(sink["interaction"]), _kn(sink["handover"]), str(max(sink[s]["steps_max"] for s in sink))]
 
 
+
+def _dagger(lines: list[str]) -> list[str]:
+    """A DAgger run's log (its dagger.csv lines) as the ablation's table cell: rounds, train rollouts,
+    rows aggregated, and the learner's successes in each round's rollouts."""
+    rounds = list(csv.DictReader(lines))
+    n = [len(r["episodes"].split()) for r in rounds]
+    return [f"{len(rounds)} round", str(sum(n)), f"{int(rounds[-1]['rows_aggregated']):,}",
+            *(f"{round(float(r['learner_success']) * k)}/{k}" for r, k in zip(rounds, n))]
+
+
+def _dagger_stored(folder: str) -> list[str]:
+    """The stored-audio DAgger row, run by hand: its log (dagger.csv) and its evaluation's first Navigate,
+    every Navigate and mean SPL, then the log's best validation loss."""
+    log = (ROOT / folder / "ablation_dagger-nav-audio-depth-state-dagger1.dagger.csv").read_text().splitlines()
+    m = json.loads((ROOT / folder / "ablation_dagger-nav-audio-depth-state-dagger1.json").read_text())["metrics"]["all"]
+    first = next(p for p in m["progressive"] if p["through"] == 1)
+    return [*_dagger(log), _kn(first), *(f"{b:.2f}" for b in (first["value"], *first["ci95"])), _kn(m["navigate_success"]),
+            f"{m['navigate_spl']['value']:.2f}", f"{float(log[-1].split(',')[-1]):.3f}"]
+
+
+def _dagger_row(doc: dict) -> list[str]:
+    """An ablation DAgger JSON's one row from its DAgger cell on: the log, first and all Navigates, SPL, val loss."""
+    r = doc["navigate"][0]
+    return [*_dagger(r["dagger_log"]), _kn(r["first_navigate"]), _kn(r["all_navigate"]), f"{r['spl_mean']:.2f}", f"{r['best_val_loss']:.3f}"]
+
+
+def _ablation(doc: dict, run: str, n: int) -> list[str]:
+    """A camera_ablations.json run as the learners study's row: validation at the last epoch (k of the `n`
+    validation episodes), alone, after a hand-over."""
+    r = doc["runs"][run]
+    ((skill, det),) = r["details"].items()
+    (training,) = det["training"].values()
+    return [f"{round(training['validation']['val_success'] * n)}/{n}", _kn(r["skills"][skill]), _kn(r["skills_handover"][skill])]
+
+
+def _nine(folder: str) -> list[str]:
+    """The learners study's validation on nine episodes: none's best 6/9 and the shipped learner's 3/9 with their Wilson bounds."""
+    from echo_data.evaluation.metrics import wilson
+
+    none = json.loads((ROOT / folder / "learners/results/camera_ablations.json").read_text())["runs"]["perturbation_none"]
+    shipped = json.loads((ROOT / folder / "paper_table/results/paper_table.json").read_text())["training"]["CloseSink"]["last"]
+    ks = [round(none["details"]["CloseSink"]["training"]["action.ee-act"]["best_val_success"] * 9), round(shipped["val_success"] * 9)]
+    return [*(f"{k}/9" for k in ks), *(f"{b:.2f}" for k in ks for b in wilson(k, 9))]
+
+
+def _pooled(doc: dict, level: str, column: str) -> str:
+    """camera_ablations.json's two CloseSink trainings of one perturbation level, pooled: alone
+    (`skills`) or after a hand-over (`skills_handover`). The shipped level's first training is the
+    reference block's (its weights are gone)."""
+    runs = doc["runs"]
+    if level == "shipped":
+        first = doc["reference"]["CloseSink"]["alone" if column == "skills" else "after_handover"]
+        cells = [dict(zip(("successes", "n"), map(int, first.split("/")))), runs["perturbation_shipped"][column]["CloseSink"]]
+    else:
+        cells = [runs[f"perturbation_{level}{seed}"][column]["CloseSink"] for seed in ("", "_seed1")]
+    return f"{sum(c['successes'] for c in cells)}/{sum(c['n'] for c in cells)}"
+
+
+def _pooled_cells(doc: dict, column: str) -> list[str]:
+    """The pooled perturbation levels none / shipped / twice as the learners study prints them: k/n [low, high]."""
+    from echo_data.evaluation.metrics import wilson
+
+    cells = [_pooled(doc, level, column) for level in ("none", "shipped", "twice")]
+    return [x for c in cells for x in (c, *(f"{b:.2f}" for b in wilson(*map(int, c.split("/")))))]
+
+
 _CUES, _DIST = "studies/spatial_cues/results/spatial_cues.json", "distances"
 _ABL = "studies/navigation_ablation/results"  # a folder: its entries read the files they name
 _GPU = "benchmarks/results/gpu_figures.json"
+_ABLATIONS = "studies/learners/results/camera_ablations.json"
 _PAPER = "studies/paper_table/results/paper_table.json"
 _EXPERTS, _NOISE = "studies/experts/results/pick_place_experts.json", "studies/experts/results/expert_noise.json"
 # docs/environment.md's two spatial-cue tables: (the row as the page prints it, the JSON's metric, its split)
@@ -514,10 +641,39 @@ FIGURES: list[tuple[str, str, str, Any]] = [
      "benchmarks/results/gpu_figures.json",
      lambda d: [*_nums(d["env"]["bench_env"]["lines"][3])[:2], _nums(d["env"]["bench_env"]["lines"][1])[0],
                 _nums(d["env"]["bench_env_listener_off"]["lines"][2])[0]]),
+    # the study READMEs' prose and hand-written tables (their rendered tables are checked above)
+    ("studies/navigation_ablation/README.md", "| stored | 1 round (20 rollouts, 8,127 rows; learner reached 10/20) | 36/54 = 0.67 [0.53, 0.78] "
+     "| 40/68 | 0.51 | 0.154 |", _ABL, _dagger_stored),
+    ("studies/navigation_ablation/README.md", "| level + ILD | 2 rounds (40 rollouts, 18,105 rows; learner reached 6/20, 6/20) | 21/54 = "
+     "0.39 [0.27, 0.52] | 22/59 | 0.33 | 0.179 |", f"{_ABL}/ablation_dagger.json", _dagger_row),
+    ("studies/navigation_ablation/README.md", "| level + ILD | 1 round (20 rollouts, 8,563 rows; learner reached 10/20) | 39/54 = "
+     "0.72 [0.59, 0.82] | 47/68 | 0.58 | 0.140 |", f"{_ABL}/ablation_dagger_ild_ads.json", _dagger_row),
+    ("studies/navigation_ablation/README.md", "alone 91/100, **100/100** and 88/100; after a hand-over 38/100, 32/100 and 40/100",
+     _ABLATIONS, lambda d: [_pooled(d, level, c) for c in ("skills", "skills_handover") for level in ("none", "shipped", "twice")]),
+    ("studies/learners/README.md", "| 91/100 [0.84, 0.95] / **100/100 [0.96, 1.00]** / 88/100 [0.80, 0.93] | 38/100 [0.29, 0.48] / "
+     "32/100 [0.24, 0.42] / 40/100 [0.31, 0.50] |", _ABLATIONS, lambda d: [*_pooled_cells(d, "skills"), *_pooled_cells(d, "skills_handover")]),
+    ("studies/learners/README.md", "100 of 100 over its two trainings, against 91/100 without perturbation and 88/100 at twice the level",
+     _ABLATIONS, lambda d: [_pooled(d, "shipped", "skills").replace("/", " of "), *(_pooled(d, lv, "skills") for lv in ("none", "twice"))]),
+    *(("studies/learners/README.md", f"| {label} | {cells}", _ABLATIONS, lambda d, run=run, n=n: _ablation(d, run, n)) for label, cells, run, n in (
+        ('CloseSink, chunking off (ACT chunk 1)', '2/9 / 3/9 | 50/50 | 13/50', 'act_chunk1', 9),
+        ('CloseSink, no wrist depth', '1/9 / 0/9 | 9/50 = 0.18 [0.10, 0.31] | 3/50', 'act_no_wrist_depth', 9),
+        ('CloseSink, diffusion (U-Net, horizon 16, 8 executed)', '0/9 / 1/9 | 6/50 = 0.12 [0.06, 0.24] | 5/50', 'diffusion_closesink', 9),
+        ('Pick, diffusion', '0/10 / 0/10 | 0/50 | 0/50', 'diffusion_pick', 10),
+        ('OpenDoor, diffusion (ACT: 0/50 and 0/50)', '0/10 / 0/10 | 0/50 | 0/50', 'diffusion_opendoor', 10),
+        ('none, seed 0 | 300 of 300 attempts', '3/9 / **6/9** | 46/50 = 0.92 [0.81, 0.97] | 20/50', 'perturbation_none', 9),
+        ('none, seed 1 | (the same build)', '3/9 / 5/9 | 45/50 = 0.90 [0.79, 0.96] | 18/50', 'perturbation_none_seed1', 9),
+        ('1 cm / 2° (twice), seed 0 | 300 of 385 (85 failed, redrawn)', '4/9 / 5/9 | 50/50 | 31/50', 'perturbation_twice', 9),
+        ('1 cm / 2° (twice), seed 1 | (the same build)', '2/9 / 1/9 | 38/50 = 0.76 [0.63, 0.86] | 9/50', 'perturbation_twice_seed1', 9),
+    )),
+    ("studies/learners/README.md", "its best single run (6/9, no perturbation, seed 0) is not the best on test alone, and twice-seed-1's 2/9 "
+     "says nothing of its 38/50", _ABLATIONS, lambda d: [f"{round(d['runs'][r]['details']['CloseSink']['training']['action.ee-act']['best_val_success'] * 9)}/9"
+                                                        for r in ("perturbation_none", "perturbation_twice_seed1")] + [_kn(d["runs"]["perturbation_twice_seed1"]["skills"]["CloseSink"])]),
+    ("studies/learners/README.md", "at batch 256 for 5.5 minutes", _GPU, lambda d: [f"{d['long_training']['training']['train_seconds'] / 60:.1f}"]),
+    ("studies/learners/README.md", "Nine episodes separate nothing (6/9 and 3/9: Wilson [0.35, 0.88] and [0.12, 0.65])", "studies", _nine),
 ]
 
 
-@pytest.mark.parametrize("page, quote, results, figures", FIGURES, ids=[f"{p.split('/')[-1]}:{q[:40]}" for p, q, *_ in FIGURES])
+@pytest.mark.parametrize("page, quote, results, figures", FIGURES, ids=[f"{p.removesuffix('/README.md').split('/')[-1]}:{q[:40]}" for p, q, *_ in FIGURES])
 def test_a_figure_quoted_in_the_docs_is_its_results_json(page: str, quote: str, results: str, figures: Any) -> None:
     text = " ".join((ROOT / page).read_text().split())  # a quote may wrap across lines
     assert quote in text, f"{page}: the quote is gone; update FIGURES with the page"
@@ -526,3 +682,77 @@ def test_a_figure_quoted_in_the_docs_is_its_results_json(page: str, quote: str, 
     for figure in figures(str(source.relative_to(ROOT)) if source.is_dir() else json.loads(source.read_text())):
         assert figure in rest, f"{page}: {quote!r} does not show {figure} ({results})"
         rest = rest[rest.index(figure) + len(figure):]
+
+
+# --- every figure of a study README's prose: held by its results, checked above, or declared -----------------
+# A study README's tables between results markers are rendered (above); its prose and hand-written tables
+# quote. Each k/n and decimal there must be a figure held by the results the README draws on (its study's
+# results/ and every results file it names), one FIGURES checks on that page, or stand in a sentence (a table
+# row, with its header) that declares it: "not kept" (a measurement whose files were not committed, such as a
+# validation score read from a run folder) or "the paper's" (the paper's own number, no measurement of ours).
+# A goal ("the 0.90 goal", "goal ≥ 0.60") is no measurement. The pool is every figure of those files, not the
+# quoted cell: this catches a figure nothing there holds, not one copied from the wrong cell; FIGURES does that.
+_FIGURE = re.compile(r"(?<![\w.])(\d+/\d+|\d+\.\d+)(?![\w.])")
+_DECLARED = re.compile(r"not kept|the paper's")
+_GOAL = re.compile(r"goals? (?:of |at )?(?:[≥≤] ?)?\d+\.\d+(?: / \d+\.\d+)*|\d+\.\d+ goal")
+_RESULTS = re.compile(r"(?:studies/\w+/|benchmarks/)results/[\w.*/-]*\w")
+
+
+def _held(obj: Any, out: set[str]) -> set[str]:
+    """The figures a results file holds as a page may print them: a number at 0–3 decimals, the k/n (and its
+    share) of a {successes|k|correct, n|attempts|episodes} cell or of a [k, n] pair, every figure in a string."""
+    if isinstance(obj, dict):
+        for v in obj.values():
+            _held(v, out)
+        for k in (obj.get(a) for a in ("successes", "k", "correct")):
+            for n in (obj.get(a) for a in ("n", "attempts", "episodes")):
+                if type(k) is int and type(n) is int and n:
+                    out |= {f"{k}/{n}", f"{k / n:.2f}"}
+    elif isinstance(obj, list):
+        for v in obj:
+            _held(v, out)
+        if len(obj) == 2 and all(type(x) is int for x in obj):
+            out.add(f"{obj[0]}/{obj[1]}")
+    elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
+        x = Decimal(str(abs(obj)))  # a page prints the sign apart ("−0.43") and may round a stored 0.425 half up
+        out |= {f"{x:.{d}f}" for d in range(4)} | {str(x.quantize(Decimal(10) ** -d, ROUND_HALF_UP)) for d in range(1, 4)} | {str(abs(obj))}
+    elif isinstance(obj, str):
+        out |= set(re.findall(r"\d+(?:\.\d+)?(?:/\d+)?", obj))
+    return out
+
+
+def _results_pool(study: Path, text: str) -> set[str]:
+    """The figures of the study's results/ and of every results file its README names."""
+    paths = {*(study / "results").glob("**/*"), *(p for name in _RESULTS.findall(text) for p in ROOT.glob(name))}
+    pool: set[str] = set()
+    for path in paths:
+        if path.suffix == ".json":
+            _held(json.loads(path.read_text()), pool)
+        elif path.suffix == ".csv":
+            _held(path.read_text(), pool)
+    return pool | {f.lstrip("0") for f in pool if f.startswith("0.")}  # ".5" as some pages write it
+
+
+def _prose_units(text: str) -> list[str]:
+    """A README's prose outside rendered tables and code blocks: each table row (with its header), and each sentence."""
+    text = re.sub(r"<!-- (results|paper table|headline).*?<!-- end of[^>]*-->", "", text, flags=re.S)
+    text = re.sub(r"```.*?```", "", text, flags=re.S)
+    units: list[str] = []
+    for block in re.split(r"\n\s*\n|\n(?=\s*- )", text):
+        rows = [ln for ln in block.splitlines() if ln.lstrip().startswith("|")]
+        rest = " ".join(ln for ln in block.splitlines() if not ln.lstrip().startswith("|")).split()
+        units += [f"{rows[0]} {row}" for row in rows]  # a row with its table's header, which may declare a column
+        units += re.split(r"(?<=[.!?])\s+(?=[A-Z*(`])", " ".join(rest))
+    return units
+
+
+@pytest.mark.parametrize("study", STUDIES, ids=[d.name for d in STUDIES])
+def test_every_figure_of_a_study_readme_is_held_checked_or_declared(study: Path) -> None:
+    page = f"studies/{study.name}/README.md"
+    text = (ROOT / page).read_text()
+    checked = {f for p, _, results, figures in FIGURES if p == page
+               for f in figures(results if (ROOT / results).is_dir() else json.loads((ROOT / results).read_text()))}
+    known = _results_pool(study, text) | checked
+    loose = [(f, unit[:120]) for unit in _prose_units(text) if not _DECLARED.search(unit)
+             for f in _FIGURE.findall(_GOAL.sub("", unit)) if f not in known]
+    assert not loose, f"{page}: figures its results do not hold (check them in FIGURES, name the results, or say not kept): {loose}"
