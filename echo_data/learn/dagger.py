@@ -110,7 +110,7 @@ class _Labels:
         from echo_data.agents.runtime import StopEpisode
         from echo_data.skill_table import SKILLS
 
-        if k != self.k:  # the experts' skills before it
+        if k != self.k or call.skill != self.policy.skill:  # the experts' skills before it, a carry before it (agents.runtime.carry_call)
             return
         if self.limit is not None and self.n >= self.limit:
             raise StopEpisode
