@@ -18,6 +18,9 @@ under evaluation:
    - a learned policy (SoundSpaces' STOP): the environment waits for its stop
      (`env.agent_stops`), then `env.stop_skill()` evaluates the test once: the skill counts
      only if it holds there, else the episode ends failed.
+3. a Place whose learned policy was trained from its stance on (`--from-stance`) is carried by
+   the drive policy first, inside the same chain entry (`carry_call`, docs/handover.md#places-carry):
+   the planner's chain stays one Place entry.
 
 What a policy is given is observations only (`echo_data.protocols`): its reset info is the call
 as a listener says it (`skill_info`), `act` gets the environment's observation plus, when the
@@ -42,7 +45,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -102,6 +105,9 @@ class EpisodeRun:
     plan_correct: bool
     outcomes: list[SkillOutcome] = field(default_factory=list)
     navigate: list[NavigateRecord] = field(default_factory=list)
+    # Place's carries done by the drive policy (`carry_call`): where each handed over into Place's
+    # stance, as a Navigate's record (its skill_index the Place entry's; success = handed over)
+    carries: list[NavigateRecord] = field(default_factory=list)
     steps: int = 0
     failure: str = ""
     truncated_at: int | None = None  # control steps run when `max_steps` cut the episode
@@ -239,6 +245,31 @@ def succeeded(info: dict[str, Any], k: int) -> bool:
 # success test holds (the paper's 1.5 m region: it hands over at the region's edge).
 DRIVE_ENDS = ("handover", "success")
 
+
+class Leg(NamedTuple):
+    """What one policy's run of steps in a chain entry left (`run_episode`'s `leg`)."""
+
+    n: int  # control steps taken
+    path: float  # metres the base travelled
+    reason: str  # why it failed ("" none)
+    ended: bool  # the episode ended during it
+    stops: bool  # a learned STOP ended it, judged by the environment (`stop_skill`)
+
+
+def carry_call(policy: Any, call: SkillCall) -> SkillCall | None:
+    """The drive call that carries for `call` before its skill acts, or None (the skill drives
+    itself, as the Place expert does): for a deliver skill (Place) whose policy starts in its
+    stance (a run trained `--from-stance`, which sets `starts_in_stance`), the approach skill
+    (Navigate) to the same target, acted by the policy's member for the approach skill
+    (`agents.compose.SkillDispatch.policy_for`). docs/handover.md#places-carry."""
+    from echo_data.skill_table import SKILLS, approach_skill
+
+    member = getattr(policy, "policy_for", None)
+    if not SKILLS[call.skill].delivers or not callable(member) or not getattr(member(call.skill), "starts_in_stance", False):
+        return None
+    return SkillCall(approach_skill().name, call.target, call.event)
+
+
 StepHook = Callable[["EchoDataEnv", dict[str, np.ndarray], np.ndarray, int, SkillCall, tuple[bool, ...]], None]
 
 
@@ -254,6 +285,10 @@ def run_episode(
     Success is read from the environment's `info["skills"]` (one evaluation per step).
     `on_step(env, obs, action, skill_index, call, skill_flags)` is called before each action is
     applied (the build records its rows there; DAgger labels there); it may raise `StopEpisode`.
+    A Place whose policy starts in its stance is carried first (`carry_call`): the drive policy
+    runs in the same entry until the environment's `handed_over` holds or the approach skill's
+    budget is spent (a STOP ends only the carry), then the skill's own policy with the rest of
+    the entry's budget; `on_step` gets the drive call during the carry, `run.carries` its record.
     `max_steps`: cut the episode after that many control steps (see the module docstring);
     `skills`: run only the chain's first `skills` skills; `drive_end`: see `DRIVE_ENDS`.
     """
@@ -288,35 +323,31 @@ def run_episode(
         return max_steps is not None and env.steps >= max_steps
 
     mode = getattr(env, "action_mode", "joint")  # an EchoDataEnv's "joint" | "ee_delta"
-    for k, call in enumerate(spec.chain[:skills]):
-        if cut():  # the previous skill ended exactly at the cut and more of the chain remains
-            run.truncated_at = env.steps
-            break
-        budget = skill_budget(env.recipe, call.skill)
-        reset_info = skill_info(call, k, truth[k]["target"], budget, spec.seed, mode)
+
+    def leg(k: int, call: SkillCall, acting: SkillCall, budget: int, carry: bool) -> Leg:
+        """One policy's run of control steps in chain entry `k`: the skill `call`, or the carry
+        before it (`carry`), which the policy acts as the drive call `acting`."""
+        nonlocal obs, info
+        reset_info = skill_info(acting, k, truth[k]["target"], budget, spec.seed, mode)
         if is_privileged(policy):  # the scripted experts plan on the true state (echo_data.protocols)
-            reset_info.update(call=call, spec_object=spec, world=env.world)
+            reset_info.update(call=acting, spec_object=spec, world=env.world)
         policy.reset(reset_info)
         # after reset: a per-skill policy switches (a composition names its acting member `active`)
         ends_itself = bool(getattr(policy, "ends_itself", False))
-        stops = ends_itself and not is_privileged(getattr(policy, "active", policy))  # a learned policy's STOP: the env waits for it
+        # a learned policy's STOP: the env waits for it (a carry's STOP only ends the carry)
+        stops = ends_itself and not carry and not is_privileged(getattr(policy, "active", policy))
         if stops or getattr(env, "agent_stops", False):
             env.agent_stops = stops
         wanted = getattr(policy, "observations", None) or ()
         goal = _goal_observation(env, call) if GOAL_POSE in wanted else None
         probe = PrivilegedProbe() if any(c in wanted for c in PRIVILEGED_COLUMNS) else None
-        approach = SKILLS[call.skill].role == "approach"  # Navigate: scored by SPL too
-        # a learned drive that does not STOP ends at the hand-over (else at its success test)
-        at_handover = approach and not ends_itself and drive_end == "handover" and handover_call(spec.chain, k) is not None
+        # a learned drive that does not STOP ends at the hand-over (else at its success test); a carry always at its hand-over
+        at_handover = carry or (SKILLS[call.skill].role == "approach" and not ends_itself and drive_end == "handover"
+                                and handover_call(spec.chain, k) is not None)
         end_flag = "handed_over" if at_handover else "success"
-        expert_len, nav_goal = _expert_path(env, call) if approach else (math.nan, None)
-        arm_start = _arm_joints(env) if approach else np.zeros(0)  # where the arm was when a Navigate began (its hand-over record)
-        path = 0.0
-        n = 0
-        reason = ""
-        ended = False
+        path, n, reason, ended = 0.0, 0, "", False
         while True:
-            if not ends_itself and info["skills"][k][end_flag]:
+            if (carry or not ends_itself) and info["skills"][k][end_flag]:
                 break
             if goal is not None:
                 obs = {**obs, GOAL_POSE: goal}
@@ -332,8 +363,8 @@ def run_episode(
             if cut():  # after act(): a skill that ends exactly at the cut is finished, not cut
                 run.truncated_at = env.steps
                 break
-            if n >= budget:  # a drive out of steps inside its success region still counts (as the expert's)
-                reason = "" if at_handover and succeeded(info, k) else "timeout"
+            if n >= budget:  # a drive out of steps inside its success region still counts (as the expert's); a carry hands over as it stands
+                reason = "" if carry or (at_handover and succeeded(info, k)) else "timeout"
                 break
             try:
                 a = as_action(action, EE_ACTION_DIM if mode == "ee_delta" else ACTION_DIM)
@@ -341,7 +372,7 @@ def run_episode(
                 raise AgentActionError(f"policy {e} at step {env.steps}") from None
             if on_step is not None:
                 try:
-                    on_step(env, obs, a, k, call, flags())
+                    on_step(env, obs, a, k, acting, flags())
                 except StopEpisode:
                     run.truncated_at = env.steps
                     break
@@ -360,15 +391,38 @@ def run_episode(
         close = getattr(policy, "close", None)  # optional (echo_data.protocols)
         if (reason or ended or run.truncated_at is not None) and ends_itself and callable(close):
             close()
+        return Leg(n, path, reason, ended, stops)
+
+    for k, call in enumerate(spec.chain[:skills]):
+        if cut():  # the previous skill ended exactly at the cut and more of the chain remains
+            run.truncated_at = env.steps
+            break
+        budget = skill_budget(env.recipe, call.skill)
+        approach = SKILLS[call.skill].role == "approach"  # Navigate: scored by SPL too
+        carried = carry_call(policy, call)  # Place carried by the drive policy (docs/handover.md#places-carry)
+        drives = approach or carried is not None
+        expert_len, nav_goal = _expert_path(env, call) if drives else (math.nan, None)
+        arm_start = _arm_joints(env) if drives else np.zeros(0)  # where the arm was when a drive began (its hand-over record)
+        used = 0
+        if carried is not None:  # first the drive policy to this entry's stance, within the approach skill's budget
+            part = leg(k, call, carried, min(skill_budget(env.recipe, carried.skill), budget), True)
+            handed = bool(info["skills"][k]["handed_over"])
+            if run.truncated_at is None:  # (a carry running at the cut has no record, as a skill has no outcome)
+                run.carries.append(NavigateRecord(k, handed, part.path, expert_len, **_handover(env, nav_goal, arm_start), handed_over=handed))
+            used = part.n
+        if carried is None or not (part.reason or part.ended or run.truncated_at is not None):
+            part = leg(k, call, call, budget - used, False)
+            used += part.n
         if run.truncated_at is not None:  # the skill running at the cut has no outcome
             break
-        ok = not reason and (bool(info["skills"][k]["done"]) if stops else succeeded(info, k))
+        reason = part.reason
+        ok = not reason and (bool(info["skills"][k]["done"]) if part.stops else succeeded(info, k))
         if not ok and not reason:
             expert = getattr(policy, "outcome", None)
             reason = getattr(expert, "reason", "") or "success test false"
-        run.outcomes.append(SkillOutcome(call.skill, call.target, ok, "" if ok else reason, n, handover_record(env, info, k)))
+        run.outcomes.append(SkillOutcome(call.skill, call.target, ok, "" if ok else reason, used, handover_record(env, info, k)))
         if approach:
-            run.navigate.append(NavigateRecord(k, ok, path, expert_len, **_handover(env, nav_goal, arm_start),
+            run.navigate.append(NavigateRecord(k, ok, part.path, expert_len, **_handover(env, nav_goal, arm_start),
                                                handed_over=bool(info["skills"][k]["handed_over"])))
         if not ok:
             run.failure = f"{call.skill}({call.target}): {reason}"

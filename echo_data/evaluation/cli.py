@@ -32,6 +32,8 @@ def format_tables(doc: dict[str, Any]) -> str:
         lines.append(f"    Navigate success   {cell(m['navigate_success'])}")
         lines.append(f"    Navigate hand-over {cell(m['navigate_handover'])}")
         lines.append(f"    Navigate SPL       {cell(m['navigate_spl'])}")
+        if m.get("carry_handover", {}).get("n"):  # a Place carried by the drive policy
+            lines.append(f"    carry hand-over    {cell(m['carry_handover'])}")
     if "seeds" in doc:
         seeds = doc["seeds"]
         each = ", ".join(f"{m['k']}/{m['n']}" for m in seeds["per_seed"])

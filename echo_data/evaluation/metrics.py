@@ -83,6 +83,7 @@ def summarise(episodes: list[dict[str, Any]]) -> dict[str, Any]:
         progressive.append({"through": p, **proportion(sum(e["skills_completed"] >= p for e in eligible), len(eligible))})
     spl = [nv["spl"] for e in episodes for nv in e["navigate"] if nv["spl"] is not None]
     nav = [bool(nv["success"]) for e in episodes for nv in e["navigate"]]
+    carries = [c for e in episodes for c in e.get("carries", [])]
     return {
         "episodes": n,
         "task_planning": proportion(plan, n),
@@ -91,6 +92,8 @@ def summarise(episodes: list[dict[str, Any]]) -> dict[str, Any]:
         "navigate_success": proportion(sum(nav), len(nav)),
         "navigate_handover": proportion(sum(bool(nv.get("handed_over")) for e in episodes for nv in e["navigate"]), len(nav)),
         "navigate_spl": mean_interval(spl),
+        # Place's carries by the drive policy (docs/handover.md#places-carry): how many ended in Place's stance
+        "carry_handover": proportion(sum(bool(c["handed_over"]) for c in carries), len(carries)),
         "mean_steps": sum(e["steps"] for e in episodes) / n if n else None,
         "seconds": sum(e.get("seconds", 0.0) for e in episodes),
     }

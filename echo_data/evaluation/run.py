@@ -106,17 +106,21 @@ def episode_record(run: Any, index: int) -> dict[str, Any]:
         "skills_completed": run.skills_completed,
         "success": run.success,
         "steps": run.steps,
-        "navigate": [
-            {"skill_index": r.skill_index, "success": r.success, "path_length": round(r.path_length, 6),
-             "expert_length": None if r.expert_length != r.expert_length else round(r.expert_length, 6),
-             "spl": None if r.expert_length != r.expert_length else round(r.spl, 6),
-             **{k: None if v != v else round(v, 6) for k, v in (("goal_distance", r.goal_distance), ("heading_error", r.heading_error),
-                                                                 ("arm_moved", r.arm_moved))},
-             "handed_over": r.handed_over}
-            for r in run.navigate
-        ],
+        "navigate": [drive_record(r) for r in run.navigate],
+        # Place's carries by the drive policy (`agents.runtime.carry_call`): where each handed over
+        "carries": [drive_record(r) for r in run.carries],
         "failure": run.failure,
     }
+
+
+def drive_record(r: Any) -> dict[str, Any]:
+    """The JSON-able form of one drive's `NavigateRecord` (a Navigate, or a Place's carry)."""
+    return {"skill_index": r.skill_index, "success": r.success, "path_length": round(r.path_length, 6),
+            "expert_length": None if r.expert_length != r.expert_length else round(r.expert_length, 6),
+            "spl": None if r.expert_length != r.expert_length else round(r.spl, 6),
+            **{k: None if v != v else round(v, 6) for k, v in (("goal_distance", r.goal_distance), ("heading_error", r.heading_error),
+                                                                ("arm_moved", r.arm_moved))},
+            "handed_over": r.handed_over}
 
 
 def evaluate_episode(job: EvalJob, index: int) -> dict[str, Any]:

@@ -166,7 +166,7 @@ class _Labels:
         self.rollout += 1
 
     def __call__(self, env: Any, obs: dict[str, Any], a: np.ndarray, k: int, call: Any, flags: tuple[bool, ...]) -> None:
-        if k == self.k:  # not the experts' skills before it
+        if k == self.k and call.skill == self.policy.skill:  # not the experts' skills before it, nor a carry before it (agents.runtime.carry_call)
             self.record(env, obs, a, call)
 
     def record(self, env: Any, obs: dict[str, Any], a: np.ndarray | None, call: Any) -> None:

@@ -20,6 +20,7 @@ import numpy as np
 
 from echo_data.dataset.reader import StepReader, episodes_table
 from echo_data.dataset.schema import ACTION, IMAGE_COLUMNS, SKILL_STOP, STATE
+from echo_data.learn.carry import select_rows
 from echo_data.learn.features import FeatureError, FeatureSpec, canonical, kind_index, prepare
 
 ROWS_PER_DECODE = 256  # rows decoded at once: memory stays bounded by this many frames
@@ -75,26 +76,30 @@ def skill_kinds(dataset: Path, split: str, skill: str) -> tuple[str, ...]:
 
 def load_skill_rows(
     dataset: Path, split: str, skill: str, spec: FeatureSpec, chunk: int = 1, tick: Callable[[int], object] | None = None, action_column: str = ACTION,
-    stop: bool = False,
+    stop: bool = False, from_stance: bool = False, with_carries: bool = False,
 ) -> SkillRows:
     """Decode and prepare every row of `skill` in `split` (in shard order), with its next `chunk`
     actions of `action_column` within its segment (`dataset.reader`'s windows); with `stop`, each
-    action carries one more entry, the dataset's `skill_stop` (1 on a segment's last row)."""
+    action carries one more entry, the dataset's `skill_stop` (1 on a segment's last row).
+    `from_stance`, `with_carries`: Place's rows from its stance on only, a drive learner's rows
+    plus Place's carries, each carry its own segment ending in a STOP (`learn.carry`)."""
     import torch
 
     reader = StepReader(dataset, split)
     idx = reader.index
-    keep = np.flatnonzero(idx.skill == skill)
+    chosen = select_rows(reader, skill, from_stance, with_carries)
+    keep = chosen.rows
     if len(keep) == 0:
         raise ValueError(f"{dataset}: no {skill!r} rows in split {split!r}")
     if action_column not in reader.meta.columns:
         raise FeatureError(f"--action-column {action_column}: {dataset} stores no such column (it has {', '.join(c for c in reader.meta.columns if c.startswith(ACTION))})")
     if stop and SKILL_STOP not in reader.meta.columns:
         raise FeatureError(f"--stop: {dataset} stores no {SKILL_STOP} column (built before it was recorded)")
-    windows, pad = reader.windows(keep, {action_column: range(chunk), **({SKILL_STOP: range(chunk)} if stop else {})})
+    windows, pad = chosen.windows(reader, {action_column: range(chunk), **({SKILL_STOP: range(chunk)} if stop else {})})
     actions = windows[action_column].astype(np.float32)
-    if stop:  # the window is clamped at the segment's end: only the real last row says stop
-        actions = np.concatenate([actions, (windows[SKILL_STOP] * ~pad[SKILL_STOP]).astype(np.float32)[..., None]], axis=-1)
+    if stop:  # the window is clamped at the segment's end: only the real last row says stop (a carry's: its last)
+        says = np.maximum(windows[SKILL_STOP], chosen.carry_ends(range(chunk)))
+        actions = np.concatenate([actions, (says * ~pad[SKILL_STOP]).astype(np.float32)[..., None]], axis=-1)
     states = reader.read([STATE], keep)[STATE]
     _, last = idx.bounds("segment")
     goals = reader.read([STATE], last[keep])[STATE][:, [0, 1, 2]]

@@ -26,6 +26,7 @@ from echo_data.dataset.reader import dataset_manifest
 from echo_data.learn import runs
 from echo_data.learn.algos import build_model, config_from_run
 from echo_data.learn.algos.base import SkillConfig, held_entries
+from echo_data.learn.carry import carried_skills
 from echo_data.learn.data import SkillRows, append_rows, count_rows, load_skill_rows, skill_kinds, skills_in, split_episodes
 from echo_data.learn.features import ACTION_FORMS, FeatureSpec, feature_spec, to_action_form
 from echo_data.learn.loop import LoopConfig, fit, setup_torch
@@ -33,7 +34,7 @@ from echo_data.learn.loop import LoopConfig, fit, setup_torch
 POLICY_CLASS = runs.POLICY_CLASS
 IMAGE_INPUTS = ("depth", "wrist_depth", "rgb", "image")
 # What a resumed run must share with the run it continues.
-SAME_RUN = ("dataset", "skill", "inputs", "seed", "audio_form", "action_form", "action_column", "algo", "stop")
+SAME_RUN = ("dataset", "skill", "inputs", "seed", "audio_form", "action_form", "action_column", "algo", "stop", "from_stance", "with_carries")
 
 
 def resolve_device(name: str) -> str:
@@ -63,7 +64,7 @@ def resolve(cfg: SkillConfig) -> SkillConfig:
     if cfg.skill not in skills:
         raise runs.RunError(f"--skill {cfg.skill!r}: no such rows in {root} (train split has {', '.join(skills)})")
     spec = feature_spec(root, cfg.inputs, audio=cfg.audio, image_size=cfg.image_size, audio_form=cfg.audio_form,
-                        kinds=skill_kinds(root, "train", cfg.skill))
+                        kinds=tuple(sorted({k for s in (cfg.skill, *carried_skills(cfg.with_carries)) for k in skill_kinds(root, "train", s)})))
     smallest = min((min(s) if isinstance(s, tuple) else s for s in (spec.side(n) for n in IMAGE_INPUTS if n in cfg.inputs)), default=None)
     if cfg.shift and smallest is not None and cfg.shift >= smallest:
         raise runs.RunError(f"--shift {cfg.shift}: must be below the image side ({smallest} px)")
@@ -174,7 +175,8 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
     root = Path(cfg.dataset)
     total_rows = count_rows(root, "train", cfg.skill)
     with tqdm(total=total_rows, desc=f"decode {cfg.skill}", unit="row", disable=not progress, leave=False) as bar:
-        rows = load_skill_rows(root, "train", cfg.skill, spec, chunk=cfg.window(), tick=bar.update, action_column=cfg.action_column, stop=cfg.stop)
+        rows = load_skill_rows(root, "train", cfg.skill, spec, chunk=cfg.window(), tick=bar.update, action_column=cfg.action_column, stop=cfg.stop,
+                               from_stance=cfg.from_stance, with_carries=cfg.with_carries)
     val_eps = split_episodes(rows.episodes, cfg.val_fraction, cfg.seed)
     cfg.val_episodes = [int(e) for e in val_eps]
     binary = list(cfg.binary)

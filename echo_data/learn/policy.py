@@ -80,6 +80,9 @@ class SkillPolicy:
         # a run trained with --stop ends its skill itself: `act` returns None (STOP) when the
         # predicted skill_stop passes the run's `stop_threshold`, and the runtime judges the skill where it stopped
         self.ends_itself = bool(cfg.stop)
+        # a Place run trained --from-stance starts where a drive handed it over: the runtime carries for it
+        # with the drive policy first (`agents.runtime.carry_call`; the run's config is the one fact)
+        self.starts_in_stance = bool(cfg.from_stance)
         # entries the demonstrations never varied, acted exactly (`algos.base.held_entries`)
         self.held_at = np.array([int(i) for i, _ in cfg.held_entries], dtype=np.int64)
         self.held_to = np.array([v for _, v in cfg.held_entries], dtype=np.float32)

@@ -6,6 +6,7 @@ Shared file: Pick/Place here; navigation, door and sink owners add theirs below.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -129,8 +130,18 @@ def stance_offset(world: World, target: str, grid: Any = None, poses: dict[Any, 
     _, hit = _interaction(world, target, grid, poses)
     if hit is None:
         return None
-    x, y, yaw = world.robot.base_pose()
-    return math.hypot(hit[0] - x, hit[1] - y), abs(math.remainder(yaw - hit[2], 2.0 * math.pi))
+    return pose_offset(world.robot.base_pose(), hit[:3])
+
+
+def pose_offset(base: Sequence[float], pose: Sequence[float]) -> tuple[float, float]:
+    """A base pose (x, y, yaw) against an interaction pose: distance (m) and heading error (rad,
+    wrapped to [0, pi]). The stance test's measure, here and on a dataset's rows (`learn.carry`)."""
+    return math.hypot(pose[0] - base[0], pose[1] - base[1]), abs(math.remainder(base[2] - pose[2], 2.0 * math.pi))
+
+
+def inside(offset: tuple[float, float], distance: float, heading: float) -> bool:
+    """An offset (`pose_offset`) inside a stance of `distance` m and `heading` rad."""
+    return offset[0] <= distance and offset[1] <= heading
 
 
 def handed_over(world: World, target: str, distance: float, heading: float, grid: Any = None,
@@ -138,7 +149,7 @@ def handed_over(world: World, target: str, distance: float, heading: float, grid
     """The base inside a stance (`skill_table.HandOver`) of `target`: within `distance` m of
     its interaction pose and `heading` rad of that pose's heading."""
     off = stance_offset(world, target, grid, poses)
-    return off is not None and off[0] <= distance and off[1] <= heading
+    return off is not None and inside(off, distance, heading)
 
 
 def in_stance(world: World, call: SkillCall, at: Situation) -> bool:

@@ -81,6 +81,10 @@ class SkillConfig:
                             "it is predicted (SoundSpaces' STOP; the skill is then judged once, where the policy stopped).")
     switch_ahead: int = opt(1, "A binary entry (the gripper) switches as soon as the newest predicted chunk switches it within "
                                "this many steps (1: the current step's prediction alone; at most the chunk).")
+    from_stance: bool = opt(False, "Place: train only on each segment's rows from the first one inside Place's stance on (the carry before it "
+                                   "is the drive learner's: --with-carries); evaluate then carries with the drive policy first (docs/handover.md).")
+    with_carries: bool = opt(False, "Navigate: also train on the carry of every Place segment (its rows before Place's stance) as a drive to the "
+                                    "receptacle, its kind as the kind input (docs/handover.md).")
     # Filled in when the run starts:
     algo: str = resolved("")
     features: dict[str, Any] = resolved({})
@@ -138,6 +142,17 @@ class SkillConfig:
             raise ConfigError("--action-form delta is the joint form's change from the measured joints: it needs --action-column action")
         if self.stop and self.action_form != "absolute":
             raise ConfigError("--stop: learns the stop beside the action as stored; it needs --action-form absolute")
+        self._check_carry()
+
+    def _check_carry(self) -> None:
+        """--from-stance is a deliver skill's (Place), --with-carries the approach skill's (Navigate)."""
+        from echo_data.skill_table import SKILLS
+
+        role = SKILLS[self.skill].role if self.skill in SKILLS else None
+        if self.from_stance and role != "deliver":
+            raise ConfigError(f"--from-stance: applies to a skill that carries to its own stance ({', '.join(n for n, s in SKILLS.items() if s.role == 'deliver')}), not {self.skill!r}")
+        if self.with_carries and role != "approach":
+            raise ConfigError(f"--with-carries: applies to the drive skill ({', '.join(n for n, s in SKILLS.items() if s.role == 'approach')}), not {self.skill!r}")
 
     @property
     def action_names(self) -> tuple[str, ...]:
