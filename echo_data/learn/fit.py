@@ -34,7 +34,7 @@ from echo_data.learn.loop import LoopConfig, fit, setup_torch
 POLICY_CLASS = runs.POLICY_CLASS
 IMAGE_INPUTS = ("depth", "wrist_depth", "rgb", "image")
 # What a resumed run must share with the run it continues.
-SAME_RUN = ("dataset", "skill", "inputs", "seed", "audio_form", "action_form", "action_column", "algo", "stop", "from_stance", "with_carries")
+SAME_RUN = ("dataset", "skill", "inputs", "seed", "audio_form", "action_form", "action_column", "algo", "stop", "from_stance", "with_carries", "select_recipe")
 
 
 def resolve_device(name: str) -> str:
@@ -154,8 +154,8 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
     one segment per rollout) is appended to the training rows as segments, never to validation."""
     from tqdm import tqdm
 
-    runs.check_out(out, resume, overwrite)
     if resume:
+        runs.check_out(out, resume, overwrite)
         saved = config_from_run(runs.read_json(out / runs.CONFIG))
         runs.check_same_run(out, {**asdict(cfg), "algo": cfg.ALGO}, {**asdict(saved), "algo": saved.ALGO}, SAME_RUN)
         cfg = type(saved).from_dict({**asdict(saved), "epochs": cfg.epochs, "max_steps": cfg.max_steps, "device": cfg.device,
@@ -163,10 +163,12 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
         cfg.check()
     else:
         cfg = resolve(cfg)
-    if cfg.select_every:
-        from echo_data.learn.select import check_action_space
+    if cfg.select_every:  # before --overwrite removes anything: a choice that cannot run is refused with nothing changed
+        from echo_data.learn.select import check_selection
 
-        check_action_space(Path(cfg.dataset), cfg.action_column)
+        check_selection(cfg)
+    if not resume:
+        runs.check_out(out, resume, overwrite)
     device = resolve_device(cfg.device)
     if device == "cuda":  # cuBLAS is deterministic only with a fixed workspace (torch's reproducibility notes)
         os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
@@ -274,6 +276,7 @@ def train_skill(cfg: SkillConfig, out: Path, resume: bool = False, overwrite: bo
         "inputs": list(cfg.inputs),
         "action_column": cfg.action_column,
         **({"stop_threshold": cfg.stop_threshold} if cfg.stop else {}),
+        **({"select_recipe": {"path": cfg.select_recipe, "sha256": cfg.select_recipe_sha256}} if cfg.select_recipe else {}),
         "state_fed": list(spec.state_names),
         "device": device,
         "rows": {"train": int(len(tr)), "val": int(len(va)), "dagger": int(len(extra)) if extra is not None else 0},

@@ -24,6 +24,12 @@ from echo_data.learn.features import FeatureError, FeatureSpec, from_action_form
 from echo_data.records import GOAL_POSE
 
 
+def learner_observations(spec: FeatureSpec) -> tuple[str, ...]:
+    """The observation keys a skill learner with these features reads (what an evaluation must
+    render for it), the goal observation included when it reads the target."""
+    return tuple(spec.columns) + ((GOAL_POSE,) if "target" in spec.inputs else ())
+
+
 def _load(folder: Path, config_cls: Any, build: Any) -> tuple[Any, Any, FeatureSpec, Path]:
     """(config, model in eval mode with the best weights, feature spec, the weights' file) of a run folder."""
     cfg = config_cls.from_dict(runs.read_json(folder / runs.CONFIG))
@@ -87,7 +93,7 @@ class SkillPolicy:
         self.held_at = np.array([int(i) for i, _ in cfg.held_entries], dtype=np.int64)
         self.held_to = np.array([v for _, v in cfg.held_entries], dtype=np.float32)
         # what evaluate must render for it, and the goal observation when the model reads the target
-        self.observations = tuple(self.spec.columns) + ((GOAL_POSE,) if "target" in self.spec.inputs else ())
+        self.observations = learner_observations(self.spec)
         self._queue: deque[np.ndarray] = deque()
         self._past: deque[np.ndarray] = deque()  # temporal ensembling: earlier chunks, each shifted to start at the next step
         self._rest: np.ndarray | None = None  # the newest chunk from this step on (the binary look-ahead)

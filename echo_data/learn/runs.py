@@ -10,7 +10,7 @@ runs/NAME/
   losses.csv      one row per epoch; curves.png plots it
   eval.json       the run's validation figures (training never reads the test split); dagger.csv: DAgger's rounds
   test.json       the planner's test-split scores, written only by `echo-data evaluate-planner RUN`
-  select/         closed-loop selection's scored weights, each a run folder
+  select/         closed-loop selection's scored weights, each a run folder (+ scored.json: the recipe and val episodes scored)
   .echo-data.json the marker (dataset/written.py): kind "run" and every file the run wrote
 
 Every file goes through the writers here, which add its name to the marker before writing it, so

@@ -110,6 +110,12 @@ LEARNERS: dict[str, LearnerSpec] = {
     # the strided CNN at 64 px (5/20) and at 128 px (8/20, tied: the smaller input kept).
     "OpenDoor-near": LearnerSpec("cameras_door_near", "OpenDoor", MANIPULATION_INPUTS, "act", (*MANIPULATION, "--encoder", "spatial_softmax")),
 }
+# Each learner chooses its checkpoint on the val split of its own training recipe (the manipulation
+# ones: experts.handover_noise 1.0, cameras_door_near 0.3), not of the condition its row measures
+# (alone: 0; after a hand-over: 1.0). One chosen on its row's condition adds
+# `--select-recipe studies/paper_table/recipes/cameras_test_<setting>[_handover].yaml` to its options
+# (that file's val split, never its test split; docs/learners.md), as a LearnerSpec of its own so
+# the table's committed learners and results stay as they were trained.
 # Where each manipulation skill is scored alone: recipes/cameras_test_<setting>.yaml, 50 test
 # episodes of its own event, the skills before it done by the experts with Navigate stopping at
 # the exact interaction pose; "after a hand-over", the same episodes with the oracle Navigate

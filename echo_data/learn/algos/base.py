@@ -77,6 +77,8 @@ class SkillConfig:
     action_column: str = opt("action", f"Action column cloned: {', '.join(ACTION_COLUMNS)}.")
     select_every: int = opt(0, "Every N epochs run the policy closed loop on validation-split episodes; best.pt = the best success (0 = lowest validation loss).")
     select_episodes: int = opt(3, "Validation-split episodes per closed-loop selection.")
+    select_recipe: str = opt("", "Recipe YAML whose val split --select-every scores on (never its test split): the condition the run is "
+                                 "measured in, e.g. after a hand-over (default: the dataset's own recipe).")
     stop: bool = opt(False, "Also learn each segment's last row (the dataset's skill_stop) as a binary output and end the skill when "
                             "it is predicted (SoundSpaces' STOP; the skill is then judged once, where the policy stopped).")
     switch_ahead: int = opt(1, "A binary entry (the gripper) switches as soon as the newest predicted chunk switches it within "
@@ -94,6 +96,7 @@ class SkillConfig:
     val_episodes: list[int] = resolved([])
     stop_weight: float = resolved(1.0)  # with `stop`: the STOP's positive-class weight, set from the training rows (`binary_weights`)
     stop_threshold: float = resolved(0.5)  # with `stop`: STOP when its probability passes this (chosen on validation: learn.select)
+    select_recipe_sha256: str = resolved("")  # with `select_recipe`: its content hash when the run started (learn.select)
     held_entries: list[list[float]] = resolved([])  # [[index, value], ...]: entries the same on every training row; acted exactly (`held_entries`)
 
     # How the algorithm trains and acts; each algorithm overrides what differs.
@@ -132,6 +135,8 @@ class SkillConfig:
             raise ConfigError(f"--switch-ahead {self.switch_ahead}: need 1 <= switch-ahead <= the actions predicted per step ({self.window()})")
         if self.select_every < 0 or self.shift < 0 or self.image_size < 0:
             raise ConfigError("--select-every, --shift and --image-size must be >= 0")
+        if self.select_recipe and not self.select_every:
+            raise ConfigError("--select-recipe: chooses the checkpoint closed loop; it needs --select-every")
         if self.device not in DEVICES:
             raise ConfigError(f"--device {self.device!r}: choose from {', '.join(DEVICES)}")
         if self.encoder not in ("cnn", "spatial_softmax"):
