@@ -49,6 +49,7 @@ HANDOVER = "name: sel_handover\nseed: 11\nsplits: {train: 1, val: 2, test: 1}\ne
         ("name: sel\nsplits: {train: 1, val: 1}\nbogus: 1\n", (), "select.yaml: bogus: unknown key"),
         # a test-only recipe: selection never runs on test, and no setting of its own can be given val episodes
         ("name: sel\nsplits: {test: 2}\n", (), "splits builds no train or val episode of a setting holding Navigate (only test)"),
+        ("name: sel\ncomposition: {object_relocation: {test: 2}}\n", (), "composition builds no train or val episode of a setting holding Navigate (only test)"),
         ("name: sel\nsplits: {train: 1, val: 2}\nrobot: {action_space: ee_delta}\n", (), "acts in robot.action_space ee_delta, whose policies clone action.ee"),
         # the learner reads the head depth camera, which this recipe turns off
         ("name: sel\nsplits: {train: 1, val: 2}\nrobot: {head_camera: {rgb: false, depth: false}}\n", ("--inputs", "depth,state"),
@@ -61,6 +62,20 @@ def test_an_unusable_select_recipe_is_refused_before_anything_is_written(ds: Pat
     code, output = _train(ds, out, "--select-every", "1", "--select-recipe", str(path), *extra)
     assert code == 2 and message in output and "--select-recipe" in output and len(output.strip().splitlines()) == 1, output
     assert not out.exists()
+
+
+def test_a_select_recipe_without_val_episodes_gets_them_in_a_setting_of_its_own(ds: Path) -> None:
+    """As for the dataset's recipe: val episodes added to a setting that builds the skill's
+    episodes (train here), never taken from its test split."""
+    from echo_data.learn.select import validation_recipe
+    from echo_data.recipe import recipe_from_mapping
+
+    given = recipe_from_mapping({"name": "sel", "composition": {"object_relocation": {"train": 1, "test": 2}, "state_transition": {"test": 2}}})
+    got = validation_recipe(ds, "Navigate", 3, given, "sel.yaml")
+    assert got.composition["object_relocation"] == {"train": 1, "test": 2, "val": 3} and got.composition["state_transition"] == {"test": 2, "val": 0}
+    assert got.splits == {"train": 1, "test": 4, "val": 3}
+    held = recipe_from_mapping({"name": "sel", "composition": {"object_relocation": {"train": 1, "val": 3, "test": 2}}})
+    assert validation_recipe(ds, "Navigate", 3, held, "sel.yaml") is held
 
 
 def test_select_recipe_needs_select_every(ds: Path, tmp_path: Path) -> None:

@@ -22,14 +22,15 @@ SCORED = "scored.json"  # in each select/scored-NNN: the recipe (name, path, con
 
 
 def validation_recipe(dataset: Path, skill: str, episodes: int, recipe: Any = None, source: str = "") -> Any:
-    """`recipe` (default: the dataset's) with at least `episodes` val episodes in a setting that
-    holds `skill` (a setting whose train episodes in `dataset` hold it). A `--select-recipe`
-    (`source`: its file) that builds only test episodes there is refused: selection never runs on test."""
+    """`recipe` (default: the dataset's) with at least `episodes` val episodes (for a `--select-recipe`,
+    `source` its file: in the settings that hold `skill`, those whose train episodes in `dataset`
+    hold it), added to one such setting when it has fewer. A `--select-recipe` that builds only
+    test episodes there is refused: selection never runs on test."""
     from echo_data.dataset.reader import dataset_recipe, episode_records
 
     if recipe is None:
         recipe, _ = dataset_recipe(dataset)
-    if recipe.splits.get("val", 0) >= episodes:
+    if recipe.splits.get("val", 0) >= episodes and not (source and recipe.composition):
         return recipe
     only_test = f"--select-recipe {source}: KEY builds no train or val episode of a setting holding {skill} (only test): selection never runs on test"
     if not recipe.composition:
@@ -40,6 +41,8 @@ def validation_recipe(dataset: Path, skill: str, episodes: int, recipe: Any = No
     having = sorted({r["setting"] for r in table if r["split"] == "train" and any(c["skill"] == skill for c in r["chain"])})
     if not having:
         raise runs.RunError(f"--select-every: no train episode of {dataset} holds {skill}")
+    if sum(recipe.composition.get(s, {}).get("val", 0) for s in having) >= episodes:  # a --select-recipe's val episodes where the skill is
+        return recipe
     built = [s for s in having if recipe.composition.get(s, {}).get("train", 0) or recipe.composition.get(s, {}).get("val", 0)]
     if source and not built:
         raise runs.RunError(only_test.replace("KEY", "composition"))
