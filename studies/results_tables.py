@@ -82,6 +82,27 @@ def drive_ends(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + f"\n\nOne training (seed {doc['training']['seed']}), 100 test episodes; commit {doc['commit']}.\n"
 
 
+def foundation(doc: dict[str, Any]) -> str:
+    """The experts' chain completion per setting on a seed no test or study uses, and their failures."""
+    lines = ["| setting | chains completed | failures |", "|---|---|---|"]
+    for s, r in doc["settings"].items():
+        fails = ", ".join(f"{why} ({n})" for why, n in sorted(r["failures"].items())) or "none"
+        lines.append(f"| {s.replace('_', ' ')} | {interval(r['completion'])} | {fails} |")
+    return "\n".join(lines) + f"\n\n{doc['episodes_per_setting']} train-split episodes per setting of seed {doc['seed']}; commit {doc['commit'][:7]}.\n"
+
+
+def drive_end_seeds(doc: dict[str, Any]) -> str:
+    """A learned Navigate over several training seeds, ended at the hand-over: pooled and per seed."""
+    lines = ["| learner | seeds | Navigate success (1.5 m) | ended in the stance | per seed: in the stance | chains completed (experts after it) | median distance to the pose (m) |",
+             "|---|---|---|---|---|---|---|"]
+    for name, r in doc["seeds"].items():
+        each = ", ".join(f"{x['navigate_handover']['k']}/{x['navigate_handover']['n']}" for x in r["per_seed"])
+        lines.append(f"| {name} | {len(r['seeds'])} | {interval(r['navigate_success'])} | {interval(r['navigate_handover'])} | {each} | "
+                     f"{interval(r['skill_completion'])} | {r['median_goal_distance_m']:.2f} |")
+    commits = sorted({r["commit"] for r in doc["seeds"].values()})
+    return "\n".join(lines) + f"\n\nThe test episodes dealt out over the seeds in turn; commit {', '.join(commits)}.\n"
+
+
 Renderer = Callable[[dict[str, Any]], str]
 # (study, copy name, results file in the study's results/, renderer)
 COPIES: list[tuple[str, str, str, Renderer]] = [
@@ -92,6 +113,8 @@ COPIES: list[tuple[str, str, str, Renderer]] = [
     ("planner", "fresh", "planner_fresh.json", planner),
     ("handover", "drives", "drives.json", drives),
     ("handover", "drive_ends", "navigate_drive_end.json", drive_ends),
+    ("handover", "drive_end_seeds", "navigate_drive_end.json", drive_end_seeds),
+    ("experts", "foundation", "foundation.json", foundation),
 ]
 
 
