@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
 import pytest
 from support.torch_module import torch  # noqa: F401  (skips the module where the test extra leaves torch out)
 from typer.testing import CliRunner
@@ -78,6 +79,34 @@ def test_a_place_segment_splits_at_its_first_row_inside_places_stance(ds: Path) 
     part = carry_parts(StepReader(ds, "train"))
     assert (part[rows[:first]] == CARRY).all() and (part[rows[first:]] == PLACING).all()
     assert (np.delete(part, rows) == OUTSIDE).all()  # Navigate's and Pick's rows are no carry
+
+
+def test_a_dataset_built_before_the_hand_over_record_splits_on_the_regenerated_pose(ds: Path, tmp_path: Path,
+                                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without `outcomes[k].handover` (a dataset built before it was recorded) the receptacle's
+    interaction pose comes from the regenerated apartment, and the split falls on the same row."""
+    import echo_data.learn.carry as carry
+    from echo_data.dataset.reader import StepReader
+
+    recorded = carry.carry_parts(StepReader(ds, "train"))
+    real = carry.episodes_table
+
+    def without_record(root: Path, columns: list[str]) -> Any:
+        t = real(root, columns)
+        old = [[{k: v for k, v in o.items() if k != "handover"} for o in outs] for outs in t.column("outcomes").to_pylist()]
+        return t.set_column(t.column_names.index("outcomes"), "outcomes", pa.array(old))
+
+    asked: list[str] = []
+    regenerate = carry._Regenerated.pose
+
+    def counted(self: Any, seed: int, target: str) -> Any:
+        asked.append(target)
+        return regenerate(self, seed, target)
+
+    monkeypatch.setattr(carry, "episodes_table", without_record)
+    monkeypatch.setattr(carry._Regenerated, "pose", counted)
+    assert np.array_equal(carry.carry_parts(StepReader(ds, "train")), recorded)
+    assert asked  # the poses were regenerated, not read
 
 
 def test_place_from_stance_trains_on_the_stance_rows_only(ds: Path, tmp_path: Path) -> None:

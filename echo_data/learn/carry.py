@@ -9,13 +9,13 @@ it are the carry, a drive to the receptacle: `--with-carries` adds them to a dri
 (Navigate's) segments, goal the receptacle, `kind` its kind. The rows from it on are the
 placing: `--from-stance` trains Place's learner on them alone.
 
-The rows hold the base pose (`observation.state` entries 0-2, world x, y, yaw) but not the
-receptacle's interaction pose: it is computed again from the apartment, regenerated from the
-manifest's recipe and the episode's `scene_seed` (as `echo-data view` draws it), with the doors
-at the plan's angles. A door that an OpenDoor of the same episode opened before the Place is
-then counted closed: it moves a piece of furniture's interaction pose only where its leaf
-blocks the candidates. A segment with no row inside the stance (the target has no free pose,
-or the drive never got there) is all carry.
+The rows hold the base pose (`observation.state` entries 0-2, world x, y, yaw); the receptacle's
+interaction pose is the one the episode record holds (`outcomes[k].handover.goal`, docs/handover.md,
+"Recorded in the data"). A dataset built before that record existed has none: there the pose is
+computed again from the apartment, regenerated from the manifest's recipe and the episode's
+`scene_seed` (as `echo-data view` draws it), with the doors at the plan's angles, so a door that an
+OpenDoor of the same episode opened before the Place counts as closed. A segment with no row
+inside the stance (the target has no free pose, or the drive never got there) is all carry.
 """
 
 from __future__ import annotations
@@ -42,8 +42,6 @@ def carry_parts(reader: StepReader) -> np.ndarray:
     """(rows,) int8 per row of the reader's split: CARRY before the first row of a deliver segment
     whose base stands inside the skill's stance, PLACING from that row on, OUTSIDE in every other
     skill's rows. The one place the split is made (see the module doc)."""
-    from echo_data.scene.generate import generate_floorplan_from_seed
-    from echo_data.scene.nav import NavGrid, interaction_pose
     from echo_data.skills.success import inside, pose_offset
 
     idx = reader.index
@@ -51,31 +49,46 @@ def carry_parts(reader: StepReader) -> np.ndarray:
     rows = np.flatnonzero(np.isin(idx.skill, deliver_skills()))
     if not len(rows):
         return part
-    recipe, _ = dataset_recipe(reader.meta.root)
-    table = episodes_table(reader.meta.root, ["episode_index", "split", "chain", "scene_seed"]).to_pylist()
+    table = episodes_table(reader.meta.root, ["episode_index", "split", "chain", "scene_seed", "outcomes"]).to_pylist()
     episodes = {int(e["episode_index"]): e for e in table if e["split"] == reader.split}
     base = reader.read([STATE], rows)[STATE][:, :3]
-    plans: dict[int, Any] = {}
+    regenerated = _Regenerated(reader)
     for seg in np.unique(idx.segment[rows]):
         mine = np.flatnonzero(idx.segment[rows] == seg)
         at = rows[mine]
-        ep = episodes[int(idx.episode[at[0]])]
-        call = ep["chain"][int(idx.skill_index[at[0]])]
+        ep, k = episodes[int(idx.episode[at[0]])], int(idx.skill_index[at[0]])
+        record = (ep["outcomes"][k] if k < len(ep["outcomes"]) else {}).get("handover")
+        pose = record["goal"] if record is not None else regenerated.pose(int(ep["scene_seed"]), str(ep["chain"][k]["target"]))
         stance: HandOver | None = SKILLS[str(idx.skill[at[0]])].stance
-        seed = int(ep["scene_seed"])
-        if seed not in plans:
-            plans[seed] = generate_floorplan_from_seed(recipe, seed)
-        plan = plans[seed]
-        doors = {i: float(d.angle) for i, d in enumerate(plan.doors)}
-        try:
-            pose = interaction_pose(plan, str(call["target"]), door_angles=doors or None, grid=NavGrid.from_plan(plan, door_angles=doors))
-        except ValueError:  # no free interaction pose: never in the stance
-            pose = None
         held = [pose is not None and stance is not None and inside(pose_offset(b, pose), stance.distance, stance.heading) for b in base[mine]]
         first = held.index(True) if any(held) else len(at)
         part[at[:first]] = CARRY
         part[at[first:]] = PLACING
     return part
+
+
+class _Regenerated:
+    """The interaction poses of a dataset built before the episode record held them: each
+    episode's apartment regenerated once from the recipe and its scene seed (the module doc)."""
+
+    def __init__(self, reader: StepReader) -> None:
+        self.root = reader.meta.root
+        self.plans: dict[int, Any] = {}
+
+    def pose(self, seed: int, target: str) -> Any:
+        """`target`'s interaction pose in the apartment of `seed`, doors at the plan's angles
+        (None: it has no free one, so no row is in its stance)."""
+        from echo_data.scene.generate import generate_floorplan_from_seed
+        from echo_data.scene.nav import NavGrid, interaction_pose
+
+        if seed not in self.plans:
+            self.plans[seed] = generate_floorplan_from_seed(dataset_recipe(self.root)[0], seed)
+        plan = self.plans[seed]
+        doors = {i: float(d.angle) for i, d in enumerate(plan.doors)}
+        try:
+            return interaction_pose(plan, target, door_angles=doors or None, grid=NavGrid.from_plan(plan, door_angles=doors))
+        except ValueError:
+            return None
 
 
 @dataclass
