@@ -68,13 +68,11 @@ def _read(path: Path) -> tuple[dict[str, Any], list[Any], bytes]:
         if not isinstance(doc["episodes"], list):
             raise HandoverRunError(f"--handover-from {path}: episodes: expected a list of episode records")
         return head, doc["episodes"], data
-    lines = data.split(b"\n")[:-1]  # a journal: whole lines only (a torn last one is dropped)
-    try:
-        first = json.loads(lines[0]) if lines else None
-        records = [json.loads(line) for line in lines[1:]]
-    except ValueError:
-        first = records = None
-    if not isinstance(first, dict) or not isinstance(first.get("evaluation"), dict) or records is None:
+    from echo_data.evaluation.journal import parse
+
+    first, lines = parse(data)  # a journal: whole lines only, as evaluate --resume reads it
+    records = [rec for _, rec in lines]
+    if not isinstance(first, dict) or not isinstance(first.get("evaluation"), dict):
         raise HandoverRunError(f"--handover-from {path}: not what `echo-data evaluate --json` writes (a results JSON with 'episodes', or its journal)")
     return first["evaluation"], records, data
 

@@ -42,15 +42,28 @@ def is_episode_record(rec: Any) -> bool:
     return "skipped" in rec or all(k in rec for k in EPISODE_KEYS)
 
 
-def _read(path: Path, key: dict[str, Any]) -> tuple[dict[int, dict[str, Any]], int]:
-    """(records by index, bytes of whole lines) of an existing record file of evaluation `key`."""
-    data = path.read_bytes()
-    lines = data.split(b"\n")
-    whole = lines[:-1]  # the last piece has no newline: empty, or a line torn by a kill
+def parse(data: bytes) -> tuple[Any, list[tuple[bytes, Any]]]:
+    """(the header line's JSON or None, each following whole line with its JSON) of a record
+    file's bytes: the last piece has no newline (empty, or a line torn by a kill) and is dropped,
+    and the lines stop at the first that is no JSON (torn inside: what precedes is kept)."""
+    whole = data.split(b"\n")[:-1]
     try:
         head = json.loads(whole[0]) if whole else None
     except ValueError:
         head = None
+    lines: list[tuple[bytes, Any]] = []
+    for line in whole[1:]:
+        try:
+            lines.append((line, json.loads(line)))
+        except ValueError:
+            break
+    return head, lines
+
+
+def _read(path: Path, key: dict[str, Any]) -> tuple[dict[int, dict[str, Any]], int]:
+    """(records by index, bytes of whole lines) of an existing record file of evaluation `key`."""
+    data = path.read_bytes()
+    head, lines = parse(data)
     if not isinstance(head, dict) or "evaluation" not in head:
         raise JournalError(f"{path}: not an evaluation record file (first line is not its header)")
     if not isinstance(head["evaluation"], dict):
@@ -59,12 +72,8 @@ def _read(path: Path, key: dict[str, Any]) -> tuple[dict[int, dict[str, Any]], i
         diff = sorted(k for k in set(key) | set(head["evaluation"]) if key.get(k) != head["evaluation"].get(k))
         raise JournalError(f"{path}: records of a different evaluation ({', '.join(diff)} differ); delete it to start over")
     records: dict[int, dict[str, Any]] = {}
-    size = len(whole[0]) + 1
-    for number, line in enumerate(whole[1:], start=2):
-        try:
-            rec = json.loads(line)
-        except ValueError:
-            break  # torn inside (a kill between write and fsync on another filesystem): keep what precedes
+    size = data.index(b"\n") + 1
+    for number, (line, rec) in enumerate(lines, start=2):  # torn inside (a kill between write and fsync on another filesystem): parse keeps what precedes
         if not is_episode_record(rec):
             raise JournalError(f"{path}: line {number} is not an episode record (no integer 'index' and outcome); delete the file to start over")
         records[int(rec["index"])] = rec
