@@ -176,6 +176,8 @@ def test_every_row_names_known_learners_rows_and_settings() -> None:
     for row in paper.ROWS.values():
         if isinstance(row, table.EvaluatedRow):
             assert set(row.policy.values()) <= set(paper.LEARNERS) and set(row.policy) <= set(table.SKILLS), row.name
+            several = {len(paper.LEARNERS[x].trained_seeds) for x in row.policy.values()} - {1}
+            assert len(several) <= 1, f"{row.name}: its learners' seed lists must be one length (evaluation.seeds)"
             if row.grasp == "physical":
                 assert all((RECIPES / paper.recipe(row, s)).is_file() for s in row.settings), row.name
         elif isinstance(row, table.ComposedRow):
@@ -183,6 +185,15 @@ def test_every_row_names_known_learners_rows_and_settings() -> None:
         else:
             assert row.source in paper.ROWS
     assert all(spec.dataset in paper.DATASETS for spec in paper.LEARNERS.values())
+    assert all(s.trained_seeds == (0,) for name, s in paper.LEARNERS.items() if name != "CloseSink-3seeds")  # as committed: one training, seed 0
+    sink = paper.LEARNERS["CloseSink-3seeds"]
+    assert sink.trained_seeds == (0, 1, 2)
+    # the command its three runs are trained with (option order aside; the table's device choice)
+    lead = ["--action-column", "action.ee", "--epochs", "20", "--select-every", "10", "--shift", "4", "--select-episodes", "10", "--seed", "2",
+            "--select-recipe", "studies/paper_table/recipes/cameras_test_sink.yaml"]
+    opts = sink.options_for(2)
+    assert (sink.algo, sink.dataset, sink.skill, sink.inputs) == ("act", "cameras_door_sink", "CloseSink", "depth,wrist_depth,state,kind")
+    assert dict(zip(opts[::2], opts[1::2], strict=True)) == {**dict(zip(lead[::2], lead[1::2], strict=True)), "--device": "auto"}
 
 
 def test_the_results_lock_waits_for_its_holder(tmp_path: Path) -> None:
@@ -282,3 +293,98 @@ def test_an_evaluation_is_adopted_only_with_the_same_recipe_split_size_and_weigh
     r = adopt(_study_eval(runs_dir, "cameras_test_pick_place.yaml", policy={"skills": {"Pick": {"checkpoint_sha256": "f" * 64}}}))
     assert r.returncode == 2 and "not the evaluated weights" in r.stderr
     assert "Pick alone" not in json.loads(out.read_text())["rows"]  # nothing refused was written
+
+
+# --- a row over several training seeds ---------------------------------------------------------
+
+@needs_torch
+def test_paper_table_tiny_trains_two_seeds_and_measures_a_row_over_both(quickstart: Path, tmp_path: Path) -> None:
+    """The catalogue's Pick learner given two training seeds (the rest of the catalogue as
+    committed): each seed trained into its own run, the row evaluated with both (`+`, an episode
+    each under --tiny), the entry holding the seeds, each seed's weights and figures, the table
+    showing the range; a reference set that ships another weights file for one seed makes the row stale."""
+    from echo_data.evaluation.provenance import stale_rows
+    from echo_data.learn import runs
+    from echo_data.learn.reference import ReferenceSet
+
+    runs_dir, out = tmp_path / "runs", tmp_path / "table.json"
+    argv = ["paper_table.py", "--tiny", "--data", str(quickstart), "--runs", str(runs_dir), "--out", str(out), "--rows", "Pick alone", "--workers", "1"]
+    script = ("import dataclasses, runpy, sys; sys.path.insert(0, 'studies/paper_table'); import rows; "
+              "rows.LEARNERS['Pick'] = dataclasses.replace(rows.LEARNERS['Pick'], seeds=(0, 1)); "
+              f"sys.argv = {argv!r}; runpy.run_path('studies/paper_table/paper_table.py', run_name='__main__')")
+    r = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    doc = json.loads(out.read_text())
+    assert set(doc["training"]) == {"Pick", "Pick-s1"}  # seed 0 keeps the learner's folder
+    assert "--seed 0 " in doc["training"]["Pick"]["command"] and "--seed 1 " in doc["training"]["Pick-s1"]["command"]
+    entry = doc["rows"]["Pick alone"]["quickstart"]
+    assert f"--policy=Pick={runs_dir / 'Pick'}+{runs_dir / 'Pick-s1'}" in entry["command"]
+    assert entry["seeds"] == {"Pick": [0, 1]} and entry["metrics"]["episodes"] == 2  # an episode per seed
+    shas = [runs.file_sha256(runs_dir / run / runs.BEST) for run in ("Pick", "Pick-s1")]
+    assert shas[0] != shas[1] and entry["weights"]["skills"]["Pick"] == shas  # each seed's weights, in seed order
+    each = [m["skills"].get("Pick", {"k": 0, "n": 0}) for m in entry["per_seed"]]
+    assert len(each) == 2 and sum(p["k"] for p in each) == entry["skills"]["Pick"]["k"] and sum(p["n"] for p in each) == entry["skills"]["Pick"]["n"]
+    cell = doc["summary"]["skills_alone"]["Pick"]
+    assert set(cell) == {"successes", "n", "low", "high", "per_seed"} and [(x["successes"], x["n"]) for x in cell["per_seed"]] == [(p["k"], p["n"]) for p in each]
+    line = next(x for x in out.with_suffix(".md").read_text().splitlines() if x.startswith("| Pick "))
+    assert line.endswith(f"; {table.seed_range([(p['k'], p['n']) for p in each])} |") and "2 seeds " in line
+    ships = {"seed0": {"skill": "Pick", "weights_sha256": shas[0]}, "seed1": {"skill": "Pick", "weights_sha256": shas[1]}}
+    assert stale_rows(doc["rows"], ReferenceSet(tmp_path, ships)) == set()
+    swapped = {**ships, "seed1": {"skill": "Pick", "weights_sha256": "0" * 64}}  # seed 1 retrained: its weights are not the measured ones
+    assert stale_rows(doc["rows"], ReferenceSet(tmp_path, swapped)) == {"Pick alone"}
+
+
+def test_the_per_seed_range_renders_lowest_to_highest() -> None:
+    assert table.seed_range([(16, 17), (12, 17), (13, 16)]) == "3 seeds 12/17–16/17"
+    assert table.seed_range([(5, 10), (5, 10)]) == "2 seeds 5/10 each" and table.seed_range(None) == ""
+    entry = {**_entry(41, 50), "per_seed": [{"skill_completion": proportion(k, n), "skills": {"CloseSink": proportion(k, n)}} for k, n in ((12, 17), (16, 17), (13, 16))]}
+    md = paper.markdown({"rows": {"CloseSink alone (3 seeds)": {"sink": entry}, "oracle planner + learned skills": {"multi_event": entry}}})
+    assert "| CloseSink (3 seeds) | sink | 41/50 = 0.82 [0.69, 0.90]; 3 seeds 12/17–16/17 |" in md
+    assert "0.82 [0.69, 0.90] (41/50; 3 seeds 12/17–16/17)" in md and "K seeds a/b–c/d" in md
+    s = paper.summary({"rows": {"CloseSink alone (3 seeds)": {"sink": entry}}})["skills_alone"]["CloseSink (3 seeds)"]
+    assert (s["successes"], s["n"]) == (41, 50) and [x["successes"] for x in s["per_seed"]] == [12, 16, 13]
+
+
+def _sink_eval(runs_dir: Path, folders: list[str]) -> dict[str, Any]:
+    """An `echo-data evaluate --json` document of CloseSink alone on cameras_test_sink.yaml, one
+    test episode per member, member j acted by RUNS/folders[j] (evaluation.seeds)."""
+    from echo_data.agents.loading import folder_sha256
+    from echo_data.evaluation.metrics import summarise
+    from echo_data.evaluation.seeds import per_seed
+    from echo_data.recipe import load_recipe
+
+    chain = [{"skill": "CloseSink", "target": "sink"}]
+    eps = [{**_record(j, True, 1), "true_chain": chain, "planned_chain": chain, "navigate": [], "member": j, "success": j != 1,
+            "skills": [{"skill": "CloseSink", "target": "sink", "success": j != 1, "reason": "", "steps": 5}]} for j in range(len(folders))]
+    members = [{"skills": {"*": {"name": "oracle"}, "CloseSink": {"checkpoint_sha256": folder_sha256(runs_dir / f)}}} for f in folders]
+    return {"recipe": {"path": "studies/paper_table/recipes/cameras_test_sink.yaml", "content_hash": load_recipe(RECIPES / "cameras_test_sink.yaml").content_hash()},
+            "split": "test", "n": len(folders), "planner": {"name": "oracle"}, "wall_seconds": 3.0, "episodes": eps, "metrics": {"all": summarise(eps)},
+            "policy": {"name": "CloseSink=" + "+".join(folders) + ",oracle", "members": members}, "seeds": per_seed(eps, len(folders))}
+
+
+def test_an_evaluation_over_three_seeds_is_adopted_only_with_each_seeds_weights(tmp_path: Path) -> None:
+    runs_dir, out = tmp_path / "runs", tmp_path / "table.json"
+    folders = [table.run_name("CloseSink-3seeds", s) for s in paper.LEARNERS["CloseSink-3seeds"].trained_seeds]
+    assert folders == ["CloseSink-3seeds", "CloseSink-3seeds-s1", "CloseSink-3seeds-s2"]
+    for i, f in enumerate(folders):
+        (runs_dir / f).mkdir(parents=True)
+        (runs_dir / f / "best.pt").write_bytes(b"seed %d" % i)
+    cmd = [sys.executable, str(ROOT / "studies" / "paper_table" / "paper_table.py"), "--runs", str(runs_dir), "--out", str(out), "-n", "3", "--workers", "1", "--adopt"]
+    ev = tmp_path / "study.json"
+
+    def adopt(doc: dict[str, Any]) -> subprocess.CompletedProcess[str]:
+        ev.write_text(json.dumps(doc))
+        return subprocess.run([*cmd, str(ev)], cwd=ROOT, capture_output=True, text=True)
+
+    for wrong in ([folders[0], folders[2], folders[1]], folders[:1]):  # two seeds swapped; one seed's run alone
+        r = adopt(_sink_eval(runs_dir, wrong))
+        assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--adopt" in r.stderr, r.stderr
+    assert not out.exists()
+    r = adopt(_sink_eval(runs_dir, folders))
+    assert r.returncode == 0, r.stderr[-2000:]
+    doc = json.loads(out.read_text())
+    entry = doc["rows"]["CloseSink alone (3 seeds)"]["sink"]
+    assert entry["seeds"] == {"CloseSink": [0, 1, 2]} and "+" in entry["adopted"]
+    assert "--policy=CloseSink=" + "+".join(str(runs_dir / f) for f in folders) in entry["command"]
+    assert [m["skills"]["CloseSink"]["k"] for m in entry["per_seed"]] == [1, 0, 1] and entry["skills"]["CloseSink"]["k"] == 2
+    assert [x["successes"] for x in doc["summary"]["skills_alone"]["CloseSink (3 seeds)"]["per_seed"]] == [1, 0, 1]

@@ -43,13 +43,39 @@ class DatasetSpec:
 
 @dataclass(frozen=True)
 class LearnerSpec:
-    """A skill learner: `echo-data train ALGO DATASET --skill SKILL --inputs INPUTS OPTIONS...`."""
+    """A skill learner: `echo-data train ALGO DATASET --skill SKILL --inputs INPUTS OPTIONS...`,
+    trained once per seed of `seeds` (empty: the one seed its options give, `--seed`, else 0).
+    A row of a learner with several seeds is measured over all of them, the episodes shared out
+    (`evaluation.seeds`): one training is not a figure."""
 
     dataset: str
     skill: str
     inputs: str
     algo: str = "bc"
     options: tuple[str, ...] = ()
+    seeds: tuple[int, ...] = ()
+
+    @property
+    def trained_seeds(self) -> tuple[int, ...]:
+        """The training seeds, in the order a row's `+` list gives their runs."""
+        if self.seeds:
+            return self.seeds
+        opts = list(self.options)
+        return (int(opts[opts.index("--seed") + 1]),) if "--seed" in opts else (0,)
+
+    def options_for(self, seed: int) -> tuple[str, ...]:
+        """The training options of seed `seed`: `options` with its `--seed` (or one added)."""
+        opts = list(self.options)
+        if "--seed" not in opts:
+            return (*opts, "--seed", str(seed))
+        i = opts.index("--seed")
+        return (*opts[: i + 1], str(seed), *opts[i + 2:])
+
+
+def run_name(learner: str, seed: int) -> str:
+    """The run folder of `learner`'s training seed `seed`: seed 0 keeps the learner's own name (the
+    folder every single-seed learner has always had), another seed adds `-s<seed>`."""
+    return learner if seed == 0 else f"{learner}-s{seed}"
 
 
 @dataclass(frozen=True)
@@ -173,7 +199,19 @@ def measured(doc: dict[str, Any]) -> dict[str, Any]:
                         "planning_without_place_target": planning_without_place_target(doc["episodes"]),
                         "navigate_shortfall": handover(doc["episodes"])},
             "skills": {s: skill_success(doc["episodes"], s) for s in SKILL_TABLE},  # the table now: a skill added later is in it
-            **({"weights": doc["weights"]} if doc.get("weights") else {})}  # what it was measured with (evaluation.provenance)
+            **({"weights": doc["weights"]} if doc.get("weights") else {}),  # what it was measured with (evaluation.provenance)
+            **({"per_seed": per_member(doc)} if doc.get("seeds") else {})}
+
+
+def per_member(doc: dict[str, Any]) -> list[dict[str, Any]]:
+    """Each training seed's own figures in an evaluation over several (`evaluation.seeds`: episode
+    i acted by member i mod k), member by member: its skill completion (the evaluation's
+    `seeds.per_seed`) and the success of every skill it attempted."""
+    out = []
+    for j, completion in enumerate(doc["seeds"]["per_seed"]):
+        eps = [e for e in doc["episodes"] if e.get("member") == j]
+        out.append({"skill_completion": completion, "skills": {s: p for s in SKILL_TABLE if (p := skill_success(eps, s))["n"]}})
+    return out
 
 
 def composed(plans: dict[str, Any], runs_of: dict[str, Any]) -> dict[str, Any]:
@@ -221,10 +259,28 @@ def alone_count(per: dict[str, Any], skill: str) -> tuple[int, int]:
     return sum(t["k"] for t in tries), sum(t["n"] for t in tries)
 
 
-def interval(k: int, n: int) -> dict[str, Any]:
-    """A summary cell: successes, N and the Wilson 95 % interval."""
+def alone_seed_counts(per: dict[str, Any], skill: str) -> list[tuple[int, int]] | None:
+    """A skill-alone row measured over several training seeds: each seed's successes and attempts
+    over all its settings (member j of every entry is the same seed); None for one training."""
+    each = [e.get("per_seed") for e in per.values()]
+    if not each or any(not x for x in each) or len({len(x) for x in each if x}) != 1:
+        return None
+    counts = [[(m["skills"].get(skill) or {"k": 0, "n": 0}) for m in x] for x in each if x]
+    return [(sum(c[j]["k"] for c in counts), sum(c[j]["n"] for c in counts)) for j in range(len(counts[0]))]
+
+
+def setting_seed_counts(entry: dict[str, Any], metric: str = "skill_completion") -> list[tuple[int, int]] | None:
+    """A chain entry's `metric` per training seed; None for one training."""
+    each = entry.get("per_seed")
+    return [(m[metric]["k"], m[metric]["n"]) for m in each] if each else None
+
+
+def interval(k: int, n: int, seeds: list[tuple[int, int]] | None = None) -> dict[str, Any]:
+    """A summary cell: successes, N and the Wilson 95 % interval (and, measured over several
+    training seeds, each seed's successes and N)."""
     lo, hi = wilson(k, n)
-    return {"successes": k, "n": n, "low": round(lo, 4), "high": round(hi, 4)}
+    return {"successes": k, "n": n, "low": round(lo, 4), "high": round(hi, 4),
+            **({"per_seed": [{"successes": a, "n": b} for a, b in seeds]} if seeds else {})}
 
 
 def summary(doc: dict[str, Any], rows: dict[str, Row]) -> dict[str, Any]:
@@ -238,14 +294,15 @@ def summary(doc: dict[str, Any], rows: dict[str, Row]) -> dict[str, Any]:
         per, previous = entries(doc, row.name)
         skill = row.skill_alone
         if skill is not None:
-            cell = interval(*alone_count(per, skill)) if per else None
+            cell = interval(*alone_count(per, skill), alone_seed_counts(per, skill)) if per else None
             out["skills_alone"][row.label] = cell if cell is None or not previous else {**cell, "previous_session": True}
             continue
         for key, metric in (("completion", "skill_completion"), ("planning", "task_planning"), ("planning_without_receptacle", "planning_without_place_target")):
             out[key][row.name] = {}
             for setting in dict.fromkeys([*row.settings, *per]):
                 p = per.get(setting, {}).get("metrics", {}).get(metric)
-                out[key][row.name][setting] = None if p is None else interval(p["k"], p["n"])
+                seeds = setting_seed_counts(per[setting]) if p is not None and metric == "skill_completion" else None
+                out[key][row.name][setting] = None if p is None else interval(p["k"], p["n"], seeds)
     return out
 
 
@@ -259,12 +316,25 @@ def cell(p: dict[str, Any] | None) -> str:
     return f"{p['k']}/{p['n']} = {p['value']:.2f} [{lo:.2f}, {hi:.2f}]"
 
 
-def short(p: dict[str, Any] | None) -> str:
-    """A proportion as a cell of the paper-shaped table: value [95 % interval] (k/n)."""
+def seed_range(seeds: list[tuple[int, int]] | None) -> str:
+    """Per-seed successes/N as their range, the lowest share first: "3 seeds 12/17–16/17"
+    ("" for one training; "each" when every seed scored the same)."""
+    if not seeds:
+        return ""
+    scored = sorted((k / n, k, n) for k, n in seeds if n)
+    if not scored:
+        return f"{len(seeds)} seeds –"
+    lo, hi = (f"{k}/{n}" for _, k, n in (scored[0], scored[-1]))
+    return f"{len(seeds)} seeds {lo} each" if lo == hi and len(scored) == len(seeds) else f"{len(seeds)} seeds {lo}–{hi}"
+
+
+def short(p: dict[str, Any] | None, seeds: list[tuple[int, int]] | None = None) -> str:
+    """A proportion as a cell of the paper-shaped table: value [95 % interval] (k/n), and the
+    per-seed range of a row measured over several training seeds."""
     if not p or p.get("value") is None:
         return "–"
     lo, hi = p["ci95"]
-    return f"{p['value']:.2f} [{lo:.2f}, {hi:.2f}] ({p['k']}/{p['n']})"
+    return f"{p['value']:.2f} [{lo:.2f}, {hi:.2f}] ({p['k']}/{p['n']}{'; ' + seed_range(seeds) if seeds else ''})"
 
 
 def _words(setting: str) -> str:
@@ -291,7 +361,7 @@ def markdown(doc: dict[str, Any], rows: dict[str, Row], order: tuple[str, ...]) 
         cells = []
         for setting in order:
             m = per.get(setting, {}).get("metrics", {})
-            cells += [short(m.get("task_planning")), short(m.get("skill_completion"))] if setting in per else [NOT_MEASURED] * 2
+            cells += [short(m.get("task_planning")), short(m.get("skill_completion"), setting_seed_counts(per[setting]))] if setting in per else [NOT_MEASURED] * 2
         head.append(f"| {row.name}{mark[row.name]} | " + " | ".join(cells) + " |")
         for setting in order:
             if setting not in per:
@@ -309,7 +379,8 @@ def markdown(doc: dict[str, Any], rows: dict[str, Row], order: tuple[str, ...]) 
             continue
         per = read[row.name][0]
         settings = ", ".join(_words(s) for s in (per or row.settings))
-        alone.append(f"| {row.label}{mark[row.name]} | {settings} | {cell(proportion(*alone_count(per, skill))) if per else NOT_MEASURED} |")
+        seeds = seed_range(alone_seed_counts(per, skill)) if per else ""
+        alone.append(f"| {row.label}{mark[row.name]} | {settings} | {cell(proportion(*alone_count(per, skill))) + ('; ' + seeds if seeds else '') if per else NOT_MEASURED} |")
     notes = []
     if any("†" in m for m in mark.values()):
         notes.append("† computed from the episodes of two measured rows (the same test episodes): a learned-planner row takes each "
@@ -318,6 +389,10 @@ def markdown(doc: dict[str, Any], rows: dict[str, Row], order: tuple[str, ...]) 
                      "(`composed` and `derived` in echo_data/evaluation/table.py say why this is exact).")
     if any("‡" in m for m in mark.values()):
         notes.append("‡ the previous session's measurement (`previous_session` in the JSON): " + doc["previous_session"].get("note", ""))
+    if any(e.get("per_seed") for per, _ in read.values() for e in per.values()):
+        notes.append("\"K seeds a/b–c/d\": a row measured over K training seeds of its learners, the test episodes dealt out over "
+                     "them in turn (echo_data/evaluation/seeds.py): the pooled figure with its Wilson interval, then the lowest and the "
+                     "highest seed's own successes/episodes (each entry's `per_seed` in the JSON, member j the j-th of its `seeds`).")
     if stale:
         notes.append("§ stale: measured with weights that are not the shipped reference learners' (echo_data/reference/manifest.json); re-measure it.")
     if any(r.grasp == "magic" for r in rows.values()):

@@ -13,6 +13,11 @@ so `-n N` scores N episodes of it (`echo-data evaluate` samples them; the test s
 built). A row whose recipe is not in this folder's recipes/ yet (the paper-comparable ones: `_magic`) waits,
 said on stderr; so does a learner whose dataset's recipe is not there.
 
+Training seeds: a learner of several (`LearnerSpec.seeds`) is trained once per seed, into RUNS/<learner>
+for seed 0 (the folder a single-seed learner has always had) and RUNS/<learner>-s<seed> for the others,
+and its rows are evaluated with the runs joined by `+` (`evaluation.seeds`: the -n episodes dealt out
+over the seeds, so N is unchanged); the entry records the seeds, each seed's weights and figures.
+
 Resumable: the data build resumes, finished run folders (a `summary.json` written here) are not
 trained again, and an evaluation already in the JSON is not run again (they are the long part).
 Several runs of this script (one row each, on their own cores) share one JSON: each merges what
@@ -24,7 +29,7 @@ Usage:
   python studies/paper_table/paper_table.py --learners Pick      # only build the data of and train a learner
   python studies/paper_table/paper_table.py --adopt EVAL.json ...  # take in evaluations run before (same recipe and weights)
   python studies/paper_table/paper_table.py --render             # only re-render the markdown and its copies (this README, the repository's) from the JSON
-  python studies/paper_table/paper_table.py --tiny --data D --out J   # the test: a quickstart build D, a few steps, 1 episode of D's recipe
+  python studies/paper_table/paper_table.py --tiny --data D --out J   # the test: a quickstart build D, a few steps, 1 episode of D's recipe (per training seed)
 """
 
 from __future__ import annotations
@@ -46,7 +51,8 @@ from runner import ROOT, cli, commit  # noqa: E402
 from echo_data.dataset.lock import BuildLock
 from echo_data.dataset.storage import atomic_write_bytes, atomic_write_json
 from echo_data.evaluation import table
-from echo_data.evaluation.table import ComposedRow, DerivedRow, EvaluatedRow
+from echo_data.evaluation.seeds import MEMBER_SEPARATOR as SEP
+from echo_data.evaluation.table import ComposedRow, DerivedRow, EvaluatedRow, run_name
 from echo_data.learn import runs as run_files
 
 HERE = Path(__file__).resolve().parent
@@ -66,9 +72,9 @@ def command(args: list[str]) -> str:
     run folder of a `--policy=SKILL=RUN`)."""
 
     def shown(x: str) -> str:
-        if x.startswith("--policy=") and x.count("=") == 2:
-            skill, run = x.removeprefix("--policy=").split("=")
-            return f"--policy={skill}={rel(Path(run))}"
+        if x.startswith("--policy=") and x.count("=") == 2:  # a run, or one per training seed joined by `+`
+            skill, runs = x.removeprefix("--policy=").split("=")
+            return f"--policy={skill}=" + SEP.join(rel(Path(r)) for r in runs.split(SEP))
         return rel(Path(x)) if Path(x).exists() else x
 
     return "echo-data " + " ".join(shown(x) for x in args)
@@ -102,23 +108,42 @@ def finished(folder: Path) -> dict[str, Any] | None:
     return None
 
 
-def train(data: Path, runs: Path, name: str, tiny: bool) -> dict[str, Any] | None:
-    """Train learner `name` on dataset `data` unless its run folder holds a finished run; None when
-    its skill has no rows."""
+def seed_runs(learner: str) -> list[str]:
+    """The run folders (names under RUNS, the JSON's `training` keys) of `learner`, one per training seed."""
+    return [run_name(learner, seed) for seed in LEARNERS[learner].trained_seeds]
+
+
+def policy_args(row: EvaluatedRow, runs: Path) -> list[str]:
+    """`--policy=SKILL=RUN` per learned skill of `row`; a learner of several seeds gives its runs
+    joined by `+`, so the evaluation shares the episodes out over them (`evaluation.seeds`)."""
+    return [f"--policy={s}=" + SEP.join(str(runs / r) for r in seed_runs(learner)) for s, learner in row.policy.items()]
+
+
+def row_seeds(row: EvaluatedRow) -> dict[str, list[int]]:
+    """The training seeds of each skill of `row` whose learner has several ({} for one training
+    each): the entry's `seeds`, member j of its `per_seed` being the j-th."""
+    return {s: list(LEARNERS[learner].trained_seeds) for s, learner in row.policy.items() if len(LEARNERS[learner].trained_seeds) > 1}
+
+
+def train(data: Path, runs: Path, name: str, tiny: bool) -> dict[str, dict[str, Any]] | None:
+    """Train learner `name` on dataset `data`, once per training seed, unless the seed's run folder
+    holds a finished run: {run name: its summary}; None when its skill has no rows."""
     from echo_data.learn.data import skills_in
 
     spec = LEARNERS[name]
     if spec.skill not in skills_in(data, "train"):
         return None
-    folder = runs / name
-    if (summary := finished(folder)) is not None:
-        return summary
-    args = ["train", spec.algo, str(data), "--skill", spec.skill, "--inputs", spec.inputs, *spec.options, "--out", str(folder), "--no-progress",
-            *(["--max-steps", "2"] if tiny else [])]
-    stdout, seconds = cli(*args)
-    summary = {**json.loads(stdout), "command": command(args), "wall_seconds": round(seconds, 1), "run": rel(folder), "commit": commit()}
-    run_files.write_json(folder, "summary.json", summary)  # listed in the run's marker: train --overwrite may replace it
-    return summary
+    out = {}
+    for seed in spec.trained_seeds:
+        folder = runs / run_name(name, seed)
+        if (summary := finished(folder)) is None:
+            args = ["train", spec.algo, str(data), "--skill", spec.skill, "--inputs", spec.inputs, *spec.options_for(seed), "--out", str(folder),
+                    "--no-progress", *(["--max-steps", "2"] if tiny else [])]
+            stdout, seconds = cli(*args)
+            summary = {**json.loads(stdout), "command": command(args), "wall_seconds": round(seconds, 1), "run": rel(folder), "commit": commit()}
+            run_files.write_json(folder, "summary.json", summary)  # listed in the run's marker: train --overwrite may replace it
+        out[folder.name] = summary
+    return out
 
 
 def train_planner(data: Path, runs: Path, tiny: bool) -> dict[str, Any]:
@@ -144,19 +169,29 @@ def train_planner(data: Path, runs: Path, tiny: bool) -> dict[str, Any]:
 
 def evaluate(recipe: Path, row: EvaluatedRow, planner: str, runs: Path, n: int, workers: int, out: Path) -> dict[str, Any]:
     """`echo-data evaluate` of one row on one recipe: the row's entry (command, commit, seconds, measurement)."""
-    args = ["evaluate", str(recipe), "--split", "test", "-n", str(n), *(f"--policy={s}={runs / r}" for s, r in row.policy.items()),
+    args = ["evaluate", str(recipe), "--split", "test", "-n", str(n), *policy_args(row, runs),
             "--policy", "oracle", "--planner", planner, "--workers", str(workers), "--json", str(out)]
     if out.with_suffix(".episodes.jsonl").is_file():  # a killed evaluation's journal: continue it
         args.append("--resume")
     _, seconds = cli(*args)
-    return {"command": command(args), "wall_seconds": round(seconds, 1), "commit": commit(), **table.measured(json.loads(out.read_text()))}
+    return {"command": command(args), "wall_seconds": round(seconds, 1), "commit": commit(), **table.measured(json.loads(out.read_text())),
+            **({"seeds": seeds} if (seeds := row_seeds(row)) else {})}
+
+
+def checkpoints(doc: dict[str, Any]) -> dict[str, list[str | None]]:
+    """Per learned skill of an `echo-data evaluate --json` document, the checkpoint SHA-256 of its
+    run folder (`folder_sha256`) in each member (one per training seed; one member without `+`)."""
+    members = doc["policy"].get("members") or [doc["policy"]]
+    each = [{s: v.get("checkpoint_sha256") for s, v in m.get("skills", {}).items() if s != "*"} for m in members]
+    return {s: [m.get(s) for m in each] for s in each[0]}
 
 
 def adopt(path: Path, runs: Path, n: int, workers: int) -> tuple[str, str, dict[str, Any]]:
     """Take an evaluation measured before (an `echo-data evaluate --json` document, e.g. a study's
     run of a skill alone) into the table as the entry of the row and setting it is: the same
     recipe file and content, the test split, `n` episodes, the oracle planner, and for every
-    learned skill the same weights as the table's learner (`folder_sha256` of RUNS/<learner>).
+    learned skill the same weights as the table's learner (`folder_sha256` of RUNS/<learner>),
+    seed by seed for a learner of several (the evaluation's `+` list in the learner's seed order).
     Anything else is refused (exit 2, one line): an adopted entry is exactly what `evaluate`
     would have measured, so its command is the one that repeats it. Returns (row, setting, entry)."""
     from echo_data.agents.loading import folder_sha256
@@ -164,7 +199,7 @@ def adopt(path: Path, runs: Path, n: int, workers: int) -> tuple[str, str, dict[
 
     doc = json.loads(path.read_text())
     recipe = Path(doc["recipe"]["path"]).name
-    learned = {s: v.get("checkpoint_sha256") for s, v in doc["policy"].get("skills", {}).items() if s != "*"}
+    learned = checkpoints(doc)
     why = []
     for name, row in ROWS.items():
         if not isinstance(row, EvaluatedRow) or row.planner != "oracle" or set(row.policy) != set(learned):
@@ -176,17 +211,21 @@ def adopt(path: Path, runs: Path, n: int, workers: int) -> tuple[str, str, dict[
                 why.append(f"recipes/{recipe} changed since (content hash {h[:12]}, the evaluation's {doc['recipe']['content_hash'][:12]})")
             elif doc["split"] != "test" or doc["n"] != n:
                 why.append(f"it scored {doc['n']} episodes of {doc['split']}, the table {n} of test")
-            elif any(not (runs / row.policy[s]).is_dir() or folder_sha256(runs / row.policy[s]) != h for s, h in learned.items()):
-                why.append(f"row {name!r}: its learners in {rel(runs)} are not the evaluated weights")
+            elif any(len(hs) != len(seed_runs(row.policy[s])) for s, hs in learned.items()):
+                why.append(f"row {name!r}: " + ", ".join(f"{s} has {len(seed_runs(row.policy[s]))} training seed(s), the evaluation {len(hs)} run(s)"
+                                                          for s, hs in learned.items()))
+            elif any(not (runs / r).is_dir() or folder_sha256(runs / r) != h for s, hs in learned.items() for r, h in zip(seed_runs(row.policy[s]), hs, strict=True)):
+                why.append(f"row {name!r}: its learners in {rel(runs)} ({', '.join(r for s in learned for r in seed_runs(row.policy[s]))}) are not the evaluated weights")
             else:
                 out = eval_json(runs, name, setting)
                 atomic_write_json(out, doc)  # where the driver keeps the row's document (a computed row may read it)
-                args = ["evaluate", str(RECIPES / recipe), "--split", "test", "-n", str(n), *(f"--policy={s}={runs / r}" for s, r in row.policy.items()),
+                args = ["evaluate", str(RECIPES / recipe), "--split", "test", "-n", str(n), *policy_args(row, runs),
                         "--policy", "oracle", "--planner", "oracle", "--workers", str(workers), "--json", str(out)]
+                shas = ", ".join(f"{s} {SEP.join(str(h)[:12] for h in hs)}" for s, hs in learned.items())
                 return name, setting, {"command": command(args), "wall_seconds": round(float(doc["wall_seconds"]), 1), "commit": commit(),
                                        "adopted": f"measured before this run of the table by the same command on the same recipe and weights "
-                                                  f"(checkpoint sha256 {', '.join(f'{s} {h[:12]}' for s, h in learned.items())}); taken from its --json document",
-                                       **table.measured(doc)}
+                                                  f"(checkpoint sha256 {shas}); taken from its --json document",
+                                       **table.measured(doc), **({"seeds": seeds} if (seeds := row_seeds(row)) else {})}
     print(f"error: --adopt {path}: " + ("; ".join(why) if why else f"no oracle-planner row evaluates {', '.join(learned) or 'the experts'} on recipes/{recipe}"),
           file=sys.stderr)
     sys.exit(2)
@@ -299,14 +338,15 @@ def main() -> None:
             data[key] = build(recipe, catalogue.DATASETS[key].split, a.data_root / key, a.workers, mine)
         else:
             print(f"dataset {key}: waits for {rel(recipe)}", file=sys.stderr)
-    mine["training"].update({name: s for name in needed if LEARNERS[name].dataset in data
-                             and (s := train(data[LEARNERS[name].dataset], a.runs, name, a.tiny)) is not None})
+    for name in needed:  # `training` is keyed by run folder: one per training seed (seed 0's is the learner's name)
+        if LEARNERS[name].dataset in data and (done_runs := train(data[LEARNERS[name].dataset], a.runs, name, a.tiny)) is not None:
+            mine["training"].update(done_runs)
     if wants_planner and PLANNER.dataset in data:
         mine["training"]["planner"] = train_planner(data[PLANNER.dataset], a.runs, a.tiny)
     trained.update(mine["training"])
     save(a.out, mine)
     for name, row in chosen.items():
-        if isinstance(row, EvaluatedRow) and (untrained := [r for r in row.policy.values() if r not in trained]):
+        if isinstance(row, EvaluatedRow) and (untrained := [r for learner in row.policy.values() for r in seed_runs(learner) if r not in trained]):
             print(f"{name}: waits for the learners {', '.join(untrained)}", file=sys.stderr)
             continue
         done = json.loads(a.out.read_text()).get("rows", {}).get(name, {})  # another run of this script may have measured it
@@ -322,7 +362,9 @@ def main() -> None:
             if not rec.is_file() or (a.tiny and row.grasp != "physical"):
                 print(f"{name} / {setting}: waits for {rel(RECIPES / catalogue.recipe(row, setting))}", file=sys.stderr)
                 continue
-            res = evaluate(rec, row, "oracle" if row.planner == "oracle" else planner_run, a.runs, n, a.workers, eval_json(a.runs, name, setting))
+            seeds = max((len(x) for x in row_seeds(row).values()), default=1)
+            res = evaluate(rec, row, "oracle" if row.planner == "oracle" else planner_run, a.runs, n * seeds if a.tiny else n, a.workers,
+                           eval_json(a.runs, name, setting))  # --tiny: an episode per seed
             mine["rows"] = {name: {setting: res}}
             save(a.out, mine)  # after every evaluation: a kill loses at most the one running (its journal resumes it)
             print(f"{name} / {setting}: {table.cell(res['metrics'].get('skill_completion'))}", file=sys.stderr)
