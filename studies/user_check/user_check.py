@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -164,7 +165,11 @@ def main() -> None:
         return
     if a.episodes < 1 or (a.workers is not None and a.workers < 1):
         ap.error("--episodes and --workers must be >= 1")
-    doc = measure(a)
+    # One torch thread in every command (training's default already): evaluate's learner otherwise
+    # runs on every core, whose spinning on a shared machine cost several times the CPU (measured
+    # on one test episode here), and a thread count of its own makes the episodes the same anywhere.
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    doc = {**measure(a), "environment": {"OMP_NUM_THREADS": os.environ["OMP_NUM_THREADS"]}}
     write_json(a.out, doc)
     print(json.dumps(doc["result"]))
     if a.out.resolve() == RESULTS:
