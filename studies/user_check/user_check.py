@@ -77,9 +77,9 @@ def write_json(path: Path, doc: dict[str, Any]) -> None:
 
 def step(name: str, args: list[str], done: bool, work: Path, extra: list[str] | None = None) -> dict[str, Any]:
     """Run `echo-data ARGS EXTRA` unless `done`; the step's record, kept in WORK/step-NAME.json (NAME:
-    build, train-SKILL, evaluate-SKILL) and
-    reused with `done`: its command as typed (a work folder outside the checkout shown as WORK: no
-    machine paths in results), its wall seconds (None: done before, by no run of this script)."""
+    build, train-SKILL, evaluate-SKILL) and reused with `done`: its command as typed (a work folder
+    outside the checkout shown as WORK: no machine paths in results), its wall seconds (None: done
+    before, by no run of this script)."""
     kept = work / f"step-{name}.json"
     if done:
         return {**json.loads(kept.read_text()), "reused": True} if kept.is_file() else {"command": None, "seconds": None, "reused": True}
@@ -101,7 +101,8 @@ def measure(a: argparse.Namespace) -> dict[str, Any]:
     manifest = data / "manifest.json"
     complete = manifest.is_file() and bool(json.loads(manifest.read_text()).get("complete"))
     steps["build"] = step("build", cmd["build"], complete, work, ["--resume"] if manifest.is_file() and not complete else None)
-    trained = (work / f"step-train-{a.skill}.json").is_file()  # written once the training finished: a run folder without it is unfinished
+    # written once the training finished: a run folder without it is unfinished; data built (further) now is trained on again
+    trained = (work / f"step-train-{a.skill}.json").is_file() and steps["build"]["reused"]
     journal = evaluated.with_suffix(".episodes.jsonl")
     if not trained:  # trained again: nothing evaluated with other weights is kept
         shutil.rmtree(run, ignore_errors=True)
