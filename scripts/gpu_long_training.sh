@@ -56,7 +56,7 @@ sys.exit(0 if m.get("complete") else 1)
 EOF
 
 # --- the learners, side by side on the one GPU, until the deadline ---------------------------------
-COMMON="--skill $SKILL --inputs depth,wrist_depth,state,kind --action-column action.ee --shift 4 --device $DEVICE --batch-size 256 --epochs 1000 --threads 4 --seed 0 --no-progress"
+COMMON="--skill $SKILL --inputs depth,wrist_depth,state,kind --action-column action.ee --shift 4 --select-every 0 --device $DEVICE --batch-size 256 --epochs 1000 --threads 4 --seed 0 --no-progress"
 LEFT=$(( DEADLINE_S - $(since) ))
 echo "=== training for $LEFT s $(date -u +%T)"
 NAMES=(); PIDS=()

@@ -103,6 +103,21 @@ def drive_end_seeds(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + f"\n\nThe test episodes dealt out over the seeds in turn; commit {', '.join(commits)}.\n"
 
 
+def user_check(doc: dict[str, Any]) -> str:
+    """The user check: the skill learned with the CLI's defaults, completed after the expert's hand-over."""
+    r = doc.get("result")
+    if not r:
+        return f"Not measured yet: results/user_check.json holds no result (`{doc['command']}` measures it).\n"
+    o = doc["training"]["options"]
+    options = (f"--inputs {','.join(o['inputs'])} --action-column {o['action_column']} --shift {o['shift']} --epochs {o['epochs']} "
+               f"--select-every {o['select_every']} --select-episodes {o['select_episodes']}")
+    lines = ["| skill | what `train act` resolved | completed after the expert's Navigate (test) | the goal (0.8) |", "|---|---|---|---|",
+             f"| {doc['skill']} | `{options}` | {interval(r)} | {'met' if r['successes'] >= 0.8 * r['n'] else 'not met'} |"]
+    took = ", ".join(f"{k} {'reused' if s is None else f'{s / 60:.0f} min'}" for k, s in doc["seconds"].items())
+    return ("\n".join(lines) + f"\n\n{doc['episodes']} test episodes of recipe seed {doc['seeds']['recipe']}, training seed {doc['seeds']['training']}; "
+            f"wall time {took}; commit {doc['commit'][:7]}.\n")
+
+
 Renderer = Callable[[dict[str, Any]], str]
 # (study, copy name, results file in the study's results/, renderer)
 COPIES: list[tuple[str, str, str, Renderer]] = [
@@ -115,6 +130,7 @@ COPIES: list[tuple[str, str, str, Renderer]] = [
     ("handover", "drive_ends", "navigate_drive_end.json", drive_ends),
     ("handover", "drive_end_seeds", "navigate_drive_end.json", drive_end_seeds),
     ("experts", "foundation", "foundation.json", foundation),
+    ("user_check", "user_check", "user_check.json", user_check),
 ]
 
 

@@ -91,6 +91,7 @@ def _episodes(path: str, split: str = "train", setting: str | None = None) -> st
 _NAV, _PLANNER, _FRESH = "studies/paper_table/recipes/nav_audio.yaml", "studies/planner/recipes/planner_audio.yaml", "studies/planner/recipes/planner_fresh.yaml"
 _PICK, _DOOR = "studies/paper_table/recipes/cameras_pick_place.yaml", "studies/paper_table/recipes/cameras_door_sink.yaml"
 _BCNAV = "studies/navigation_ablation/recipes/bc_navigate.yaml"
+_USER = "studies/user_check/recipes/user_check.yaml"
 _OR, _ST, _ME = "object_relocation", "state_transition", "multi_event"
 _Count = list[tuple[str, str, str | None]]  # one figure: (recipe, split, setting or all), every one the same count
 
@@ -117,6 +118,8 @@ RECIPE_COUNTS: list[tuple[str, str, list[_Count]]] = [
      [[(_PLANNER, "train", None)], _each(_PLANNER, "train"), [(_PLANNER, "test", None)], *([(_PLANNER, "test", s)] for s in (_OR, _ST, _ME))]),
     ("planner", "and 100 train episodes per setting (300, not 1,440", [_each(_FRESH, "train"), [(_FRESH, "train", None)], [(_PLANNER, "train", None)]]),
     ("planner", "(480 train episodes per setting, ~1,440 fresh-voice", [_each(_PLANNER, "train"), [(_PLANNER, "train", None)]]),
+    ("user_check", "which no test or study uses, and 60 train, 10 validation and 50 test episodes",
+     [[(_USER, "train", None)], [(_USER, "val", None)], [(_USER, "test", None)]]),
 ]
 
 

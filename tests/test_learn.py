@@ -40,7 +40,8 @@ def ds(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _train(ds: Path, out: Path, *extra: str) -> dict:
-    args = ["train", "bc", str(ds), "--skill", "Navigate", "--out", str(out), "--threads", "1", "--no-progress", "--batch-size", "32", *extra]
+    args = ["train", "bc", str(ds), "--skill", "Navigate", "--out", str(out), "--threads", "1", "--no-progress", "--batch-size", "32",
+            "--select-every", "0", *extra]  # the lowest validation loss unless a test chooses closed loop (the last option given wins)
     res = runner.invoke(app, args)
     assert res.exit_code == 0, res.output
     return json.loads(res.stdout)

@@ -44,8 +44,20 @@ def test_all_four_examples_are_there() -> None:
 
 
 def test_the_readme_shows_three_of_them_as_the_docs_do() -> None:
-    assert set(README) == {"datasets", "torch", "lerobot", "recipe"}
+    assert set(README) == {"datasets", "torch", "lerobot", "recipe", "train_a_skill"}
     assert all(README[name] == EXAMPLES[name] for name in ("datasets", "torch", "lerobot"))
+
+
+def test_the_readme_trains_a_skill_with_the_commands_the_user_check_runs() -> None:
+    """studies/user_check runs exactly the README's "Training a skill" commands (its defaults)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("user_check", HERE.parent / "studies" / "user_check" / "user_check.py")
+    assert spec is not None and spec.loader is not None
+    study = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(study)
+    shown = [f"echo-data {' '.join(c)}" for c in study.commands(study.RECIPE, study.WORK, "Pick", 50).values()]
+    assert README["train_a_skill"].strip().splitlines() == shown
 
 
 def test_the_readme_recipe_loads_beside_recipes(tmp_path: Path) -> None:

@@ -80,7 +80,7 @@ def test_a_select_recipe_without_val_episodes_gets_them_in_a_setting_of_its_own(
 
 def test_select_recipe_needs_select_every(ds: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    code, output = _train(ds, out, "--select-recipe", str(_recipe(tmp_path, HANDOVER)))
+    code, output = _train(ds, out, "--select-every", "0", "--select-recipe", str(_recipe(tmp_path, HANDOVER)))  # Navigate's default chooses every 5
     assert code == 2 and "--select-recipe: chooses the checkpoint closed loop; it needs --select-every" in output, output
     assert not out.exists()
 

@@ -137,3 +137,33 @@ def test_planner_tiny_writes_the_rows_the_readme_renders(tmp_path: Path) -> None
     assert set(held["rows"][0]) <= set(row) and row["inputs"] == "audio" and row["flags"] == "--epochs 1 --max-steps 2"
     assert {"single_event", "multi_event", "all"} <= set(row["test"])
     assert "| audio | `--epochs 1 --max-steps 2` |" in _renderer("planner")(doc)
+
+
+@needs_torch
+@pytest.mark.slow
+def test_user_check_tiny_runs_the_readme_commands_and_scores_the_run_it_trained(tmp_path: Path) -> None:
+    """The user check on its recipe made small (2 train episodes at 32 px, flat look), 1 epoch of a small
+    ACT with no closed-loop choice (`--tiny`), 1 test episode; run again, every step is reused."""
+    from echo_data.learn import runs
+
+    recipe = tmp_path / "tiny.yaml"
+    recipe.write_text(f"extends: {ROOT / 'studies' / 'user_check' / 'recipes' / 'user_check.yaml'}\nname: user_check_tiny\n"
+                      "splits: {train: 2, val: 1, test: 1}\nscene: {look: flat}\n"
+                      "robot:\n  head_camera: {width: 32, height: 32}\n  wrist_camera: {width: 32, height: 32}\n")
+    work, out = tmp_path / "work", tmp_path / "user_check.json"
+    args = ("--recipe", str(recipe), "--tiny", "--episodes", "1", "--workers", "1", "--work", str(work), "--out", str(out))
+    _run("user_check/user_check.py", *args)
+    doc, held = json.loads(out.read_text()), _committed("user_check", "user_check.json")
+    assert set(held) <= set(doc) and doc["seeds"] == {"recipe": 7331, "training": 0} and not doc["reused"]
+    assert doc["commands"]["train"] == ("echo-data train act WORK/data --skill Pick --seed 0 --epochs 1 --select-every 0 --d-model 32 --heads 2 "
+                                        "--layers 1 --image-size 0 --out WORK/runs/Pick")
+    assert doc["commands"]["build"].endswith("--split train --workers 1 --out WORK/data") and "--policy Pick=WORK/runs/Pick" in doc["commands"]["evaluate"]
+    assert doc["training"]["options"] == {"inputs": ["depth", "wrist_depth", "state", "kind"], "action_column": "action", "shift": 4,
+                                          "epochs": 1, "select_every": 0, "select_episodes": 10}  # the skill's defaults but for --tiny's two
+    result = doc["result"]
+    assert result["n"] <= 1 and result["successes"] <= result["n"] and all(s > 0 for s in doc["seconds"].values())
+    assert result["weights_sha256"] == doc["training"]["weights_sha256"] == runs.file_sha256(work / "runs" / "Pick" / "best.pt")
+    assert "| Pick |" in _renderer("user_check")(doc)
+    _run("user_check/user_check.py", *args)
+    again = json.loads(out.read_text())
+    assert again["reused"] == ["build", "train", "evaluate"] and again["result"] == result and again["seconds"] == doc["seconds"]

@@ -101,15 +101,16 @@ def _field_default(f: Any) -> Any:
     return f.default_factory() if f.default is dataclasses.MISSING else f.default
 
 
-def _field_options(cls: type, fields: list[Any]) -> list[inspect.Parameter]:
-    """One keyword option per config field (its `opt` help, bounds and default): the options of
-    every `echo-data train` learner are generated here from its config class. Each defaults to
-    None on the command line, so a value the user gave is told apart from the config's default."""
+def _field_options(cls: type, fields: list[Any], per_skill: tuple[str, ...] = ()) -> list[inspect.Parameter]:
+    """One keyword option per config field (its `opt` help, bounds and default; `per_skill`: the
+    fields whose default is the skill's, `learn/defaults.py`): the options of every `echo-data
+    train` learner are generated here from its config class. Each defaults to None on the command
+    line, so a value the user gave is told apart from the config's default."""
     hints = typing.get_type_hints(cls)
     params = []
     for f in fields:
         default = _field_default(f)
-        shown = ",".join(default) if isinstance(default, tuple) else default
+        shown = "per skill, above" if f.name in per_skill else ",".join(default) if isinstance(default, tuple) else default
         help_text = f.metadata["help"] + (" (required)" if f.metadata.get("required") else f" (default {shown})")
         bounds = {k: f.metadata[k] for k in ("min", "max") if k in f.metadata}
         params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, annotation=_option_type(hints[f.name]) | None,
@@ -134,12 +135,13 @@ def _make_train_command(name: str) -> Callable[..., None]:
     """`echo-data train <algo>`: one option per field of the algorithm's config (defaults from the
     config class, then `--config FILE`, then the command line), plus the run-folder options."""
     from echo_data.learn.algos import algorithm
+    from echo_data.learn.defaults import RESOLVED, help_line
 
     algo = algorithm(name)
     cls = algo.config
     fields = cls.options()
     params = [_dataset_argument()]
-    params += _field_options(cls, fields)
+    params += _field_options(cls, fields, RESOLVED)
     params += [
         inspect.Parameter("config", inspect.Parameter.KEYWORD_ONLY, annotation=Path | None,
                           default=typer.Option(None, "--config", help="JSON or YAML file of option values (the command line wins).")),
@@ -172,6 +174,7 @@ def _make_train_command(name: str) -> Callable[..., None]:
         try:
             if not values.get("skill"):
                 raise ConfigError("--skill: required (on the command line or in --config)")
+            values = {**_skill_defaults(values, dataset, kw["out"] if kw["resume"] else None), **values}
             inputs = values.get("inputs", cls.default_of(next(f for f in fields if f.name == "inputs")))
             names = parse_inputs(inputs if isinstance(inputs, str) else ",".join(inputs), BC_INPUTS)
             if "audio_form" in values and "audio" not in names:
@@ -197,7 +200,23 @@ def _make_train_command(name: str) -> Callable[..., None]:
             raise _fail(write_failed("--out", folder, e)) from None
         typer.echo(json.dumps(summary, indent=1))
 
-    return _as_command(command, params, f"train_{name}", f"{algo.summary} Clones one skill from the dataset's step rows; the run folder loads as a policy.")
+    return _as_command(command, params, f"train_{name}", f"{algo.summary} Clones one skill from the dataset's step rows; the run folder loads as a policy.\n\n{help_line()}")
+
+
+def _skill_defaults(given: dict[str, Any], dataset: Path, resumed: Path | None) -> dict[str, Any]:
+    """The per-skill defaults of the options `given` lacks (`learn.defaults.resolve`; its notes on
+    stderr); resuming the run in `resumed`, that run's own values instead (a run trained before the
+    per-skill defaults continues as it started)."""
+    from echo_data.learn import runs
+    from echo_data.learn.defaults import RESOLVED, resolve
+
+    if resumed is not None and (resumed / runs.CONFIG).is_file():
+        saved = runs.read_json(resumed / runs.CONFIG)
+        return {k: saved[k] for k in RESOLVED if k not in given and k in saved}
+    fill, notes = resolve(str(given["skill"]), given, dataset)
+    for note in notes:
+        typer.echo(f"note: {note}", err=True)
+    return fill
 
 
 def register_algorithms() -> None:

@@ -30,6 +30,7 @@ HEAD_DEPTH = IMAGE_COLUMNS["head_depth"]
 HEAD_RGB = IMAGE_COLUMNS["head_rgb"]
 WRIST_DEPTH = IMAGE_COLUMNS["wrist_depth"]
 AUDIO_COLUMNS = {"spectrogram": SPECTROGRAM, "mel": MEL}
+IMAGE_INPUT_COLUMNS = {"depth": HEAD_DEPTH, "wrist_depth": WRIST_DEPTH, "rgb": HEAD_RGB, "image": HEAD_RGB}  # image input -> its stored column
 
 # State entries that echo the previous command (see module doc): never fed by `state`.
 LEAKING_STATE = tuple(n for n in STATE_NAMES if n in ("base_vx", "base_vy", "base_wz") or n.endswith("_vel"))
@@ -199,9 +200,8 @@ def stored_sides(dataset: Path, inputs: tuple[str, ...]) -> dict[str, tuple[int,
         layout = DatasetMeta.of(dataset).layout
     except (OSError, ValueError, KeyError) as e:
         raise FeatureError(f"{dataset / 'manifest.json'}: cannot read the step layout ({e})") from None
-    cols = {"depth": HEAD_DEPTH, "wrist_depth": WRIST_DEPTH, "rgb": HEAD_RGB, "image": HEAD_RGB}
     out = {}
-    for name, col in cols.items():
+    for name, col in IMAGE_INPUT_COLUMNS.items():
         if name in inputs:
             if col not in layout.images:
                 raise FeatureError(f"--inputs {name}: the dataset stores no {col}")

@@ -103,7 +103,9 @@ def main() -> None:
         base = "nav-" + ("ild-" if form == "level_ild" else "") + inputs.replace(",", "-")
         name = base + (f"-dagger{a.dagger}" if a.dagger else "")
         train = ["train", "bc", str(data), "--skill", "Navigate", "--inputs", inputs, "--epochs", str(a.epochs), "--seed", str(a.seed),
-                 *(["--audio-form", form] if "audio" in inputs.split(",") else []), "--out", str(runs / name), "--no-progress"]  # refused without audio
+                 *(["--audio-form", form] if "audio" in inputs.split(",") else []),  # refused without audio
+                 "--select-every", "0",  # the lowest validation loss, as the committed rows chose (not Navigate's per-skill default)
+                 "--out", str(runs / name), "--no-progress"]
         done = runs / name / "summary.json"  # what `train` printed, kept beside the run (written below)
         if a.dagger:
             train += ["--dagger", str(a.dagger), "--dagger-episodes", str(a.dagger_episodes)]

@@ -24,6 +24,7 @@ from typing import Any
 
 from echo_data.evaluation import table
 from echo_data.evaluation.table import ComposedRow, DatasetSpec, DerivedRow, EvaluatedRow, Grasp, LearnerSpec, PlannerSpec
+from echo_data.learn import defaults
 
 SKILLS = table.SKILLS  # the skill table's, in its order
 SETTINGS = ("object_relocation", "state_transition", "multi_event")
@@ -81,14 +82,19 @@ PLANNER = PlannerSpec("planner_fresh", ("--inputs", "audio", "--select", "accura
 # first step Navigate's success test holds. Every learner gets the target
 # kind its chain entry names; the starred ones also the target position (the paper's Oracle*).
 STUDY = "studies/paper_table"  # this study's folder, from the repository root (where the driver runs `echo-data`)
-MANIPULATION = ("--action-column", "action.ee", "--device", "auto", "--epochs", "20", "--select-every", "10", "--shift", "4",
-                "--select-episodes", "10", "--seed", "0")
-MANIPULATION_INPUTS = "depth,wrist_depth,state,kind"
-NAVIGATE = ("--audio-form", "level_ild", "--action-column", "action.ee", "--epochs", "20", "--select-every", "5", "--select-episodes", "10",
-            "--device", "auto", "--seed", "0")
+# The values are the per-skill defaults of `echo-data train` (their owner, echo_data/learn/defaults.py),
+# passed explicitly in the order the committed runs were trained with (tests/test_train_defaults.py
+# checks every committed training command of studies/paper_table/results/paper_table.json against these).
+_M, _N = defaults.MANIPULATION, defaults.NAVIGATE
+MANIPULATION = ("--action-column", defaults.STUDY_ACTION_COLUMN, "--device", "auto", "--epochs", str(_M.epochs), "--select-every", str(_M.select_every),
+                "--shift", str(_M.shift), "--select-episodes", str(_M.select_episodes), "--seed", "0")
+MANIPULATION_INPUTS = ",".join(_M.inputs)
+NAVIGATE = ("--audio-form", "level_ild", "--action-column", defaults.STUDY_ACTION_COLUMN, "--epochs", str(_N.epochs), "--select-every", str(_N.select_every),
+            "--select-episodes", str(_N.select_episodes), "--device", "auto", "--seed", "0")
+NAVIGATE_INPUTS = ",".join(_N.inputs)
 LEARNERS: dict[str, LearnerSpec] = {
-    "Navigate": LearnerSpec("nav_audio", "Navigate", "audio,state,kind", "bc-rnn", NAVIGATE),
-    "Navigate-target": LearnerSpec("nav_audio", "Navigate", "audio,state,kind,target", "bc-rnn", NAVIGATE),
+    "Navigate": LearnerSpec("nav_audio", "Navigate", NAVIGATE_INPUTS, "bc-rnn", NAVIGATE),
+    "Navigate-target": LearnerSpec("nav_audio", "Navigate", NAVIGATE_INPUTS + ",target", "bc-rnn", NAVIGATE),
     **{s: LearnerSpec("cameras_pick_place", s, MANIPULATION_INPUTS, "act", MANIPULATION) for s in ("Pick", "Place")},
     "Place-target": LearnerSpec("cameras_pick_place", "Place", MANIPULATION_INPUTS + ",target", "act", MANIPULATION),
     **{s: LearnerSpec("cameras_door_sink", s, MANIPULATION_INPUTS, "act", MANIPULATION) for s in ("OpenDoor", "CloseSink")},
@@ -103,7 +109,7 @@ LEARNERS: dict[str, LearnerSpec] = {
     # The hand-over study: Navigate's options plus a STOP output (`--stop`), cloned from the same
     # episodes with the expert's Navigate ending at the interaction pose (nav_audio_stop.yaml), so
     # the learner ends its own skill there instead of being cut at the rim of its success region.
-    "Navigate-stop": LearnerSpec("nav_audio_stop", "Navigate", "audio,state,kind", "bc-rnn", (*NAVIGATE, "--stop")),
+    "Navigate-stop": LearnerSpec("nav_audio_stop", "Navigate", NAVIGATE_INPUTS, "bc-rnn", (*NAVIGATE, "--stop")),
     # The stance study (docs/learners.md, "OpenDoor stands where it is"): cloned from door
     # episodes whose expert grasps from where Navigate stopped when it can, hand-overs within 0.3
     # of the success region (cameras_door_near.yaml); the table's OpenDoor options with a
