@@ -109,6 +109,39 @@ def test_checkpoint_folder_loads_with_its_kwargs(tmp_path: Path) -> None:
     assert len(ident["checkpoint_sha256"]) == 64
 
 
+class _Spinning(_FromCheckpoint):
+    """A learner that asks torch for more threads than acting needs, and notes what it acts with."""
+
+    threads: list[int] = []
+
+    def __init__(self, checkpoint: Path, gain: float = 1.0) -> None:
+        import torch
+
+        super().__init__(checkpoint, gain)
+        torch.set_num_threads(3)
+
+    def act(self, obs):  # noqa: ANN001
+        import torch
+
+        _Spinning.threads.append(torch.get_num_threads())
+        return super().act(obs)
+
+
+def test_learners_act_on_one_torch_thread(tmp_path: Path) -> None:
+    """A learner acts on `ACTING_THREADS` torch threads whatever it asked for: the episodes must not
+    depend on the machine's core count (evaluation/run.py), and the results say so."""
+    pytest.importorskip("torch")
+    from echo_data.evaluation.run import ACTING_THREADS
+
+    (tmp_path / "agent.json").write_text(json.dumps({"class": "test_evaluate:_Spinning"}))
+    out = tmp_path / "r.json"
+    _Spinning.threads.clear()
+    r = _run("--policy", str(tmp_path), "--json", str(out))
+    assert r.exit_code == 0, r.output
+    assert _Spinning.threads and set(_Spinning.threads) == {ACTING_THREADS} == {1}
+    assert json.loads(out.read_text())["acting_threads"] == ACTING_THREADS
+
+
 def test_nan_action_fails_that_episode_with_its_reason(tmp_path: Path) -> None:
     out = tmp_path / "r.json"
     r = _run("--policy", "test_evaluate:_NaN", "-n", "1", "--json", str(out))

@@ -14,6 +14,7 @@ the same either way.
 from __future__ import annotations
 
 import json
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -73,6 +74,21 @@ def needs(*agents: Any) -> tuple[bool, bool]:
 _WORKER: dict[str, Any] = {}
 
 
+# torch's intra-op threads while a learner acts. One: a learner acts on one observation at a time,
+# where more threads only spin (one test episode of the default ACT: 91 s of CPU on 2 cores against
+# 13 s on one thread), and a float reduction split over another
+# thread count can round differently, so an episode measured on a laptop would not be the episode
+# the cluster measures. Training pins its own count the same way (`--threads`, learn/loop.py).
+ACTING_THREADS = 1
+
+
+def acting_threads() -> None:
+    """Pin torch (when a policy or planner imported it) to `ACTING_THREADS` in this process."""
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        torch.set_num_threads(ACTING_THREADS)
+
+
 def _worker_state(job: EvalJob) -> tuple[Any, Any, Any]:
     """(env, policy, planner) of this process, made once per job."""
     if _WORKER.get("job") != job:
@@ -82,6 +98,7 @@ def _worker_state(job: EvalJob) -> tuple[Any, Any, Any]:
         if _WORKER.get("env") is not None:
             _WORKER["env"].close()
         policy, planner = load_policy(job.policy), load_planner(job.planner)
+        acting_threads()
         images, audio = needs(policy, planner)
         if job.video_dir:
             images = audio = True
@@ -299,6 +316,7 @@ def evaluate(
         "planner": identity(plan, planner),
         "weights": weights(shown, identity(plan, planner)),  # per skill and the planner: SHA-256 of the weights acted with
         "drive_end": drive_end,
+        "acting_threads": ACTING_THREADS,  # torch's threads while learners acted (the episodes depend on it)
         "versions": versions(),
         "metrics": by_setting(scored),
         "skipped": [e["index"] for e in episodes if "skipped" in e],
