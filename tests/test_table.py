@@ -388,3 +388,46 @@ def test_an_evaluation_over_three_seeds_is_adopted_only_with_each_seeds_weights(
     assert "--policy=CloseSink=" + "+".join(str(runs_dir / f) for f in folders) in entry["command"]
     assert [m["skills"]["CloseSink"]["k"] for m in entry["per_seed"]] == [1, 0, 1] and entry["skills"]["CloseSink"]["k"] == 2
     assert [x["successes"] for x in doc["summary"]["skills_alone"]["CloseSink (3 seeds)"]["per_seed"]] == [1, 0, 1]
+
+
+def test_a_chain_evaluation_without_the_learners_its_setting_never_calls_is_adopted(tmp_path: Path) -> None:
+    """The Oracle* row names a learner for every skill, a state-transition episode calls Navigate,
+    OpenDoor and CloseSink only: an evaluation with those three (CloseSink over its three seeds,
+    the one-seed learners repeated in every member) is the row's entry, its command naming only
+    them; an episode that calls a skill the evaluation has no learner for is refused."""
+    from echo_data.agents.loading import folder_sha256
+    from echo_data.evaluation.metrics import summarise
+    from echo_data.evaluation.seeds import per_seed
+    from echo_data.recipe import load_recipe
+
+    runs_dir, out = tmp_path / "runs", tmp_path / "table.json"
+    sinks = [table.run_name("CloseSink-3seeds", s) for s in paper.LEARNERS["CloseSink-3seeds"].trained_seeds]
+    for i, f in enumerate([*sinks, "Navigate-target", "OpenDoor-magic"]):
+        (runs_dir / f).mkdir(parents=True)
+        (runs_dir / f / "best.pt").write_bytes(b"run %d" % i)
+    recipe = "cameras_test_state_transition_magic.yaml"
+
+    def doc(last: str) -> dict[str, Any]:
+        eps = []
+        for j in range(3):
+            chain = [{"skill": "Navigate", "target": "x"}, {"skill": last if j == 2 else ("OpenDoor", "CloseSink")[j], "target": "x"}]
+            eps.append({**_record(j, True, 2), "true_chain": chain, "planned_chain": chain, "navigate": [], "member": j, "success": True,
+                        "skills": [{**c, "success": True, "reason": "", "steps": 5} for c in chain]})
+        members = [{"skills": {"*": {"name": "oracle"}, "Navigate": {"checkpoint_sha256": folder_sha256(runs_dir / "Navigate-target")},
+                               "OpenDoor": {"checkpoint_sha256": folder_sha256(runs_dir / "OpenDoor-magic")},
+                               "CloseSink": {"checkpoint_sha256": folder_sha256(runs_dir / f)}}} for f in sinks]
+        return {"recipe": {"path": f"studies/paper_table/recipes/{recipe}", "content_hash": load_recipe(RECIPES / recipe).content_hash()},
+                "split": "test", "n": 3, "planner": {"name": "oracle"}, "wall_seconds": 3.0, "episodes": eps, "metrics": {"all": summarise(eps)},
+                "policy": {"name": "several", "members": members}, "seeds": per_seed(eps, 3)}
+
+    ev = tmp_path / "chain.json"
+    cmd = [sys.executable, str(ROOT / "studies" / "paper_table" / "paper_table.py"), "--runs", str(runs_dir), "--out", str(out), "-n", "3", "--workers", "1", "--adopt", str(ev)]
+    ev.write_text(json.dumps(doc("Pick")))  # an episode calls Pick, which the evaluation has no learner for
+    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    ev.write_text(json.dumps(doc("CloseSink")))
+    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    entry = json.loads(out.read_text())["rows"]["oracle planner + learned skills* (paper-comparable)"]["state_transition"]
+    assert entry["seeds"] == {"CloseSink": [0, 1, 2]} and "Pick" not in entry["command"] and "Place" not in entry["command"]
+    assert f"--policy=Navigate={runs_dir / 'Navigate-target'} " in entry["command"] + " "

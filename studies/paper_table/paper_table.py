@@ -113,10 +113,17 @@ def seed_runs(learner: str) -> list[str]:
     return [run_name(learner, seed) for seed in LEARNERS[learner].trained_seeds]
 
 
-def policy_args(row: EvaluatedRow, runs: Path) -> list[str]:
-    """`--policy=SKILL=RUN` per learned skill of `row`; a learner of several seeds gives its runs
-    joined by `+`, so the evaluation shares the episodes out over them (`evaluation.seeds`)."""
-    return [f"--policy={s}=" + SEP.join(str(runs / r) for r in seed_runs(learner)) for s, learner in row.policy.items()]
+def policy_args(row: EvaluatedRow, runs: Path, skills: set[str] | None = None) -> list[str]:
+    """`--policy=SKILL=RUN` per learned skill of `row` (of those in `skills`, when given); a learner
+    of several seeds gives its runs joined by `+`, so the evaluation shares the episodes out over
+    them (`evaluation.seeds`)."""
+    return [f"--policy={s}=" + SEP.join(str(runs / r) for r in seed_runs(learner)) for s, learner in row.policy.items()
+            if skills is None or s in skills]
+
+
+def called(doc: dict[str, Any]) -> set[str]:
+    """The skills some episode of an `echo-data evaluate --json` document called."""
+    return {s["skill"] for e in doc["episodes"] for s in e.get("skills", [])}
 
 
 def row_seeds(row: EvaluatedRow) -> dict[str, list[int]]:
@@ -199,11 +206,17 @@ def adopt(path: Path, runs: Path, n: int, workers: int) -> tuple[str, str, dict[
 
     doc = json.loads(path.read_text())
     recipe = Path(doc["recipe"]["path"]).name
-    learned = checkpoints(doc)
+    evaluated = checkpoints(doc)
     why = []
     for name, row in ROWS.items():
-        if not isinstance(row, EvaluatedRow) or row.planner != "oracle" or set(row.policy) != set(learned):
+        # A row's learner that no episode of the setting calls (Pick in state transition) need not
+        # be in the evaluation: the episodes are the same with it or without it.
+        if not isinstance(row, EvaluatedRow) or row.planner != "oracle" or not set(evaluated) <= set(row.policy) \
+                or (set(row.policy) - set(evaluated)) & called(doc):
             continue
+        # In an evaluation over several seeds, a skill of one training acts in every member with the
+        # same run: that is one run, as the row's learner is.
+        learned = {s: hs[:1] if len(seed_runs(row.policy[s])) == 1 and len(set(hs)) == 1 else hs for s, hs in evaluated.items()}
         for setting in row.settings:
             if catalogue.recipe(row, setting) != recipe:
                 continue
@@ -219,14 +232,14 @@ def adopt(path: Path, runs: Path, n: int, workers: int) -> tuple[str, str, dict[
             else:
                 out = eval_json(runs, name, setting)
                 atomic_write_json(out, doc)  # where the driver keeps the row's document (a computed row may read it)
-                args = ["evaluate", str(RECIPES / recipe), "--split", "test", "-n", str(n), *policy_args(row, runs),
+                args = ["evaluate", str(RECIPES / recipe), "--split", "test", "-n", str(n), *policy_args(row, runs, set(learned)),
                         "--policy", "oracle", "--planner", "oracle", "--workers", str(workers), "--json", str(out)]
                 shas = ", ".join(f"{s} {SEP.join(str(h)[:12] for h in hs)}" for s, hs in learned.items())
                 return name, setting, {"command": command(args), "wall_seconds": round(float(doc["wall_seconds"]), 1), "commit": commit(),
                                        "adopted": f"measured before this run of the table by the same command on the same recipe and weights "
                                                   f"(checkpoint sha256 {shas}); taken from its --json document",
                                        **table.measured(doc), **({"seeds": seeds} if (seeds := row_seeds(row)) else {})}
-    print(f"error: --adopt {path}: " + ("; ".join(why) if why else f"no oracle-planner row evaluates {', '.join(learned) or 'the experts'} on recipes/{recipe}"),
+    print(f"error: --adopt {path}: " + ("; ".join(why) if why else f"no oracle-planner row evaluates {', '.join(evaluated) or 'the experts'} on recipes/{recipe}"),
           file=sys.stderr)
     sys.exit(2)
 

@@ -171,6 +171,8 @@ def _rows() -> dict[str, table.Row]:
     # CloseSink alone over three training seeds, the 50 test episodes dealt out over them (`evaluation.seeds`).
     alone.append(EvaluatedRow(name="CloseSink alone (3 seeds)", planner="oracle", policy={"CloseSink": "CloseSink-3seeds"},
                               settings=ALONE_SETTINGS["CloseSink"], skill="CloseSink"))
+    alone.append(EvaluatedRow(name="CloseSink after a hand-over (3 seeds)", planner="oracle", policy={"CloseSink": "CloseSink-3seeds"},
+                              settings=tuple(f"{x}_handover" for x in ALONE_SETTINGS["CloseSink"]), skill="CloseSink"))
     alone.append(EvaluatedRow(name="Place* alone", planner="oracle", policy={"Place": "Place-target"}, settings=ALONE_SETTINGS["Place"], skill="Place"))
     for s, learner in (("Pick", "Pick-magic"), ("Place", "Place-magic"), ("OpenDoor", "OpenDoor-magic")):
         alone.append(EvaluatedRow(name=f"{s} alone{pc}", planner="oracle", policy={s: learner}, settings=ALONE_SETTINGS[s], skill=s, grasp="magic"))
