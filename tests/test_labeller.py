@@ -178,3 +178,26 @@ def test_asking_leaves_the_world_unchanged(env: Any) -> None:
     assert before.keys() == after.keys()
     for k, v in before.items():
         assert np.array_equal(v, after[k]) if isinstance(v, np.ndarray) else v == after[k], k
+
+
+@pytest.mark.parametrize("episode, skill", [(SINK_EPISODE, "CloseSink"), (DOOR_EPISODE, "OpenDoor")])
+def test_asked_along_the_experts_own_path_the_labels_are_its_actions(env: Any, episode: int, skill: str) -> None:
+    """DAgger's labels are the demonstrations' actions where the two meet: asked at each state of
+    the expert's own rollout (advanced once per step, as a learner's rollout asks it), the
+    labeller answers exactly what the expert commanded there, in every entry of `action.ee`."""
+    from echo_data.skills import EXPERTS
+    from echo_data.skills.labeller import ExpertLabeller
+
+    call = _handed_over(env, episode, skill)
+    gen = EXPERTS[call.skill](env.world, call, env.episode)
+    lab = ExpertLabeller(env.world, call, env.episode)
+    try:
+        for _ in range(40):
+            a = np.asarray(next(gen), np.float32)
+            y = lab()
+            assert y is not None
+            np.testing.assert_array_equal(np.asarray(y, np.float32), a)
+            env.step(env.world.robot.ee.to_joint(a))
+    finally:
+        gen.close()
+        lab.close()
