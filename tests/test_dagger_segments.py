@@ -74,6 +74,27 @@ def test_rollout_windows_are_the_datasets_chunks(ds: Path) -> None:
         np.testing.assert_array_equal(acts, rows.actions)
 
 
+def test_first_only_chunks_supervise_a_rows_own_label_alone(ds: Path, tmp_path: Path) -> None:
+    """`--dagger-chunk first`: a DAgger row's chunk target is the expert's label of that row's state,
+    the rest masked (the learner's later states are not the expert's path); "path" as before;
+    the choice is recorded, a bad one or one without --dagger refused (one line, exit 2)."""
+    labels = np.arange(12, dtype=np.float32).reshape(6, 2)
+    ro = Rollouts({}, labels, np.zeros(6, np.float32), np.array([0, 0, 0, 1, 1, 1]), [], math.nan)
+    path_acts, path_pad = ro.windows(3, stop=False)
+    ro.first_only = True
+    acts, pad = ro.windows(3, stop=False)
+    np.testing.assert_array_equal(acts[:, 0], labels)
+    assert pad[:, 1:].all() and not pad[:, 0].any()
+    assert not path_pad[0].any() and path_pad[2, 1:].all()  # "path": a rollout's chunk runs on to its end
+    np.testing.assert_array_equal(path_acts, acts)  # the same windows, only the mask differs
+    summary = _train(ds, tmp_path / "first", "act", *ROLL, "--dagger-chunk", "first")
+    assert summary["dagger"]["chunk"] == "first"
+    for bad in (["--dagger-chunk", "first"], [*ROLL, "--dagger-chunk", "ahead"]):
+        out = _train(ds, tmp_path / "bad", "act", *bad, code=2)["output"]
+        assert "--dagger-chunk" in out and len([ln for ln in out.splitlines() if ln.startswith("error:")]) == 1, out
+    assert not (tmp_path / "bad").exists()  # refused before anything was written
+
+
 @pytest.mark.parametrize("algo", ["bc_rnn", "act"])
 def test_dagger_round_adds_each_rollout_as_a_segment(ds: Path, tmp_path: Path, algo: str) -> None:
     """bc-rnn (a GRU over segments) and act (chunks of 4) DAgger end to end; each rollout is one

@@ -154,6 +154,8 @@ def _make_train_command(name: str) -> Callable[..., None]:
             None, "--dagger-episodes", min=1, help="Train episodes rolled per DAgger round (default 8).")),
         inspect.Parameter("dagger_steps", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
             None, "--dagger-steps", min=1, help="Learner steps per rollout (default: the skill's budget).")),
+        inspect.Parameter("dagger_chunk", inspect.Parameter.KEYWORD_ONLY, annotation=str | None, default=typer.Option(
+            None, "--dagger-chunk", help="A chunking learner's target on a DAgger row: path (the labels of the states the learner went on to visit; default) or first (the row's own label alone).")),
     ]
 
     def command(**kw: Any) -> None:
@@ -179,8 +181,8 @@ def _make_train_command(name: str) -> Callable[..., None]:
             names = parse_inputs(inputs if isinstance(inputs, str) else ",".join(inputs), BC_INPUTS)
             if "audio_form" in values and "audio" not in names:
                 raise ConfigError("--audio-form: does not apply without audio in --inputs")
-            if not kw.get("dagger") and (kw.get("dagger_episodes") is not None or kw.get("dagger_steps") is not None):
-                raise ConfigError("--dagger-episodes / --dagger-steps: do not apply without --dagger")
+            if not kw.get("dagger") and any(kw.get(k) is not None for k in ("dagger_episodes", "dagger_steps", "dagger_chunk")):
+                raise ConfigError("--dagger-episodes / --dagger-steps / --dagger-chunk: do not apply without --dagger")
             cfg = cls(**{**values, "dataset": str(dataset), "inputs": names})
             folder = kw["out"] or Path("runs") / f"{name}-{cfg.skill}-{'-'.join(n.rsplit('.', 1)[-1] for n in names)}"
             cfg.check()
@@ -189,7 +191,8 @@ def _make_train_command(name: str) -> Callable[..., None]:
                 from echo_data.learn.dagger import run_dagger
 
                 runs.check_out(folder, kw["resume"], kw["overwrite"])
-                summary = run_dagger(cfg, folder, kw["dagger"], kw.get("dagger_episodes") or 8, kw.get("dagger_steps"), kw["progress"], resume=kw["resume"])
+                summary = run_dagger(cfg, folder, kw["dagger"], kw.get("dagger_episodes") or 8, kw.get("dagger_steps"), kw["progress"], resume=kw["resume"],
+                                     chunk=kw.get("dagger_chunk") or "path")
             else:
                 from echo_data.learn.fit import train_skill
 

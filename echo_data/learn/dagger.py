@@ -75,6 +75,7 @@ class Rollouts:
     segments: np.ndarray  # (n,) the rollout each row belongs to, 0 .. rollouts-1, contiguous
     success: list[bool]  # per rolled episode: the learner's success test at its end
     agreement: float  # mean |learner - expert| over the visited states (a drive: of (vx, wz))
+    first_only: bool = False  # a chunk target supervises only its first action (`--dagger-chunk first`)
 
     def __len__(self) -> int:
         return len(self.labels)
@@ -93,6 +94,8 @@ class Rollouts:
         end = (first + count)[inverse]  # each row's rollout end (exclusive): rollouts are contiguous
         at = rows[:, None] + np.arange(chunk)[None, :]
         pad = at >= end[:, None]
+        if self.first_only:  # only the expert's label of the state itself: the rest of the chunk is the learner's path, not the expert's
+            pad[:, 1:] = True
         at = np.minimum(at, end[:, None] - 1)
         acts = self.labels[at]
         if stop:
@@ -272,8 +275,17 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
     return hook.rollouts(len(policy.config.action_names), success)
 
 
+# How a chunking learner (ACT, Diffusion Policy, `bc --chunk k`) takes a DAgger row: "path", the
+# labels of the states the learner went on to visit (the chunk of the rollout, as a dataset
+# segment's), or "first", the label of the row's own state alone (the rest of the chunk masked).
+# "path" teaches a sequence the expert never executed where the learner strayed; measured on
+# CloseSink (the hand-over study, manipulation_dagger.json). A learner of one action per
+# step (BC-RNN, `bc` without a chunk) is the same under both.
+DAGGER_CHUNKS = ("path", "first")
+
+
 def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_steps: int | None, progress: bool,
-               resume: bool = False) -> dict[str, Any]:
+               resume: bool = False, chunk: str = "path") -> dict[str, Any]:
     """BC on the dataset, then `rounds` of collect + retrain on the aggregate; returns the last summary.
 
     `resume`: the BC run already in `out` (finished or not) is continued instead of trained anew,
@@ -286,6 +298,8 @@ def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_st
         raise DaggerError(f"--dagger: only {able}'s expert can act from any state (not {cfg.skill!r}; see docs/learners.md)")
     if cfg.action_form != "absolute":
         raise DaggerError(f"--dagger: --action-form {cfg.action_form} is not labelled (a rollout keeps no states to take the change from); use absolute")
+    if chunk not in DAGGER_CHUNKS:
+        raise DaggerError(f"--dagger-chunk {chunk}: not one of {', '.join(DAGGER_CHUNKS)}")
     _, n_train = dataset_recipe(Path(cfg.dataset))
     if episodes_per_round > n_train:
         raise DaggerError(f"--dagger-episodes {episodes_per_round}: the train split of {cfg.dataset} has {n_train} episodes")
@@ -296,12 +310,13 @@ def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_st
         eps = [((r - 1) * episodes_per_round + j) % n_train for j in range(episodes_per_round)]
         new = collect(out, Path(cfg.dataset), eps, max_steps)
         agg = new if agg is None else _concat(agg, new)
+        agg.first_only = chunk == "first"
         summary = train_bc(cfg, out, overwrite=True, progress=progress, extra=agg)
         rate = sum(new.success) / len(new.success) if new.success else math.nan
         log.append(f"{r},{' '.join(map(str, eps))},{len(new)},{len(agg)},{rate:.4f},{new.agreement:.4f},{summary['best_val_loss']},"
                    f"{new.rollouts},{agg.rollouts},{int(new.stops.sum())}")
         runs.write_file(out, DAGGER_LOG, ("\n".join(log) + "\n").encode())
-    summary["dagger"] = {"rounds": rounds, "rows_aggregated": len(agg) if agg is not None else 0,
+    summary["dagger"] = {"rounds": rounds, "chunk": chunk, "rows_aggregated": len(agg) if agg is not None else 0,
                          "segments_aggregated": agg.rollouts if agg is not None else 0, "log": str(out / DAGGER_LOG)}
     return summary
 
