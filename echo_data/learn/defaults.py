@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from echo_data.learn.features import AUDIO_COLUMNS, IMAGE_INPUT_COLUMNS, STATE
+from echo_data.skill_table import SKILLS
 
 
 @dataclass(frozen=True)
@@ -47,7 +48,8 @@ class SkillDefaults:
 
 MANIPULATION = SkillDefaults(("depth", "wrist_depth", "state", "kind"), epochs=20, select_every=10, select_episodes=10, shift=4)
 NAVIGATE = SkillDefaults(("audio", "state", "kind"), epochs=20, select_every=5, select_episodes=10, shift=0)
-SKILL_DEFAULTS: dict[str, SkillDefaults] = {"Navigate": NAVIGATE, **{s: MANIPULATION for s in ("Pick", "Place", "OpenDoor", "CloseSink")}}
+# Per skill of the skill table: its drive (the approach role) learns as Navigate, every other skill as manipulation.
+SKILL_DEFAULTS: dict[str, SkillDefaults] = {name: NAVIGATE if s.role == "approach" else MANIPULATION for name, s in SKILLS.items()}
 STUDY_ACTION_COLUMN = "action.ee"  # what every study cloned (on ee_delta recipes)
 RESOLVED = ("inputs", "action_column", "shift", "epochs", "select_every", "select_episodes")  # the options this module fills in
 
