@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # runner.py
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this checkout's echo_data
 from runner import ROOT, cli, commit  # noqa: E402
 
-from echo_data.dataset.storage import atomic_write_bytes  # noqa: E402
+from echo_data.dataset.storage import atomic_write_json  # noqa: E402
 from echo_data.evaluation.table import interval, skill_success  # noqa: E402
 from echo_data.learn import runs  # noqa: E402
 from echo_data.learn.defaults import RESOLVED  # noqa: E402
@@ -71,8 +71,9 @@ def commands(recipe: Path | str, work: Path, skill: str, episodes: int, seed: in
 
 
 def write_json(path: Path, doc: dict[str, Any]) -> None:
+    """`doc` to `path` atomically (the package's writer), its folder made first."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(path, (json.dumps(doc, indent=1) + "\n").encode())
+    atomic_write_json(path, doc)
 
 
 def step(name: str, args: list[str], done: bool, work: Path, extra: list[str] | None = None) -> dict[str, Any]:
