@@ -35,13 +35,17 @@ if __name__ == "__main__":
 
 
 def _files(root: Path) -> set[tuple[str, int]]:
-    """What is on disk now (names and sizes), to see that a run has started writing."""
-    if not root.exists():
-        return set()
+    """What is on disk now (names and sizes), to see that a run has started writing.
+
+    os.walk, not rglob: the build creates and removes folders (its write probe, temporary shards)
+    while this looks, and os.walk skips a folder that vanished instead of raising.
+    """
     out = set()
-    for p in root.rglob("*"):
-        with contextlib.suppress(FileNotFoundError):  # renamed under our feet
-            out.add((str(p.relative_to(root)), p.stat().st_size if p.is_file() else -1))
+    for folder, dirs, files in os.walk(root):
+        for name in dirs + files:
+            p = Path(folder) / name
+            with contextlib.suppress(FileNotFoundError):  # renamed under our feet
+                out.add((str(p.relative_to(root)), p.stat().st_size if name in files else -1))
     return out
 
 

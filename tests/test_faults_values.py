@@ -26,7 +26,7 @@ def pristine(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.mark.parametrize("extra, says", [
     (["bc", "--skill", "Navigate", "--inputs", "state", "--audio-form", "stored"], "--audio-form: does not apply without audio in --inputs"),
-    (["bc", "--skill", "Navigate", "--inputs", "state", "--dagger-episodes", "2"], "--dagger-episodes / --dagger-steps: do not apply without --dagger"),
+    (["bc", "--skill", "Navigate", "--inputs", "state", "--dagger-episodes", "2"], "--dagger-episodes / --dagger-steps / --dagger-chunk: do not apply without --dagger"),
     (["planner", "--inputs", "image", "--audio", "spectrogram"], "--audio: does not apply without audio in --inputs"),
     (["planner", "--train-episodes", "99"], "--train-episodes 99: the train split of"),
 ])
