@@ -229,3 +229,36 @@ def test_dagger_refuses_the_delta_action_form_in_one_line(ds: Path, tmp_path: Pa
     out = _train(ds, tmp_path / "delta", "bc", "--action-form", "delta", *ROLL, code=2)["output"]
     assert "--dagger: --action-form delta" in out and len(out.strip().splitlines()) == 1
     assert not (tmp_path / "delta").exists()
+
+
+@pytest.mark.parametrize("horizon", [1, 4])
+def test_the_experts_take_over_executes_its_labels_and_keeps_only_its_rows(ds: Path, tmp_path: Path, horizon: int,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """`--dagger-chunk takeover`: the learner acts until the rollout's drawn step, then every
+    action executed is the expert's label of that state, and only those states are added (so a
+    chunk of the rollout is what the expert executed). Horizon 1: the expert from the first step."""
+    import echo_data.learn.dagger as dagger
+    from echo_data.envs.env import EchoDataEnv
+
+    run = tmp_path / "bc"
+    _train(ds, run, "bc")
+    monkeypatch.setattr(dagger, "demonstration_length", lambda dataset, skill: horizon)
+    executed: list[np.ndarray] = []
+    step = EchoDataEnv.step
+
+    def spy(self: EchoDataEnv, action: np.ndarray) -> object:
+        executed.append(np.asarray(action, dtype=np.float32).copy())
+        return step(self, action)
+
+    monkeypatch.setattr(EchoDataEnv, "step", spy)
+    new = collect(run, ds, [0], max_steps=5, takeover_seed=7)
+    at = int(np.random.default_rng(7).integers(0, horizon))
+    assert new.takeovers == 1 and len(new) == 5 and new.rollouts == 1
+    assert len(executed) == at + 5  # the learner's `at` steps, then the expert's five (the sixth state ends the rollout)
+    np.testing.assert_array_equal(np.stack(executed[at:]), new.labels)
+    assert new.success == []  # a rollout the expert took over says nothing of the learner's success
+    if at == 0:
+        assert math.isnan(new.agreement)  # no learner action to compare
+    summary = _train(ds, tmp_path / "cli", "act", *ROLL, "--dagger-chunk", "takeover")
+    log = (tmp_path / "cli" / runs.DAGGER_LOG).read_text().splitlines()
+    assert summary["dagger"]["chunk"] == "takeover" and log[0].split(",")[-1] == "takeovers"

@@ -155,7 +155,7 @@ def _make_train_command(name: str) -> Callable[..., None]:
         inspect.Parameter("dagger_steps", inspect.Parameter.KEYWORD_ONLY, annotation=int | None, default=typer.Option(
             None, "--dagger-steps", min=1, help="Learner steps per rollout (default: the skill's budget).")),
         inspect.Parameter("dagger_chunk", inspect.Parameter.KEYWORD_ONLY, annotation=str | None, default=typer.Option(
-            None, "--dagger-chunk", help="A chunking learner's target on a DAgger row: path (the labels of the states the learner went on to visit; default) or first (the row's own label alone).")),
+            None, "--dagger-chunk", help="How DAgger rows teach a chunking learner: path (each row's chunk: the labels of the states the learner went on to visit; default), first (the row's own label alone) or takeover (the expert takes over each rollout at a random step; only its own rows from there on).")),
     ]
 
     def command(**kw: Any) -> None:

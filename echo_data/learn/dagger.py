@@ -32,6 +32,16 @@ rows t .. t+k-1 of the same rollout (the expert's action at each state the learn
 visit; padding past the rollout's end masked), as the dataset's chunks take the expert's next
 actions; an observation history is clamped at the rollout's first row.
 
+The expert's take-over (`--dagger-chunk takeover`, after HG-DAgger, Kelly et al. 2019, "HG-DAgger:
+Interactive Imitation Learning with Human Experts"): the learner acts until a step drawn uniformly
+from 0 .. the mean length of the skill's demonstration segments, then the expert takes over and
+acts from the learner's state to the skill's end; only the states from the take-over on are added,
+labelled with what the expert executed there. So each added rollout is a demonstration the expert
+really gave from where the learner had led the robot, and a chunk of it is the expert's own next
+actions, as a dataset segment's (the "path" chunks above are not: the learner's later states).
+Where HG-DAgger's human judges when to step in, the step is drawn: no gate to tune. A rollout that
+ends before its take-over step adds nothing; the log counts take-overs.
+
 The STOP (`--stop`): each row also says whether the expert would end the skill in that state:
 for a drive that hands over (Navigate before a skill acting on its target) the environment's
 `handed_over` for the chain entry (docs/handover.md), for any other drive its success test; for
@@ -76,6 +86,7 @@ class Rollouts:
     success: list[bool]  # per rolled episode: the learner's success test at its end
     agreement: float  # mean |learner - expert| over the visited states (a drive: of (vx, wz))
     first_only: bool = False  # a chunk target supervises only its first action (`--dagger-chunk first`)
+    takeovers: int = 0  # rollouts the expert took over (`--dagger-chunk takeover`)
 
     def __len__(self) -> int:
         return len(self.labels)
@@ -150,8 +161,15 @@ class _Labels:
     labeller has nothing more to say or `limit` states are labelled. `stop`: the learner STOPs
     (`--stop`): the state a manipulation expert ends in is added as a STOP row."""
 
-    def __init__(self, policy: Any, column: str, limit: int | None, stop: bool = False) -> None:
+    def __init__(self, policy: Any, column: str, limit: int | None, stop: bool = False, takeover: tuple[int, int] | None = None) -> None:
         self.policy, self.column, self.limit, self.stop = policy, column, limit, stop
+        # `--dagger-chunk takeover`: (seed, horizon): the expert takes over at a step drawn from 0 .. horizon-1 per rollout
+        self.rng = np.random.default_rng(takeover[0]) if takeover is not None else None
+        self.horizon = takeover[1] if takeover is not None else 0
+        self.at: int | None = None  # this rollout's take-over step (None: the learner acts throughout)
+        self.steps = 0  # states of this rollout seen so far (labelled or not)
+        self.took_over = 0
+        self._now: tuple[int, np.ndarray | None] | None = None  # (step, label) computed for the take-over's action
         self.parts: dict[str, list[Any]] = {}
         self.labels: list[np.ndarray] = []
         self.stops: list[float] = []
@@ -167,6 +185,20 @@ class _Labels:
         """A new rollout (segment) of chain entry `k`."""
         self.label, self.k, self.n, self.last = None, k, 0, np.zeros(3, dtype=np.float32)
         self.rollout += 1
+        self.steps, self._now = 0, None
+        self.at = int(self.rng.integers(0, self.horizon)) if self.rng is not None else None
+
+    def taking_over(self) -> bool:
+        """The expert acts in the state now (`--dagger-chunk takeover`, past this rollout's step)."""
+        return self.at is not None and self.steps >= self.at
+
+    def expert_action(self, env: Any, call: Any) -> np.ndarray | None:
+        """The expert's label of the state now, computed once: the take-over executes it, `record` adds it."""
+        if self.label is None:
+            self.label = labeller(env, call, self.column)
+        if self._now is None or self._now[0] != self.steps:
+            self._now = (self.steps, self.label(self.last))
+        return self._now[1]
 
     def __call__(self, env: Any, obs: dict[str, Any], a: np.ndarray, k: int, call: Any, flags: tuple[bool, ...]) -> None:
         if k == self.k and call.skill == self.policy.skill:  # not the experts' skills before it, nor a carry before it (agents.runtime.carry_call)
@@ -179,18 +211,21 @@ class _Labels:
 
         if self.limit is not None and self.n >= self.limit:
             raise StopEpisode
-        if self.label is None:  # at the skill's first step, before anything moved
-            self.label = labeller(env, call, self.column)
-        y = self.label(self.last)
+        y = self.expert_action(env, call)  # the expert asked once per state, before anything moved at the first
         stop = drive_stops(env, self.k)
+        before = self.at is not None and self.steps < self.at  # the learner's states before the take-over: not added
+        self.took_over += int(self.steps == self.at)
+        self.steps += 1
         if y is None:  # nothing to do from here: a manipulation expert that has ended adds its STOP row
-            if self.stop and stop is None and self.n and env.success_flags[self.k]:
+            if self.stop and stop is None and self.n and env.success_flags[self.k] and not before:
                 self._add(obs, self.labels[-1], True)
             raise StopEpisode
-        self._add(obs, y, bool(stop))
+        if not before:
+            self._add(obs, y, bool(stop))
         if a is not None:
-            dims = [0, 2] if SKILLS[call.skill].role == "approach" else slice(None)  # a drive: its (vx, wz); else the whole action
-            self.gaps.append(float(np.abs(a[dims] - y[dims]).mean()))
+            if self.at is None or before:  # the learner's own actions (the expert's after a take-over)
+                dims = [0, 2] if SKILLS[call.skill].role == "approach" else slice(None)  # a drive: its (vx, wz); else the whole action
+                self.gaps.append(float(np.abs(a[dims] - y[dims]).mean()))
             self.last = a
 
     def _add(self, obs: dict[str, Any], y: np.ndarray, stop: bool) -> None:
@@ -208,7 +243,25 @@ class _Labels:
         _, segments = np.unique(np.asarray(self.segments, dtype=np.int64), return_inverse=True)
         labels = np.stack(self.labels).astype(np.float32) if self.labels else np.zeros((0, width), np.float32)
         return Rollouts({k: torch.cat(v) for k, v in self.parts.items()}, labels, np.asarray(self.stops, np.float32),
-                        segments.astype(np.int64), success, float(np.mean(self.gaps)) if self.gaps else math.nan)
+                        segments.astype(np.int64), success, float(np.mean(self.gaps)) if self.gaps else math.nan, takeovers=self.took_over)
+
+
+class _TakeOver:
+    """The learner seen by `run_episode` under `--dagger-chunk takeover`: it acts until its
+    rollout's take-over step, the expert (its label of each state, executed) from there on."""
+
+    def __init__(self, policy: Any, hook: _Labels, env: Any) -> None:
+        self.policy, self.hook, self.env = policy, hook, env
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.policy, name)
+
+    def act(self, obs: dict[str, Any]) -> np.ndarray | None:
+        if self.hook.taking_over():
+            y = self.hook.expert_action(self.env, self.env.episode.chain[self.hook.k])
+            if y is not None:  # (None: the expert is done; the hook ends the rollout on this state)
+                return np.asarray(y, dtype=np.float32)
+        return self.policy.act(obs)
 
 
 class _Stopping:
@@ -231,10 +284,11 @@ class _Stopping:
         return a
 
 
-def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None = None) -> Rollouts:
+def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None = None, takeover_seed: int | None = None) -> Rollouts:
     """Roll the policy in `run` on train episodes `episodes` (the experts up to its skill's first
     call in the chain, then the learner, through `run_episode`), label every state it visits;
-    `max_steps`: at most that many learner steps per rollout. Each rollout is one segment."""
+    `max_steps`: at most that many labelled rows per rollout. Each rollout is one segment.
+    `takeover_seed`: the expert takes over each rollout at a step drawn with this seed (module docstring)."""
     from echo_data.agents.builtin import OraclePlanner, OracleSkills
     from echo_data.agents.compose import SkillDispatch
     from echo_data.agents.runtime import run_episode
@@ -250,8 +304,10 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
     recipe, _ = dataset_recipe(dataset)
     images, audio = needs(policy)
     env = EchoDataEnv(recipe, split="train", images=images, audio=audio, action_mode=mode)
-    hook = _Labels(policy, column, max_steps, stop=policy.ends_itself)
-    agent = SkillDispatch({policy.skill: _Stopping(policy, hook, env) if policy.ends_itself else policy}, OracleSkills())
+    takeover = None if takeover_seed is None else (takeover_seed, demonstration_length(dataset, policy.skill))
+    hook = _Labels(policy, column, max_steps, stop=policy.ends_itself, takeover=takeover)
+    acting = _Stopping(policy, hook, env) if policy.ends_itself else policy
+    agent = SkillDispatch({policy.skill: _TakeOver(acting, hook, env) if takeover is not None else acting}, OracleSkills())
     success: list[bool] = []
     try:
         for i in episodes:
@@ -268,20 +324,33 @@ def collect(run: Path, dataset: Path, episodes: list[int], max_steps: int | None
             obs, info = env.reset(options={"spec": spec})
             hook.start(k)
             run_episode(env, obs, info, OraclePlanner(), agent, on_step=hook, skills=k + 1, drive_end="handover")  # as evaluate ends a drive
-            success.append(bool(env.success_flags[k]))  # the learner's success test at its end
+            if hook.at is None or hook.steps <= hook.at:  # the learner's own success test at its end (a rollout the expert took over is the expert's)
+                success.append(bool(env.success_flags[k]))
     finally:
         agent.close()
         env.close()
     return hook.rollouts(len(policy.config.action_names), success)
 
 
+def demonstration_length(dataset: Path, skill_name: str) -> int:
+    """The mean length (rows) of `skill_name`'s segments in the dataset's train split: the range
+    a take-over step is drawn from."""
+    from echo_data.dataset.reader import StepReader
+
+    idx = StepReader(dataset, "train").index
+    mine = idx.skill == skill_name
+    segments = len(np.unique(idx.segment[mine]))
+    return max(1, round(int(mine.sum()) / segments)) if segments else 1
+
+
 # How a chunking learner (ACT, Diffusion Policy, `bc --chunk k`) takes a DAgger row: "path", the
 # labels of the states the learner went on to visit (the chunk of the rollout, as a dataset
-# segment's), or "first", the label of the row's own state alone (the rest of the chunk masked).
-# "path" teaches a sequence the expert never executed where the learner strayed; measured on
-# CloseSink (the hand-over study, manipulation_dagger.json). A learner of one action per
-# step (BC-RNN, `bc` without a chunk) is the same under both.
-DAGGER_CHUNKS = ("path", "first")
+# segment's), "first", the label of the row's own state alone (the rest of the chunk masked), or
+# "takeover", the expert taking over each rollout (module docstring): rows from there on, the
+# chunk the expert's own executed actions. "path" teaches a sequence the expert never executed
+# where the learner strayed; measured on CloseSink (the hand-over study, manipulation_dagger.json).
+# A learner of one action per step (BC-RNN, `bc` without a chunk) is the same under "path" and "first".
+DAGGER_CHUNKS = ("path", "first", "takeover")
 
 
 def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_steps: int | None, progress: bool,
@@ -305,16 +374,16 @@ def run_dagger(cfg: Any, out: Path, rounds: int, episodes_per_round: int, max_st
         raise DaggerError(f"--dagger-episodes {episodes_per_round}: the train split of {cfg.dataset} has {n_train} episodes")
     summary = train_bc(cfg, out, resume=resume, overwrite=not resume, progress=progress)
     agg: Rollouts | None = None
-    log = ["round,episodes,rows_added,rows_aggregated,learner_success,learner_expert_gap,best_val_loss,segments_added,segments_aggregated,stop_rows_added"]
+    log = ["round,episodes,rows_added,rows_aggregated,learner_success,learner_expert_gap,best_val_loss,segments_added,segments_aggregated,stop_rows_added,takeovers"]
     for r in range(1, rounds + 1):
         eps = [((r - 1) * episodes_per_round + j) % n_train for j in range(episodes_per_round)]
-        new = collect(out, Path(cfg.dataset), eps, max_steps)
+        new = collect(out, Path(cfg.dataset), eps, max_steps, takeover_seed=cfg.seed * 1000 + r if chunk == "takeover" else None)
         agg = new if agg is None else _concat(agg, new)
         agg.first_only = chunk == "first"
         summary = train_bc(cfg, out, overwrite=True, progress=progress, extra=agg)
         rate = sum(new.success) / len(new.success) if new.success else math.nan
         log.append(f"{r},{' '.join(map(str, eps))},{len(new)},{len(agg)},{rate:.4f},{new.agreement:.4f},{summary['best_val_loss']},"
-                   f"{new.rollouts},{agg.rollouts},{int(new.stops.sum())}")
+                   f"{new.rollouts},{agg.rollouts},{int(new.stops.sum())},{new.takeovers}")
         runs.write_file(out, DAGGER_LOG, ("\n".join(log) + "\n").encode())
     summary["dagger"] = {"rounds": rounds, "chunk": chunk, "rows_aggregated": len(agg) if agg is not None else 0,
                          "segments_aggregated": agg.rollouts if agg is not None else 0, "log": str(out / DAGGER_LOG)}
@@ -331,4 +400,4 @@ def _concat(a: Rollouts, b: Rollouts) -> Rollouts:
         return b
     return Rollouts({k: torch.cat([a.inputs[k], b.inputs[k]]) for k in a.inputs}, np.concatenate([a.labels, b.labels]),
                     np.concatenate([a.stops, b.stops]), np.concatenate([a.segments, b.segments + a.rollouts]), a.success + b.success,
-                    (a.agreement * len(a) + b.agreement * len(b)) / (len(a) + len(b)))
+                    (a.agreement * len(a) + b.agreement * len(b)) / (len(a) + len(b)), takeovers=a.takeovers + b.takeovers)
