@@ -28,7 +28,15 @@ from echo_data.evaluation.metrics import plan_right_without_receptacle, proporti
 from echo_data.evaluation.provenance import composed_weights, stale_rows
 from echo_data.skill_table import SKILLS as SKILL_TABLE
 
-SKILLS = tuple(SKILL_TABLE)  # every skill a row reports, in the skill table's order
+
+def __getattr__(name: str) -> Any:
+    """`SKILLS`: every skill a row reports, in the skill table's order, read from the table when
+    asked (a copy taken at import would keep whatever the table held then, e.g. a test's toy skill)."""
+    if name == "SKILLS":
+        return tuple(SKILL_TABLE)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 NOT_MEASURED = "not measured"
 Grasp = Literal["physical", "magic"]
 
