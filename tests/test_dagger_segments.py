@@ -256,6 +256,9 @@ def test_the_experts_take_over_executes_its_labels_and_keeps_only_its_rows(ds: P
     assert new.takeovers == 1 and len(new) == 5 and new.rollouts == 1
     assert len(executed) == at + 5  # the learner's `at` steps, then the expert's five (the sixth state ends the rollout)
     np.testing.assert_array_equal(np.stack(executed[at:]), new.labels)
+    [(mine, theirs)] = new.switches  # where it took over: the learner's would-be action beside the expert's, which was executed
+    np.testing.assert_array_equal(theirs, new.labels[0])
+    assert mine.shape == theirs.shape
     assert new.success == []  # a rollout the expert took over says nothing of the learner's success
     if at == 0:
         assert math.isnan(new.agreement)  # no learner action to compare

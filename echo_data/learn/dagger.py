@@ -58,7 +58,7 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -87,6 +87,8 @@ class Rollouts:
     agreement: float  # mean |learner - expert| over the visited states (a drive: of (vx, wz))
     first_only: bool = False  # a chunk target supervises only its first action (`--dagger-chunk first`)
     takeovers: int = 0  # rollouts the expert took over (`--dagger-chunk takeover`)
+    # per take-over: (what the learner would have commanded, what the expert commanded) in the state it took over
+    switches: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.labels)
@@ -170,6 +172,7 @@ class _Labels:
         self.steps = 0  # states of this rollout seen so far (labelled or not)
         self.took_over = 0
         self._now: tuple[int, np.ndarray | None] | None = None  # (step, label) computed for the take-over's action
+        self.switches: list[tuple[np.ndarray, np.ndarray]] = []  # (learner's, expert's) action where each take-over happened
         self.parts: dict[str, list[Any]] = {}
         self.labels: list[np.ndarray] = []
         self.stops: list[float] = []
@@ -243,7 +246,8 @@ class _Labels:
         _, segments = np.unique(np.asarray(self.segments, dtype=np.int64), return_inverse=True)
         labels = np.stack(self.labels).astype(np.float32) if self.labels else np.zeros((0, width), np.float32)
         return Rollouts({k: torch.cat(v) for k, v in self.parts.items()}, labels, np.asarray(self.stops, np.float32),
-                        segments.astype(np.int64), success, float(np.mean(self.gaps)) if self.gaps else math.nan, takeovers=self.took_over)
+                        segments.astype(np.int64), success, float(np.mean(self.gaps)) if self.gaps else math.nan, takeovers=self.took_over,
+                        switches=list(self.switches))
 
 
 class _TakeOver:
@@ -257,9 +261,15 @@ class _TakeOver:
         return getattr(self.policy, name)
 
     def act(self, obs: dict[str, Any]) -> np.ndarray | None:
-        if self.hook.taking_over():
-            y = self.hook.expert_action(self.env, self.env.episode.chain[self.hook.k])
+        hook = self.hook
+        if hook.taking_over():
+            y = hook.expert_action(self.env, self.env.episode.chain[hook.k])
             if y is not None:  # (None: the expert is done; the hook ends the rollout on this state)
+                if hook.steps == hook.at:  # what the learner would have done here, beside what the expert does (the study's record)
+                    raw = self.policy.policy if isinstance(self.policy, _Stopping) else self.policy  # (a STOP here is not labelled)
+                    mine = raw.act(obs)
+                    if mine is not None:
+                        hook.switches.append((np.asarray(mine, dtype=np.float32), np.asarray(y, dtype=np.float32)))
                 return np.asarray(y, dtype=np.float32)
         return self.policy.act(obs)
 
@@ -400,4 +410,5 @@ def _concat(a: Rollouts, b: Rollouts) -> Rollouts:
         return b
     return Rollouts({k: torch.cat([a.inputs[k], b.inputs[k]]) for k in a.inputs}, np.concatenate([a.labels, b.labels]),
                     np.concatenate([a.stops, b.stops]), np.concatenate([a.segments, b.segments + a.rollouts]), a.success + b.success,
-                    (a.agreement * len(a) + b.agreement * len(b)) / (len(a) + len(b)), takeovers=a.takeovers + b.takeovers)
+                    (a.agreement * len(a) + b.agreement * len(b)) / (len(a) + len(b)), takeovers=a.takeovers + b.takeovers,
+                    switches=a.switches + b.switches)
