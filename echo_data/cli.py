@@ -186,8 +186,8 @@ def evaluate(
     resume: bool = typer.Option(False, "--resume", help="Continue an interrupted evaluation from the episodes recorded next to --json (OUT.episodes.jsonl)."),
     drive_end: DriveEnd = typer.Option(
         "handover", "--drive-end",
-        help="How a learned Navigate that does not STOP ends: handover (inside the next skill's stance, docs/handover.md) | "
-        "success (the first step inside the paper's 1.5 m success region)."),
+        help="How a learned Navigate that does not STOP ends: handover (the first step inside the next skill's stance, docs/handover.md) | "
+        "centre (on until it stands in the stance's centre) | success (the first step inside the paper's 1.5 m success region)."),
 ) -> None:
     """Run a policy closed-loop on a split and report the paper's metrics with 95 % intervals."""
     from echo_data.evaluation.cli import run_evaluate

@@ -67,6 +67,11 @@ class HandOver:
 # drive learner to end in and at least twice the Navigate expert's own stopping tolerances
 # (skills.navigate.GOAL_TOL, YAW_TOL), so its drawn stops stay inside.
 STANCE = HandOver(distance=0.25, heading=math.radians(10.0))
+# A learned drive ending "centre" (`agents.runtime.DRIVE_ENDS`) goes on until it stands in this
+# fraction of the stance (distance and heading both), its centre: a drive cut the first step it
+# enters the stance hands over at its rim (measured for Navigate*'s heading: studies/handover,
+# results/handover_spread.json). The stance itself stays the hand-over test.
+STANCE_CENTRE = 0.5
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ import pytest
 
 from echo_data.agents.builtin import OraclePlanner, OracleSkills, StillSkills
 from echo_data.episode import SkillCall
-from echo_data.skill_table import SKILLS, handover_call
+from echo_data.skill_table import SKILLS, STANCE_CENTRE, handover_call
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -78,7 +78,7 @@ def test_a_drive_that_does_not_stop_ends_in_the_stance_not_at_the_regions_edge(q
     env = quick_env
     stance = None
     ends = {}
-    for drive_end in ("success", "handover"):
+    for drive_end in ("success", "handover", "centre"):
         obs, info = env.reset(options={"split": "test", "index": index})
         chain = env.episode.chain
         to = handover_call(chain, 0)
@@ -95,6 +95,12 @@ def test_a_drive_that_does_not_stop_ends_in_the_stance_not_at_the_regions_edge(q
     # the hand-over ends it inside the next skill's stance, later on the same path
     assert inside.handed_over and inside.goal_distance <= stance.distance and inside.heading_error <= stance.heading
     assert inside.path_length > at_edge.path_length
+    # "centre" goes on past the stance's rim to its centre (the reported hand-over is the stance's)
+    centre = ends["centre"]
+    assert centre.handed_over and centre.goal_distance <= stance.distance * STANCE_CENTRE and centre.heading_error <= stance.heading * STANCE_CENTRE
+    assert centre.path_length >= inside.path_length
+    if index == 0:  # here the hand-over rule ends it at the rim (8° of the 10°): "centre" had to go on
+        assert inside.heading_error > stance.heading * STANCE_CENTRE
 
 
 def test_drive_end_is_checked() -> None:

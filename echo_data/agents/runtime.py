@@ -241,9 +241,11 @@ def succeeded(info: dict[str, Any], k: int) -> bool:
 
 # How a learned drive that does not STOP ends (`run_episode(drive_end=...)`, docs/handover.md):
 # "handover": when it stands inside the next skill's stance (its success test holding too), or at
-# its budget, where the success test on that state decides; "success": the first step its
-# success test holds (the paper's 1.5 m region: it hands over at the region's edge).
-DRIVE_ENDS = ("handover", "success")
+# its budget, where the success test on that state decides; "centre": as "handover", but only once
+# it stands in the stance's centre (`skill_table.STANCE_CENTRE`), not the first step inside its
+# rim; "success": the first step its success test holds (the paper's 1.5 m region: it hands over
+# at the region's edge). The hand-over recorded and reported is the stance's in every case.
+DRIVE_ENDS = ("handover", "centre", "success")
 
 
 class Leg(NamedTuple):
@@ -342,12 +344,13 @@ def run_episode(
         goal = _goal_observation(env, call) if GOAL_POSE in wanted else None
         probe = PrivilegedProbe() if any(c in wanted for c in PRIVILEGED_COLUMNS) else None
         # a learned drive that does not STOP ends at the hand-over (else at its success test); a carry always at its hand-over
-        at_handover = carry or (SKILLS[call.skill].role == "approach" and not ends_itself and drive_end == "handover"
+        at_handover = carry or (SKILLS[call.skill].role == "approach" and not ends_itself and drive_end in ("handover", "centre")
                                 and handover_call(spec.chain, k) is not None)
         end_flag = "handed_over" if at_handover else "success"
+        centre = at_handover and not carry and drive_end == "centre"  # on past the stance's rim to its centre
         path, n, reason, ended = 0.0, 0, "", False
         while True:
-            if (carry or not ends_itself) and info["skills"][k][end_flag]:
+            if (carry or not ends_itself) and info["skills"][k][end_flag] and (not centre or env.in_stance_centre(k)):
                 break
             if goal is not None:
                 obs = {**obs, GOAL_POSE: goal}

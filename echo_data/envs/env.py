@@ -43,7 +43,7 @@ from echo_data.episode import EpisodeSpec, SkillCall
 from echo_data.protocols import SoundLibrary
 from echo_data.recipe import Recipe
 from echo_data.records import ACTION_DIM, ACTION_SPACES, EE_ACTION_DIM, STATE_DIM
-from echo_data.skill_table import SKILLS, Situation, apply_effect, handover_call, skill_budget
+from echo_data.skill_table import SKILLS, STANCE_CENTRE, Situation, apply_effect, handover_call, skill_budget
 from echo_data.skills.success import in_stance
 
 if TYPE_CHECKING:
@@ -430,6 +430,13 @@ class EchoDataEnv(gym.Env):
         chain = self.episode.chain
         return [to is not None and (to is chain[k] or self.success_flags[k]) and in_stance(self.world, to, self._situation)
                 for k, to in enumerate(self._handover_to)]
+
+    def in_stance_centre(self, k: int) -> bool:
+        """Whether chain entry `k`'s drive stands in the centre of the stance it hands over to
+        (`skill_table.STANCE_CENTRE` of it) with its success test holding: where a learned drive
+        ending "centre" stops (`agents.runtime.DRIVE_ENDS`)."""
+        to = self._handover_to[k]
+        return bool(to is not None and self.handover_flags[k] and in_stance(self.world, to, self._situation, STANCE_CENTRE))
 
     def skill_success(self, call: SkillCall) -> bool:
         """The success test of `call` on the current state, evaluated now (the runtime reads

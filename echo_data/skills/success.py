@@ -152,11 +152,12 @@ def handed_over(world: World, target: str, distance: float, heading: float, grid
     return off is not None and inside(off, distance, heading)
 
 
-def in_stance(world: World, call: SkillCall, at: Situation) -> bool:
+def in_stance(world: World, call: SkillCall, at: Situation, fraction: float = 1.0) -> bool:
     """The base inside the stance of `call` (its skill's `stance` about its target's interaction
-    pose, doors where they stand now, `skill_table.HandOver`); False for a skill without one."""
+    pose, doors where they stand now, `skill_table.HandOver`), or inside `fraction` of it (its
+    distance and heading both); False for a skill without one."""
     st = skill(call.skill).stance
-    return st is not None and handed_over(world, call.target, st.distance, st.heading, grid=at.nav_grid(), poses=at.poses)
+    return st is not None and handed_over(world, call.target, st.distance * fraction, st.heading * fraction, grid=at.nav_grid(), poses=at.poses)
 
 
 # ------------------------------------------------------------------ OpenDoor / CloseSink
