@@ -69,8 +69,8 @@ class HandOver:
 STANCE = HandOver(distance=0.25, heading=math.radians(10.0))
 # A learned drive ending "centre" (`agents.runtime.DRIVE_ENDS`) goes on until it stands in this
 # fraction of the stance (distance and heading both), its centre: a drive cut the first step it
-# enters the stance hands over at its rim (measured for Navigate*'s heading: studies/handover,
-# results/handover_spread.json). The stance itself stays the hand-over test.
+# enters the stance hands over at its rim (measured for Navigate*'s heading: docs/handover.md).
+# The stance itself stays the hand-over test.
 STANCE_CENTRE = 0.5
 
 

@@ -122,6 +122,7 @@ class EvaluatedRow(RowSpec):
     planner: Literal["oracle", "learned"]
     policy: dict[str, str] = field(default_factory=dict)
     skill: str | None = None  # a skill-alone row: the skill whose success it reports
+    drive_end: str = "handover"  # how a learned drive that does not STOP ends (`evaluate --drive-end`, agents.runtime.DRIVE_ENDS)
 
     @property
     def skill_alone(self) -> str | None:

@@ -121,6 +121,11 @@ def policy_args(row: EvaluatedRow, runs: Path, skills: set[str] | None = None) -
             if skills is None or s in skills]
 
 
+def drive_end_args(row: EvaluatedRow) -> list[str]:
+    """`--drive-end X` for a row whose learned drive ends otherwise than evaluate's default."""
+    return [] if row.drive_end == "handover" else ["--drive-end", row.drive_end]
+
+
 def called(doc: dict[str, Any]) -> set[str]:
     """The skills some episode of an `echo-data evaluate --json` document called."""
     return {s["skill"] for e in doc["episodes"] for s in e.get("skills", [])}
@@ -177,7 +182,7 @@ def train_planner(data: Path, runs: Path, tiny: bool) -> dict[str, Any]:
 def evaluate(recipe: Path, row: EvaluatedRow, planner: str, runs: Path, n: int, workers: int, out: Path) -> dict[str, Any]:
     """`echo-data evaluate` of one row on one recipe: the row's entry (command, commit, seconds, measurement)."""
     args = ["evaluate", str(recipe), "--split", "test", "-n", str(n), *policy_args(row, runs),
-            "--policy", "oracle", "--planner", planner, "--workers", str(workers), "--json", str(out)]
+            "--policy", "oracle", "--planner", planner, "--workers", str(workers), *drive_end_args(row), "--json", str(out)]
     if out.with_suffix(".episodes.jsonl").is_file():  # a killed evaluation's journal: continue it
         args.append("--resume")
     _, seconds = cli(*args)
@@ -212,7 +217,7 @@ def adopt(path: Path, runs: Path, n: int, workers: int) -> tuple[str, str, dict[
         # A row's learner that no episode of the setting calls (Pick in state transition) need not
         # be in the evaluation: the episodes are the same with it or without it.
         if not isinstance(row, EvaluatedRow) or row.planner != "oracle" or not set(evaluated) <= set(row.policy) \
-                or (set(row.policy) - set(evaluated)) & called(doc):
+                or (set(row.policy) - set(evaluated)) & called(doc) or doc.get("drive_end", "handover") != row.drive_end:
             continue
         # In an evaluation over several seeds, a skill of one training acts in every member with the
         # same run: that is one run, as the row's learner is.
@@ -233,7 +238,7 @@ def adopt(path: Path, runs: Path, n: int, workers: int) -> tuple[str, str, dict[
                 out = eval_json(runs, name, setting)
                 atomic_write_json(out, doc)  # where the driver keeps the row's document (a computed row may read it)
                 args = ["evaluate", str(RECIPES / recipe), "--split", "test", "-n", str(n), *policy_args(row, runs, set(learned)),
-                        "--policy", "oracle", "--planner", "oracle", "--workers", str(workers), "--json", str(out)]
+                        "--policy", "oracle", "--planner", "oracle", "--workers", str(workers), *drive_end_args(row), "--json", str(out)]
                 shas = ", ".join(f"{s} {SEP.join(str(h)[:12] for h in hs)}" for s, hs in learned.items())
                 return name, setting, {"command": command(args), "wall_seconds": round(float(doc["wall_seconds"]), 1), "commit": commit(),
                                        "adopted": f"measured before this run of the table by the same command on the same recipe and weights "

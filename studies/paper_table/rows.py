@@ -32,6 +32,7 @@ PAPER_ORDER = ("state_transition", "object_relocation", "multi_event")  # the pa
 PAPER_COMPARABLE = " (paper-comparable)"
 STOP_CHAIN = "oracle planner + learned skills, Navigate says STOP"
 STOP_NEAR_CHAIN = STOP_CHAIN + ", OpenDoor from near starts"
+CENTRE_CHAIN = f"oracle planner + learned skills*{PAPER_COMPARABLE}, 3 seeds, drive to the stance's centre"
 # The rendered copies in documents, each between two markers: the whole table in this study's
 # README, the headline (the paper's layout and the skills alone) in the repository's README.
 TABLE_BEGIN = "<!-- paper table: rendered from studies/paper_table/results/paper_table.json by studies/paper_table/rows.py"
@@ -123,6 +124,11 @@ LEARNERS: dict[str, LearnerSpec] = {
     # CloseSink-3seeds-s1, CloseSink-3seeds-s2 (`table.run_name`).
     "CloseSink-3seeds": LearnerSpec("cameras_door_sink", "CloseSink", MANIPULATION_INPUTS, "act",
                                     (*MANIPULATION, "--select-recipe", f"{STUDY}/recipes/cameras_test_sink.yaml"), seeds=(0, 1, 2)),
+    # ... and the Oracle* row's other learners over three seeds: Navigate* and OpenDoor-magic, the
+    # options of their one-seed runs (runs <name>, <name>-s1, <name>-s2).
+    "Navigate-target-3seeds": LearnerSpec("nav_audio", "Navigate", NAVIGATE_INPUTS + ",target", "bc-rnn", NAVIGATE, seeds=(0, 1, 2)),
+    "OpenDoor-magic-3seeds": LearnerSpec("cameras_door_sink_magic", "OpenDoor", MANIPULATION_INPUTS, "act",
+                                         (*MANIPULATION, "--select-recipe", f"{STUDY}/recipes/cameras_test_door_magic.yaml"), seeds=(0, 1, 2)),
 }
 # Each learner chooses its checkpoint on the val split of its own training recipe (the manipulation
 # ones: experts.handover_noise 1.0, cameras_door_near 0.3), not of the condition its row measures
@@ -188,6 +194,11 @@ def _rows() -> dict[str, table.Row]:
     # over near the interaction pose is what that learner was trained for.
     chain.append(EvaluatedRow(name=STOP_NEAR_CHAIN, planner="oracle", policy={**stop, "OpenDoor": "OpenDoor-near", "CloseSink": "CloseSink"},
                               settings=("state_transition",)))
+    # The Oracle* row with every learner over three seeds and the drive ended in the stance's centre
+    # (`evaluate --drive-end centre`): ended the first step inside the stance, Navigate* hands over
+    # on its rim (the hand-over study, handover_spread.json).
+    chain.append(EvaluatedRow(name=CENTRE_CHAIN, planner="oracle", settings=("state_transition",), grasp="magic", drive_end="centre",
+                              policy={**magic_starred, "Navigate": "Navigate-target-3seeds", "OpenDoor": "OpenDoor-magic-3seeds"}))
     alone.append(EvaluatedRow(name="Navigate (STOP) alone", planner="oracle", policy=stop, settings=ALONE_SETTINGS["Navigate"], skill="Navigate"))
     for name, settings in (("OpenDoor (near starts) alone", ALONE_SETTINGS["OpenDoor"]), ("OpenDoor (near starts) after a hand-over", ("door_handover",))):
         alone.append(EvaluatedRow(name=name, planner="oracle", policy={"OpenDoor": "OpenDoor-near"}, settings=settings, skill="OpenDoor"))
