@@ -61,8 +61,14 @@ def main() -> None:
     for item in a.eval:
         label, path = item.split("=", 1)
         ev = json.loads(Path(path).read_text())
+        eps = [e for e in ev["episodes"] if "skipped" not in e]
+        members = sorted({e["member"] for e in eps if e.get("member") is not None})
         doc["evaluations"][label] = {"recipe": Path(ev["recipe"]["path"]).name, "drive_end": ev.get("drive_end"), "n": ev["n"],
-                                     "policy": portable(ev["policy"]["name"]), "by_next_skill": spread(ev)}
+                                     "policy": portable(ev["policy"]["name"]),
+                                     "chain_completed": {"k": sum(bool(e["success"]) for e in eps), "n": len(eps)},
+                                     **({"per_training_seed": [{"k": sum(bool(e["success"]) for e in eps if e.get("member") == m),
+                                                                "n": sum(e.get("member") == m for e in eps)} for m in members]} if members else {}),
+                                     "by_next_skill": spread(ev)}
     atomic_write_json(a.json, doc)
     print(json.dumps(doc, indent=1))
 
