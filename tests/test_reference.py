@@ -240,7 +240,7 @@ def test_a_planner_ships_and_plans_as_its_run(synth_dataset: Callable[[dict[str,
 
 
 def test_a_variant_ships_beside_the_serving_learner_and_is_asked_for_by_name(trained: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from echo_data.agents.loading import AgentLoadError, identity, load_policy
+    from echo_data.agents.loading import AgentLoadError, folder_sha256, identity, load_policy
 
     root = tmp_path / "set"
     reference.add(trained, "nav", root)
@@ -253,6 +253,8 @@ def test_a_variant_ships_beside_the_serving_learner_and_is_asked_for_by_name(tra
     policy = load_policy(("Navigate=reference:nav-exact", "oracle"))
     who = identity(policy, ("Navigate=reference:nav-exact", "oracle"))["skills"]["Navigate"]
     assert who["reference"] == "nav-exact" and who["weights_sha256"] == variant["weights_sha256"]
+    # the shipped folder by content, as a run folder's (what --adopt compares), and no path of this machine
+    assert who["checkpoint_sha256"] == folder_sha256(root / "nav-exact") and str(tmp_path) not in str(who)
     assert provenance.verdict({"skills": {"Navigate": variant["weights_sha256"]}, "planner": None}, refs).state == "current"
     # an evaluation over two training seeds (evaluation.seeds): the members' hashes, member by member
     served = identity(load_policy(("Navigate=reference", "oracle")), ("Navigate=reference", "oracle"))

@@ -166,8 +166,10 @@ def identity(agent: Any, target: str | Sequence[str]) -> dict[str, Any]:
             out[attr] = str(v)
     if getattr(agent, "weights_sha256", None) is not None:
         out["weights_sha256"] = agent.weights_sha256  # the weights file acted with (evaluation.provenance)
-    if reference is None and Path(target).is_dir():
-        out["checkpoint_sha256"] = folder_sha256(Path(target))
+    # the folder acted from, by content (a shipped learner's too: `--adopt` and the stale check compare it with a run folder)
+    folder = Path(agent.checkpoint) if reference is not None and getattr(agent, "checkpoint", None) is not None else Path(target)
+    if folder.is_dir():
+        out["checkpoint_sha256"] = folder_sha256(folder)
     return out
 
 
