@@ -16,11 +16,14 @@ import json
 import math
 import re
 import statistics
-import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
-from echo_data.dataset.storage import atomic_write_json
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # runner.py
+from runner import commit  # noqa: E402
+
+from echo_data.dataset.storage import atomic_write_json  # noqa: E402
 
 
 def spread(doc: dict[str, Any]) -> dict[str, Any]:
@@ -56,8 +59,7 @@ def main() -> None:
     ap.add_argument("--eval", action="append", required=True, help="LABEL=EVAL.json (an `echo-data evaluate --json` document)")
     ap.add_argument("--json", type=Path, required=True)
     a = ap.parse_args()
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False).stdout.strip()
-    doc: dict[str, Any] = {"commit": commit, "how": __doc__.split("\n\n")[0].replace("\n", " "), "evaluations": {}}
+    doc: dict[str, Any] = {"commit": commit(), "how": __doc__.split("\n\n")[0].replace("\n", " "), "evaluations": {}}
     for item in a.eval:
         label, path = item.split("=", 1)
         ev = json.loads(Path(path).read_text())

@@ -14,13 +14,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from echo_data.dataset.storage import atomic_write_json
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # runner.py
+from runner import commit  # noqa: E402
+
+from echo_data.dataset.storage import atomic_write_json  # noqa: E402
 from echo_data.learn.dagger import collect
 
 REVERSE = -0.2  # m/s: a base command below this is a reverse drive (the experts drive at 0.4 m/s)
@@ -52,8 +54,7 @@ def main() -> None:
     ap.add_argument("--json", type=Path, required=True)
     a = ap.parse_args()
     doc = switches(a.run, a.dataset, a.episodes, a.seed)
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False).stdout.strip()
-    doc = {"commit": commit, "command": f"python studies/handover/takeover_switches.py RUN DATASET --episodes {a.episodes} --seed {a.seed}",
+    doc = {"commit": commit(), "command": f"python studies/handover/takeover_switches.py RUN DATASET --episodes {a.episodes} --seed {a.seed}",
            "reverse_below_m_s": REVERSE, **doc}
     atomic_write_json(a.json, doc)
     json.dump({k: v for k, v in doc.items() if k != "per_takeover"}, sys.stdout, indent=1)

@@ -70,12 +70,6 @@ def commands(recipe: Path | str, work: Path, skill: str, episodes: int, seed: in
     }
 
 
-def write_json(path: Path, doc: dict[str, Any]) -> None:
-    """`doc` to `path` atomically (the package's writer), its folder made first."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(path, doc)
-
-
 def step(name: str, args: list[str], done: bool, work: Path, extra: list[str] | None = None) -> dict[str, Any]:
     """Run `echo-data ARGS EXTRA` unless `done`; the step's record, kept in WORK/step-NAME.json (NAME:
     build, train-SKILL, evaluate-SKILL) and reused with `done`: its command as typed (a work folder
@@ -89,7 +83,7 @@ def step(name: str, args: list[str], done: bool, work: Path, extra: list[str] | 
         typed = typed.replace(str(work), "WORK")
     out, seconds = cli(*args, *(extra or []))
     record = {"command": "echo-data " + typed, "seconds": round(seconds, 1), "reused": False, **({"summary": json.loads(out)} if name.startswith("train") else {})}
-    write_json(kept, record)
+    atomic_write_json(kept, record)  # (its folder made too)
     return record
 
 
@@ -172,7 +166,7 @@ def main() -> None:
     # on one test episode here), and a thread count of its own makes the episodes the same anywhere.
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     doc = {**measure(a), "environment": {"OMP_NUM_THREADS": os.environ["OMP_NUM_THREADS"]}}
-    write_json(a.out, doc)
+    atomic_write_json(a.out, doc)
     print(json.dumps(doc["result"]))
     if a.out.resolve() == RESULTS:
         render_readme()
